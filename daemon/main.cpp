@@ -1,0 +1,167 @@
+// xlate5: the command line. Parses options, loads the machine, and runs the translation stages;
+// the stages themselves live in translators/.
+#include <CLI/CLI.hpp>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fcntl.h>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <string>
+#include <unistd.h>
+
+#include "translators/error.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+#include "translators/stream.hpp"
+#include "translators/translator.hpp"
+
+#ifndef XLATE5_VERSION
+#define XLATE5_VERSION "0.0.0"
+#endif
+
+namespace {
+
+// Documented in the README; scripts rely on them.
+enum Exit : int {
+    kOk = 0,
+    kInputError = 1,    // the G-code cannot be translated (file:line:column: message)
+    kUsage = 2,         // bad command line
+    kMachineError = 3,  // machine file missing or broken, or a --set that does not apply
+    kIoError = 4,       // cannot read the input or write the output
+    kInternal = 70,
+};
+
+std::optional<xlate5::OrientationMode> parse_mode(const std::string& s) {
+    if (s == "G43.4" || s == "angles") return xlate5::OrientationMode::Angles;
+    if (s == "G43.5" || s == "vector") return xlate5::OrientationMode::Vector;
+    if (s == "G49" || s == "joints") return xlate5::OrientationMode::Joints;
+    return std::nullopt;
+}
+
+std::map<std::string, double> parse_sets(const std::vector<std::string>& sets) {
+    std::map<std::string, double> out;
+    for (const auto& s : sets) {
+        const auto eq = s.find('=');
+        if (eq == std::string::npos || eq == 0) throw CLI::ValidationError("--set", "expected NAME=VALUE, got '" + s + "'");
+        char* end = nullptr;
+        const std::string value = s.substr(eq + 1);
+        const double v = std::strtod(value.c_str(), &end);
+        if (value.empty() || *end != '\0' || !std::isfinite(v))
+            throw CLI::ValidationError("--set", "'" + value + "' is not a number in '" + s + "'");
+        out[s.substr(0, eq)] = v;
+    }
+    return out;
+}
+
+int list_machines() {
+    const auto machines = xlate5::bundled_machines();
+    if (machines.empty()) {
+        std::cerr << "xlate5: no machine files found (searched:";
+        for (const auto& d : xlate5::machine_search_path()) std::cerr << " " << d;
+        std::cerr << ")\n";
+        return kMachineError;
+    }
+    for (const auto& [name, path] : machines) {
+        try {
+            const auto m = xlate5::load_machine(path);
+            std::printf("%-12s %s\n", name.c_str(), m.description.c_str());
+        } catch (const xlate5::MachineError& e) {
+            std::printf("%-12s (broken: %s)\n", name.c_str(), e.what());
+        }
+    }
+    return kOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    CLI::App app{"xlate5: vendor-neutral 5-axis G-code -> joint-space G-code for a given machine"};
+    app.set_version_flag("--version", std::string("xlate5 ") + XLATE5_VERSION);
+    app.require_subcommand(0, 1);
+
+    std::string machine_name, input = "-", output = "-", mode_text, preview = "G43.4", extruder = "E";
+    std::vector<std::string> sets;
+    bool inverse = false;
+    app.add_option("-m,--machine", machine_name, "bundled machine name (see 'xlate5 machines') or path to a machine .toml");
+    app.add_option("-i,--input", input, "input G-code file (default: standard input)");
+    app.add_option("-o,--output", output, "output file, written atomically (default: standard output)");
+    app.add_option("--set", sets, "override a machine parameter, e.g. --set la=29 (repeatable)");
+    app.add_option("--mode", mode_text, "orientation mode at the start of the file: G43.4, G43.5 or G49 (default: the machine's)");
+    app.add_option("--extruder-letter", extruder, "input letter that carries extrusion (default E; S3-DeformFDM files use A)");
+    app.add_flag("--inverse", inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
+    app.add_option("--preview-form", preview, "with --inverse: write orientation as G43.4 angles or G43.5 I J K")->check(CLI::IsMember({"G43.4", "G43.5"}));
+    auto* machines_cmd = app.add_subcommand("machines", "list the bundled machines");
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::Success& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        app.exit(e);
+        return kUsage;
+    }
+
+    if (machines_cmd->parsed()) return list_machines();
+
+    std::map<std::string, double> overrides;
+    xlate5::TranslatorOptions options;
+    try {
+        if (machine_name.empty()) throw CLI::ValidationError("--machine", "is required (see 'xlate5 machines')");
+        overrides = parse_sets(sets);
+        if (!mode_text.empty()) {
+            options.start_mode = parse_mode(mode_text);
+            if (!options.start_mode) throw CLI::ValidationError("--mode", "expected G43.4, G43.5 or G49");
+        }
+        if (extruder.size() != 1 || !std::isalpha(static_cast<unsigned char>(extruder[0])))
+            throw CLI::ValidationError("--extruder-letter", "expected one letter");
+        options.extruder_letter = char(std::toupper(static_cast<unsigned char>(extruder[0])));
+    } catch (const CLI::Error& e) {
+        std::cerr << "xlate5: " << e.what() << "\n";
+        return kUsage;
+    }
+    options.inverse = inverse;
+    options.preview_form = preview == "G43.5" ? xlate5::OrientationMode::Vector : xlate5::OrientationMode::Angles;
+    options.input_name = input == "-" ? "<stdin>" : input;
+
+    std::optional<xlate5::Machine> machine;
+    try {
+        machine = xlate5::load_machine(machine_name, overrides);
+    } catch (const xlate5::MachineError& e) {
+        std::cerr << "xlate5: machine error: " << e.what() << "\n";
+        return kMachineError;
+    }
+
+    int in_fd = 0;
+    try {
+        std::optional<xlate5::Kinematics> kinematics;
+        try {
+            kinematics.emplace(*machine);
+        } catch (const xlate5::MachineError& e) {
+            std::cerr << "xlate5: machine error: " << e.what() << "\n";
+            return kMachineError;
+        }
+        if (input != "-") {
+            in_fd = ::open(input.c_str(), O_RDONLY | O_CLOEXEC);
+            if (in_fd < 0) throw xlate5::IoError(input + ": cannot open: " + std::strerror(errno));
+        }
+        xlate5::Translator translator(*kinematics, options);
+        xlate5::LineReader reader(in_fd, options.input_name);
+        xlate5::OutputSink sink(output);
+        xlate5::translate_stream(reader, translator, sink);
+        sink.commit();
+    } catch (const xlate5::InputError& e) {
+        std::cerr << e.what() << "\n";
+        return kInputError;
+    } catch (const xlate5::IoError& e) {
+        std::cerr << "xlate5: " << e.what() << "\n";
+        return kIoError;
+    } catch (const std::exception& e) {
+        std::cerr << "xlate5: internal error: " << e.what() << "\n";
+        return kInternal;
+    }
+    if (in_fd > 0) ::close(in_fd);
+    return kOk;
+}

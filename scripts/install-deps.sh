@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Installs everything xlate5 needs to build and test on Debian 12 (bookworm), from Debian's packages only.
+set -euo pipefail
+pkgs=(build-essential cmake pkg-config
+      libeigen3-dev libboost-dev libtomlplusplus-dev libspdlog-dev libfmt-dev
+      doctest-dev libcli11-dev libserialport-dev)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi

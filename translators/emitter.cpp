@@ -1,0 +1,121 @@
+#include "translators/emitter.hpp"
+
+#include "translators/number.hpp"
+
+namespace xlate5 {
+
+JointEmitter::JointEmitter(const Machine& machine) : machine_(machine), last_(machine.joints.size()) {}
+
+void JointEmitter::format(std::string& text, std::size_t joint, double value) const {
+    const Joint& j = machine_.joints[joint];
+    append_fixed(text, value, j.rotary ? machine_.dialect.rotary_decimals : machine_.dialect.linear_decimals);
+}
+
+void JointEmitter::append_joint(std::string& out, std::size_t joint, double value) const {
+    out += ' ';
+    out += machine_.joints[joint].output;
+    format(out, joint, value);
+}
+
+void JointEmitter::invalidate() {
+    for (auto& s : last_) s.clear();
+}
+
+void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& q, std::optional<double> e,
+                        std::optional<double> f) {
+    const std::size_t start = out.size();
+    out += gcode == 0 ? "G0" : "G1";
+    const std::size_t empty = out.size();
+    for (std::size_t j = 0; j < q.size(); ++j) {
+        scratch_.clear();
+        format(scratch_, j, q[j]);
+        if (scratch_ == last_[j]) continue;
+        last_[j] = scratch_;
+        out += ' ';
+        out += machine_.joints[j].output;
+        out += scratch_;
+    }
+    if (e) {
+        out += " E";
+        append_shortest(out, *e);
+    }
+    if (f) {
+        out += " F";
+        append_shortest(out, *f);
+    }
+    if (out.size() == empty) out.resize(start);
+    else out += '\n';
+}
+
+void JointEmitter::set_position(std::string& out, const std::vector<double>& q, const std::vector<bool>& which,
+                                std::optional<double> e) {
+    const std::size_t start = out.size();
+    out += "G92";
+    const std::size_t empty = out.size();
+    for (std::size_t j = 0; j < q.size(); ++j) {
+        if (!which[j]) continue;
+        scratch_.clear();
+        format(scratch_, j, q[j]);
+        last_[j] = scratch_;
+        out += ' ';
+        out += machine_.joints[j].output;
+        out += scratch_;
+    }
+    if (e) {
+        out += " E";
+        append_shortest(out, *e);
+    }
+    if (out.size() == empty) out.resize(start);
+    else out += '\n';
+}
+
+}  // namespace xlate5
+
+namespace xlate5 {
+
+ToolEmitter::ToolEmitter(const Machine& machine, OrientationMode form)
+    : machine_(machine), form_(form), last_rotary_(machine.joints.size()) {}
+
+void ToolEmitter::invalidate() {
+    for (auto& s : last_xyz_) s.clear();
+    for (auto& s : last_ijk_) s.clear();
+    for (auto& s : last_rotary_) s.clear();
+}
+
+void ToolEmitter::word(std::string& out, char letter, std::string& last, double value, int decimals) {
+    scratch_.clear();
+    append_fixed(scratch_, value, decimals);
+    if (scratch_ == last) return;
+    last = scratch_;
+    out += ' ';
+    out += letter;
+    out += scratch_;
+}
+
+void ToolEmitter::move(std::string& out, int gcode, const Eigen::Vector3d& tip, const Eigen::Vector3d& axis,
+                       const std::vector<double>& q, std::optional<double> e, std::optional<double> f) {
+    // One or two decimals more than the joints, so translating the preview back reproduces them.
+    const int lin = machine_.dialect.linear_decimals + 2, rot = machine_.dialect.rotary_decimals + 2;
+    const std::size_t start = out.size();
+    out += gcode == 0 ? "G0" : "G1";
+    const std::size_t empty = out.size();
+    for (int i = 0; i < 3; ++i) word(out, char('X' + i), last_xyz_[i], tip[i], lin);
+    if (form_ == OrientationMode::Vector) {
+        for (int i = 0; i < 3; ++i) word(out, char('I' + i), last_ijk_[i], axis[i], 7);
+    } else {
+        for (std::size_t j = 0; j < q.size(); ++j)
+            if (machine_.joints[j].rotary) word(out, machine_.joints[j].name, last_rotary_[j], q[j], rot);
+    }
+    if (e) {
+        out += " E";
+        append_shortest(out, *e);
+    }
+    if (f) {
+        out += " F";
+        append_shortest(out, *f);
+    }
+    if (out.size() == empty) out.resize(start);
+    else out += '\n';
+}
+
+}  // namespace xlate5

@@ -1,0 +1,66 @@
+// Stage 5: joint values -> firmware G-code text, in the machine's axis letters and decimals.
+// It remembers what the firmware was last told, so a line names only the joints that change.
+#pragma once
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "translators/machine.hpp"
+
+namespace xlate5 {
+
+class JointEmitter {
+public:
+    explicit JointEmitter(const Machine& machine);
+
+    // "G0"/"G1" with every joint whose printed value changed, then E and F when given.
+    // Writes nothing when nothing would change.
+    void move(std::string& out, int gcode, const std::vector<double>& q, std::optional<double> e,
+              std::optional<double> f);
+
+    // "G92" for the joints in `which` (the firmware is told where they are) and E when given.
+    void set_position(std::string& out, const std::vector<double>& q, const std::vector<bool>& which,
+                      std::optional<double> e);
+
+    // The firmware's position is no longer known (start, homing, probing): write every joint next.
+    void invalidate();
+
+    // Appends one joint word (" A12.5") as the emitter would print it.
+    void append_joint(std::string& out, std::size_t joint, double value) const;
+
+private:
+    void format(std::string& text, std::size_t joint, double value) const;
+
+    const Machine& machine_;
+    std::vector<std::string> last_;   // printed value last sent per joint; empty = unknown
+    std::string scratch_;
+};
+
+}  // namespace xlate5
+
+namespace xlate5 {
+
+// The inverse direction's stage 5: tip and orientation -> tool-space G-code (G43.4 angle form or
+// G43.5 vector form), for previews and round-trip checks.
+class ToolEmitter {
+public:
+    ToolEmitter(const Machine& machine, OrientationMode form);
+
+    void move(std::string& out, int gcode, const Eigen::Vector3d& tip, const Eigen::Vector3d& axis,
+              const std::vector<double>& q, std::optional<double> e, std::optional<double> f);
+    void invalidate();
+    OrientationMode form() const { return form_; }
+
+private:
+    void word(std::string& out, char letter, std::string& last, double value, int decimals);
+
+    const Machine& machine_;
+    OrientationMode form_;
+    std::string last_xyz_[3], last_ijk_[3];
+    std::vector<std::string> last_rotary_;
+    std::string scratch_;
+};
+
+}  // namespace xlate5

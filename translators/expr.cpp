@@ -1,0 +1,92 @@
+#include "translators/expr.hpp"
+
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
+#include <stdexcept>
+
+namespace xlate5 {
+
+namespace {
+
+class Parser {
+public:
+    Parser(const std::string& s, const std::map<std::string, double>& p) : s_(s), params_(p) {}
+
+    double parse() {
+        double v = sum();
+        skip();
+        if (i_ != s_.size()) throw std::invalid_argument("unexpected '" + s_.substr(i_, 1) + "' in \"" + s_ + "\"");
+        if (!std::isfinite(v)) throw std::invalid_argument("\"" + s_ + "\" is not a finite number");
+        return v;
+    }
+
+private:
+    void skip() {
+        while (i_ < s_.size() && std::isspace(static_cast<unsigned char>(s_[i_]))) ++i_;
+    }
+    bool eat(char c) {
+        skip();
+        if (i_ < s_.size() && s_[i_] == c) {
+            ++i_;
+            return true;
+        }
+        return false;
+    }
+    double sum() {
+        double v = product();
+        for (;;) {
+            if (eat('+')) v += product();
+            else if (eat('-')) v -= product();
+            else return v;
+        }
+    }
+    double product() {
+        double v = unary();
+        for (;;) {
+            if (eat('*')) v *= unary();
+            else if (eat('/')) v /= unary();
+            else return v;
+        }
+    }
+    double unary() {
+        if (eat('-')) return -unary();
+        if (eat('+')) return unary();
+        return atom();
+    }
+    double atom() {
+        skip();
+        if (eat('(')) {
+            double v = sum();
+            if (!eat(')')) throw std::invalid_argument("missing ')' in \"" + s_ + "\"");
+            return v;
+        }
+        if (i_ < s_.size() && (std::isdigit(static_cast<unsigned char>(s_[i_])) || s_[i_] == '.')) {
+            const char* begin = s_.c_str() + i_;
+            char* end = nullptr;
+            double v = std::strtod(begin, &end);
+            if (end == begin) throw std::invalid_argument("bad number in \"" + s_ + "\"");
+            i_ += std::size_t(end - begin);
+            return v;
+        }
+        const std::size_t start = i_;
+        while (i_ < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[i_])) || s_[i_] == '_')) ++i_;
+        if (start == i_) throw std::invalid_argument("expected a number or parameter name in \"" + s_ + "\"");
+        const std::string name = s_.substr(start, i_ - start);
+        auto it = params_.find(name);
+        if (it == params_.end()) throw std::invalid_argument("unknown parameter '" + name + "'");
+        return it->second;
+    }
+
+    const std::string& s_;
+    const std::map<std::string, double>& params_;
+    std::size_t i_ = 0;
+};
+
+}  // namespace
+
+double evaluate_expression(const std::string& text, const std::map<std::string, double>& params) {
+    return Parser(text, params).parse();
+}
+
+}  // namespace xlate5

@@ -1,0 +1,13 @@
+// Arithmetic over named machine parameters ("-la", "lb + 2", "z_offset*2"), so a machine file
+// states each measured value once and the command line can override it.
+#pragma once
+#include <map>
+#include <string>
+
+namespace xlate5 {
+
+// Evaluates + - * / unary minus, parentheses, numbers and parameter names.
+// Throws std::invalid_argument with a message naming the problem.
+double evaluate_expression(const std::string& text, const std::map<std::string, double>& params);
+
+}  // namespace xlate5

@@ -1,0 +1,208 @@
+#include "translators/gcode_lexer.hpp"
+
+#include <charconv>
+#include <limits>
+#include <cstdio>
+#include <string>
+
+#include "translators/error.hpp"
+
+namespace xlate5 {
+
+namespace {
+
+bool is_digit(char c) { return c >= '0' && c <= '9'; }
+bool is_alpha(char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z'); }
+bool is_blank(char c) { return c == ' ' || c == '\t'; }
+char upper(char c) { return (c >= 'a' && c <= 'z') ? char(c - 'a' + 'A') : c; }
+
+[[noreturn]] void fail(std::size_t index, const std::string& message) {
+    throw LineError(std::uint32_t(index + 1), message);
+}
+
+std::string byte_name(unsigned char c) {
+    char buf[8];
+    std::snprintf(buf, sizeof buf, "0x%02X", c);
+    return buf;
+}
+
+// Rejects bytes that are not text anywhere in the line, so a binary file or a garbled
+// transfer stops at its first bad byte instead of producing moves.
+void check_text(std::string_view line) {
+    for (std::size_t i = 0; i < line.size(); ++i) {
+        const auto c = static_cast<unsigned char>(line[i]);
+        if ((c < 0x20 && c != '\t' && !(c == '\r' && i + 1 == line.size())) || c == 0x7F)
+            fail(i, "non-text byte " + byte_name(c));
+    }
+}
+
+// Commands whose argument is free text (messages, file names), not words.
+bool takes_text(char letter, double value) {
+    if (letter != 'M') return false;
+    for (int m : {23, 28, 30, 32, 117, 118, 928})
+        if (value == m) return true;
+    return false;
+}
+
+// Reads "[+-]digits[.digits]" or "[+-].digits" at `i`; G-code has no exponent (E is a word).
+// A letter followed by no number is a flag (has_value false); whether a flag is allowed is the
+// interpreter's call, since it depends on the command.
+double read_number(std::string_view s, std::size_t& i, char letter, std::size_t letter_index, bool& has_value) {
+    has_value = true;
+    const std::size_t start = i;
+    bool negative = false;
+    if (i < s.size() && (s[i] == '+' || s[i] == '-')) {
+        negative = s[i] == '-';
+        ++i;
+    }
+    const std::size_t digits_start = i;
+    while (i < s.size() && is_digit(s[i])) ++i;
+    if (i < s.size() && s[i] == '.') {
+        ++i;
+        while (i < s.size() && is_digit(s[i])) ++i;
+    }
+    const std::string_view digits = s.substr(digits_start, i - digits_start);
+    if (digits.empty() || digits == ".") {
+        std::size_t j = digits_start;
+        while (j < s.size() && is_alpha(s[j])) ++j;
+        std::string word{s.substr(digits_start, j - digits_start)};
+        for (auto& ch : word) ch = upper(ch);
+        if (word.rfind("NAN", 0) == 0 || word.rfind("INF", 0) == 0)
+            fail(start, std::string("word ") + letter + " has a value that is not a finite number");
+        if (i != start) fail(letter_index, std::string("word ") + letter + " has a sign but no number");
+        if (i < s.size() && s[i] == '"') {  // RepRapFirmware string argument: P"name" ("" is a quote)
+            const std::size_t open = i++;
+            for (;;) {
+                if (i >= s.size()) fail(open, "string '\"' is not closed on this line");
+                if (s[i] == '"' && i + 1 < s.size() && s[i + 1] == '"') i += 2;
+                else if (s[i++] == '"') break;
+                else continue;
+            }
+        }
+        (void)letter_index;
+        has_value = false;
+        return std::numeric_limits<double>::quiet_NaN();
+    }
+    double value = 0;
+    auto res = std::from_chars(digits.data(), digits.data() + digits.size(), value, std::chars_format::fixed);
+    if (res.ec != std::errc{} || res.ptr != digits.data() + digits.size() || !(value <= kMaxNumber))
+        fail(start, std::string("number of word ") + letter + " is out of range (limit 1e9)");
+    return negative ? -value : value;
+}
+
+void skip_paren_comment(std::string_view s, std::size_t& i) {
+    const std::size_t open = i;
+    while (i < s.size() && s[i] != ')') ++i;
+    if (i == s.size()) fail(open, "comment '(' is not closed on this line");
+    ++i;
+}
+
+}  // namespace
+
+void lex_line(std::string_view line, Block& out) {
+    out.words.clear();
+    out.has_comment = false;
+    out.percent = false;
+    check_text(line);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+
+    std::size_t body_begin = std::string_view::npos;
+    std::size_t body_end = 0;
+    std::size_t checksum_at = std::string_view::npos;
+    bool first_word = true;
+    std::size_t i = 0;
+    while (i < line.size()) {
+        const char c = line[i];
+        if (is_blank(c)) {
+            ++i;
+            continue;
+        }
+        if (c == ';') {
+            out.has_comment = true;
+            if (body_begin == std::string_view::npos) body_begin = i;
+            body_end = line.size();
+            break;
+        }
+        if (c == '(') {
+            out.has_comment = true;
+            if (body_begin == std::string_view::npos) body_begin = i;
+            skip_paren_comment(line, i);
+            body_end = i;
+            continue;
+        }
+        if (static_cast<unsigned char>(c) >= 0x80) fail(i, "non-ASCII byte " + byte_name(static_cast<unsigned char>(c)) + " outside a comment");
+        if (c == '*') {
+            // Checksum: digits, then nothing but blanks and comments.
+            const std::size_t star = i++;
+            checksum_at = star;
+            const std::size_t digits = i;
+            while (i < line.size() && is_digit(line[i])) ++i;
+            if (i == digits) fail(star, "checksum '*' has no number");
+            while (i < line.size() && is_blank(line[i])) ++i;
+            if (i < line.size() && line[i] != ';' && line[i] != '(') fail(i, "text after the checksum");
+            continue;
+        }
+        if (c == '%' && out.words.empty()) {
+            std::size_t j = i + 1;
+            while (j < line.size() && is_blank(line[j])) ++j;
+            if (j == line.size() || line[j] == ';' || line[j] == '(') {
+                out.percent = true;
+                if (body_begin == std::string_view::npos) body_begin = i;
+                body_end = i + 1;
+                i = j;
+                continue;
+            }
+        }
+        if (!is_alpha(c)) {
+            if (c == '#' || c == '[' || c == ']' || c == '=' || c == '<' || c == '>')
+                fail(i, std::string("unexpected '") + c + "': parameters and expressions are not supported");
+            fail(i, std::string("unexpected character '") + c + "'");
+        }
+        const char letter = upper(c);
+        const std::size_t letter_index = i++;
+        while (i < line.size() && is_blank(line[i])) ++i;  // RS274 allows "X 10"
+        bool has_value = true;
+        const double value = read_number(line, i, letter, letter_index, has_value);
+        if ((letter == 'G' || letter == 'M' || letter == 'T' || letter == 'N') && !has_value)
+            fail(letter_index, std::string("word ") + letter + " has no number");
+        if (letter == 'N' && first_word) {
+            // A leading line number belongs to the transport, not to the command.
+            first_word = false;
+            continue;
+        }
+        first_word = false;
+        if (body_begin == std::string_view::npos) body_begin = letter_index;
+        body_end = i;
+        out.words.push_back(Word{letter, value, std::uint32_t(letter_index + 1), has_value});
+        if (takes_text(letter, value)) {
+            // The rest of the line is the argument, passed on as it is; only a trailing
+            // *checksum still belongs to the transport.
+            out.text_argument = true;
+            body_end = line.size();
+            const std::size_t star = line.rfind('*');
+            if (star != std::string_view::npos && star >= i) {
+                std::size_t k = star + 1;
+                while (k < line.size() && is_digit(line[k])) ++k;
+                const bool digits = k > star + 1;
+                while (k < line.size() && is_blank(line[k])) ++k;
+                if (digits && k == line.size()) checksum_at = star;
+            }
+            break;
+        }
+    }
+    if (body_begin == std::string_view::npos) {
+        out.body = {};
+        return;
+    }
+    // A checksum ends the body (a host's checksummed line carries no comment worth keeping).
+    if (checksum_at != std::string_view::npos && checksum_at < body_end) body_end = checksum_at;
+    if (body_end <= body_begin) {
+        out.body = {};
+        return;
+    }
+    std::string_view body = line.substr(body_begin, body_end - body_begin);
+    while (!body.empty() && is_blank(body.back())) body.remove_suffix(1);
+    out.body = body;
+}
+
+}  // namespace xlate5

@@ -1,0 +1,255 @@
+#include "translators/kinematics.hpp"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <cmath>
+#include <limits>
+
+#include "translators/error.hpp"
+
+namespace xlate5 {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+// A projected vector shorter than this leaves subproblem 1 without an answer: the joint is on
+// its singular pole and keeps its previous angle.
+constexpr double kFreeEps = 1e-7;
+// Orientations this close (radians, squared for gamma) to the reachable set count as reachable.
+constexpr double kReachEps = 1e-6;
+
+Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double degrees) {
+    return Eigen::AngleAxisd(degrees * kDeg, axis).toRotationMatrix();
+}
+
+// Paden-Kahan subproblem 1: the angle (radians) about unit w that takes p to q; NaN if free.
+double subproblem1(const Eigen::Vector3d& w, const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
+    const Eigen::Vector3d pp = p - w * w.dot(p);
+    const Eigen::Vector3d qq = q - w * w.dot(q);
+    if (pp.norm() < kFreeEps || qq.norm() < kFreeEps) return std::numeric_limits<double>::quiet_NaN();
+    return std::atan2(w.dot(pp.cross(qq)), pp.dot(qq));
+}
+
+std::string fmt(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.3f", v);
+    return buf;
+}
+
+}  // namespace
+
+double wrap180(double degrees) {
+    double r = std::fmod(degrees, 360.0);
+    if (r <= -180.0) r += 360.0;
+    if (r > 180.0) r -= 360.0;
+    return r;
+}
+
+Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
+    // Orientation: u = R_part^T R_tool u0. Write it as one product of fixed rotations and joint
+    // rotations, then fold the fixed ones into the axes: u' = G0^T u = R(w1,s1 q1) R(w2,s2 q2) p.
+    struct Step {
+        Eigen::Matrix3d fixed = Eigen::Matrix3d::Identity();
+        int joint = -1;
+        Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+        double sign = 1;
+    };
+    std::vector<Step> steps;
+    for (auto it = machine.part_chain.rbegin(); it != machine.part_chain.rend(); ++it) {
+        Step s;
+        if (it->kind == ChainElement::Kind::Fixed) s.fixed = it->fixed.linear().transpose();
+        else if (it->kind == ChainElement::Kind::Rotary) s = Step{Eigen::Matrix3d::Identity(), it->joint, it->axis, -1.0};
+        else continue;
+        steps.push_back(s);
+    }
+    for (const auto& e : machine.tool_chain) {
+        Step s;
+        if (e.kind == ChainElement::Kind::Fixed) s.fixed = e.fixed.linear();
+        else if (e.kind == ChainElement::Kind::Rotary) s = Step{Eigen::Matrix3d::Identity(), e.joint, e.axis, 1.0};
+        else continue;
+        steps.push_back(s);
+    }
+    Eigen::Matrix3d acc = Eigen::Matrix3d::Identity();  // fixed rotations since G0 ended
+    bool in_g0 = true;
+    for (const auto& s : steps) {
+        if (s.joint < 0) {
+            if (in_g0) g0_ = g0_ * s.fixed;
+            else acc = acc * s.fixed;
+            continue;
+        }
+        in_g0 = false;
+        rotary_.push_back(s.joint);
+        sign_.push_back(s.sign);
+        w_.push_back((acc * s.axis).normalized());
+    }
+    p_ = (acc * machine.tool_axis).normalized();
+    if (rotary_.size() > 2) throw MachineError(machine.source_path + ": at most two rotary joints are supported");
+    if (rotary_.size() == 2 && w_[0].cross(w_[1]).norm() < 1e-9)
+        throw MachineError(machine.source_path + ": the two rotary axes are parallel; such a machine cannot orient the tool");
+}
+
+void Kinematics::eval(const std::vector<ChainElement>& chain, const std::vector<double>& q, Eigen::Matrix3d& R,
+                      Eigen::Vector3d& t, Eigen::Vector3d* linear_dirs) const {
+    R.setIdentity();
+    t.setZero();
+    for (const auto& e : chain) {
+        switch (e.kind) {
+            case ChainElement::Kind::Fixed:
+                t += R * e.fixed.translation();
+                R = R * e.fixed.linear();
+                break;
+            case ChainElement::Kind::Linear: {
+                const Eigen::Vector3d d = R * e.axis;
+                if (linear_dirs) linear_dirs[e.joint] = d;
+                t += d * q[std::size_t(e.joint)];
+                break;
+            }
+            case ChainElement::Kind::Rotary: {
+                // Trans(point) * Rot(axis, q) * Trans(-point)
+                const Eigen::Matrix3d Rj = rot(e.axis, q[std::size_t(e.joint)]);
+                t += R * (e.point - Rj * e.point);
+                R = R * Rj;
+                break;
+            }
+        }
+    }
+}
+
+Pose Kinematics::forward(const std::vector<double>& q) const {
+    Eigen::Matrix3d Rp, Rt;
+    Eigen::Vector3d tp, tt;
+    eval(machine_.part_chain, q, Rp, tp, nullptr);
+    eval(machine_.tool_chain, q, Rt, tt, nullptr);
+    Pose pose;
+    pose.tip = Rp.transpose() * (tt - tp);
+    pose.axis = (Rp.transpose() * (Rt * machine_.tool_axis)).normalized();
+    return pose;
+}
+
+IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q) const {
+    // With the rotary joints fixed the tip is affine in the linear joints: one 3x3 solve is exact.
+    const std::size_t n = machine_.joints.size();
+    std::vector<Eigen::Vector3d> part_dirs(n, Eigen::Vector3d::Zero()), tool_dirs(n, Eigen::Vector3d::Zero());
+    Eigen::Matrix3d Rp, Rt;
+    Eigen::Vector3d tp, tt;
+    eval(machine_.part_chain, q, Rp, tp, part_dirs.data());
+    eval(machine_.tool_chain, q, Rt, tt, tool_dirs.data());
+    const Eigen::Vector3d current = Rp.transpose() * (tt - tp);
+    Eigen::Matrix3d J;
+    int lin[3];
+    int k = 0;
+    for (std::size_t j = 0; j < n && k < 3; ++j) {
+        if (machine_.joints[j].rotary) continue;
+        lin[k] = int(j);
+        J.col(k++) = Rp.transpose() * (tool_dirs[j] - part_dirs[j]);
+    }
+    const double det = J.determinant();
+    if (!(std::abs(det) > 1e-9)) return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+    const Eigen::Vector3d dq = J.partialPivLu().solve(tip - current);
+    for (int i = 0; i < 3; ++i) q[std::size_t(lin[i])] += dq[i];
+    return {};
+}
+
+std::vector<std::vector<double>> Kinematics::orientation_solutions(const Eigen::Vector3d& axis) const {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    std::vector<std::vector<double>> out;
+    const Eigen::Vector3d u = g0_.transpose() * axis.normalized();
+    if (rotary_.empty()) {
+        if ((u - p_).norm() < kReachEps) out.push_back({});
+        return out;
+    }
+    if (rotary_.size() == 1) {
+        const Eigen::Vector3d& w = w_[0];
+        if (std::abs(w.dot(u) - w.dot(p_)) > kReachEps) return out;
+        const double phi = subproblem1(w, p_, u);
+        out.push_back({std::isnan(phi) ? nan : sign_[0] * phi / kDeg});
+        return out;
+    }
+    const Eigen::Vector3d& w1 = w_[0];
+    const Eigen::Vector3d& w2 = w_[1];
+    const double a = w1.dot(w2);
+    const double alpha = (a * w2.dot(p_) - w1.dot(u)) / (a * a - 1.0);
+    const double beta = (a * w1.dot(u) - w2.dot(p_)) / (a * a - 1.0);
+    const Eigen::Vector3d n = w1.cross(w2);
+    double gamma2 = (p_.squaredNorm() - alpha * alpha - beta * beta - 2.0 * alpha * beta * a) / n.squaredNorm();
+    if (gamma2 < -kReachEps * kReachEps) return out;
+    const double gamma = std::sqrt(std::max(gamma2, 0.0));
+    for (double s : {1.0, -1.0}) {
+        const Eigen::Vector3d c = alpha * w1 + beta * w2 + s * gamma * n;
+        const double phi2 = subproblem1(w2, p_, c);
+        const double phi1 = subproblem1(w1, c, u);
+        out.push_back({std::isnan(phi1) ? nan : sign_[0] * phi1 / kDeg, std::isnan(phi2) ? nan : sign_[1] * phi2 / kDeg});
+        if (gamma == 0.0) break;
+    }
+    return out;
+}
+
+IkResult Kinematics::check_limits(const std::vector<double>& q) const {
+    for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
+        const Joint& J = machine_.joints[j];
+        if (q[j] < J.min - 1e-9 || q[j] > J.max + 1e-9)
+            return {IkStatus::OutOfLimits, std::string("joint ") + J.name + " would go to " + fmt(q[j]) + ", outside its limits " +
+                                               fmt(J.min) + " .. " + fmt(J.max)};
+    }
+    return {};
+}
+
+IkResult Kinematics::solve_orientation(const Eigen::Vector3d& axis, const std::vector<double>& previous,
+                                       std::vector<double>& q) const {
+    const auto solutions = orientation_solutions(axis);
+    if (solutions.empty()) {
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "tool axis (%.6f, %.6f, %.6f) is out of this machine's reach", axis.x(), axis.y(), axis.z());
+        return {IkStatus::Unreachable, buf};
+    }
+    double best_cost = std::numeric_limits<double>::infinity();
+    std::vector<double> best;
+    std::string why;
+    for (const auto& sol : solutions) {
+        std::vector<double> cand(sol.size());
+        double cost = 0;
+        bool ok = true;
+        for (std::size_t k = 0; k < sol.size() && ok; ++k) {
+            const int j = rotary_[k];
+            const Joint& J = machine_.joints[std::size_t(j)];
+            const double prev = previous[std::size_t(j)];
+            if (std::isnan(sol[k])) {  // on the pole: the joint is free, keep it where it is
+                cand[k] = prev;
+                continue;
+            }
+            // Of sol + 360 k, the turn nearest the previous angle that is inside the limits.
+            const double nearest = prev + wrap180(sol[k] - prev);
+            double chosen = std::numeric_limits<double>::quiet_NaN();
+            for (int turn : {0, 1, -1, 2, -2}) {
+                const double v = nearest + 360.0 * turn;
+                if (v >= J.min - 1e-9 && v <= J.max + 1e-9 && (std::isnan(chosen) || std::abs(v - prev) < std::abs(chosen - prev)))
+                    chosen = v;
+            }
+            if (std::isnan(chosen)) {
+                ok = false;
+                why = std::string("joint ") + J.name + " would need " + fmt(wrap180(sol[k])) + " degrees, outside its limits " +
+                      fmt(J.min) + " .. " + fmt(J.max);
+                break;
+            }
+            cand[k] = chosen;
+            cost += (chosen - prev) * (chosen - prev);
+        }
+        if (ok && cost < best_cost) {
+            best_cost = cost;
+            best = cand;
+        }
+    }
+    if (best.empty()) return {IkStatus::OutOfLimits, why};
+    for (std::size_t k = 0; k < best.size(); ++k) q[std::size_t(rotary_[k])] = best[k];
+    return {};
+}
+
+IkResult Kinematics::inverse(const Pose& pose, const std::vector<double>& previous, std::vector<double>& q) const {
+    q = previous;
+    if (auto r = solve_orientation(pose.axis, previous, q); !r.ok()) return r;
+    if (auto r = solve_position(pose.tip, q); !r.ok()) return r;
+    return check_limits(q);
+}
+
+}  // namespace xlate5

@@ -1,0 +1,81 @@
+// A machine is data: two kinematic chains, joints with limits, and the firmware dialect.
+// Loaded from a TOML file (machine_file.cpp); all the math on it lives in kinematics.cpp.
+#pragma once
+#include <Eigen/Geometry>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace xlate5 {
+
+// How tool orientation is read from the input (ISO/Fanuc switch codes).
+enum class OrientationMode {
+    Angles,  // G43.4: tool-centre-point control, the machine's rotary letters give orientation
+    Vector,  // G43.5: tool-centre-point control, I J K give the tool axis
+    Joints,  // G49:   off; every word is a joint value sent to the firmware as is
+};
+
+struct Joint {
+    char name = 0;           // letter in the input (tool space and G49 joint space)
+    char output = 0;         // letter the firmware knows the joint by
+    bool rotary = false;     // degrees; otherwise mm
+    double min = -1e300;     // limits, in the joint's unit; rotaries without limits are unbounded
+    double max = 1e300;
+    double home = 0;         // joint value after G28
+    bool bounded() const { return min > -1e299 || max < 1e299; }
+};
+
+struct ChainElement {
+    enum class Kind { Fixed, Linear, Rotary } kind = Kind::Fixed;
+    int joint = -1;                       // Linear/Rotary: index into Machine::joints
+    Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // Linear: direction; Rotary: rotation axis (unit)
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();  // Rotary: a point on the axis
+    Eigen::Isometry3d fixed = Eigen::Isometry3d::Identity();  // Fixed
+};
+
+// How the firmware measures a move's length for F (the motion issue uses it) and how it is fed.
+enum class FirmwareDialect { Marlin, MarlinArticulated, RepRap, Klipper, Generic };
+
+struct Dialect {
+    FirmwareDialect firmware = FirmwareDialect::Marlin;
+    int linear_decimals = 3;
+    int rotary_decimals = 3;
+};
+
+struct Machine {
+    std::string name;
+    std::string description;
+    std::string source_path;                     // the TOML file it came from
+    std::map<std::string, double> parameters;    // named values after overrides
+    std::vector<Joint> joints;
+    std::vector<ChainElement> part_chain;        // base -> build plate (part frame)
+    std::vector<ChainElement> tool_chain;        // base -> nozzle tip
+    Eigen::Vector3d tool_axis = Eigen::Vector3d::UnitZ();  // tool axis in the tip frame
+    OrientationMode start_mode = OrientationMode::Angles;
+    Dialect dialect;
+
+    int joint_index(char name) const {
+        for (std::size_t i = 0; i < joints.size(); ++i)
+            if (joints[i].name == name) return int(i);
+        return -1;
+    }
+    std::vector<double> home_joints() const {
+        std::vector<double> q;
+        for (const auto& j : joints) q.push_back(j.home);
+        return q;
+    }
+};
+
+// Loads a machine by bundled name or by path; `overrides` replace [parameters] values
+// (name -> value) before anything is computed. Throws MachineError naming file, line and key.
+Machine load_machine(const std::string& name_or_path, const std::map<std::string, double>& overrides = {});
+Machine load_machine_text(const std::string& toml_text, const std::string& source_name,
+                          const std::map<std::string, double>& overrides = {});
+
+// Where bundled machines are looked up: $XLATE5_MACHINES, the source tree, the install prefix.
+std::vector<std::string> machine_search_path();
+// Every bundled machine file found on the search path, by name.
+std::map<std::string, std::string> bundled_machines();
+
+}  // namespace xlate5

@@ -1,0 +1,462 @@
+#include "translators/translator.hpp"
+
+#include <cmath>
+
+#include "translators/error.hpp"
+#include "translators/number.hpp"
+
+namespace xlate5 {
+
+namespace {
+
+// G codes that only set a mode and take no words; they run before the line's command.
+bool is_modal_only(int code10) {
+    switch (code10) {
+        case 170: case 180: case 190:              // plane
+        case 200: case 210:                        // units
+        case 400: case 410: case 420:              // cutter compensation
+        case 434: case 435: case 490:              // tool-centre-point control
+        case 540: case 550: case 560: case 570: case 580: case 590: case 591: case 592: case 593:
+        case 610: case 611: case 640:              // path control
+        case 800:                                  // canned cycle cancel
+        case 900: case 910: case 901: case 911:    // distance modes
+        case 930: case 940:                        // feed modes
+            return true;
+        default:
+            return false;
+    }
+}
+
+void append_code(std::string& out, char letter, int code10) {
+    out += letter;
+    append_fixed(out, code10 / 10.0, 1);
+}
+
+bool blank(std::string_view s) {
+    for (char c : s)
+        if (c != ' ' && c != '\t' && c != '\r') return false;
+    return true;
+}
+
+}  // namespace
+
+Translator::Translator(const Kinematics& kinematics, TranslatorOptions options)
+    : kin_(kinematics),
+      machine_(kinematics.machine()),
+      options_(std::move(options)),
+      emitter_(kinematics.machine()),
+      tool_emitter_(kinematics.machine(), options_.preview_form),
+      q_(machine_.home_joints()),
+      q_next_(q_),
+      pose_(kin_.forward(q_)),
+      mode_(options_.inverse ? OrientationMode::Joints : options_.start_mode.value_or(machine_.start_mode)) {}
+
+int Translator::joint_of(char letter) const {
+    if (!options_.inverse) return machine_.joint_index(letter);
+    for (std::size_t j = 0; j < machine_.joints.size(); ++j)
+        if (machine_.joints[j].output == letter) return int(j);
+    return -1;
+}
+
+void Translator::fail(std::uint32_t column, const std::string& message) const {
+    throw InputError(options_.input_name, line_no_, column, message);
+}
+
+const Translator::Param* Translator::find(char letter) const {
+    for (const auto& p : params_)
+        if (p.letter == letter) return &p;
+    return nullptr;
+}
+
+double Translator::number(const Param& p) const {
+    if (!p.has_value) fail(p.column, std::string("word ") + p.letter + " has no number");
+    return p.value;
+}
+
+bool Translator::is_axis_letter(char c) const {
+    return c == 'X' || c == 'Y' || c == 'Z' || c == 'I' || c == 'J' || c == 'K' || joint_of(c) >= 0;
+}
+
+void Translator::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
+    line_no_ = line_no;
+    try {
+        lex_line(line, block_);
+    } catch (const LineError& e) {
+        throw InputError(options_.input_name, line_no, e.column(), e.what());
+    }
+    if (block_.words.empty()) {
+        if (!block_.body.empty()) {
+            out += block_.body;
+            out += '\n';
+        } else if (blank(line)) {
+            out += '\n';
+        }
+        return;
+    }
+
+    struct Command {
+        char letter;
+        int code10;
+        std::uint32_t column;
+    };
+    Command commands[16];
+    std::size_t n_commands = 0;
+    params_.clear();
+    for (const Word& w : block_.words) {
+        if (w.letter == 'G' || w.letter == 'M' || w.letter == 'T') {
+            if (n_commands == 16) fail(w.column, "more than 16 commands on one line");
+            const double scaled = w.value * 10.0;
+            if (std::abs(scaled - std::round(scaled)) > 1e-6) fail(w.column, std::string("command ") + w.letter + " has more than one decimal");
+            commands[n_commands++] = {w.letter, int(std::lround(scaled)), w.column};
+            continue;
+        }
+        char letter = w.letter;
+        if (letter == options_.extruder_letter) letter = 'E';
+        else if (letter == 'E' && options_.extruder_letter != 'E')
+            fail(w.column, std::string("word E on a file whose extrusion letter is ") + options_.extruder_letter);
+        if (find(letter)) fail(w.column, std::string("word ") + w.letter + " appears twice on this line");
+        params_.push_back({letter, w.value, w.column, w.has_value});
+    }
+
+    // At most one command on a line may own the words.
+    const Command* owner = nullptr;
+    std::size_t owners = 0;
+    for (std::size_t i = 0; i < n_commands; ++i) {
+        const Command& c = commands[i];
+        if (c.letter == 'G' && is_modal_only(c.code10)) continue;
+        if (++owners == 2 && !params_.empty())
+            fail(c.column, "two commands on this line take words: put them on separate lines");
+        owner = &c;
+    }
+    const bool alone = n_commands == 1;
+    Command implicit{'G', 0, params_.empty() ? 1u : params_.front().column};
+    if (!owner && !params_.empty()) {
+        // Axis words with no command continue the modal motion (RS274; CNC files rely on it).
+        if (modes_.motion < 0) fail(implicit.column, "axis words without a motion command (G0 or G1)");
+        implicit.code10 = modes_.motion * 10;
+    }
+
+    // Nothing is written until the whole line has been understood and solved: an error leaves
+    // neither output nor state changed by this line.
+    const std::size_t out_start = out.size();
+    const auto q_saved = q_;
+    const Pose pose_saved = pose_;
+    const auto offset_saved = offset_;
+    const bool tip_known_saved = tip_known_;
+    const auto mode_saved = mode_;
+    const auto modes_saved = modes_;
+    try {
+        for (std::size_t i = 0; i < n_commands; ++i)
+            if (commands[i].letter == 'G' && is_modal_only(commands[i].code10))
+                apply_modal(commands[i].code10, commands[i].column, out);
+        for (std::size_t i = 0; i < n_commands; ++i)
+            if (!(commands[i].letter == 'G' && is_modal_only(commands[i].code10)))
+                run_command(commands[i].letter, commands[i].code10, commands[i].column, block_.body, alone, out);
+        if (!owner && !params_.empty()) run_command('G', implicit.code10, implicit.column, block_.body, false, out);
+    } catch (...) {
+        out.resize(out_start);
+        q_ = q_saved;
+        pose_ = pose_saved;
+        offset_ = offset_saved;
+        tip_known_ = tip_known_saved;
+        mode_ = mode_saved;
+        modes_ = modes_saved;
+        emitter_.invalidate();
+        throw;
+    }
+}
+
+void Translator::apply_modal(int code10, std::uint32_t column, std::string& out) {
+    switch (code10) {
+        case 200:
+        case 210:
+            // xlate5 converts to millimetres itself; the firmware always works in mm.
+            modes_.inches = code10 == 200;
+            out += "G21\n";
+            return;
+        case 434:
+        case 435:
+        case 490:
+            if (options_.inverse) fail(column, "joint-space input has no G43.4/G43.5/G49");
+            mode_ = code10 == 434 ? OrientationMode::Angles : code10 == 435 ? OrientationMode::Vector : OrientationMode::Joints;
+            return;
+        case 900:
+        case 910:
+            // Joint targets are always written absolute; E keeps the input's mode, stated
+            // explicitly because firmwares differ on whether G90/G91 change it.
+            modes_.absolute = code10 == 900;
+            modes_.e_relative = code10 == 910;
+            out += modes_.e_relative ? "G90\nM83\n" : "G90\nM82\n";
+            return;
+        case 930:
+            if (mode_ != OrientationMode::Joints)
+                fail(column, "G93 inverse-time feed under tool-centre-point control is not supported yet");
+            passthrough('G', code10, {}, false, out);
+            return;
+        case 940:
+            if (mode_ == OrientationMode::Joints) passthrough('G', code10, {}, false, out);
+            return;
+        default:
+            passthrough('G', code10, {}, false, out);
+            return;
+    }
+}
+
+void Translator::passthrough(char letter, int code10, std::string_view body, bool alone, std::string& out) const {
+    if (alone) {
+        out += body;
+        out += '\n';
+        return;
+    }
+    append_code(out, letter, code10);
+    if (!(letter == 'G' && is_modal_only(code10))) {
+        for (const auto& p : params_) {
+            out += ' ';
+            out += p.letter;
+            if (p.has_value) append_shortest(out, p.value);
+        }
+    }
+    out += '\n';
+}
+
+void Translator::run_command(char letter, int code10, std::uint32_t column, std::string_view body, bool alone,
+                             std::string& out) {
+    if (letter == 'M') {
+        if (code10 == 820) modes_.e_relative = false;
+        if (code10 == 830) modes_.e_relative = true;
+        passthrough(letter, code10, body, alone, out);
+        return;
+    }
+    if (letter == 'T') {
+        passthrough(letter, code10, body, alone, out);
+        return;
+    }
+    switch (code10) {
+        case 0:
+        case 10:
+            modes_.motion = code10 / 10;
+            if (mode_ == OrientationMode::Joints) move_joints(code10 / 10, column, out);
+            else move(code10 / 10, column, out);
+            return;
+        case 20:
+        case 30:
+            if (mode_ != OrientationMode::Joints)
+                fail(column, "G2/G3 arcs under tool-centre-point control are not supported yet: "
+                             "linearise them, or use G49 for a joint-space arc");
+            if (!modes_.absolute || modes_.inches)
+                fail(column, "joint-space arcs are passed on only in G90 and G21 (millimetres)");
+            if (options_.inverse) fail(column, "joint-space arcs cannot be turned back into tool space");
+            for (const auto& p : params_) {
+                const int j = joint_of(p.letter);
+                if (j >= 0) q_[std::size_t(j)] = number(p);
+            }
+            pose_ = kin_.forward(q_);
+            emitter_.invalidate();
+            passthrough('G', code10, body, alone, out);
+            return;
+        case 280:
+            home(out);
+            return;
+        case 920:
+            set_position(column, out);
+            return;
+        default:
+            for (const auto& p : params_) {
+                if (!is_axis_letter(p.letter)) continue;
+                if (mode_ != OrientationMode::Joints) {
+                    std::string code;
+                    append_code(code, 'G', code10);
+                    fail(column, code + " with axis words is not supported under tool-centre-point control "
+                                        "(switch to G49 to send it as joint values)");
+                }
+                emitter_.invalidate();  // the firmware moves somewhere xlate5 cannot follow
+            }
+            passthrough('G', code10, body, alone, out);
+            return;
+    }
+}
+
+void Translator::move(int gcode, std::uint32_t column, std::string& out) {
+    const double unit = modes_.unit();
+    Eigen::Vector3d tip = pose_.tip - offset_;  // program frame
+    Eigen::Vector3d ijk = Eigen::Vector3d::Zero();
+    bool any_xyz = false, any_ijk = false, any_rotary = false;
+    std::uint32_t ijk_column = column;
+    std::optional<double> e, f;
+    q_next_ = q_;
+    for (const Param& p : params_) {
+        switch (p.letter) {
+            case 'X': case 'Y': case 'Z': {
+                const int i = p.letter - 'X';
+                const double v = number(p) * unit;
+                tip[i] = modes_.absolute ? v : tip[i] + v;
+                any_xyz = true;
+                break;
+            }
+            case 'I': case 'J': case 'K':
+                if (mode_ != OrientationMode::Vector)
+                    fail(p.column, "I J K give a tool vector only under G43.5");
+                if (!any_ijk) ijk_column = p.column;
+                ijk[p.letter - 'I'] = number(p);
+                any_ijk = true;
+                break;
+            case 'E': e = number(p) * unit; break;
+            case 'F':
+                f = number(p) * unit;
+                if (!(*f > 0)) fail(p.column, "feed rate F must be positive");
+                break;
+            default: {
+                const int j = joint_of(p.letter);
+                if (j < 0 || !machine_.joints[std::size_t(j)].rotary)
+                    fail(p.column, std::string("word ") + p.letter + " is not a tool-space word for machine " + machine_.name +
+                                       " (X Y Z give the tip" + (mode_ == OrientationMode::Vector ? ", I J K the tool axis)" : ", its rotary letters the orientation)"));
+                if (mode_ == OrientationMode::Vector)
+                    fail(p.column, std::string("rotary word ") + p.letter + " under G43.5: give the tool axis as I J K, or switch to G43.4");
+                const double v = number(p);
+                q_next_[std::size_t(j)] = modes_.absolute ? v : q_[std::size_t(j)] + v;
+                any_rotary = true;
+                break;
+            }
+        }
+    }
+    Eigen::Vector3d axis = pose_.axis;
+    if (any_ijk) {
+        if (!(ijk.norm() > 1e-12)) fail(ijk_column, "tool vector I J K has length 0");
+        axis = ijk.normalized();
+    }
+    IkResult r;
+    if (any_ijk) r = kin_.solve_orientation(axis, q_, q_next_);
+    Pose next = pose_;
+    if (r.ok()) {
+        if (!any_xyz && !tip_known_) {
+            // Before the program has placed the tip (start, after G28) a rotary-only move turns
+            // the rotaries and leaves the linear joints, as the start code of seed 001 expects.
+            next = kin_.forward(q_next_);
+        } else {
+            next.tip = tip + offset_;
+            r = kin_.solve_position(next.tip, q_next_);
+            if (any_ijk) next.axis = axis;
+            else if (any_rotary) next.axis = kin_.forward(q_next_).axis;
+        }
+    }
+    if (r.ok()) r = kin_.check_limits(q_next_);
+    if (!r.ok()) fail(column, r.message);
+    q_.swap(q_next_);
+    pose_ = next;
+    tip_known_ = tip_known_ || any_xyz;
+    emitter_.move(out, gcode, q_, e, f);
+}
+
+void Translator::move_joints(int gcode, std::uint32_t /*column*/, std::string& out) {
+    const double unit = modes_.unit();
+    std::optional<double> e, f;
+    bool any_linear = false;
+    q_next_ = q_;
+    for (const Param& p : params_) {
+        switch (p.letter) {
+            case 'E': e = number(p) * unit; break;
+            case 'F':
+                f = number(p) * unit;
+                if (!(*f > 0)) fail(p.column, "feed rate F must be positive");
+                break;
+            case 'I': case 'J': case 'K':
+                fail(p.column, "I J K are tool-vector words (G43.5); under G49 the words are joint values");
+            default: {
+                const int j = joint_of(p.letter);
+                if (j < 0) fail(p.column, std::string("word ") + p.letter + " is not a joint of machine " + machine_.name);
+                const bool rotary = machine_.joints[std::size_t(j)].rotary;
+                const double v = number(p) * (rotary ? 1.0 : unit);
+                q_next_[std::size_t(j)] = modes_.absolute ? v : q_[std::size_t(j)] + v;
+                any_linear = any_linear || !rotary;
+                break;
+            }
+        }
+    }
+    if (auto r = kin_.check_limits(q_next_); !r.ok()) fail(params_.empty() ? 1 : params_.front().column, r.message);
+    q_.swap(q_next_);
+    pose_ = kin_.forward(q_);
+    tip_known_ = tip_known_ || any_linear;
+    if (options_.inverse) tool_emitter_.move(out, gcode, pose_.tip, pose_.axis, q_, e, f);
+    else emitter_.move(out, gcode, q_, e, f);
+}
+
+void Translator::set_position(std::uint32_t column, std::string& out) {
+    if (params_.empty()) {
+        passthrough('G', 920, block_.body, true, out);
+        return;
+    }
+    const double unit = modes_.unit();
+    std::vector<bool> which(q_.size(), false);
+    std::optional<double> e;
+    bool any_rotary = false;
+    for (const Param& p : params_) {
+        if (p.letter == 'E') {
+            e = number(p) * unit;
+            continue;
+        }
+        const bool tip_word = mode_ != OrientationMode::Joints && (p.letter == 'X' || p.letter == 'Y' || p.letter == 'Z');
+        if (tip_word) continue;  // applied below, after the joints
+        const int j = joint_of(p.letter);
+        if (j < 0 || (mode_ != OrientationMode::Joints && !machine_.joints[std::size_t(j)].rotary))
+            fail(p.column, std::string("G92 word ") + p.letter + " is not a joint of machine " + machine_.name);
+        const bool rotary = machine_.joints[std::size_t(j)].rotary;
+        q_[std::size_t(j)] = number(p) * (rotary ? 1.0 : unit);
+        which[std::size_t(j)] = true;
+        any_rotary = any_rotary || rotary;
+    }
+    // The machine did not move: its true pose follows from the joints it now says it is at.
+    if (mode_ == OrientationMode::Joints || any_rotary) pose_ = kin_.forward(q_);
+    if (mode_ != OrientationMode::Joints) {
+        // Under tool-centre-point control G92 X Y Z shifts the program frame, and is not sent.
+        for (const Param& p : params_) {
+            if (p.letter != 'X' && p.letter != 'Y' && p.letter != 'Z') continue;
+            const int i = p.letter - 'X';
+            offset_[i] = pose_.tip[i] - number(p) * unit;
+            tip_known_ = true;
+        }
+    }
+    (void)column;
+    if (options_.inverse) {
+        // Tool space has a word for a rotary reset only; a linear one just changes the tip.
+        std::string line = "G92";
+        for (std::size_t j = 0; j < which.size(); ++j) {
+            if (!which[j] || !machine_.joints[j].rotary) continue;
+            line += ' ';
+            line += machine_.joints[j].name;
+            append_fixed(line, q_[j], machine_.dialect.rotary_decimals + 2);
+        }
+        if (e) {
+            line += " E";
+            append_shortest(line, *e);
+        }
+        if (line.size() > 3) out += line + '\n';
+        tool_emitter_.invalidate();
+        return;
+    }
+    emitter_.set_position(out, q_, which, e);
+}
+
+void Translator::home(std::string& out) {
+    std::vector<bool> which(q_.size(), params_.empty());
+    for (const Param& p : params_) {
+        const int j = joint_of(p.letter);
+        if (j < 0) fail(p.column, std::string("G28 word ") + p.letter + " is not a joint of machine " + machine_.name);
+        which[std::size_t(j)] = true;
+    }
+    for (std::size_t j = 0; j < q_.size(); ++j)
+        if (which[j]) q_[j] = machine_.joints[j].home;
+    out += "G28";
+    for (const Param& p : params_) {
+        const Joint& j = machine_.joints[std::size_t(joint_of(p.letter))];
+        out += ' ';
+        out += options_.inverse ? j.name : j.output;
+    }
+    out += '\n';
+    offset_.setZero();
+    tip_known_ = false;
+    pose_ = kin_.forward(q_);
+    emitter_.invalidate();
+    tool_emitter_.invalidate();
+}
+
+}  // namespace xlate5

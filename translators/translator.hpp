@@ -1,0 +1,90 @@
+// Stages 3-4: interprets tool-space G-code (modal state, G43.4/G43.5/
+// G49, G90/G91, G20/G21, G92, G28), solves each move with Kinematics and hands joint values to
+// the emitter. Lines it does not need to understand pass through unchanged and in order.
+#pragma once
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "translators/emitter.hpp"
+#include "translators/gcode_lexer.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+
+namespace xlate5 {
+
+struct TranslatorOptions {
+    std::string input_name = "<stdin>";            // for error messages
+    std::optional<OrientationMode> start_mode;      // overrides the machine file's [input] mode
+    char extruder_letter = 'E';                     // input letter that carries extrusion
+    // Inverse direction: the input is the firmware's joint-space G-code (its axis letters), the
+    // output tool space in `preview_form` (G43.4 angles or G43.5 vector), through FK.
+    bool inverse = false;
+    OrientationMode preview_form = OrientationMode::Angles;
+};
+
+// The part of the modal state that the inverse direction shares.
+struct Modes {
+    bool absolute = true;     // G90 / G91
+    bool inches = false;      // G20 / G21
+    bool e_relative = false;  // Marlin 2 rule: the latest of G90/G91/M82/M83 decides
+    int motion = -1;          // modal G0/G1 (-1: none yet)
+    double unit() const { return inches ? 25.4 : 1.0; }
+};
+
+class Translator {
+public:
+    Translator(const Kinematics& kinematics, TranslatorOptions options);
+
+    // Translates one input line (without '\n'), appending zero or more output lines to `out`.
+    // Throws InputError naming the file, line and column on input it cannot accept; the state
+    // is then unchanged by that line.
+    void feed(std::string_view line, std::uint64_t line_no, std::string& out);
+
+    const std::vector<double>& joints() const { return q_; }
+    const Pose& pose() const { return pose_; }            // part frame
+    const Eigen::Vector3d& program_offset() const { return offset_; }
+    OrientationMode mode() const { return mode_; }
+    const Modes& modes() const { return modes_; }
+
+private:
+    struct Param {
+        char letter;
+        double value;
+        std::uint32_t column;
+        bool has_value;
+    };
+    [[noreturn]] void fail(std::uint32_t column, const std::string& message) const;
+    const Param* find(char letter) const;
+    double number(const Param& p) const;  // the value, or an error if it is a flag
+    void apply_modal(int code10, std::uint32_t column, std::string& out);
+    void run_command(char letter, int code10, std::uint32_t column, std::string_view body, bool alone, std::string& out);
+    void move(int gcode, std::uint32_t column, std::string& out);
+    void move_joints(int gcode, std::uint32_t column, std::string& out);
+    void set_position(std::uint32_t column, std::string& out);
+    void home(std::string& out);
+    void passthrough(char letter, int code10, std::string_view body, bool alone, std::string& out) const;
+    bool is_axis_letter(char c) const;
+    int joint_of(char letter) const;  // joint named by this input letter, or -1
+
+    const Kinematics& kin_;
+    const Machine& machine_;
+    TranslatorOptions options_;
+    JointEmitter emitter_;
+    ToolEmitter tool_emitter_;        // used by the inverse direction
+    Block block_;
+    std::vector<Param> params_;
+    std::uint64_t line_no_ = 0;
+
+    std::vector<double> q_;         // joint values the firmware will be at
+    std::vector<double> q_next_;    // scratch for the move being solved
+    Pose pose_;                     // tip and tool axis in the part frame
+    Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();  // program frame origin in the part frame (G92)
+    bool tip_known_ = false;        // has the program placed the tip since start or G28?
+    OrientationMode mode_;
+    Modes modes_;
+};
+
+}  // namespace xlate5
