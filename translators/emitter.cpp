@@ -4,7 +4,8 @@
 
 namespace xlate5 {
 
-JointEmitter::JointEmitter(const Machine& machine) : machine_(machine), last_(machine.joints.size()) {}
+JointEmitter::JointEmitter(const Machine& machine)
+    : machine_(machine), last_(machine.joints.size()), believed_(machine.home_joints()) {}
 
 void JointEmitter::format(std::string& text, std::size_t joint, double value) const {
     const Joint& j = machine_.joints[joint];
@@ -17,8 +18,9 @@ void JointEmitter::append_joint(std::string& out, std::size_t joint, double valu
     format(out, joint, value);
 }
 
-void JointEmitter::invalidate() {
+void JointEmitter::invalidate(const std::vector<double>& q) {
     for (auto& s : last_) s.clear();
+    believed_ = q;
 }
 
 void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& q, std::optional<double> e,
@@ -26,7 +28,9 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
     const std::size_t start = out.size();
     out += gcode == 0 ? "G0" : "G1";
     const std::size_t empty = out.size();
-    for (std::size_t j = 0; j < q.size(); ++j) {
+    const bool moves = q != believed_;
+    believed_ = q;
+    for (std::size_t j = 0; j < q.size() && moves; ++j) {
         scratch_.clear();
         format(scratch_, j, q[j]);
         if (scratch_ == last_[j]) continue;
@@ -57,6 +61,7 @@ void JointEmitter::set_position(std::string& out, const std::vector<double>& q, 
         scratch_.clear();
         format(scratch_, j, q[j]);
         last_[j] = scratch_;
+        believed_[j] = q[j];
         out += ' ';
         out += machine_.joints[j].output;
         out += scratch_;
@@ -74,7 +79,7 @@ void JointEmitter::set_position(std::string& out, const std::vector<double>& q, 
 namespace xlate5 {
 
 ToolEmitter::ToolEmitter(const Machine& machine, OrientationMode form)
-    : machine_(machine), form_(form), last_rotary_(machine.joints.size()) {}
+    : machine_(machine), form_(form), last_rotary_(machine.joints.size()), last_q_(machine.home_joints()) {}
 
 void ToolEmitter::invalidate() {
     for (auto& s : last_xyz_) s.clear();
@@ -99,12 +104,16 @@ void ToolEmitter::move(std::string& out, int gcode, const Eigen::Vector3d& tip, 
     const std::size_t start = out.size();
     out += gcode == 0 ? "G0" : "G1";
     const std::size_t empty = out.size();
-    for (int i = 0; i < 3; ++i) word(out, char('X' + i), last_xyz_[i], tip[i], lin);
-    if (form_ == OrientationMode::Vector) {
-        for (int i = 0; i < 3; ++i) word(out, char('I' + i), last_ijk_[i], axis[i], 7);
-    } else {
-        for (std::size_t j = 0; j < q.size(); ++j)
-            if (machine_.joints[j].rotary) word(out, machine_.joints[j].name, last_rotary_[j], q[j], rot);
+    const bool moves = q != last_q_;
+    last_q_ = q;
+    if (moves) {
+        for (int i = 0; i < 3; ++i) word(out, char('X' + i), last_xyz_[i], tip[i], lin);
+        if (form_ == OrientationMode::Vector) {
+            for (int i = 0; i < 3; ++i) word(out, char('I' + i), last_ijk_[i], axis[i], 7);
+        } else {
+            for (std::size_t j = 0; j < q.size(); ++j)
+                if (machine_.joints[j].rotary) word(out, machine_.joints[j].name, last_rotary_[j], q[j], rot);
+        }
     }
     if (e) {
         out += " E";

@@ -24,8 +24,10 @@ public:
     void set_position(std::string& out, const std::vector<double>& q, const std::vector<bool>& which,
                       std::optional<double> e);
 
-    // The firmware's position is no longer known (start, homing, probing): write every joint next.
-    void invalidate();
+    // The firmware's position is not exactly known (start, homing, probing): xlate5 believes it
+    // is at `q`; the next move that changes any joint writes every joint. A move that changes no
+    // joint (extrusion only) writes none, so a wrong belief never causes a surprise move.
+    void invalidate(const std::vector<double>& q);
 
     // Appends one joint word (" A12.5") as the emitter would print it.
     void append_joint(std::string& out, std::size_t joint, double value) const;
@@ -35,6 +37,7 @@ private:
 
     const Machine& machine_;
     std::vector<std::string> last_;   // printed value last sent per joint; empty = unknown
+    std::vector<double> believed_;    // joint values the firmware is believed to be at
     std::string scratch_;
 };
 
@@ -60,6 +63,7 @@ private:
     OrientationMode form_;
     std::string last_xyz_[3], last_ijk_[3];
     std::vector<std::string> last_rotary_;
+    std::vector<double> last_q_;   // joints of the previous move: an unchanged pose writes no words
     std::string scratch_;
 };
 

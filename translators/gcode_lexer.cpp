@@ -70,6 +70,11 @@ double read_number(std::string_view s, std::size_t& i, char letter, std::size_t 
         if (word.rfind("NAN", 0) == 0 || word.rfind("INF", 0) == 0)
             fail(start, std::string("word ") + letter + " has a value that is not a finite number");
         if (i != start) fail(letter_index, std::string("word ") + letter + " has a sign but no number");
+        if (j > digits_start) {
+            // "TOOL PATH/..." (APT CL data) or "Xabc": letters run on, so this is not a flag.
+            std::string text{s.substr(letter_index, std::min<std::size_t>(j - letter_index, 16))};
+            fail(letter_index, "'" + text + "' is not a G-code word (a letter must be followed by a number)");
+        }
         if (i < s.size() && s[i] == '"') {  // RepRapFirmware string argument: P"name" ("" is a quote)
             const std::size_t open = i++;
             for (;;) {
@@ -79,7 +84,6 @@ double read_number(std::string_view s, std::size_t& i, char letter, std::size_t 
                 else continue;
             }
         }
-        (void)letter_index;
         has_value = false;
         return std::numeric_limits<double>::quiet_NaN();
     }

@@ -161,7 +161,7 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
         tip_known_ = tip_known_saved;
         mode_ = mode_saved;
         modes_ = modes_saved;
-        emitter_.invalidate();
+        emitter_.invalidate(q_);
         throw;
     }
 }
@@ -251,7 +251,7 @@ void Translator::run_command(char letter, int code10, std::uint32_t column, std:
                 if (j >= 0) q_[std::size_t(j)] = number(p);
             }
             pose_ = kin_.forward(q_);
-            emitter_.invalidate();
+            emitter_.invalidate(q_);
             passthrough('G', code10, body, alone, out);
             return;
         case 280:
@@ -269,7 +269,7 @@ void Translator::run_command(char letter, int code10, std::uint32_t column, std:
                     fail(column, code + " with axis words is not supported under tool-centre-point control "
                                         "(switch to G49 to send it as joint values)");
                 }
-                emitter_.invalidate();  // the firmware moves somewhere xlate5 cannot follow
+                emitter_.invalidate(q_);  // the firmware moves somewhere xlate5 cannot follow
             }
             passthrough('G', code10, body, alone, out);
             return;
@@ -455,7 +455,7 @@ void Translator::home(std::string& out) {
     offset_.setZero();
     tip_known_ = false;
     pose_ = kin_.forward(q_);
-    emitter_.invalidate();
+    emitter_.invalidate(q_);
     tool_emitter_.invalidate();
 }
 

@@ -1,0 +1,326 @@
+// Kinematics against the sources' own formulas (written out here independently of the machine
+// files), and FK/IK round trips on random poses for every shipped machine.
+#include <doctest/doctest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <random>
+
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+
+using namespace xlate5;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+double rad(double deg) { return deg * kPi / 180.0; }
+
+Machine machine(const std::string& name, const std::map<std::string, double>& overrides = {}) {
+    return load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml", overrides);
+}
+
+int joint(const Machine& m, char name) {
+    const int j = m.joint_index(name);
+    REQUIRE(j >= 0);
+    return j;
+}
+
+Eigen::Matrix3d Rx(double deg) { return Eigen::AngleAxisd(rad(deg), Eigen::Vector3d::UnitX()).toRotationMatrix(); }
+Eigen::Matrix3d Ry(double deg) { return Eigen::AngleAxisd(rad(deg), Eigen::Vector3d::UnitY()).toRotationMatrix(); }
+Eigen::Matrix3d Rz(double deg) { return Eigen::AngleAxisd(rad(deg), Eigen::Vector3d::UnitZ()).toRotationMatrix(); }
+
+// Angle difference modulo 360.
+double angle_diff(double a, double b) { return std::abs(wrap180(a - b)); }
+
+}  // namespace
+
+TEST_CASE("rw2 equals seed 001 eq. 4.5 over a grid of poses") {
+    const Machine m = machine("rw2");
+    const Kinematics k(m);
+    const double la = 26.5, lb = 47.9;  // appendix C.2
+    const int A = joint(m, 'A'), B = joint(m, 'B');
+    int checked = 0;
+    for (double a = -165; a <= 165; a += 15) {
+        for (double b = -90; b <= 90; b += 15) {
+            for (const Eigen::Vector3d& tip : {Eigen::Vector3d(100, 100, 10), Eigen::Vector3d(12.5, -3, 0.28), Eigen::Vector3d(200, 150, 120)}) {
+                std::vector<double> q(m.joints.size(), 0.0);
+                q[A] = a;
+                q[B] = b;
+                REQUIRE(k.solve_position(tip, q).ok());
+                // Eq. 4.5 as printed.
+                const double X = tip.x() + std::sin(rad(a)) * la + std::cos(rad(a)) * std::sin(rad(b)) * lb;
+                const double Y = tip.y() - la + std::cos(rad(a)) * la - std::sin(rad(a)) * std::sin(rad(b)) * lb;
+                const double Z = tip.z() + std::cos(rad(b)) * lb - lb;
+                CHECK(q[joint(m, 'X')] == doctest::Approx(X).epsilon(1e-12));
+                CHECK(q[joint(m, 'Y')] == doctest::Approx(Y).epsilon(1e-12));
+                CHECK(q[joint(m, 'Z')] == doctest::Approx(Z).epsilon(1e-12));
+                CHECK(q[A] == a);
+                CHECK(q[B] == b);
+                ++checked;
+            }
+        }
+    }
+    CHECK(checked == 23 * 13 * 3);
+}
+
+TEST_CASE("rw2 with la = 29 reproduces seed 001 table 4.1's theoretical X and Y within 0.01 mm") {
+    const Machine m = machine("rw2", {{"la", 29.0}});
+    const Kinematics k(m);
+    struct Row { double a, x, y; };
+    // Table 4.1, "Theoretical" columns (tip at X' = Y' = 100, B = 0).
+    const Row rows[] = {{-135, 79.49, 50.49}, {-90, 71.00, 71.00}, {-45, 79.49, 91.51}, {0, 100.00, 100.00},
+                        {45, 120.51, 91.51}, {90, 129.00, 71.00}, {135, 120.51, 50.49}};
+    for (const Row& r : rows) {
+        std::vector<double> q(m.joints.size(), 0.0);
+        q[joint(m, 'A')] = r.a;
+        REQUIRE(k.solve_position({100, 100, 0}, q).ok());
+        CAPTURE(r.a);
+        CHECK(std::abs(q[joint(m, 'X')] - r.x) <= 0.01);
+        CHECK(std::abs(q[joint(m, 'Y')] - r.y) <= 0.01);
+    }
+    // And la = 26.5 (the script's value) does not reproduce it: the parameter matters.
+    const Machine m2 = machine("rw2");
+    const Kinematics k2(m2);
+    std::vector<double> q(m2.joints.size(), 0.0);
+    q[joint(m2, 'A')] = 90;
+    REQUIRE(k2.solve_position({100, 100, 0}, q).ok());
+    CHECK(std::abs(q[joint(m2, 'X')] - 129.00) > 1.0);
+}
+
+TEST_CASE("wpi5 equals seed 000 eq. 3.14c for random plate tilts and pivot offsets") {
+    std::mt19937 rng(14);
+    std::uniform_real_distribution<double> U(-1, 1);
+    int checked = 0;
+    for (int trial = 0; trial < 40; ++trial) {
+        const double rho = 3 * U(rng), psi = 3 * U(rng), zoff = 40 + 30 * U(rng);
+        const Eigen::Vector3d S(20 * U(rng), 20 * U(rng), 50 + 20 * U(rng));
+        const Machine m = machine("wpi5", {{"rho", rho}, {"psi", psi}, {"z_offset", zoff}, {"sx", S.x()}, {"sy", S.y()}, {"sz", S.z()}});
+        const Kinematics k(m);
+        for (int i = 0; i < 25; ++i) {
+            const double th = 85 * U(rng), ph = 180 * U(rng);
+            const Eigen::Vector3d p(40 * U(rng), 40 * U(rng), 20 + 20 * U(rng));
+            std::vector<double> q(m.joints.size(), 0.0);
+            q[joint(m, 'A')] = th;
+            q[joint(m, 'B')] = ph;
+            REQUIRE(k.solve_position(p, q).ok());
+            // Eq. 3.14c: P_frame = S - z_offset (-sin th, 0, 1 - cos th) - R_y(th) R_z(ph) R_y(rho) R_x(psi) p
+            const Eigen::Vector3d expect = S - zoff * Eigen::Vector3d(-std::sin(rad(th)), 0, 1 - std::cos(rad(th))) -
+                                           Ry(th) * Rz(ph) * Ry(rho) * Rx(psi) * p;
+            CHECK(q[joint(m, 'X')] == doctest::Approx(expect.x()).epsilon(1e-12));
+            CHECK(q[joint(m, 'Y')] == doctest::Approx(expect.y()).epsilon(1e-12));
+            CHECK(q[joint(m, 'Z')] == doctest::Approx(expect.z()).epsilon(1e-12));
+            // The nozzle points along the frame's +z: R_p u = z.
+            const Eigen::Vector3d u = k.forward(q).axis;
+            CHECK(((Ry(th) * Rz(ph) * Ry(rho) * Rx(psi) * u) - Eigen::Vector3d::UnitZ()).norm() < 1e-12);
+            ++checked;
+        }
+    }
+    CHECK(checked == 1000);
+}
+
+TEST_CASE("pentarod equals seed 002 pseudo code 4.1 and its tool vector") {
+    const Machine m = machine("pentarod");
+    const Kinematics k(m);
+    // Worked values of lines 10-12 (x, y, z, A, C) -> (X', Y', Z').
+    struct Row { double x, y, z, a, c, X, Y, Z; };
+    const Row rows[] = {{1.3, -2.1, 0.7, 30, 40, 2.345712, -1.019498, 0.219683}, {0, 10, 0, 45, 0, 0, 7.071068, 7.071068},
+                        {0, 0, 5, 90, 90, 0, -5, 0}, {5, 5, 2, 60, -135, 0, -5.267585, -5.123724}};
+    for (const Row& r : rows) {
+        std::vector<double> q(m.joints.size(), 0.0);
+        q[joint(m, 'A')] = r.a;
+        q[joint(m, 'C')] = r.c;
+        REQUIRE(k.solve_position({r.x, r.y, r.z}, q).ok());
+        CHECK(q[joint(m, 'X')] == doctest::Approx(r.X).epsilon(1e-6));
+        CHECK(q[joint(m, 'Y')] == doctest::Approx(r.Y).epsilon(1e-6));
+        CHECK(q[joint(m, 'Z')] == doctest::Approx(r.Z).epsilon(1e-6));
+    }
+    std::mt19937 rng(2);
+    std::uniform_real_distribution<double> U(-1, 1);
+    for (int i = 0; i < 500; ++i) {
+        const double a = 89 * U(rng), c = 179 * U(rng);
+        const Eigen::Vector3d p(50 * U(rng), 50 * U(rng), 30 * U(rng) + 30);
+        // Lines 10-12 written out as printed.
+        const double ca = std::cos(rad(a)), sa = std::sin(rad(a)), cc = std::cos(rad(c)), sc = std::sin(rad(c));
+        const Eigen::Vector3d expect(p.x() * cc - p.y() * sc, p.x() * ca * sc + p.y() * ca * cc - p.z() * sa,
+                                     p.x() * sa * sc + p.y() * sa * cc + p.z() * ca);
+        // Tool vector of MACHINES.md: u = (sin A sin C, sin A cos C, cos A); IK must recover a pose
+        // with that axis and those machine coordinates.
+        const Eigen::Vector3d u(sa * sc, sa * cc, ca);
+        std::vector<double> prev(m.joints.size(), 0.0);
+        prev[joint(m, 'A')] = a + 1;  // near the true solution, so IK picks it over (-A, C + 180)
+        prev[joint(m, 'C')] = c - 2;
+        std::vector<double> q;
+        REQUIRE(k.inverse({p, u}, prev, q).ok());
+        CHECK(q[joint(m, 'A')] == doctest::Approx(a).epsilon(1e-9));
+        CHECK(angle_diff(q[joint(m, 'C')], c) < 1e-9);
+        CHECK((Eigen::Vector3d(q[joint(m, 'X')], q[joint(m, 'Y')], q[joint(m, 'Z')]) - expect).norm() < 1e-9);
+    }
+}
+
+TEST_CASE("koc5's build direction is seed 004 eq. 11, and IK returns (C, B) or (C + 180, -B)") {
+    const Machine m = machine("koc5");
+    const Kinematics k(m);
+    std::mt19937 rng(4);
+    std::uniform_real_distribution<double> U(-1, 1);
+    for (int i = 0; i < 1000; ++i) {
+        const double th = 179 * U(rng), ph = 85 * U(rng);
+        std::vector<double> q(m.joints.size(), 0.0);
+        q[joint(m, 'C')] = th;
+        q[joint(m, 'B')] = ph;
+        // Eq. 11: n_b = (-cos th sin ph, -sin th sin ph, cos ph)
+        const Eigen::Vector3d nb(-std::cos(rad(th)) * std::sin(rad(ph)), -std::sin(rad(th)) * std::sin(rad(ph)), std::cos(rad(ph)));
+        CHECK((k.forward(q).axis - nb).norm() < 1e-12);
+        const auto sols = k.orientation_solutions(nb);
+        REQUIRE(sols.size() == 2);
+        // rotary_joints() order is the orientation product's; map back to B and C.
+        bool found = false, found_flip = false;
+        for (const auto& s : sols) {
+            double b = 0, c = 0;
+            for (std::size_t r = 0; r < s.size(); ++r)
+                (k.rotary_joints()[r] == joint(m, 'B') ? b : c) = s[r];
+            found = found || (std::abs(b - ph) < 1e-9 && angle_diff(c, th) < 1e-9);
+            found_flip = found_flip || (std::abs(b + ph) < 1e-9 && angle_diff(c, th + 180) < 1e-9);
+        }
+        CHECK(found);
+        CHECK(found_flip);
+    }
+}
+
+TEST_CASE("xyzac-trt equals LinuxCNC's xyzac-trt inverse, both rotation senses") {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> U(-1, 1);
+    for (int conventional : {0, 1}) {
+        for (int trial = 0; trial < 20; ++trial) {
+            const double xr = 30 * U(rng), yr = 30 * U(rng), zr = 30 * U(rng), dy = 10 * U(rng), dz = 20 * U(rng), dt = 5 * U(rng);
+            const Machine m = machine("xyzac-trt", {{"x_rot_point", xr}, {"y_rot_point", yr}, {"z_rot_point", zr}, {"y_offset", dy},
+                                                    {"z_offset", dz}, {"tool_offset", dt}, {"conventional", double(conventional)}});
+            const Kinematics k(m);
+            for (int i = 0; i < 25; ++i) {
+                const double a = 100 * U(rng), c = 400 * U(rng);
+                const double s = conventional ? -1.0 : 1.0;
+                const double ar = rad(s * a), cr = rad(s * c);
+                const Eigen::Vector3d p(40 * U(rng), 40 * U(rng), 40 * U(rng));
+                std::vector<double> q(m.joints.size(), 0.0);
+                q[joint(m, 'A')] = a;
+                q[joint(m, 'C')] = c;
+                REQUIRE(k.solve_position(p, q).ok());
+                // LinuxCNC trtfuncs xyzacKinematicsInverse, with dz = z-offset + tool-offset.
+                const double DZ = dz + dt;
+                const double X = std::cos(cr) * (p.x() - xr) - std::sin(cr) * (p.y() - yr) + xr;
+                const double Y = std::sin(cr) * std::cos(ar) * (p.x() - xr) + std::cos(cr) * std::cos(ar) * (p.y() - yr) -
+                                 std::sin(ar) * (p.z() - zr) - std::cos(ar) * dy + std::sin(ar) * DZ + dy + yr;
+                const double Z = std::sin(cr) * std::sin(ar) * (p.x() - xr) + std::cos(cr) * std::sin(ar) * (p.y() - yr) +
+                                 std::cos(ar) * (p.z() - zr) - std::sin(ar) * dy - std::cos(ar) * DZ + DZ + zr;
+                CHECK(q[joint(m, 'X')] == doctest::Approx(X).epsilon(1e-12));
+                CHECK(q[joint(m, 'Y')] == doctest::Approx(Y).epsilon(1e-12));
+                CHECK(q[joint(m, 'Z')] == doctest::Approx(Z).epsilon(1e-12));
+            }
+        }
+    }
+}
+
+TEST_CASE("FK o IK and IK o FK round trips to 1e-9 on every shipped machine") {
+    for (const auto& [name, path] : bundled_machines()) {
+        CAPTURE(name);
+        const Machine m = load_machine(path);
+        const Kinematics k(m);
+        std::mt19937 rng(std::hash<std::string>{}(name) & 0xffff);
+        std::uniform_real_distribution<double> U(0, 1);
+        auto random_q = [&] {
+            std::vector<double> q(m.joints.size());
+            for (std::size_t j = 0; j < q.size(); ++j) {
+                const Joint& J = m.joints[j];
+                const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
+                q[j] = lo + (hi - lo) * U(rng);
+            }
+            return q;
+        };
+        int ik_fk = 0, fk_ik = 0;
+        for (int i = 0; i < 3000; ++i) {
+            // IK o FK: joints -> pose -> joints, starting from those joints: the same joints back.
+            const auto q = random_q();
+            const Pose pose = k.forward(q);
+            std::vector<double> q2;
+            const auto r = k.inverse(pose, q, q2);
+            REQUIRE_MESSAGE(r.ok(), r.message);
+            for (std::size_t j = 0; j < q.size(); ++j) CHECK(std::abs(q2[j] - q[j]) < 1e-9);
+            ++ik_fk;
+            // FK o IK: a pose solved from another start (possibly the other solution, other turns)
+            // must still reproduce the pose exactly.
+            const auto start = random_q();
+            std::vector<double> q3;
+            if (k.inverse(pose, start, q3).ok()) {
+                const Pose back = k.forward(q3);
+                CHECK((back.tip - pose.tip).norm() < 1e-9);
+                CHECK((back.axis - pose.axis).norm() < 1e-9);
+                ++fk_ik;
+            }
+        }
+        CHECK(ik_fk == 3000);
+        CHECK(fk_ik > 1000);  // the rest left the linear travel: a refused pose, not a wrong one
+    }
+}
+
+TEST_CASE("a tool axis on a rotary axis keeps that joint where it was") {
+    const Machine m = machine("pentarod");
+    const Kinematics k(m);
+    std::vector<double> prev(m.joints.size(), 0.0), q;
+    prev[joint(m, 'C')] = 123.4;
+    prev[joint(m, 'A')] = 20;
+    REQUIRE(k.inverse({{0, 0, 10}, {0, 0, 1}}, prev, q).ok());
+    CHECK(q[joint(m, 'C')] == 123.4);
+    CHECK(std::abs(q[joint(m, 'A')]) < 1e-12);
+}
+
+TEST_CASE("unreachable orientations and limits are refused with a reason") {
+    const Machine m = machine("addin4");
+    const Kinematics k(m);
+    std::vector<double> prev(m.joints.size(), 0.0), q;
+    auto r = k.inverse({{10, 10, 10}, Eigen::Vector3d(0.3, 0, 1).normalized()}, prev, q);
+    CHECK(r.status == IkStatus::Unreachable);
+    CHECK(r.message.find("reach") != std::string::npos);
+
+    const Machine p = machine("pentarod", {{"a_min", 0.0}});
+    const Kinematics kp(p);
+    // With A limited to 0..90 a vector below the horizon is out of reach of the limits.
+    r = kp.inverse({{0, 0, 10}, Eigen::Vector3d(0.2, 0.1, -1).normalized()}, std::vector<double>(p.joints.size(), 0.0), q);
+    CHECK(r.status == IkStatus::OutOfLimits);
+    CHECK(r.message.find("limits") != std::string::npos);
+    // With A in 0..90 the only solution of a tilted vector has A >= 0.
+    REQUIRE(kp.inverse({{0, 0, 10}, Eigen::Vector3d(0.3, -0.2, 1).normalized()}, std::vector<double>(p.joints.size(), 0.0), q).ok());
+    CHECK(q[p.joint_index('A')] > 0);
+}
+
+TEST_CASE("rotary choice: nearest the previous angle, 360-degree turns on unbounded axes, inside limits") {
+    const Machine m = machine("pentarod");
+    const Kinematics k(m);
+    const int A = joint(m, 'A'), C = joint(m, 'C');
+    std::vector<double> prev(m.joints.size(), 0.0), q;
+    prev[A] = 30;
+    prev[C] = 710;  // two turns on: the answer stays near 710, not at -10
+    const double c = -10, a = 30;
+    const Eigen::Vector3d u(std::sin(rad(a)) * std::sin(rad(c)), std::sin(rad(a)) * std::cos(rad(c)), std::cos(rad(a)));
+    REQUIRE(k.inverse({{0, 0, 5}, u}, prev, q).ok());
+    CHECK(q[C] == doctest::Approx(710).epsilon(1e-12));
+    CHECK(q[A] == doctest::Approx(30).epsilon(1e-12));
+    // From the other side of the pole the equivalent (-A, C + 180) is nearer.
+    prev[A] = -30;
+    prev[C] = 170;
+    REQUIRE(k.inverse({{0, 0, 5}, u}, prev, q).ok());
+    CHECK(q[A] == doctest::Approx(-30).epsilon(1e-12));
+    CHECK(q[C] == doctest::Approx(170).epsilon(1e-12));
+
+    // rw2's A is bounded at +-168: from A = 160, a target of 200 (= -160) must go the long way round.
+    const Machine r = machine("rw2");
+    const Kinematics kr(r);
+    std::vector<double> rp(r.joints.size(), 0.0);
+    rp[joint(r, 'A')] = 160;
+    rp[joint(r, 'B')] = 30;
+    const double A2 = 200, B2 = 30;
+    const Eigen::Vector3d u2(std::sin(rad(B2)) * std::cos(rad(A2)), -std::sin(rad(B2)) * std::sin(rad(A2)), std::cos(rad(B2)));
+    REQUIRE(kr.inverse({{100, 100, 10}, u2}, rp, q).ok());
+    CHECK(q[joint(r, 'A')] >= -168);
+    CHECK(q[joint(r, 'A')] <= 168);
+    CHECK((kr.forward(q).axis - u2).norm() < 1e-9);
+}

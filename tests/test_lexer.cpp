@@ -1,0 +1,319 @@
+// Lexer: G-code syntax in, words out. Every expectation here is written from the G-code
+// conventions (RS274/NIST, Marlin host protocol, RepRapFirmware strings), not from lexer output.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <string>
+#include <string_view>
+
+#include "translators/error.hpp"
+#include "translators/gcode_lexer.hpp"
+
+using namespace xlate5;
+
+namespace {
+
+Block lex(std::string_view line) {
+    Block b;
+    lex_line(line, b);
+    return b;
+}
+
+struct Expected {
+    char letter;
+    double value;  // NaN: a flag (no number)
+};
+
+void check_words(const Block& b, std::initializer_list<Expected> expected) {
+    REQUIRE(b.words.size() == expected.size());
+    std::size_t i = 0;
+    for (const Expected& e : expected) {
+        CAPTURE(i);
+        CHECK(b.words[i].letter == e.letter);
+        if (std::isnan(e.value)) {
+            CHECK_FALSE(b.words[i].has_value);
+        } else {
+            CHECK(b.words[i].has_value);
+            CHECK(b.words[i].value == e.value);
+        }
+        ++i;
+    }
+}
+
+constexpr double kFlag = std::numeric_limits<double>::quiet_NaN();
+
+// Lexes a line that must fail; returns the error. `first_col`..`last_col` (1-based) is the range
+// a correct column may point at (the offending word's letter up to the offending character).
+LineError lex_error(std::string_view line, std::uint32_t first_col, std::uint32_t last_col, std::string_view mention) {
+    Block b;
+    try {
+        lex_line(line, b);
+    } catch (const LineError& e) {
+        CAPTURE(std::string(line));
+        CAPTURE(e.what());
+        CHECK(e.column() >= first_col);
+        CHECK(e.column() <= last_col);
+        CHECK(std::string(e.what()).find(mention) != std::string::npos);
+        return e;
+    } catch (const std::exception& e) {
+        FAIL("expected LineError for '" << std::string(line) << "', got other exception: " << e.what());
+    }
+    FAIL("expected LineError for '" << std::string(line) << "', lexed without error");
+    return LineError(0, "");
+}
+
+}  // namespace
+
+TEST_CASE("lexer: a plain move gives letters, values and 1-based columns") {
+    const Block b = lex("G1 X10 Y-2.5 E0.25 F1200");
+    check_words(b, {{'G', 1}, {'X', 10}, {'Y', -2.5}, {'E', 0.25}, {'F', 1200}});
+    CHECK(b.words[0].column == 1);
+    CHECK(b.words[1].column == 4);
+    CHECK(b.words[2].column == 8);
+    CHECK(b.words[3].column == 14);
+    CHECK(b.words[4].column == 20);
+    CHECK(b.body == "G1 X10 Y-2.5 E0.25 F1200");
+    CHECK_FALSE(b.has_comment);
+    CHECK_FALSE(b.percent);
+    CHECK_FALSE(b.text_argument);
+}
+
+TEST_CASE("lexer: ';' comments end the words; the body keeps the comment text") {
+    const Block b = lex("G1 X1 ; move Y9 here");
+    check_words(b, {{'G', 1}, {'X', 1}});
+    CHECK(b.has_comment);
+    CHECK(b.body == "G1 X1 ; move Y9 here");
+
+    const Block c = lex(";LAYER:3");
+    CHECK(c.words.empty());
+    CHECK(c.has_comment);
+    CHECK(c.body == ";LAYER:3");
+}
+
+TEST_CASE("lexer: '( )' comments mid-line are skipped and the words after them are read") {
+    const Block b = lex("G1 X1 (tilt Y7 first) Y2 (end)");
+    check_words(b, {{'G', 1}, {'X', 1}, {'Y', 2}});
+    CHECK(b.words[2].column == 23);
+    CHECK(b.has_comment);
+    CHECK(b.body == "G1 X1 (tilt Y7 first) Y2 (end)");
+
+    const Block c = lex("(only a comment)");
+    CHECK(c.words.empty());
+    CHECK(c.has_comment);
+    CHECK(c.body == "(only a comment)");
+}
+
+TEST_CASE("lexer: a leading N line number and a trailing *checksum are not words and not in the body") {
+    const Block b = lex("N123 G1 X5*71");
+    check_words(b, {{'G', 1}, {'X', 5}});
+    CHECK(b.words[0].column == 6);
+    CHECK(b.body == "G1 X5");
+
+    const Block c = lex("N7 M105*36  ");
+    check_words(c, {{'M', 105}});
+    CHECK(c.body == "M105");
+
+    // A checksum may be followed by blanks and a comment, still outside the body.
+    const Block d = lex("N8 G92 E0*99 ; reset");
+    check_words(d, {{'G', 92}, {'E', 0}});
+    CHECK(d.body.find('*') == std::string_view::npos);
+    CHECK(d.body.substr(0, 6) == "G92 E0");
+}
+
+TEST_CASE("lexer: letters in any case are upper-cased") {
+    const Block b = lex("g1 x10 y-1 e.5");
+    check_words(b, {{'G', 1}, {'X', 10}, {'Y', -1}, {'E', 0.5}});
+}
+
+TEST_CASE("lexer: words need no spaces between them") {
+    const Block b = lex("G1X10Y2Z-.3E+1F600");
+    check_words(b, {{'G', 1}, {'X', 10}, {'Y', 2}, {'Z', -0.3}, {'E', 1}, {'F', 600}});
+    CHECK(b.words[1].column == 3);
+    CHECK(b.words[2].column == 6);
+    CHECK(b.words[3].column == 8);
+}
+
+TEST_CASE("lexer: number forms .5, -.309, +3, 5., 007 and a space after the letter") {
+    check_words(lex("G1 X.5"), {{'G', 1}, {'X', 0.5}});
+    check_words(lex("G1 Y-.309"), {{'G', 1}, {'Y', -0.309}});
+    check_words(lex("G1 Z+3"), {{'G', 1}, {'Z', 3}});
+    check_words(lex("G1 Z5."), {{'G', 1}, {'Z', 5}});
+    check_words(lex("G1 X007"), {{'G', 1}, {'X', 7}});
+    const Block b = lex("G1 X 10 Y  -2");  // RS274: blanks inside a word are allowed
+    check_words(b, {{'G', 1}, {'X', 10}, {'Y', -2}});
+    CHECK(b.words[1].column == 4);
+    CHECK(b.words[2].column == 9);
+    // Largest accepted magnitude.
+    check_words(lex("G1 X1000000000"), {{'G', 1}, {'X', 1e9}});
+    check_words(lex("G1 X-1000000000"), {{'G', 1}, {'X', -1e9}});
+    // Decimal commands.
+    check_words(lex("G43.4"), {{'G', 43.4}});
+}
+
+TEST_CASE("lexer: CRLF line ends and blank lines") {
+    const Block b = lex("G1 X1\r");
+    check_words(b, {{'G', 1}, {'X', 1}});
+    CHECK(b.body == "G1 X1");
+
+    const Block c = lex("; note\r");
+    CHECK(c.body == "; note");
+
+    for (std::string_view blank : {"", "   ", "\t", "\r", "  \t \r"}) {
+        CAPTURE(std::string(blank));
+        const Block e = lex(blank);
+        CHECK(e.words.empty());
+        CHECK(e.empty());
+        CHECK(e.body.empty());
+        CHECK_FALSE(e.has_comment);
+    }
+}
+
+TEST_CASE("lexer: a 1 MB comment on a line is accepted") {
+    std::string line = "G1 X3 ;";
+    line.append(std::size_t(1) << 20, 'c');
+    const Block b = lex(line);
+    check_words(b, {{'G', 1}, {'X', 3}});
+    CHECK(b.has_comment);
+    CHECK(b.body.size() == line.size());
+
+    std::string paren = "G1 X4 (";
+    paren.append(std::size_t(1) << 20, 'p');
+    paren += ") Y1";
+    check_words(lex(paren), {{'G', 1}, {'X', 4}, {'Y', 1}});
+}
+
+TEST_CASE("lexer: a lone '%' is a program delimiter, not an error") {
+    const Block b = lex("%");
+    CHECK(b.percent);
+    CHECK(b.words.empty());
+    CHECK(b.body == "%");
+    const Block c = lex("  %  ");
+    CHECK(c.percent);
+    const Block d = lex("% (program start)");
+    CHECK(d.percent);
+    CHECK(d.words.empty());
+}
+
+TEST_CASE("lexer: M117 takes the rest of the line as text; a checksum still ends it") {
+    const Block b = lex("M117 Hello world*12");
+    check_words(b, {{'M', 117}});
+    CHECK(b.text_argument);
+    CHECK(b.body == "M117 Hello world");
+
+    // Letters and digits in the text are not words, and a ';' is part of the message.
+    const Block c = lex("M117 X10 done; 50%");
+    check_words(c, {{'M', 117}});
+    CHECK(c.text_argument);
+    CHECK(c.body == "M117 X10 done; 50%");
+
+    const Block d = lex("N4 M23 model.gco*80");
+    check_words(d, {{'M', 23}});
+    CHECK(d.body == "M23 model.gco");
+}
+
+TEST_CASE("lexer: reusing a Block resets every flag of the previous line") {
+    // lex_line reuses `out`: a line without a text argument must not inherit the flag.
+    Block b;
+    lex_line("M117 Printing", b);
+    REQUIRE(b.text_argument);
+    lex_line("G1 X1", b);
+    // BUG: lex_line resets has_comment and percent but not text_argument.
+    CHECK_FALSE(b.text_argument);
+    CHECK_FALSE(b.has_comment);
+    CHECK_FALSE(b.percent);
+    check_words(b, {{'G', 1}, {'X', 1}});
+
+    lex_line("%", b);
+    REQUIRE(b.percent);
+    lex_line("; c", b);
+    CHECK_FALSE(b.percent);
+    CHECK(b.has_comment);
+    lex_line("G28", b);
+    CHECK_FALSE(b.has_comment);
+}
+
+TEST_CASE("lexer: RepRapFirmware quoted strings, with \"\" as an embedded quote") {
+    const Block b = lex(R"(M291 P"hi ""there""" S1)");
+    check_words(b, {{'M', 291}, {'P', kFlag}, {'S', 1}});
+    CHECK(b.words[2].column == 22);
+    // Letters, digits and ';' inside the string are not words and not a comment.
+    const Block c = lex(R"(M98 P"config; X1 Y2.g")");
+    check_words(c, {{'M', 98}, {'P', kFlag}});
+    CHECK_FALSE(c.has_comment);
+}
+
+TEST_CASE("lexer: valueless flags such as G28 X Y") {
+    const Block b = lex("G28 X Y");
+    check_words(b, {{'G', 28}, {'X', kFlag}, {'Y', kFlag}});
+    CHECK(std::isnan(b.words[1].value));
+    CHECK(b.words[1].column == 5);
+    CHECK(b.words[2].column == 7);
+    const Block c = lex("M84 E");
+    check_words(c, {{'M', 84}, {'E', kFlag}});
+}
+
+// ---- errors ------------------------------------------------------------------------------
+
+TEST_CASE("lexer error: G, M, T (and N) need a number") {
+    lex_error("G X1", 1, 1, "G");
+    lex_error("G1 X1 M", 7, 7, "M");
+    lex_error("T", 1, 1, "T");
+    const LineError e = lex_error("G X1", 1, 1, "no number");
+    CHECK(e.column() == 1);
+}
+
+TEST_CASE("lexer error: a sign without digits") {
+    lex_error("G1 X-", 4, 5, "sign");
+    lex_error("G1 X+ Y1", 4, 5, "sign");
+    lex_error("G1 X-.", 4, 5, "number");
+}
+
+TEST_CASE("lexer error: NaN and infinity are not numbers") {
+    lex_error("G1 Xnan", 4, 5, "finite");
+    lex_error("G1 XINF", 4, 5, "finite");
+    lex_error("G1 X-inf", 4, 5, "finite");
+    lex_error("G1 X NaN", 4, 6, "finite");
+}
+
+TEST_CASE("lexer error: a number beyond 1e9 is out of range") {
+    lex_error("G1 X12345678901", 4, 5, "out of range");
+    lex_error("G1 Y-1000000000.5", 4, 5, "out of range");
+}
+
+TEST_CASE("lexer error: bytes that are not text") {
+    using namespace std::string_view_literals;
+    const LineError nul = lex_error("G1 X1\0Y2"sv, 6, 6, "0x00");
+    CHECK(nul.column() == 6);
+    lex_error("G1\x01X1"sv, 3, 3, "0x01");
+    lex_error("G1 X1\x7F"sv, 6, 6, "0x7F");
+    // A NUL inside a comment is still not text.
+    lex_error("; a\0b"sv, 4, 4, "non-text");
+    // A '\r' that is not the line end.
+    lex_error("G1\rX1"sv, 3, 3, "non-text");
+}
+
+TEST_CASE("lexer: non-ASCII is an error outside a comment and allowed inside one") {
+    lex_error("G1 X1 \xC3\xA9", 7, 7, "non-ASCII");
+    lex_error("G1 X\xC2\xB5", 5, 5, "non-ASCII");
+    const Block b = lex("G1 X1 ; temp\xC3\xA9rature 200\xC2\xB0");
+    check_words(b, {{'G', 1}, {'X', 1}});
+    const Block c = lex("G1 (\xC3\xBC) X2");
+    check_words(c, {{'G', 1}, {'X', 2}});
+}
+
+TEST_CASE("lexer error: an unclosed '(' comment") {
+    const LineError e = lex_error("G1 X1 (no end", 7, 7, "not closed");
+    CHECK(e.column() == 7);
+    lex_error("(", 1, 1, "(");
+}
+
+TEST_CASE("lexer error: parameters and expressions '#', '[' are not supported") {
+    lex_error("G1 X#1", 5, 5, "#");
+    lex_error("#1 = 5", 1, 1, "#");
+    lex_error("G1 X[1+2]", 5, 5, "[");
+}
+
+TEST_CASE("lexer error: text after the checksum") {
+    lex_error("N3 G1 X1*12 Y2", 13, 13, "checksum");
+    lex_error("G1 X1*", 6, 6, "checksum");
+}
