@@ -23,17 +23,18 @@ void JointEmitter::invalidate(const std::vector<double>& q) {
     believed_ = q;
 }
 
-void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& q, std::optional<double> e,
-                        std::optional<double> f) {
+void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<bool>& commanded,
+                        std::optional<double> e, std::optional<double> f) {
     const std::size_t start = out.size();
     out += gcode == 0 ? "G0" : "G1";
     const std::size_t empty = out.size();
-    const bool moves = q != believed_;
-    believed_ = q;
-    for (std::size_t j = 0; j < q.size() && moves; ++j) {
+    for (std::size_t j = 0; j < q.size(); ++j) {
         scratch_.clear();
         format(scratch_, j, q[j]);
-        if (scratch_ == last_[j]) continue;
+        const bool known = !last_[j].empty();
+        const bool write = known ? scratch_ != last_[j] : (commanded[j] || q[j] != believed_[j]);
+        believed_[j] = q[j];
+        if (!write) continue;
         last_[j] = scratch_;
         out += ' ';
         out += machine_.joints[j].output;

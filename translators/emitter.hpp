@@ -15,18 +15,19 @@ class JointEmitter {
 public:
     explicit JointEmitter(const Machine& machine);
 
-    // "G0"/"G1" with every joint whose printed value changed, then E and F when given.
-    // Writes nothing when nothing would change.
-    void move(std::string& out, int gcode, const std::vector<double>& q, std::optional<double> e,
-              std::optional<double> f);
+    // "G0"/"G1" with every joint whose printed value changed, then E and F when given. A joint
+    // whose firmware position is not known is written when the input commands it (`commanded`)
+    // or its value changes. Writes nothing when nothing would change.
+    void move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<bool>& commanded,
+              std::optional<double> e, std::optional<double> f);
 
     // "G92" for the joints in `which` (the firmware is told where they are) and E when given.
     void set_position(std::string& out, const std::vector<double>& q, const std::vector<bool>& which,
                       std::optional<double> e);
 
     // The firmware's position is not exactly known (start, homing, probing): xlate5 believes it
-    // is at `q`; the next move that changes any joint writes every joint. A move that changes no
-    // joint (extrusion only) writes none, so a wrong belief never causes a surprise move.
+    // is at `q`. Until written again, a joint is sent only when commanded or changed, so a wrong
+    // belief (a machine file's home that differs from the firmware's) never causes a surprise move.
     void invalidate(const std::vector<double>& q);
 
     // Appends one joint word (" A12.5") as the emitter would print it.

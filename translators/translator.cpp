@@ -48,6 +48,7 @@ Translator::Translator(const Kinematics& kinematics, TranslatorOptions options)
       tool_emitter_(kinematics.machine(), options_.preview_form),
       q_(machine_.home_joints()),
       q_next_(q_),
+      commanded_(q_.size(), false),
       pose_(kin_.forward(q_)),
       mode_(options_.inverse ? OrientationMode::Joints : options_.start_mode.value_or(machine_.start_mode)) {}
 
@@ -284,6 +285,7 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
     std::uint32_t ijk_column = column;
     std::optional<double> e, f;
     q_next_ = q_;
+    commanded_.assign(q_.size(), false);
     for (const Param& p : params_) {
         switch (p.letter) {
             case 'X': case 'Y': case 'Z': {
@@ -314,6 +316,7 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
                     fail(p.column, std::string("rotary word ") + p.letter + " under G43.5: give the tool axis as I J K, or switch to G43.4");
                 const double v = number(p);
                 q_next_[std::size_t(j)] = modes_.absolute ? v : q_[std::size_t(j)] + v;
+                commanded_[std::size_t(j)] = true;
                 any_rotary = true;
                 break;
             }
@@ -341,10 +344,14 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
     }
     if (r.ok()) r = kin_.check_limits(q_next_);
     if (!r.ok()) fail(column, r.message);
+    for (std::size_t j = 0; j < q_.size(); ++j) {
+        const bool rotary = machine_.joints[j].rotary;
+        if ((!rotary && any_xyz) || (rotary && any_ijk)) commanded_[j] = true;
+    }
     q_.swap(q_next_);
     pose_ = next;
     tip_known_ = tip_known_ || any_xyz;
-    emitter_.move(out, gcode, q_, e, f);
+    emitter_.move(out, gcode, q_, commanded_, e, f);
 }
 
 void Translator::move_joints(int gcode, std::uint32_t /*column*/, std::string& out) {
@@ -352,6 +359,7 @@ void Translator::move_joints(int gcode, std::uint32_t /*column*/, std::string& o
     std::optional<double> e, f;
     bool any_linear = false;
     q_next_ = q_;
+    commanded_.assign(q_.size(), false);
     for (const Param& p : params_) {
         switch (p.letter) {
             case 'E': e = number(p) * unit; break;
@@ -367,6 +375,7 @@ void Translator::move_joints(int gcode, std::uint32_t /*column*/, std::string& o
                 const bool rotary = machine_.joints[std::size_t(j)].rotary;
                 const double v = number(p) * (rotary ? 1.0 : unit);
                 q_next_[std::size_t(j)] = modes_.absolute ? v : q_[std::size_t(j)] + v;
+                commanded_[std::size_t(j)] = true;
                 any_linear = any_linear || !rotary;
                 break;
             }
@@ -377,7 +386,7 @@ void Translator::move_joints(int gcode, std::uint32_t /*column*/, std::string& o
     pose_ = kin_.forward(q_);
     tip_known_ = tip_known_ || any_linear;
     if (options_.inverse) tool_emitter_.move(out, gcode, pose_.tip, pose_.axis, q_, e, f);
-    else emitter_.move(out, gcode, q_, e, f);
+    else emitter_.move(out, gcode, q_, commanded_, e, f);
 }
 
 void Translator::set_position(std::uint32_t column, std::string& out) {

@@ -80,6 +80,7 @@ private:
 
     std::vector<double> q_;         // joint values the firmware will be at
     std::vector<double> q_next_;    // scratch for the move being solved
+    std::vector<bool> commanded_;   // joints the current line names (directly or through the tip)
     Pose pose_;                     // tip and tool axis in the part frame
     Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();  // program frame origin in the part frame (G92)
     bool tip_known_ = false;        // has the program placed the tip since start or G28?

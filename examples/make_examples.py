@@ -1,0 +1,64 @@
+#!/usr/bin/env python3
+"""Writes the bundled examples (run it again after changing it; the outputs are committed).
+
+rw2_flared_wall.gcode: a C-shaped wall that flares outward as it grows, in seed 001's dialect
+(G1 X Y Z A B E: tip plus head angles, G43.4 being rw2's start mode). The nozzle leans
+radially outward by B; A follows the azimuth within rw2's +-168 degree cable limit, so each layer
+is an arc of 300 degrees printed back and forth.
+
+pentarod_dome.gcode: a dome shell in seed 002's vector dialect (G1 X Y Z I J K F E), the tool
+axis normal to the surface.
+"""
+import math
+
+def rw2():
+    out = ["; xlate5 example: flared C-shaped wall for rw2 (tip + head angles, seed 001 dialect)",
+           "G21", "G90", "M83", "M104 S215", "M140 S60",
+           "G28 ; home all axes", "G92 A-168 ; A homes at its min switch", "G1 A0 B0 F1200",
+           "M190 S60", "M109 S215", "G92 E0"]
+    cx, cy, r0, h = 110.0, 110.0, 30.0, 0.3
+    layers, steps = 20, 48
+    prev = None
+    for layer in range(layers):
+        z = h * (layer + 1)
+        tilt = 1.5 * layer                      # degrees of outward lean
+        r = r0 + z * math.tan(math.radians(tilt))
+        idx = range(steps + 1) if layer % 2 == 0 else range(steps, -1, -1)
+        out.append(f";LAYER:{layer}")
+        for n, i in enumerate(idx):
+            phi = -150.0 + 300.0 * i / steps   # azimuth of the point, degrees
+            x = cx + r * math.cos(math.radians(phi))
+            y = cy + r * math.sin(math.radians(phi))
+            a = -phi                            # u_xy = (cos A, -sin A) points along the azimuth
+            if n == 0:
+                out.append(f"G0 X{x:.3f} Y{y:.3f} Z{z:.3f} A{a:.2f} B{tilt:.2f} F3000")
+            else:
+                e = 0.033 * math.dist((x, y, z), prev)
+                out.append(f"G1 X{x:.3f} Y{y:.3f} Z{z:.3f} A{a:.2f} B{tilt:.2f} E{e:.5f} F1200")
+            prev = (x, y, z)
+    out += ["G1 Z20 F600", "M104 S0", "M140 S0", "M84"]
+    return out
+
+def pentarod():
+    out = ["; xlate5 example: dome shell for pentarod (tip + tool vector, seed 002 dialect)",
+           "G21", "G90", "M82", "G28", "G92 E0"]
+    R, e = 25.0, 0.0
+    prev = None
+    for ring in range(1, 16):
+        polar = math.radians(4.0 * ring)
+        for i in range(73):
+            az = math.radians(5.0 * i)
+            n = (math.sin(polar) * math.cos(az), math.sin(polar) * math.sin(az), math.cos(polar))
+            p = (R * n[0], R * n[1], R * n[2] - R + 0.3)
+            if prev is None or i == 0:
+                out.append(f"G0 X{p[0]:.3f} Y{p[1]:.3f} Z{p[2]:.3f} I{n[0]:.6f} J{n[1]:.6f} K{n[2]:.6f} F3000")
+            else:
+                e += 0.033 * math.dist(p, prev)
+                out.append(f"G1 X{p[0]:.3f} Y{p[1]:.3f} Z{p[2]:.3f} I{n[0]:.6f} J{n[1]:.6f} K{n[2]:.6f} E{e:.5f} F900")
+            prev = p
+    out += ["G0 Z40 F3000", "M84"]
+    return out
+
+for name, lines in (("rw2_flared_wall.gcode", rw2()), ("pentarod_dome.gcode", pentarod())):
+    with open(name, "w") as f:
+        f.write("\n".join(lines) + "\n")

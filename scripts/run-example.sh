@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Installs the dependencies, builds xlate5, and translates the bundled rw2 example
+# (tool space, seed 001's dialect) into joint space for stock Marlin; then turns the result
+# back into tool space to show the round trip.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./scripts/install-deps.sh
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build build -j"$(nproc 2>/dev/null || echo 2)" --target xlate5
+mkdir -p out
+./build/daemon/xlate5 --machine rw2 -i examples/rw2_flared_wall.gcode -o out/rw2_flared_wall.joints.gcode
+./build/daemon/xlate5 --machine rw2 --inverse -i out/rw2_flared_wall.joints.gcode -o out/rw2_flared_wall.preview.gcode
+echo "input  (tool space):  examples/rw2_flared_wall.gcode ($(wc -l < examples/rw2_flared_wall.gcode) lines)"
+echo "output (joint space): out/rw2_flared_wall.joints.gcode ($(wc -l < out/rw2_flared_wall.joints.gcode) lines)"
+echo "preview (inverse):    out/rw2_flared_wall.preview.gcode"
+echo "--- first moves of the translated file:"
+grep -m 12 '^G[01] ' out/rw2_flared_wall.joints.gcode

@@ -1,0 +1,335 @@
+// The command line as a user and a script see it: exit codes (0 ok, 1 bad G-code, 2 usage,
+// 3 machine, 4 I/O), messages, atomic -o, --set, --inverse, machines, --version.
+#include <doctest/doctest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+double rad(double deg) { return deg * kPi / 180.0; }
+
+// A fresh directory under the system temp dir, removed with everything in it.
+struct TempDir {
+    fs::path path;
+    TempDir() {
+        std::string pattern = (fs::temp_directory_path() / "xlate5-cli-XXXXXX").string();
+        REQUIRE(::mkdtemp(pattern.data()) != nullptr);
+        path = pattern;
+    }
+    ~TempDir() {
+        std::error_code ec;
+        fs::remove_all(path, ec);
+    }
+    fs::path write(const std::string& name, const std::string& text) const {
+        const fs::path p = path / name;
+        std::ofstream(p, std::ios::binary) << text;
+        return p;
+    }
+    std::vector<std::string> entries() const {
+        std::vector<std::string> names;
+        for (const auto& e : fs::directory_iterator(path)) names.push_back(e.path().filename().string());
+        std::sort(names.begin(), names.end());
+        return names;
+    }
+};
+
+std::string read(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+std::string quote(const std::string& s) {
+    std::string q = "'";
+    for (char c : s) {
+        if (c == '\'') q += "'\\''";
+        else q += c;
+    }
+    return q + "'";
+}
+
+struct Result {
+    int code = -1;
+    std::string out, err;
+};
+
+// Runs the xlate5 binary with `args` (already quoted), standard input from `stdin_text`.
+Result run(const TempDir& dir, const std::string& args, const std::string& stdin_text = "") {
+    const fs::path in = dir.path / ".stdin", out = dir.path / ".stdout", err = dir.path / ".stderr";
+    std::ofstream(in, std::ios::binary) << stdin_text;
+    const std::string cmd = quote(XLATE5_BINARY) + " " + args + " <" + quote(in.string()) + " >" + quote(out.string()) + " 2>" +
+                            quote(err.string());
+    const int status = std::system(cmd.c_str());
+    Result r;
+    REQUIRE(status != -1);
+    REQUIRE(WIFEXITED(status));
+    r.code = WEXITSTATUS(status);
+    r.out = read(out);
+    r.err = read(err);
+    fs::remove(in);
+    fs::remove(out);
+    fs::remove(err);
+    return r;
+}
+
+bool contains(const std::string& hay, const std::string& needle) { return hay.find(needle) != std::string::npos; }
+
+std::vector<std::string> lines_of(const std::string& text) {
+    std::vector<std::string> lines;
+    std::istringstream in(text);
+    std::string line;
+    while (std::getline(in, line)) lines.push_back(line);
+    return lines;
+}
+
+std::map<char, double> words_of(const std::string& line) {
+    std::map<char, double> w;
+    std::istringstream in(line);
+    std::string tok;
+    while (in >> tok) w[tok[0]] = tok.size() > 1 ? std::stod(tok.substr(1)) : std::nan("");
+    return w;
+}
+
+// Seed 001 eq. 4.5.
+struct Xyz {
+    double x, y, z;
+};
+Xyz eq45(double tx, double ty, double tz, double a, double b, double la, double lb = 47.9) {
+    const double A = rad(a), B = rad(b);
+    return {tx + std::sin(A) * la + std::cos(A) * std::sin(B) * lb, ty - la + std::cos(A) * la - std::sin(A) * std::sin(B) * lb,
+            tz + std::cos(B) * lb - lb};
+}
+
+constexpr double kPrinted = 5e-4 + 1e-9;
+
+std::string machine_path(const std::string& name) { return std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml"; }
+
+const char* kGood =
+    "; a small tool-space file\n"
+    "G28\n"
+    "G92 A-168\n"
+    "G1 A0 B0\n"
+    "G1 X100 Y100 Z10 F1200\n"
+    "G1 A30 E1\n"
+    "G1 X120 B-20 E2\n";
+
+}  // namespace
+
+TEST_CASE("cli: a good file translates with exit code 0, from -i and from standard input") {
+    TempDir d;
+    const fs::path in = d.write("good.gcode", kGood);
+    const Result r = run(d, "-m rw2 -i " + quote(in.string()));
+    CHECK(r.code == 0);
+    CHECK(r.err.empty());
+    const auto lines = lines_of(r.out);
+    REQUIRE(lines.size() == 7);
+    CHECK(lines[0] == "; a small tool-space file");
+    CHECK(lines[1] == "G28");
+    CHECK(lines[2] == "G92 A-168");
+    // Last line: tip (120, 100, 10), A 30, B -20 per eq. 4.5.
+    const auto w = words_of(lines[6]);
+    const Xyz e = eq45(120, 100, 10, 30, -20, 26.5);
+    CHECK(std::abs(w.at('X') - e.x) <= kPrinted);
+    CHECK(std::abs(w.at('Y') - e.y) <= kPrinted);
+    CHECK(std::abs(w.at('Z') - e.z) <= kPrinted);
+    CHECK(w.at('B') == -20);
+    CHECK(w.at('E') == 2);
+
+    const Result s = run(d, "-m rw2", kGood);
+    CHECK(s.code == 0);
+    CHECK(s.out == r.out);
+}
+
+TEST_CASE("cli: bad G-code exits 1 with file:line:column: on standard error") {
+    TempDir d;
+    const fs::path in = d.write("bad.gcode", "G1 X1 Y1 Z1 A0 B0\nM104 S200\nG1 X1 Q5\nG1 X2\n");
+    const Result r = run(d, "-m rw2 -i " + quote(in.string()));
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, in.string() + ":3:7:"));
+    CHECK(contains(r.err, "Q"));
+
+    const Result s = run(d, "-m rw2", "G1 X1 Y1 Z1 A0 B0\n\nG1 Xnan\n");
+    CHECK(s.code == 1);
+    CHECK(contains(s.err, "<stdin>:3:"));
+}
+
+TEST_CASE("cli: with -o, bad input leaves no output file and an existing one unchanged") {
+    TempDir d;
+    const fs::path in = d.write("bad.gcode", "G1 X1 Y1 Z1 A0 B0\nG1 X2\nG1 A170\n");
+    const fs::path out = d.path / "out.gcode";
+    Result r = run(d, "-m rw2 -i " + quote(in.string()) + " -o " + quote(out.string()));
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, ":3:"));
+    CHECK_FALSE(fs::exists(out));
+    CHECK(d.entries() == std::vector<std::string>{"bad.gcode"});  // no temporary file left behind
+
+    const std::string old = "previous content\n";
+    d.write("out.gcode", old);
+    r = run(d, "-m rw2 -i " + quote(in.string()) + " -o " + quote(out.string()));
+    CHECK(r.code == 1);
+    CHECK(read(out) == old);
+    CHECK(d.entries() == std::vector<std::string>{"bad.gcode", "out.gcode"});
+
+    // A good file replaces it.
+    const fs::path good = d.write("good.gcode", kGood);
+    r = run(d, "-m rw2 -i " + quote(good.string()) + " -o " + quote(out.string()));
+    CHECK(r.code == 0);
+    CHECK(r.out.empty());
+    CHECK(lines_of(read(out)).size() == 7);
+    CHECK(d.entries() == std::vector<std::string>{"bad.gcode", "good.gcode", "out.gcode"});
+}
+
+TEST_CASE("cli: an input file that cannot be opened exits 4") {
+    TempDir d;
+    const Result r = run(d, "-m rw2 -i " + quote((d.path / "missing.gcode").string()));
+    CHECK(r.code == 4);
+    CHECK(contains(r.err, "missing.gcode"));
+}
+
+TEST_CASE("cli: an unknown machine exits 3") {
+    TempDir d;
+    Result r = run(d, "-m nosuchmachine", "G1 X1\n");
+    CHECK(r.code == 3);
+    CHECK(contains(r.err, "nosuchmachine"));
+    r = run(d, "-m " + quote((d.path / "absent.toml").string()), "G1 X1\n");
+    CHECK(r.code == 3);
+    CHECK(contains(r.err, "absent.toml"));
+}
+
+TEST_CASE("cli: a broken machine file exits 3 naming the path, the line and the key") {
+    TempDir d;
+    std::string text = read(machine_path("rw2"));
+    REQUIRE(!text.empty());
+    // Misspell the first joint's "type" key and find the line it is on.
+    const std::size_t at = text.find("type = \"linear\"");
+    REQUIRE(at != std::string::npos);
+    text.replace(at, 4, "tpye");
+    const int line = 1 + int(std::count(text.begin(), text.begin() + std::ptrdiff_t(at), '\n'));
+    const fs::path toml = d.write("typo.toml", text);
+    Result r = run(d, "-m " + quote(toml.string()), "G1 X1\n");
+    CHECK(r.code == 3);
+    CAPTURE(r.err);
+    CHECK(contains(r.err, toml.string() + ":" + std::to_string(line)));
+    CHECK(contains(r.err, "tpye"));
+
+    // A TOML syntax error.
+    std::string broken = read(machine_path("rw2"));
+    const std::size_t axis = broken.find("axis = [1, 0, 0]");
+    REQUIRE(axis != std::string::npos);
+    broken.replace(axis, 16, "axis = [1, 0, 0");
+    const int line2 = 1 + int(std::count(broken.begin(), broken.begin() + std::ptrdiff_t(axis), '\n'));
+    const fs::path toml2 = d.write("syntax.toml", broken);
+    r = run(d, "-m " + quote(toml2.string()), "G1 X1\n");
+    CHECK(r.code == 3);
+    CAPTURE(r.err);
+    CHECK(contains(r.err, toml2.string()));
+    // The parser may report the error on the unclosed line or the one after it.
+    CHECK((contains(r.err, ":" + std::to_string(line2)) || contains(r.err, ":" + std::to_string(line2 + 1))));
+}
+
+TEST_CASE("cli: bad options exit 2") {
+    TempDir d;
+    CHECK(run(d, "-m rw2 --no-such-option", "").code == 2);
+    CHECK(run(d, "", "G1 X1\n").code == 2);  // no machine
+    CHECK(run(d, "-m rw2 --mode G99", "").code == 2);
+    CHECK(run(d, "-m rw2 --extruder-letter 12", "").code == 2);
+    CHECK(run(d, "-m rw2 --set la", "").code == 2);
+    CHECK(run(d, "-m rw2 --set la=abc", "").code == 2);
+    CHECK(run(d, "-m rw2 --preview-form G99 --inverse", "").code == 2);
+}
+
+TEST_CASE("cli: 'machines' lists the bundled machines") {
+    TempDir d;
+    const Result r = run(d, "machines");
+    CHECK(r.code == 0);
+    std::vector<std::string> names;
+    for (const auto& l : lines_of(r.out)) {
+        std::istringstream s(l);
+        std::string name;
+        s >> name;
+        names.push_back(name);
+        CHECK_FALSE(contains(l, "broken"));
+    }
+    for (const char* m : {"rw2", "pentarod", "wpi5", "koc5", "addin4", "xyzac-trt"}) {
+        CAPTURE(m);
+        CHECK(std::find(names.begin(), names.end(), m) != names.end());
+    }
+}
+
+TEST_CASE("cli: --set la=29 changes the output per eq. 4.5") {
+    TempDir d;
+    const std::string in = "G1 X100 Y100 Z10 A90 B0\nG1 A45 B30\n";
+    for (double la : {26.5, 29.0}) {
+        CAPTURE(la);
+        const Result r = run(d, la == 29.0 ? "-m rw2 --set la=29" : "-m rw2", in);
+        REQUIRE(r.code == 0);
+        const auto lines = lines_of(r.out);
+        REQUIRE(lines.size() == 2);
+        auto w = words_of(lines[0]);
+        Xyz e = eq45(100, 100, 10, 90, 0, la);
+        CHECK(std::abs(w.at('X') - e.x) <= kPrinted);  // table 4.1 with la = 29: 129, 71
+        CHECK(std::abs(w.at('Y') - e.y) <= kPrinted);
+        w = words_of(lines[1]);
+        e = eq45(100, 100, 10, 45, 30, la);
+        CHECK(std::abs(w.at('X') - e.x) <= kPrinted);
+        CHECK(std::abs(w.at('Y') - e.y) <= kPrinted);
+        CHECK(std::abs(w.at('Z') - e.z) <= kPrinted);
+    }
+}
+
+TEST_CASE("cli: --set of a parameter the machine does not have exits 3") {
+    TempDir d;
+    const Result r = run(d, "-m rw2 --set nosuch=1", "G1 X1\n");
+    CHECK(r.code == 3);
+    CHECK(contains(r.err, "nosuch"));
+}
+
+TEST_CASE("cli: --inverse turns joint-space G-code into tool space") {
+    TempDir d;
+    // Joints from eq. 4.5 for tip (100, 100, 10), A = 30, B = 10, printed to 3 decimals.
+    const Xyz j = eq45(100, 100, 10, 30, 10, 26.5);
+    char line[160];
+    std::snprintf(line, sizeof line, "G1 X%.3f Y%.3f Z%.3f A30 B10 F1200\n", j.x, j.y, j.z);
+    const Result r = run(d, "-m rw2 --inverse", line);
+    REQUIRE(r.code == 0);
+    const auto lines = lines_of(r.out);
+    REQUIRE(lines.size() == 1);
+    const auto w = words_of(lines[0]);
+    CHECK(std::abs(w.at('X') - 100) <= 2e-3);
+    CHECK(std::abs(w.at('Y') - 100) <= 2e-3);
+    CHECK(std::abs(w.at('Z') - 10) <= 2e-3);
+    CHECK(w.at('A') == 30);
+    CHECK(w.at('B') == 10);
+    CHECK(w.at('F') == 1200);
+
+    // G43.5 preview: the tool axis u = (sin B cos A, -sin B sin A, cos B) of rw2.toml.
+    const Result v = run(d, "-m rw2 --inverse --preview-form G43.5", line);
+    REQUIRE(v.code == 0);
+    const auto wv = words_of(lines_of(v.out).at(0));
+    CHECK(std::abs(wv.at('I') - std::sin(rad(10)) * std::cos(rad(30))) < 1e-6);
+    CHECK(std::abs(wv.at('J') + std::sin(rad(10)) * std::sin(rad(30))) < 1e-6);
+    CHECK(std::abs(wv.at('K') - std::cos(rad(10))) < 1e-6);
+}
+
+TEST_CASE("cli: --version prints a version") {
+    TempDir d;
+    const Result r = run(d, "--version");
+    CHECK(r.code == 0);
+    CHECK(std::regex_search(r.out, std::regex(R"(^xlate5 [0-9]+\.[0-9]+\.[0-9]+)")));
+}
