@@ -266,7 +266,7 @@ TEST_CASE("cli: 'machines' lists the bundled machines") {
         names.push_back(name);
         CHECK_FALSE(contains(l, "broken"));
     }
-    for (const char* m : {"rw2", "pentarod", "wpi5", "koc5", "addin4", "xyzac-trt"}) {
+    for (const std::string m : {"rw2", "pentarod", "wpi5", "koc5", "addin4", "xyzac-trt"}) {
         CAPTURE(m);
         CHECK(std::find(names.begin(), names.end(), m) != names.end());
     }

@@ -1,15 +1,25 @@
 #include "translators/emitter.hpp"
 
+#include <limits>
+
 #include "translators/number.hpp"
 
 namespace xlate5 {
 
+void append_passed(std::string& out, const PassedNumber& n) {
+    if (!n.text.empty()) out += n.text;
+    else append_shortest(out, n.value);
+}
+
 JointEmitter::JointEmitter(const Machine& machine)
-    : machine_(machine), last_(machine.joints.size()), believed_(machine.home_joints()) {}
+    : machine_(machine), last_(machine.joints.size(), 0), known_(machine.joints.size(), false), believed_(machine.home_joints()) {}
+
+int JointEmitter::decimals(std::size_t joint) const {
+    return machine_.joints[joint].rotary ? machine_.dialect.rotary_decimals : machine_.dialect.linear_decimals;
+}
 
 void JointEmitter::format(std::string& text, std::size_t joint, double value) const {
-    const Joint& j = machine_.joints[joint];
-    append_fixed(text, value, j.rotary ? machine_.dialect.rotary_decimals : machine_.dialect.linear_decimals);
+    append_fixed(text, value, decimals(joint));
 }
 
 void JointEmitter::append_joint(std::string& out, std::size_t joint, double value) const {
@@ -19,57 +29,59 @@ void JointEmitter::append_joint(std::string& out, std::size_t joint, double valu
 }
 
 void JointEmitter::invalidate(const std::vector<double>& q) {
-    for (auto& s : last_) s.clear();
+    known_.assign(known_.size(), false);
     believed_ = q;
 }
 
 void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<bool>& commanded,
-                        std::optional<double> e, std::optional<double> f) {
+                        std::optional<PassedNumber> e, std::optional<PassedNumber> f) {
     const std::size_t start = out.size();
     out += gcode == 0 ? "G0" : "G1";
     const std::size_t empty = out.size();
     for (std::size_t j = 0; j < q.size(); ++j) {
-        scratch_.clear();
-        format(scratch_, j, q[j]);
-        const bool known = !last_[j].empty();
-        const bool write = known ? scratch_ != last_[j] : (commanded[j] || q[j] != believed_[j]);
+        long long units = 0;
+        const int d = decimals(j);
+        if (!to_units(q[j], d, units)) units = std::numeric_limits<long long>::min();  // never equal: always written
+        const bool write = known_[j] ? units != last_[j] : (commanded[j] || q[j] != believed_[j]);
         believed_[j] = q[j];
         if (!write) continue;
-        last_[j] = scratch_;
+        last_[j] = units;
+        known_[j] = true;
         out += ' ';
         out += machine_.joints[j].output;
-        out += scratch_;
+        format(out, j, q[j]);
     }
     if (e) {
         out += " E";
-        append_shortest(out, *e);
+        append_passed(out, *e);
     }
     if (f) {
         out += " F";
-        append_shortest(out, *f);
+        append_passed(out, *f);
     }
     if (out.size() == empty) out.resize(start);
     else out += '\n';
 }
 
 void JointEmitter::set_position(std::string& out, const std::vector<double>& q, const std::vector<bool>& which,
-                                std::optional<double> e) {
+                                std::optional<PassedNumber> e) {
     const std::size_t start = out.size();
     out += "G92";
     const std::size_t empty = out.size();
     for (std::size_t j = 0; j < q.size(); ++j) {
         if (!which[j]) continue;
-        scratch_.clear();
-        format(scratch_, j, q[j]);
-        last_[j] = scratch_;
+        long long units = 0;
+        if (!to_units(q[j], decimals(j), units)) units = std::numeric_limits<long long>::min();
+        last_[j] = units;
+        known_[j] = true;
         believed_[j] = q[j];
         out += ' ';
         out += machine_.joints[j].output;
-        out += scratch_;
+        format(out, j, q[j]);
     }
     if (e) {
         out += " E";
-        append_shortest(out, *e);
+        append_passed(out, *e);
     }
     if (out.size() == empty) out.resize(start);
     else out += '\n';
@@ -99,7 +111,7 @@ void ToolEmitter::word(std::string& out, char letter, std::string& last, double 
 }
 
 void ToolEmitter::move(std::string& out, int gcode, const Eigen::Vector3d& tip, const Eigen::Vector3d& axis,
-                       const std::vector<double>& q, std::optional<double> e, std::optional<double> f) {
+                       const std::vector<double>& q, std::optional<PassedNumber> e, std::optional<PassedNumber> f) {
     // One or two decimals more than the joints, so translating the preview back reproduces them.
     const int lin = machine_.dialect.linear_decimals + 2, rot = machine_.dialect.rotary_decimals + 2;
     const std::size_t start = out.size();
@@ -118,11 +130,11 @@ void ToolEmitter::move(std::string& out, int gcode, const Eigen::Vector3d& tip, 
     }
     if (e) {
         out += " E";
-        append_shortest(out, *e);
+        append_passed(out, *e);
     }
     if (f) {
         out += " F";
-        append_shortest(out, *f);
+        append_passed(out, *f);
     }
     if (out.size() == empty) out.resize(start);
     else out += '\n';

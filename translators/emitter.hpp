@@ -3,6 +3,7 @@
 #pragma once
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <Eigen/Core>
@@ -10,6 +11,14 @@
 #include "translators/machine.hpp"
 
 namespace xlate5 {
+
+// A number passed on from the input (E, F): written as it was typed, unless it was converted
+// (inches), in which case `text` is empty and the shortest exact form of `value` is written.
+struct PassedNumber {
+    double value = 0;
+    std::string_view text;
+};
+void append_passed(std::string& out, const PassedNumber& n);
 
 class JointEmitter {
 public:
@@ -19,11 +28,11 @@ public:
     // whose firmware position is not known is written when the input commands it (`commanded`)
     // or its value changes. Writes nothing when nothing would change.
     void move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<bool>& commanded,
-              std::optional<double> e, std::optional<double> f);
+              std::optional<PassedNumber> e, std::optional<PassedNumber> f);
 
     // "G92" for the joints in `which` (the firmware is told where they are) and E when given.
     void set_position(std::string& out, const std::vector<double>& q, const std::vector<bool>& which,
-                      std::optional<double> e);
+                      std::optional<PassedNumber> e);
 
     // The firmware's position is not exactly known (start, homing, probing): xlate5 believes it
     // is at `q`. Until written again, a joint is sent only when commanded or changed, so a wrong
@@ -34,12 +43,14 @@ public:
     void append_joint(std::string& out, std::size_t joint, double value) const;
 
 private:
+    int decimals(std::size_t joint) const;
     void format(std::string& text, std::size_t joint, double value) const;
 
     const Machine& machine_;
-    std::vector<std::string> last_;   // printed value last sent per joint; empty = unknown
+    // What the firmware was last sent per joint, in units of its last printed digit.
+    std::vector<long long> last_;
+    std::vector<bool> known_;         // false: not sent since start, homing or probing
     std::vector<double> believed_;    // joint values the firmware is believed to be at
-    std::string scratch_;
 };
 
 }  // namespace xlate5
@@ -53,7 +64,7 @@ public:
     ToolEmitter(const Machine& machine, OrientationMode form);
 
     void move(std::string& out, int gcode, const Eigen::Vector3d& tip, const Eigen::Vector3d& axis,
-              const std::vector<double>& q, std::optional<double> e, std::optional<double> f);
+              const std::vector<double>& q, std::optional<PassedNumber> e, std::optional<PassedNumber> f);
     void invalidate();
     OrientationMode form() const { return form_; }
 

@@ -56,10 +56,31 @@ double read_number(std::string_view s, std::size_t& i, char letter, std::size_t 
         ++i;
     }
     const std::size_t digits_start = i;
-    while (i < s.size() && is_digit(s[i])) ++i;
+    // Fast path: up to 15 significant digits as an integer, then one division by a power of
+    // ten; both are exact in a double, and IEEE division rounds correctly, so this is the same
+    // value std::from_chars gives. Longer numbers take from_chars below.
+    std::uint64_t mantissa = 0;
+    int n_digits = 0, decimals = 0, total = 0;
+    while (i < s.size() && is_digit(s[i])) {
+        mantissa = mantissa * 10 + std::uint64_t(s[i++] - '0');
+        n_digits += (mantissa != 0);
+        ++total;
+    }
     if (i < s.size() && s[i] == '.') {
         ++i;
-        while (i < s.size() && is_digit(s[i])) ++i;
+        while (i < s.size() && is_digit(s[i])) {
+            mantissa = mantissa * 10 + std::uint64_t(s[i++] - '0');
+            n_digits += (mantissa != 0);
+            ++decimals;
+            ++total;
+        }
+    }
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
+                                        1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+    if (total > 0 && n_digits <= 15 && decimals <= 22) {
+        const double v = double(mantissa) / kPow10[decimals];
+        if (!(v <= kMaxNumber)) fail(start, std::string("number of word ") + letter + " is out of range (limit 1e9)");
+        return negative ? -v : v;
     }
     const std::string_view digits = s.substr(digits_start, i - digits_start);
     if (digits.empty() || digits == ".") {
@@ -70,8 +91,9 @@ double read_number(std::string_view s, std::size_t& i, char letter, std::size_t 
         if (word.rfind("NAN", 0) == 0 || word.rfind("INF", 0) == 0)
             fail(start, std::string("word ") + letter + " has a value that is not a finite number");
         if (i != start) fail(letter_index, std::string("word ") + letter + " has a sign but no number");
-        if (j > digits_start) {
+        if (j > digits_start && digits_start == letter_index + 1) {
             // "TOOL PATH/..." (APT CL data) or "Xabc": letters run on, so this is not a flag.
+            // (Letters after a blank start the next word: "G28 X Y" is two flags.)
             std::string text{s.substr(letter_index, std::min<std::size_t>(j - letter_index, 16))};
             fail(letter_index, "'" + text + "' is not a G-code word (a letter must be followed by a number)");
         }
@@ -107,6 +129,7 @@ void lex_line(std::string_view line, Block& out) {
     out.words.clear();
     out.has_comment = false;
     out.percent = false;
+    out.text_argument = false;
     check_text(line);
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
 
@@ -166,6 +189,7 @@ void lex_line(std::string_view line, Block& out) {
         const std::size_t letter_index = i++;
         while (i < line.size() && is_blank(line[i])) ++i;  // RS274 allows "X 10"
         bool has_value = true;
+        const std::size_t number_start = i;
         const double value = read_number(line, i, letter, letter_index, has_value);
         if ((letter == 'G' || letter == 'M' || letter == 'T' || letter == 'N') && !has_value)
             fail(letter_index, std::string("word ") + letter + " has no number");
@@ -177,7 +201,7 @@ void lex_line(std::string_view line, Block& out) {
         first_word = false;
         if (body_begin == std::string_view::npos) body_begin = letter_index;
         body_end = i;
-        out.words.push_back(Word{letter, value, std::uint32_t(letter_index + 1), has_value});
+        out.words.push_back(Word{letter, value, std::uint32_t(letter_index + 1), has_value, line.substr(number_start, i - number_start)});
         if (takes_text(letter, value)) {
             // The rest of the line is the argument, passed on as it is; only a trailing
             // *checksum still belongs to the transport.

@@ -11,6 +11,7 @@ struct Word {
     double value;            // NaN when the word has no number (a flag such as "G28 X")
     std::uint32_t column;    // 1-based column of the letter, for error messages
     bool has_value;          // false for a flag or a quoted string argument (P"file.g")
+    std::string_view text;   // the number as written (valid while the line is), to pass E on verbatim
 };
 
 struct Block {

@@ -127,14 +127,16 @@ Pose Kinematics::forward(const std::vector<double>& q) const {
     return pose;
 }
 
-IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q) const {
+IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis) const {
     // With the rotary joints fixed the tip is affine in the linear joints: one 3x3 solve is exact.
-    const std::size_t n = machine_.joints.size();
-    std::vector<Eigen::Vector3d> part_dirs(n, Eigen::Vector3d::Zero()), tool_dirs(n, Eigen::Vector3d::Zero());
+    const std::size_t n = machine_.joints.size();  // at most 5 (the loader checks)
+    Eigen::Vector3d part_dirs[8], tool_dirs[8];
+    for (std::size_t j = 0; j < n; ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();
     Eigen::Matrix3d Rp, Rt;
     Eigen::Vector3d tp, tt;
-    eval(machine_.part_chain, q, Rp, tp, part_dirs.data());
-    eval(machine_.tool_chain, q, Rt, tt, tool_dirs.data());
+    eval(machine_.part_chain, q, Rp, tp, part_dirs);
+    eval(machine_.tool_chain, q, Rt, tt, tool_dirs);
+    if (axis) *axis = (Rp.transpose() * (Rt * machine_.tool_axis)).normalized();
     const Eigen::Vector3d current = Rp.transpose() * (tt - tp);
     Eigen::Matrix3d J;
     int lin[3];

@@ -33,8 +33,9 @@ public:
     // Joint values (mm, degrees) -> tip and tool axis in the part frame.
     Pose forward(const std::vector<double>& q) const;
 
-    // Sets the linear joints of q so the tip reaches `tip`, rotary joints as they are in q.
-    IkResult solve_position(const Eigen::Vector3d& tip, std::vector<double>& q) const;
+    // Sets the linear joints of q so the tip reaches `tip`, rotary joints as they are in q;
+    // `axis`, when given, receives the tool axis of that configuration.
+    IkResult solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr) const;
 
     // Sets the rotary joints of q to reach tool axis `axis`: of the (up to two) solutions and
     // their 360-degree turns, the one inside the limits nearest `previous`. A joint whose axis is

@@ -17,7 +17,50 @@ void trim_zeros(std::string& out, std::size_t start) {
 }
 }  // namespace
 
+bool to_units(double v, int decimals, long long& units) {
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+    if (decimals < 0 || decimals > 9) return false;
+    const double scaled = v * kPow10[decimals];
+    if (!(std::abs(scaled) < 1e15)) return false;
+    units = std::llround(scaled);
+    return true;
+}
+
+void append_units(std::string& out, long long units, int decimals) {
+    if (units == 0) {
+        out += '0';
+        return;
+    }
+    char buf[32];
+    char* end = buf + sizeof buf;
+    char* p = end;
+    const bool negative = units < 0;
+    unsigned long long u = negative ? 0ull - static_cast<unsigned long long>(units) : static_cast<unsigned long long>(units);
+    int d = decimals;
+    while (d > 0 && u % 10 == 0) {  // trailing zeros of the fraction are not printed
+        u /= 10;
+        --d;
+    }
+    for (int k = 0; k < d; ++k) {
+        *--p = char('0' + u % 10);
+        u /= 10;
+    }
+    if (d > 0) *--p = '.';
+    do {
+        *--p = char('0' + u % 10);
+        u /= 10;
+    } while (u);
+    if (negative) *--p = '-';
+    out.append(p, end);
+}
+
 void append_fixed(std::string& out, double v, int decimals) {
+    // The hot path of every joint word; rounds half away from zero at the last printed digit.
+    long long units = 0;
+    if (to_units(v, decimals, units)) {
+        append_units(out, units, decimals);
+        return;
+    }
     char buf[64];
     auto res = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, decimals);
     auto start = out.size();
@@ -35,9 +78,5 @@ void append_shortest(std::string& out, double v) {
     trim_zeros(out, start);
 }
 
-double round_to(double v, int decimals) {
-    const double scale = std::pow(10.0, decimals);
-    return std::nearbyint(v * scale) / scale;
-}
 
 }  // namespace xlate5

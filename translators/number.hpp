@@ -12,7 +12,10 @@ void append_fixed(std::string& out, double v, int decimals);
 // Appends the shortest text that reads back as exactly v (for values passed through, such as E).
 void append_shortest(std::string& out, double v);
 
-// Rounds v to `decimals` places the way append_fixed prints it.
-double round_to(double v, int decimals);
+// v in units of 10^-decimals, rounded half away from zero: what append_fixed prints. False if
+// out of the fast range (then append_fixed falls back to std::to_chars).
+bool to_units(double v, int decimals, long long& units);
+// Appends units * 10^-decimals with trailing fraction zeros removed.
+void append_units(std::string& out, long long units, int decimals);
 
 }  // namespace xlate5

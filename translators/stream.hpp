@@ -37,6 +37,8 @@ class OutputSink {
 public:
     // path "-" or empty: standard output. Otherwise a temporary file next to `path`.
     explicit OutputSink(const std::string& path);
+    // An already open descriptor (not owned), e.g. a pipe or /dev/null.
+    explicit OutputSink(int fd) : fd_(fd) {}
     ~OutputSink();  // without commit(), the temporary file is removed
     OutputSink(const OutputSink&) = delete;
     OutputSink& operator=(const OutputSink&) = delete;

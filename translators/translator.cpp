@@ -1,5 +1,6 @@
 #include "translators/translator.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "translators/error.hpp"
@@ -21,6 +22,34 @@ bool is_modal_only(int code10) {
         case 800:                                  // canned cycle cancel
         case 900: case 910: case 901: case 911:    // distance modes
         case 930: case 940:                        // feed modes
+            return true;
+        default:
+            return false;
+    }
+}
+
+// RS274's order of execution within a line for the mode-only codes (feed mode, plane, units,
+// cutter compensation, tool length / TCP, coordinate system, path control, distance mode), so a
+// line means the same whatever order its words are written in.
+int modal_rank(int code10) {
+    switch (code10) {
+        case 930: case 940: return 0;
+        case 170: case 180: case 190: return 1;
+        case 200: case 210: return 2;
+        case 400: case 410: case 420: return 3;
+        case 434: case 435: case 490: return 4;
+        case 610: case 611: case 640: return 6;
+        case 900: case 910: case 901: case 911: return 7;
+        case 800: return 8;
+        default: return 5;  // G54..G59.3
+    }
+}
+
+// M-codes whose T word names a tool (M104 T1 S200), rather than T being a tool change.
+bool m_takes_tool(int code10) {
+    switch (code10) {
+        case 1040: case 1050: case 1060: case 1070: case 1090: case 2000: case 2180: case 2210:
+        case 3010: case 3030: case 3060: case 6000: case 7010: case 7020: case 9060: case 9130: case 9140:
             return true;
         default:
             return false;
@@ -74,6 +103,12 @@ double Translator::number(const Param& p) const {
     return p.value;
 }
 
+PassedNumber Translator::passed(const Param& p) const {
+    const double v = number(p);
+    if (modes_.inches) return {v * 25.4, {}};
+    return {v, p.text};
+}
+
 bool Translator::is_axis_letter(char c) const {
     return c == 'X' || c == 'Y' || c == 'Z' || c == 'I' || c == 'J' || c == 'K' || joint_of(c) >= 0;
 }
@@ -103,12 +138,14 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
     Command commands[16];
     std::size_t n_commands = 0;
     params_.clear();
+    bool tool_word_is_param = false;
     for (const Word& w : block_.words) {
-        if (w.letter == 'G' || w.letter == 'M' || w.letter == 'T') {
+        if (w.letter == 'G' || w.letter == 'M' || (w.letter == 'T' && !tool_word_is_param)) {
             if (n_commands == 16) fail(w.column, "more than 16 commands on one line");
             const double scaled = w.value * 10.0;
             if (std::abs(scaled - std::round(scaled)) > 1e-6) fail(w.column, std::string("command ") + w.letter + " has more than one decimal");
             commands[n_commands++] = {w.letter, int(std::lround(scaled)), w.column};
+            tool_word_is_param = w.letter == 'M' && m_takes_tool(commands[n_commands - 1].code10);
             continue;
         }
         char letter = w.letter;
@@ -116,8 +153,26 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
         else if (letter == 'E' && options_.extruder_letter != 'E')
             fail(w.column, std::string("word E on a file whose extrusion letter is ") + options_.extruder_letter);
         if (find(letter)) fail(w.column, std::string("word ") + w.letter + " appears twice on this line");
-        params_.push_back({letter, w.value, w.column, w.has_value});
+        params_.push_back({letter, w.value, w.column, w.has_value, w.text});
     }
+
+    // G43.4/G43.5 H<n>: the tool length offset register of ISO controls. The tool length is the
+    // machine file's, so the word is accepted and not used.
+    for (std::size_t i = 0; i < n_commands; ++i) {
+        if (commands[i].letter != 'G' || (commands[i].code10 != 434 && commands[i].code10 != 435)) continue;
+        for (auto it = params_.begin(); it != params_.end(); ++it)
+            if (it->letter == 'H') {
+                params_.erase(it);
+                break;
+            }
+    }
+
+    // Mode-only codes run first, in RS274's order; then the line's command.
+    std::stable_sort(commands, commands + n_commands, [](const Command& a, const Command& b) {
+        const bool ma = a.letter == 'G' && is_modal_only(a.code10), mb = b.letter == 'G' && is_modal_only(b.code10);
+        if (ma != mb) return ma;
+        return ma && modal_rank(a.code10) < modal_rank(b.code10);
+    });
 
     // At most one command on a line may own the words.
     const Command* owner = nullptr;
@@ -140,7 +195,7 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
     // Nothing is written until the whole line has been understood and solved: an error leaves
     // neither output nor state changed by this line.
     const std::size_t out_start = out.size();
-    const auto q_saved = q_;
+    q_saved_.assign(q_.begin(), q_.end());
     const Pose pose_saved = pose_;
     const auto offset_saved = offset_;
     const bool tip_known_saved = tip_known_;
@@ -156,7 +211,7 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
         if (!owner && !params_.empty()) run_command('G', implicit.code10, implicit.column, block_.body, false, out);
     } catch (...) {
         out.resize(out_start);
-        q_ = q_saved;
+        q_.assign(q_saved_.begin(), q_saved_.end());
         pose_ = pose_saved;
         offset_ = offset_saved;
         tip_known_ = tip_known_saved;
@@ -283,7 +338,7 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
     Eigen::Vector3d ijk = Eigen::Vector3d::Zero();
     bool any_xyz = false, any_ijk = false, any_rotary = false;
     std::uint32_t ijk_column = column;
-    std::optional<double> e, f;
+    std::optional<PassedNumber> e, f;
     q_next_ = q_;
     commanded_.assign(q_.size(), false);
     for (const Param& p : params_) {
@@ -302,10 +357,10 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
                 ijk[p.letter - 'I'] = number(p);
                 any_ijk = true;
                 break;
-            case 'E': e = number(p) * unit; break;
+            case 'E': e = passed(p); break;
             case 'F':
-                f = number(p) * unit;
-                if (!(*f > 0)) fail(p.column, "feed rate F must be positive");
+                f = passed(p);
+                if (!(f->value > 0)) fail(p.column, "feed rate F must be positive");
                 break;
             default: {
                 const int j = joint_of(p.letter);
@@ -337,9 +392,8 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
             next = kin_.forward(q_next_);
         } else {
             next.tip = tip + offset_;
-            r = kin_.solve_position(next.tip, q_next_);
+            r = kin_.solve_position(next.tip, q_next_, any_rotary ? &next.axis : nullptr);
             if (any_ijk) next.axis = axis;
-            else if (any_rotary) next.axis = kin_.forward(q_next_).axis;
         }
     }
     if (r.ok()) r = kin_.check_limits(q_next_);
@@ -356,16 +410,16 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
 
 void Translator::move_joints(int gcode, std::uint32_t /*column*/, std::string& out) {
     const double unit = modes_.unit();
-    std::optional<double> e, f;
+    std::optional<PassedNumber> e, f;
     bool any_linear = false;
     q_next_ = q_;
     commanded_.assign(q_.size(), false);
     for (const Param& p : params_) {
         switch (p.letter) {
-            case 'E': e = number(p) * unit; break;
+            case 'E': e = passed(p); break;
             case 'F':
-                f = number(p) * unit;
-                if (!(*f > 0)) fail(p.column, "feed rate F must be positive");
+                f = passed(p);
+                if (!(f->value > 0)) fail(p.column, "feed rate F must be positive");
                 break;
             case 'I': case 'J': case 'K':
                 fail(p.column, "I J K are tool-vector words (G43.5); under G49 the words are joint values");
@@ -396,11 +450,11 @@ void Translator::set_position(std::uint32_t column, std::string& out) {
     }
     const double unit = modes_.unit();
     std::vector<bool> which(q_.size(), false);
-    std::optional<double> e;
+    std::optional<PassedNumber> e;
     bool any_rotary = false;
     for (const Param& p : params_) {
         if (p.letter == 'E') {
-            e = number(p) * unit;
+            e = passed(p);
             continue;
         }
         const bool tip_word = mode_ != OrientationMode::Joints && (p.letter == 'X' || p.letter == 'Y' || p.letter == 'Z');
@@ -436,7 +490,7 @@ void Translator::set_position(std::uint32_t column, std::string& out) {
         }
         if (e) {
             line += " E";
-            append_shortest(line, *e);
+            append_passed(line, *e);
         }
         if (line.size() > 3) out += line + '\n';
         tool_emitter_.invalidate();

@@ -55,10 +55,12 @@ private:
         double value;
         std::uint32_t column;
         bool has_value;
+        std::string_view text;
     };
     [[noreturn]] void fail(std::uint32_t column, const std::string& message) const;
     const Param* find(char letter) const;
     double number(const Param& p) const;  // the value, or an error if it is a flag
+    PassedNumber passed(const Param& p) const;  // E or F, in mm
     void apply_modal(int code10, std::uint32_t column, std::string& out);
     void run_command(char letter, int code10, std::uint32_t column, std::string_view body, bool alone, std::string& out);
     void move(int gcode, std::uint32_t column, std::string& out);
@@ -80,6 +82,7 @@ private:
 
     std::vector<double> q_;         // joint values the firmware will be at
     std::vector<double> q_next_;    // scratch for the move being solved
+    std::vector<double> q_saved_;   // state before the current line, restored if it fails
     std::vector<bool> commanded_;   // joints the current line names (directly or through the tip)
     Pose pose_;                     // tip and tool axis in the part frame
     Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();  // program frame origin in the part frame (G92)

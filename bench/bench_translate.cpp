@@ -1,0 +1,78 @@
+// Benchmark (not a test): translate a large generated 5-axis file and report input lines/s,
+// MB/s and peak memory. Run it at two sizes to see that memory does not grow with the file.
+//   bench_translate [lines=1000000] [machine=rw2|pentarod|...]
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fcntl.h>
+#include <string>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+#include "translators/stream.hpp"
+#include "translators/translator.hpp"
+
+namespace {
+
+// A helical wall that tilts and turns: every line changes the tip and the orientation, in the
+// machine's start mode (angles for G43.4 machines, a tool vector for G43.5 ones).
+void generate(const std::string& path, long lines, const xlate5::Machine& m) {
+    FILE* f = std::fopen(path.c_str(), "w");
+    if (!f) std::exit(2);
+    std::fprintf(f, "; xlate5 benchmark input, %ld lines\nG21\nG90\nM83\nG28\n", lines);
+    const bool vector = m.start_mode == xlate5::OrientationMode::Vector;
+    char r1 = 0, r2 = 0;
+    for (const auto& j : m.joints)
+        if (j.rotary) (r1 ? r2 : r1) = j.name;
+    for (long i = 0; i < lines; ++i) {
+        const double t = double(i) * 0.01;
+        const double x = 60 + 30 * std::cos(t), y = 60 + 30 * std::sin(t), z = 1 + 0.0002 * double(i % 400000);
+        const double tilt = 20 * std::sin(t * 0.1), az = std::fmod(t * 57.29577951308232, 300.0) - 150.0;
+        if (vector) {
+            const double a = tilt * 0.017453292519943295, c = az * 0.017453292519943295;
+            std::fprintf(f, "G1 X%.3f Y%.3f Z%.3f I%.6f J%.6f K%.6f E%.5f F1800\n", x - 60, y - 60, z, std::sin(a) * std::sin(c),
+                         std::sin(a) * std::cos(c), std::cos(a), 0.0123);
+        } else if (r2) {
+            std::fprintf(f, "G1 X%.3f Y%.3f Z%.3f %c%.3f %c%.3f E%.5f\n", x, y, z, r1, az, r2, tilt, 0.0123);
+        } else {
+            std::fprintf(f, "G1 X%.3f Y%.3f Z%.3f E%.5f\n", x, y, z, 0.0123);
+        }
+    }
+    std::fclose(f);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    const long lines = argc > 1 ? std::atol(argv[1]) : 1000000;
+    const std::string machine = argc > 2 ? argv[2] : "rw2";
+    const xlate5::Machine m = xlate5::load_machine(machine);
+    const xlate5::Kinematics k(m);
+    const std::string path = "/tmp/xlate5-bench-" + std::to_string(::getpid()) + ".gcode";
+    generate(path, lines, m);
+
+    const int fd = ::open(path.c_str(), O_RDONLY);
+    xlate5::TranslatorOptions options;
+    options.input_name = path;
+    xlate5::Translator translator(k, options);
+    xlate5::LineReader reader(fd, path);
+    const int null_fd = ::open("/dev/null", O_WRONLY);
+    xlate5::OutputSink sink(null_fd);
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto stats = xlate5::translate_stream(reader, translator, sink);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ::close(fd);
+    ::close(null_fd);
+    ::unlink(path.c_str());
+
+    rusage ru{};
+    ::getrusage(RUSAGE_SELF, &ru);
+    std::printf("machine %s, %llu input lines, %.1f MB in, %.1f MB out\n", machine.c_str(),
+                (unsigned long long)stats.lines_in, double(stats.bytes_in) / 1e6, double(stats.bytes_out) / 1e6);
+    std::printf("time %.3f s: %.2f M lines/s, %.1f MB/s (input), peak RSS %.1f MB\n", seconds,
+                double(stats.lines_in) / seconds / 1e6, double(stats.bytes_in) / seconds / 1e6, double(ru.ru_maxrss) / 1024.0);
+    return 0;
+}
