@@ -3,11 +3,11 @@
 // with file:line:column and a cause, never a crash.
 #include <doctest/doctest.h>
 
+#include <cctype>
 #include <cmath>
 #include <fcntl.h>
 #include <filesystem>
 #include <fstream>
-#include <regex>
 #include <sstream>
 #include <unistd.h>
 
@@ -97,7 +97,18 @@ std::string read(const std::string& path) {
     return s.str();
 }
 
-const std::regex kErrorPlace(R"(^.+:\d+:\d+: .+)");
+// "path:line:column: cause" with numeric line and column.
+bool has_error_place(const std::string& e, const std::string& path) {
+    if (e.rfind(path + ":", 0) != 0) return false;
+    std::size_t i = path.size() + 1;
+    for (int field = 0; field < 2; ++field) {
+        const std::size_t start = i;
+        while (i < e.size() && std::isdigit(static_cast<unsigned char>(e[i]))) ++i;
+        if (i == start || i >= e.size() || e[i] != ':') return false;
+        ++i;
+    }
+    return e.size() > i + 1 && e[i] == ' ';
+}
 
 }  // namespace
 
@@ -232,7 +243,7 @@ TEST_CASE("files xlate5 cannot accept fail at the right line with a cause") {
         const std::string path = corpus(c.file);
         const Run run = translate_file(c.machine, path, c.options);
         REQUIRE_FALSE(run.ok);
-        CHECK(std::regex_match(run.error, kErrorPlace));
+        CHECK(has_error_place(run.error, path));
         CHECK(run.error.rfind(path + ":" + std::to_string(run.error_line) + ":", 0) == 0);
         CHECK(run.error.find(c.cause) != std::string::npos);
         // The column points into the line it names.

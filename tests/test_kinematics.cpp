@@ -175,10 +175,10 @@ TEST_CASE("koc5's build direction is seed 004 eq. 11, and IK returns (C, B) or (
         REQUIRE(sols.size() == 2);
         // rotary_joints() order is the orientation product's; map back to B and C.
         bool found = false, found_flip = false;
-        for (const auto& s : sols) {
+        for (int si = 0; si < sols.count; ++si) {
             double b = 0, c = 0;
-            for (std::size_t r = 0; r < s.size(); ++r)
-                (k.rotary_joints()[r] == joint(m, 'B') ? b : c) = s[r];
+            for (std::size_t r = 0; r < 2; ++r)
+                (k.rotary_joints()[r] == joint(m, 'B') ? b : c) = sols.angle[si][r];
             found = found || (std::abs(b - ph) < 1e-9 && angle_diff(c, th) < 1e-9);
             found_flip = found_flip || (std::abs(b + ph) < 1e-9 && angle_diff(c, th + 180) < 1e-9);
         }

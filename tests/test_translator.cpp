@@ -831,3 +831,23 @@ TEST_CASE("translator: inverse passes G92 and G28 in tool-space letters") {
     // Joint-space input has no G43.4/G43.5/G49.
     expect_error(inv, "G43.4");
 }
+
+TEST_CASE("translator: G43.4 H1 and G43.5 H1 switch the mode; the H register is not used") {
+    Rig r("pentarod");
+    CHECK(r.feed("G49") == "");
+    CHECK(r.feed("G43.4 H1") == "");
+    CHECK(r.tr.mode() == OrientationMode::Angles);
+    CHECK(r.feed("G43.5 H2") == "");
+    CHECK(r.tr.mode() == OrientationMode::Vector);
+    // H anywhere else is still an unknown word on a move.
+    CHECK_THROWS_AS(r.feed("G1 X1 H1"), InputError);
+}
+
+TEST_CASE("translator: the words of one line mean the same in any order (RS274 order)") {
+    for (const std::string line : {"G90 G21 G49", "G49 G21 G90", "G21 G49 G90"}) {
+        Rig r("rw2");
+        CAPTURE(line);
+        CHECK(r.feed(line) == "G21\nG90\nM82\n");
+        CHECK(r.tr.mode() == OrientationMode::Joints);
+    }
+}

@@ -41,7 +41,8 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
     for (std::size_t j = 0; j < q.size(); ++j) {
         long long units = 0;
         const int d = decimals(j);
-        if (!to_units(q[j], d, units)) units = std::numeric_limits<long long>::min();  // never equal: always written
+        const bool fast = to_units(q[j], d, units);
+        if (!fast) units = std::numeric_limits<long long>::min();  // never equal: always written
         const bool write = known_[j] ? units != last_[j] : (commanded[j] || q[j] != believed_[j]);
         believed_[j] = q[j];
         if (!write) continue;
@@ -49,7 +50,8 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
         known_[j] = true;
         out += ' ';
         out += machine_.joints[j].output;
-        format(out, j, q[j]);
+        if (fast) append_units(out, units, d);
+        else format(out, j, q[j]);
     }
     if (e) {
         out += " E";

@@ -28,11 +28,10 @@ std::string byte_name(unsigned char c) {
 
 // Rejects bytes that are not text anywhere in the line, so a binary file or a garbled
 // transfer stops at its first bad byte instead of producing moves.
-void check_text(std::string_view line) {
-    for (std::size_t i = 0; i < line.size(); ++i) {
+void check_text(std::string_view line, std::size_t from) {
+    for (std::size_t i = from; i < line.size(); ++i) {
         const auto c = static_cast<unsigned char>(line[i]);
-        if ((c < 0x20 && c != '\t' && !(c == '\r' && i + 1 == line.size())) || c == 0x7F)
-            fail(i, "non-text byte " + byte_name(c));
+        if ((c < 0x20 && c != '\t') || c == 0x7F) fail(i, "non-text byte " + byte_name(c));
     }
 }
 
@@ -101,6 +100,7 @@ double read_number(std::string_view s, std::size_t& i, char letter, std::size_t 
             const std::size_t open = i++;
             for (;;) {
                 if (i >= s.size()) fail(open, "string '\"' is not closed on this line");
+                if (static_cast<unsigned char>(s[i]) < 0x20 || s[i] == 0x7F) fail(i, "non-text byte " + byte_name(static_cast<unsigned char>(s[i])));
                 if (s[i] == '"' && i + 1 < s.size() && s[i + 1] == '"') i += 2;
                 else if (s[i++] == '"') break;
                 else continue;
@@ -118,7 +118,11 @@ double read_number(std::string_view s, std::size_t& i, char letter, std::size_t 
 
 void skip_paren_comment(std::string_view s, std::size_t& i) {
     const std::size_t open = i;
-    while (i < s.size() && s[i] != ')') ++i;
+    while (i < s.size() && s[i] != ')') {
+        const auto c = static_cast<unsigned char>(s[i]);
+        if ((c < 0x20 && c != '\t') || c == 0x7F) fail(i, "non-text byte " + byte_name(c));
+        ++i;
+    }
     if (i == s.size()) fail(open, "comment '(' is not closed on this line");
     ++i;
 }
@@ -130,7 +134,7 @@ void lex_line(std::string_view line, Block& out) {
     out.has_comment = false;
     out.percent = false;
     out.text_argument = false;
-    check_text(line);
+    // Non-text bytes are caught where each part of the line is read (one pass over the line).
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
 
     std::size_t body_begin = std::string_view::npos;
@@ -144,10 +148,47 @@ void lex_line(std::string_view line, Block& out) {
             ++i;
             continue;
         }
+        if (is_alpha(c)) {  // the common case first: a word
+            const char letter = upper(c);
+            const std::size_t letter_index = i++;
+            while (i < line.size() && is_blank(line[i])) ++i;  // RS274 allows "X 10"
+            bool has_value = true;
+            const std::size_t number_start = i;
+            const double value = read_number(line, i, letter, letter_index, has_value);
+            if ((letter == 'G' || letter == 'M' || letter == 'T' || letter == 'N') && !has_value)
+                fail(letter_index, std::string("word ") + letter + " has no number");
+            if (letter == 'N' && first_word) {
+                // A leading line number belongs to the transport, not to the command.
+                first_word = false;
+                continue;
+            }
+            first_word = false;
+            if (body_begin == std::string_view::npos) body_begin = letter_index;
+            body_end = i;
+            out.words.push_back(Word{letter, value, std::uint32_t(letter_index + 1), has_value, line.substr(number_start, i - number_start)});
+            if (takes_text(letter, value)) {
+                // The rest of the line is the argument, passed on as it is; only a trailing
+                // *checksum still belongs to the transport.
+                out.text_argument = true;
+                body_end = line.size();
+                check_text(line, i);
+                const std::size_t star = line.rfind('*');
+                if (star != std::string_view::npos && star >= i) {
+                    std::size_t k = star + 1;
+                    while (k < line.size() && is_digit(line[k])) ++k;
+                    const bool digits = k > star + 1;
+                    while (k < line.size() && is_blank(line[k])) ++k;
+                    if (digits && k == line.size()) checksum_at = star;
+                }
+                break;
+            }
+            continue;
+        }
         if (c == ';') {
             out.has_comment = true;
             if (body_begin == std::string_view::npos) body_begin = i;
             body_end = line.size();
+            check_text(line, i);
             break;
         }
         if (c == '(') {
@@ -157,6 +198,7 @@ void lex_line(std::string_view line, Block& out) {
             body_end = i;
             continue;
         }
+        if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) fail(i, "non-text byte " + byte_name(static_cast<unsigned char>(c)));
         if (static_cast<unsigned char>(c) >= 0x80) fail(i, "non-ASCII byte " + byte_name(static_cast<unsigned char>(c)) + " outside a comment");
         if (c == '*') {
             // Checksum: digits, then nothing but blanks and comments.
@@ -166,6 +208,7 @@ void lex_line(std::string_view line, Block& out) {
             while (i < line.size() && is_digit(line[i])) ++i;
             if (i == digits) fail(star, "checksum '*' has no number");
             while (i < line.size() && is_blank(line[i])) ++i;
+            check_text(line, i);
             if (i < line.size() && line[i] != ';' && line[i] != '(') fail(i, "text after the checksum");
             continue;
         }
@@ -173,6 +216,7 @@ void lex_line(std::string_view line, Block& out) {
             std::size_t j = i + 1;
             while (j < line.size() && is_blank(line[j])) ++j;
             if (j == line.size() || line[j] == ';' || line[j] == '(') {
+                check_text(line, j);
                 out.percent = true;
                 if (body_begin == std::string_view::npos) body_begin = i;
                 body_end = i + 1;
@@ -180,43 +224,9 @@ void lex_line(std::string_view line, Block& out) {
                 continue;
             }
         }
-        if (!is_alpha(c)) {
-            if (c == '#' || c == '[' || c == ']' || c == '=' || c == '<' || c == '>')
-                fail(i, std::string("unexpected '") + c + "': parameters and expressions are not supported");
-            fail(i, std::string("unexpected character '") + c + "'");
-        }
-        const char letter = upper(c);
-        const std::size_t letter_index = i++;
-        while (i < line.size() && is_blank(line[i])) ++i;  // RS274 allows "X 10"
-        bool has_value = true;
-        const std::size_t number_start = i;
-        const double value = read_number(line, i, letter, letter_index, has_value);
-        if ((letter == 'G' || letter == 'M' || letter == 'T' || letter == 'N') && !has_value)
-            fail(letter_index, std::string("word ") + letter + " has no number");
-        if (letter == 'N' && first_word) {
-            // A leading line number belongs to the transport, not to the command.
-            first_word = false;
-            continue;
-        }
-        first_word = false;
-        if (body_begin == std::string_view::npos) body_begin = letter_index;
-        body_end = i;
-        out.words.push_back(Word{letter, value, std::uint32_t(letter_index + 1), has_value, line.substr(number_start, i - number_start)});
-        if (takes_text(letter, value)) {
-            // The rest of the line is the argument, passed on as it is; only a trailing
-            // *checksum still belongs to the transport.
-            out.text_argument = true;
-            body_end = line.size();
-            const std::size_t star = line.rfind('*');
-            if (star != std::string_view::npos && star >= i) {
-                std::size_t k = star + 1;
-                while (k < line.size() && is_digit(line[k])) ++k;
-                const bool digits = k > star + 1;
-                while (k < line.size() && is_blank(line[k])) ++k;
-                if (digits && k == line.size()) checksum_at = star;
-            }
-            break;
-        }
+        if (c == '#' || c == '[' || c == ']' || c == '=' || c == '<' || c == '>')
+            fail(i, std::string("unexpected '") + c + "': parameters and expressions are not supported");
+        fail(i, std::string("unexpected character '") + c + "'");
     }
     if (body_begin == std::string_view::npos) {
         out.body = {};

@@ -148,24 +148,25 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
     }
     const double det = J.determinant();
     if (!(std::abs(det) > 1e-9)) return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
-    const Eigen::Vector3d dq = J.partialPivLu().solve(tip - current);
+    const Eigen::Vector3d dq = J.inverse() * (tip - current);  // closed-form 3x3 inverse
     for (int i = 0; i < 3; ++i) q[std::size_t(lin[i])] += dq[i];
     return {};
 }
 
-std::vector<std::vector<double>> Kinematics::orientation_solutions(const Eigen::Vector3d& axis) const {
+Kinematics::Solutions Kinematics::orientation_solutions(const Eigen::Vector3d& axis) const {
     const double nan = std::numeric_limits<double>::quiet_NaN();
-    std::vector<std::vector<double>> out;
+    Solutions out;
     const Eigen::Vector3d u = g0_.transpose() * axis.normalized();
     if (rotary_.empty()) {
-        if ((u - p_).norm() < kReachEps) out.push_back({});
+        if ((u - p_).norm() < kReachEps) out.count = 1;
         return out;
     }
     if (rotary_.size() == 1) {
         const Eigen::Vector3d& w = w_[0];
         if (std::abs(w.dot(u) - w.dot(p_)) > kReachEps) return out;
         const double phi = subproblem1(w, p_, u);
-        out.push_back({std::isnan(phi) ? nan : sign_[0] * phi / kDeg});
+        out.angle[0][0] = std::isnan(phi) ? nan : sign_[0] * phi / kDeg;
+        out.count = 1;
         return out;
     }
     const Eigen::Vector3d& w1 = w_[0];
@@ -174,14 +175,16 @@ std::vector<std::vector<double>> Kinematics::orientation_solutions(const Eigen::
     const double alpha = (a * w2.dot(p_) - w1.dot(u)) / (a * a - 1.0);
     const double beta = (a * w1.dot(u) - w2.dot(p_)) / (a * a - 1.0);
     const Eigen::Vector3d n = w1.cross(w2);
-    double gamma2 = (p_.squaredNorm() - alpha * alpha - beta * beta - 2.0 * alpha * beta * a) / n.squaredNorm();
+    const double gamma2 = (p_.squaredNorm() - alpha * alpha - beta * beta - 2.0 * alpha * beta * a) / n.squaredNorm();
     if (gamma2 < -kReachEps * kReachEps) return out;
     const double gamma = std::sqrt(std::max(gamma2, 0.0));
     for (double s : {1.0, -1.0}) {
         const Eigen::Vector3d c = alpha * w1 + beta * w2 + s * gamma * n;
         const double phi2 = subproblem1(w2, p_, c);
         const double phi1 = subproblem1(w1, c, u);
-        out.push_back({std::isnan(phi1) ? nan : sign_[0] * phi1 / kDeg, std::isnan(phi2) ? nan : sign_[1] * phi2 / kDeg});
+        out.angle[out.count][0] = std::isnan(phi1) ? nan : sign_[0] * phi1 / kDeg;
+        out.angle[out.count][1] = std::isnan(phi2) ? nan : sign_[1] * phi2 / kDeg;
+        ++out.count;
         if (gamma == 0.0) break;
     }
     return out;
@@ -205,23 +208,27 @@ IkResult Kinematics::solve_orientation(const Eigen::Vector3d& axis, const std::v
         std::snprintf(buf, sizeof buf, "tool axis (%.6f, %.6f, %.6f) is out of this machine's reach", axis.x(), axis.y(), axis.z());
         return {IkStatus::Unreachable, buf};
     }
+    const std::size_t n = rotary_.size();
     double best_cost = std::numeric_limits<double>::infinity();
-    std::vector<double> best;
-    std::string why;
-    for (const auto& sol : solutions) {
-        std::vector<double> cand(sol.size());
+    double best[2] = {0, 0};
+    bool found = false;
+    int failed_joint = -1;
+    double failed_angle = 0;
+    for (int s = 0; s < solutions.count; ++s) {
+        double cand[2] = {0, 0};
         double cost = 0;
         bool ok = true;
-        for (std::size_t k = 0; k < sol.size() && ok; ++k) {
+        for (std::size_t k = 0; k < n && ok; ++k) {
             const int j = rotary_[k];
             const Joint& J = machine_.joints[std::size_t(j)];
             const double prev = previous[std::size_t(j)];
-            if (std::isnan(sol[k])) {  // on the pole: the joint is free, keep it where it is
+            const double sol = solutions.angle[s][k];
+            if (std::isnan(sol)) {  // on the pole: the joint is free, keep it where it is
                 cand[k] = prev;
                 continue;
             }
             // Of sol + 360 k, the turn nearest the previous angle that is inside the limits.
-            const double nearest = prev + wrap180(sol[k] - prev);
+            const double nearest = prev + wrap180(sol - prev);
             double chosen = std::numeric_limits<double>::quiet_NaN();
             for (int turn : {0, 1, -1, 2, -2}) {
                 const double v = nearest + 360.0 * turn;
@@ -230,8 +237,8 @@ IkResult Kinematics::solve_orientation(const Eigen::Vector3d& axis, const std::v
             }
             if (std::isnan(chosen)) {
                 ok = false;
-                why = std::string("joint ") + J.name + " would need " + fmt(wrap180(sol[k])) + " degrees, outside its limits " +
-                      fmt(J.min) + " .. " + fmt(J.max);
+                failed_joint = j;
+                failed_angle = sol;
                 break;
             }
             cand[k] = chosen;
@@ -239,11 +246,17 @@ IkResult Kinematics::solve_orientation(const Eigen::Vector3d& axis, const std::v
         }
         if (ok && cost < best_cost) {
             best_cost = cost;
-            best = cand;
+            best[0] = cand[0];
+            best[1] = cand[1];
+            found = true;
         }
     }
-    if (best.empty()) return {IkStatus::OutOfLimits, why};
-    for (std::size_t k = 0; k < best.size(); ++k) q[std::size_t(rotary_[k])] = best[k];
+    if (!found) {
+        const Joint& J = machine_.joints[std::size_t(failed_joint)];
+        return {IkStatus::OutOfLimits, std::string("joint ") + J.name + " would need " + fmt(wrap180(failed_angle)) +
+                                           " degrees, outside its limits " + fmt(J.min) + " .. " + fmt(J.max)};
+    }
+    for (std::size_t k = 0; k < n; ++k) q[std::size_t(rotary_[k])] = best[k];
     return {};
 }
 

@@ -49,9 +49,15 @@ public:
     // Checks every joint of q against its limits.
     IkResult check_limits(const std::vector<double>& q) const;
 
-    // The raw orientation solutions, in degrees, for tests: each entry has one value per
-    // rotary joint in `rotary_joints()` order (NaN where that joint is free).
-    std::vector<std::vector<double>> orientation_solutions(const Eigen::Vector3d& axis) const;
+    // The raw orientation solutions, in degrees: each has one value per rotary joint in
+    // `rotary_joints()` order (NaN where that joint is free). Fixed size: no allocation per move.
+    struct Solutions {
+        int count = 0;
+        double angle[2][2] = {};
+        std::size_t size() const { return std::size_t(count); }
+        bool empty() const { return count == 0; }
+    };
+    Solutions orientation_solutions(const Eigen::Vector3d& axis) const;
     const std::vector<int>& rotary_joints() const { return rotary_; }
 
 private:

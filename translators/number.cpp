@@ -22,7 +22,8 @@ bool to_units(double v, int decimals, long long& units) {
     if (decimals < 0 || decimals > 9) return false;
     const double scaled = v * kPow10[decimals];
     if (!(std::abs(scaled) < 1e15)) return false;
-    units = std::llround(scaled);
+    // Half away from zero, as llround, without the library call (|scaled| < 1e15 fits exactly).
+    units = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
     return true;
 }
 
@@ -31,9 +32,6 @@ void append_units(std::string& out, long long units, int decimals) {
         out += '0';
         return;
     }
-    char buf[32];
-    char* end = buf + sizeof buf;
-    char* p = end;
     const bool negative = units < 0;
     unsigned long long u = negative ? 0ull - static_cast<unsigned long long>(units) : static_cast<unsigned long long>(units);
     int d = decimals;
@@ -41,17 +39,34 @@ void append_units(std::string& out, long long units, int decimals) {
         u /= 10;
         --d;
     }
-    for (int k = 0; k < d; ++k) {
-        *--p = char('0' + u % 10);
-        u /= 10;
+    // Digits right to left, two at a time; the point goes in after d fraction digits.
+    static constexpr char kPairs[] =
+        "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
+        "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
+        "8081828384858687888990919293949596979899";
+    char digits[24];
+    int n = 0;
+    while (u >= 100) {
+        const unsigned r = unsigned(u % 100);
+        u /= 100;
+        digits[n++] = kPairs[2 * r + 1];
+        digits[n++] = kPairs[2 * r];
     }
-    if (d > 0) *--p = '.';
-    do {
-        *--p = char('0' + u % 10);
-        u /= 10;
-    } while (u);
-    if (negative) *--p = '-';
-    out.append(p, end);
+    if (u >= 10) {
+        digits[n++] = kPairs[2 * u + 1];
+        digits[n++] = kPairs[2 * u];
+    } else {
+        digits[n++] = char('0' + u);
+    }
+    while (n <= d) digits[n++] = '0';  // 0.05 -> "0.05": leading zeros of the fraction
+    char buf[32];
+    char* p = buf;
+    if (negative) *p++ = '-';
+    for (int k = n - 1; k >= 0; --k) {
+        *p++ = digits[k];
+        if (k == d && d > 0) *p++ = '.';
+    }
+    out.append(buf, p);
 }
 
 void append_fixed(std::string& out, double v, int decimals) {

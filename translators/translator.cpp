@@ -167,12 +167,15 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
             }
     }
 
-    // Mode-only codes run first, in RS274's order; then the line's command.
-    std::stable_sort(commands, commands + n_commands, [](const Command& a, const Command& b) {
+    // Mode-only codes run first, in RS274's order; then the line's command. (Insertion sort:
+    // a line has a handful of commands, and std::stable_sort would allocate.)
+    auto before = [](const Command& a, const Command& b) {
         const bool ma = a.letter == 'G' && is_modal_only(a.code10), mb = b.letter == 'G' && is_modal_only(b.code10);
         if (ma != mb) return ma;
         return ma && modal_rank(a.code10) < modal_rank(b.code10);
-    });
+    };
+    for (std::size_t i = 1; i < n_commands; ++i)
+        for (std::size_t k = i; k > 0 && before(commands[k], commands[k - 1]); --k) std::swap(commands[k], commands[k - 1]);
 
     // At most one command on a line may own the words.
     const Command* owner = nullptr;
