@@ -1,0 +1,142 @@
+// Machine files: every error names the file, the line and the key; parameters and overrides.
+#include <doctest/doctest.h>
+
+#include <string>
+
+#include "translators/error.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+
+using namespace xlate5;
+
+namespace {
+
+// A small valid machine; `extra` is appended, `replace` swaps one line.
+std::string base_text() {
+    return R"(name = "t"
+[parameters]
+off = 5
+[[joints]]
+name = "X"
+type = "linear"
+min = -100
+max = 100
+[[joints]]
+name = "Y"
+type = "linear"
+min = -100
+max = 100
+[[joints]]
+name = "Z"
+type = "linear"
+min = -100
+max = 100
+[[joints]]
+name = "B"
+type = "rotary"
+min = -90
+max = 90
+[[tool_chain]]
+joint = "X"
+axis = [1, 0, 0]
+[[tool_chain]]
+joint = "Y"
+axis = [0, 1, 0]
+[[tool_chain]]
+joint = "Z"
+axis = [0, 0, 1]
+[[tool_chain]]
+joint = "B"
+axis = [0, 1, 0]
+point = [0, 0, "off * 2"]
+)";
+}
+
+std::string replace(std::string text, const std::string& from, const std::string& to) {
+    const auto at = text.find(from);
+    REQUIRE(at != std::string::npos);
+    return text.replace(at, from.size(), to);
+}
+
+// The error message of loading `text`, which must fail.
+std::string error_of(const std::string& text, const std::map<std::string, double>& overrides = {}) {
+    try {
+        load_machine_text(text, "mine.toml", overrides);
+    } catch (const MachineError& e) {
+        return e.what();
+    }
+    FAIL("no error");
+    return {};
+}
+
+}  // namespace
+
+TEST_CASE("a valid file loads with expressions over parameters") {
+    const Machine m = load_machine_text(base_text(), "mine.toml");
+    CHECK(m.name == "t");
+    CHECK(m.joints.size() == 4);
+    CHECK(m.tool_chain[3].point.z() == 10);
+    const Machine m2 = load_machine_text(base_text(), "mine.toml", {{"off", 7}});
+    CHECK(m2.tool_chain[3].point.z() == 14);
+}
+
+TEST_CASE("errors name file, line and key") {
+    struct Case {
+        std::string text, expect;
+    };
+    const Case cases[] = {
+        {replace(base_text(), "min = -100\nmax = 100\n[[joints]]\nname = \"Y\"", "min = \"abc\"\nmax = 100\n[[joints]]\nname = \"Y\""),
+         "mine.toml:7: joints[0].min: unknown parameter 'abc'"},
+        {replace(base_text(), "axis = [0, 1, 0]\npoint", "axis = [0, 1]\npoint"), "mine.toml:35: tool_chain[3].axis: expected an array of 3 numbers"},
+        {replace(base_text(), "type = \"rotary\"", "typ = \"rotary\""), "mine.toml:21: joints[3].typ: unknown key"},
+        {replace(base_text(), "type = \"rotary\"", "type = \"spinny\""), "mine.toml:21: joints[3].type: expected \"linear\" or \"rotary\""},
+        {replace(base_text(), "joint = \"Z\"", "joint = \"Q\""), "tool_chain[2].joint: letter Q cannot name an axis"},
+        {replace(base_text(), "joint = \"Z\"", "joint = \"X\""), "tool_chain[2].joint: joint X appears twice in the chains"},
+        {replace(base_text(), "axis = [0, 0, 1]", "axis = [0, 0, 0]"), "mine.toml:32: tool_chain[2].axis: direction has length 0"},
+        {replace(base_text(), "min = -90", "min = 91"), "joints[3].min: min is greater than max"},
+        {replace(base_text(), "name = \"t\"", "name = \"t\"\nbogus = 1"), "mine.toml:2: bogus: unknown key"},
+        {replace(base_text(), "[[tool_chain]]\njoint = \"B\"", "[[part_chain]]\njoint = \"B\""), ""},  // valid: B on the part chain
+        {"name = \"t\"\n[[joints]\n", "mine.toml:2: "},  // TOML syntax error with its line
+        {replace(base_text(), "off = 5", "off = \"five\""), "mine.toml:3: parameters.off: expected a number"},
+    };
+    for (const Case& c : cases) {
+        CAPTURE(c.text);
+        if (c.expect.empty()) {
+            CHECK_NOTHROW(load_machine_text(c.text, "mine.toml"));
+            continue;
+        }
+        const std::string e = error_of(c.text);
+        CAPTURE(e);
+        CHECK(e.find(c.expect) != std::string::npos);
+        CHECK(e.rfind("mine.toml:", 0) == 0);
+    }
+}
+
+TEST_CASE("structural errors: joints in no chain, wrong counts, unknown --set") {
+    // A joint in neither chain.
+    std::string t = base_text() + "[[joints]]\nname = \"C\"\ntype = \"rotary\"\n";
+    CHECK(error_of(t).find("joint C is in neither part_chain nor tool_chain") != std::string::npos);
+    // Only two linear joints.
+    t = replace(replace(base_text(), "[[joints]]\nname = \"Z\"\ntype = \"linear\"\nmin = -100\nmax = 100\n", ""),
+                "[[tool_chain]]\njoint = \"Z\"\naxis = [0, 0, 1]\n", "");
+    CHECK(error_of(t).find("exactly three linear joints") != std::string::npos);
+    // --set of a parameter the file does not have.
+    CHECK(error_of(base_text(), {{"nope", 1}}).find("no parameter 'nope'") != std::string::npos);
+    // Two parallel rotary axes cannot orient a tool: refused when the kinematics is built.
+    t = base_text() + "[[joints]]\nname = \"C\"\ntype = \"rotary\"\n[[tool_chain]]\njoint = \"C\"\naxis = [0, 1, 0]\n";
+    const Machine m = load_machine_text(t, "mine.toml");
+    CHECK_THROWS_AS(Kinematics{m}, MachineError);
+}
+
+TEST_CASE("bundled machines all load and name themselves") {
+    const auto all = bundled_machines();
+    for (const char* name : {"rw2", "wpi5", "pentarod", "koc5", "addin4", "xyzac-trt"}) {
+        CAPTURE(name);
+        REQUIRE(all.count(name) == 1);
+        const Machine m = load_machine(name);
+        CHECK(m.name == name);
+        CHECK_FALSE(m.description.empty());
+        CHECK_NOTHROW(Kinematics{m});
+    }
+    CHECK_THROWS_WITH_AS(load_machine("no-such-machine"), doctest::Contains("no machine named 'no-such-machine'"), MachineError);
+}

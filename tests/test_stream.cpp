@@ -1,0 +1,128 @@
+// Line reader and output sink: chunk boundaries, long lines, atomic output; number formatting.
+#include <doctest/doctest.h>
+
+#include <charconv>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <unistd.h>
+
+#include "translators/error.hpp"
+#include "translators/number.hpp"
+#include "translators/stream.hpp"
+
+using namespace xlate5;
+namespace fs = std::filesystem;
+
+namespace {
+
+// A pipe carrying `text`, read back through LineReader.
+std::vector<std::string> read_all(const std::string& text, std::size_t max_line = 64u << 20) {
+    const fs::path p = fs::temp_directory_path() / ("xlate5-stream-" + std::to_string(::getpid()));
+    {
+        std::ofstream o(p, std::ios::binary);
+        o << text;
+    }
+    FILE* f = std::fopen(p.c_str(), "rb");
+    REQUIRE(f);
+    LineReader r(::fileno(f), p.string(), max_line);
+    std::vector<std::string> lines;
+    std::string_view line;
+    try {
+        while (r.next(line)) lines.emplace_back(line);
+    } catch (...) {
+        std::fclose(f);
+        fs::remove(p);
+        throw;
+    }
+    CHECK(r.line_number() == lines.size());
+    std::fclose(f);
+    fs::remove(p);
+    return lines;
+}
+
+}  // namespace
+
+TEST_CASE("lines across chunk boundaries, with and without a final newline") {
+    std::string text;
+    std::vector<std::string> expect;
+    std::mt19937 rng(3);
+    for (int i = 0; i < 60000; ++i) {
+        std::string l(std::size_t(rng() % 90), 'x');
+        l += std::to_string(i);
+        expect.push_back(l);
+        text += l + "\n";
+    }
+    CHECK(read_all(text) == expect);
+    text.pop_back();
+    CHECK(read_all(text) == expect);
+    CHECK(read_all("").empty());
+    CHECK(read_all("\n\n") == std::vector<std::string>{"", ""});
+}
+
+TEST_CASE("a line longer than the chunk is read whole; one past the limit is an input error") {
+    const std::string big(3u << 20, ';');
+    const auto lines = read_all("G1 X1\n" + big + "\nG1 X2\n");
+    REQUIRE(lines.size() == 3);
+    CHECK(lines[1].size() == big.size());
+    CHECK_THROWS_AS(read_all("G1\n" + big + "\n", 1u << 20), InputError);
+}
+
+TEST_CASE("an output file appears only on commit; without it nothing is left behind") {
+    const fs::path dir = fs::temp_directory_path() / ("xlate5-sink-" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    const fs::path out = dir / "out.gcode";
+    {
+        std::ofstream o(out);
+        o << "old\n";
+    }
+    {
+        OutputSink s(out.string());
+        s.write("new partial\n");
+        // destroyed without commit: as after an error
+    }
+    CHECK(std::distance(fs::directory_iterator(dir), fs::directory_iterator()) == 1);
+    std::ifstream in(out);
+    std::string content((std::istreambuf_iterator<char>(in)), {});
+    CHECK(content == "old\n");
+    {
+        OutputSink s(out.string());
+        s.write("new\n");
+        s.commit();
+    }
+    std::ifstream in2(out);
+    std::string content2((std::istreambuf_iterator<char>(in2)), {});
+    CHECK(content2 == "new\n");
+    fs::remove_all(dir);
+}
+
+TEST_CASE("append_fixed prints what std::to_chars prints at the same precision") {
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> U(-1000, 1000);
+    int checked = 0;
+    for (int i = 0; i < 200000; ++i) {
+        const double v = (i % 3 == 0) ? U(rng) : (i % 3 == 1 ? U(rng) * 1e-3 : std::round(U(rng) * 100) / 100);
+        for (int d : {0, 1, 3, 4, 6}) {
+            char buf[64];
+            auto r = std::to_chars(buf, buf + 64, v, std::chars_format::fixed, d);
+            std::string ref(buf, r.ptr);
+            // Reference: drop trailing fraction zeros and the point, and "-0" -> "0".
+            if (ref.find('.') != std::string::npos) {
+                while (ref.back() == '0') ref.pop_back();
+                if (ref.back() == '.') ref.pop_back();
+            }
+            if (ref == "-0") ref = "0";
+            std::string mine;
+            append_fixed(mine, v, d);
+            // Exact ties are rounded half away from zero here, to even by to_chars: allow only those.
+            if (mine != ref) {
+                const double scaled = v * std::pow(10.0, d);
+                CHECK(std::abs(std::abs(scaled - std::trunc(scaled)) - 0.5) < 1e-6);
+            }
+            ++checked;
+        }
+    }
+    CHECK(checked == 1000000);
+}
