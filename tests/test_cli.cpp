@@ -241,7 +241,8 @@ TEST_CASE("cli: a broken machine file exits 3 naming the path, the line and the 
     CAPTURE(r.err);
     CHECK(contains(r.err, toml2.string()));
     // The parser may report the error on the unclosed line or the one after it.
-    CHECK((contains(r.err, ":" + std::to_string(line2)) || contains(r.err, ":" + std::to_string(line2 + 1))));
+    const std::string at1 = ':' + std::to_string(line2), at2 = ':' + std::to_string(line2 + 1);
+    CHECK((contains(r.err, at1) || contains(r.err, at2)));
 }
 
 TEST_CASE("cli: bad options exit 2") {
