@@ -2,6 +2,8 @@
 // 3 machine, 4 I/O), messages, atomic -o, --set, --inverse, machines, --version.
 #include <doctest/doctest.h>
 
+#include "helpers.hpp"
+
 #include <cctype>
 
 #include <sys/wait.h>
@@ -18,11 +20,10 @@
 #include <vector>
 
 namespace fs = std::filesystem;
+using namespace xlate5::test;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-double rad(double deg) { return deg * kPi / 180.0; }
 
 // A fresh directory under the system temp dir, removed with everything in it.
 struct TempDir {
@@ -89,23 +90,8 @@ Result run(const TempDir& dir, const std::string& args, const std::string& stdin
     return r;
 }
 
-bool contains(const std::string& hay, const std::string& needle) { return hay.find(needle) != std::string::npos; }
 
-std::vector<std::string> lines_of(const std::string& text) {
-    std::vector<std::string> lines;
-    std::istringstream in(text);
-    std::string line;
-    while (std::getline(in, line)) lines.push_back(line);
-    return lines;
-}
 
-std::map<char, double> words_of(const std::string& line) {
-    std::map<char, double> w;
-    std::istringstream in(line);
-    std::string tok;
-    while (in >> tok) w[tok[0]] = tok.size() > 1 ? std::stod(tok.substr(1)) : std::nan("");
-    return w;
-}
 
 // Seed 001 eq. 4.5.
 struct Xyz {

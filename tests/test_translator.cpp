@@ -3,6 +3,8 @@
 // rw2, seed 002 pseudo code 4.1 for pentarod), never against the program's own output.
 #include <doctest/doctest.h>
 
+#include "helpers.hpp"
+
 #include <Eigen/Geometry>
 #include <cctype>
 #include <cmath>
@@ -19,11 +21,10 @@
 #include "translators/translator.hpp"
 
 using namespace xlate5;
+using namespace xlate5::test;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-double rad(double deg) { return deg * kPi / 180.0; }
 
 // Half a unit of the third decimal (the output precision) plus floating-point slack.
 constexpr double kPrinted = 5e-4 + 1e-9;
@@ -57,28 +58,7 @@ struct Rig {
     }
 };
 
-std::vector<std::string> lines_of(const std::string& text) {
-    std::vector<std::string> lines;
-    std::istringstream in(text);
-    std::string line;
-    while (std::getline(in, line)) lines.push_back(line);
-    return lines;
-}
 
-// "G1 X1.5 Y-2 A30" -> {'G':1, 'X':1.5, 'Y':-2, 'A':30}; a flag word maps to NaN.
-std::map<char, double> words_of(const std::string& line) {
-    std::map<char, double> w;
-    std::istringstream in(line);
-    std::string tok;
-    while (in >> tok) {
-        REQUIRE(!tok.empty());
-        const char letter = tok[0];
-        REQUIRE(std::isalpha(static_cast<unsigned char>(letter)));
-        REQUIRE_MESSAGE(w.count(letter) == 0, "letter " << letter << " twice in '" << line << "'");
-        w[letter] = tok.size() > 1 ? std::stod(tok.substr(1)) : std::nan("");
-    }
-    return w;
-}
 
 // The only line of `text`, as words.
 std::map<char, double> one_line(const std::string& text) {
@@ -133,7 +113,6 @@ InputError expect_error(Rig& r, const std::string& line, std::uint64_t line_no =
     return InputError("", 0, 0, "");
 }
 
-bool contains(const std::string& hay, const std::string& needle) { return hay.find(needle) != std::string::npos; }
 
 std::string fmt9(double v) {
     char buf[64];

@@ -11,6 +11,23 @@ void append_passed(std::string& out, const PassedNumber& n) {
     else append_shortest(out, n.value);
 }
 
+namespace {
+// E and F end a move line; a line that got no word at all (nothing changed) is taken back.
+void finish_move(std::string& out, std::size_t start, std::size_t empty, const std::optional<PassedNumber>& e,
+                 const std::optional<PassedNumber>& f) {
+    if (e) {
+        out += " E";
+        append_passed(out, *e);
+    }
+    if (f) {
+        out += " F";
+        append_passed(out, *f);
+    }
+    if (out.size() == empty) out.resize(start);
+    else out += '\n';
+}
+}  // namespace
+
 JointEmitter::JointEmitter(const Machine& machine)
     : machine_(machine), last_(machine.joints.size(), 0), known_(machine.joints.size(), false), believed_(machine.home_joints()) {}
 
@@ -53,16 +70,7 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
         if (fast) append_units(out, units, d);
         else format(out, j, q[j]);
     }
-    if (e) {
-        out += " E";
-        append_passed(out, *e);
-    }
-    if (f) {
-        out += " F";
-        append_passed(out, *f);
-    }
-    if (out.size() == empty) out.resize(start);
-    else out += '\n';
+    finish_move(out, start, empty, e, f);
 }
 
 void JointEmitter::set_position(std::string& out, const std::vector<double>& q, const std::vector<bool>& which,
@@ -130,16 +138,7 @@ void ToolEmitter::move(std::string& out, int gcode, const Eigen::Vector3d& tip, 
                 if (machine_.joints[j].rotary) word(out, machine_.joints[j].name, last_rotary_[j], q[j], rot);
         }
     }
-    if (e) {
-        out += " E";
-        append_passed(out, *e);
-    }
-    if (f) {
-        out += " F";
-        append_passed(out, *f);
-    }
-    if (out.size() == empty) out.resize(start);
-    else out += '\n';
+    finish_move(out, start, empty, e, f);
 }
 
 }  // namespace xlate5

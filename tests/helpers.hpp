@@ -1,0 +1,42 @@
+// Small helpers shared by the tests: split output into lines and words.
+#pragma once
+#include <doctest/doctest.h>
+
+#include <cctype>
+#include <cmath>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace xlate5::test {
+
+constexpr double kPi = 3.14159265358979323846;
+inline double rad(double deg) { return deg * kPi / 180.0; }
+
+inline bool contains(const std::string& hay, const std::string& needle) { return hay.find(needle) != std::string::npos; }
+
+inline std::vector<std::string> lines_of(const std::string& text) {
+    std::vector<std::string> lines;
+    std::istringstream in(text);
+    std::string line;
+    while (std::getline(in, line)) lines.push_back(line);
+    return lines;
+}
+
+// "G1 X1.5 Y-2 A30" -> {'G':1, 'X':1.5, 'Y':-2, 'A':30}; a flag word maps to NaN.
+inline std::map<char, double> words_of(const std::string& line) {
+    std::map<char, double> w;
+    std::istringstream in(line);
+    std::string tok;
+    while (in >> tok) {
+        REQUIRE(!tok.empty());
+        const char letter = tok[0];
+        REQUIRE(std::isalpha(static_cast<unsigned char>(letter)));
+        REQUIRE_MESSAGE(w.count(letter) == 0, "letter " << letter << " twice in '" << line << "'");
+        w[letter] = tok.size() > 1 ? std::stod(tok.substr(1)) : std::nan("");
+    }
+    return w;
+}
+
+}  // namespace xlate5::test
