@@ -84,13 +84,19 @@ int main(int argc, char** argv) {
 
     std::string machine_name, input = "-", output = "-", mode_text, preview = "G43.4", extruder = "E";
     std::vector<std::string> sets;
-    bool inverse = false;
+    bool inverse = false, no_segment = false;
+    double tolerance = 0, angle_tolerance = 0;
     app.add_option("-m,--machine", machine_name, "bundled machine name (see 'xlate5 machines') or path to a machine .toml");
     app.add_option("-i,--input", input, "input G-code file (default: standard input)");
     app.add_option("-o,--output", output, "output file, written atomically (default: standard output)");
     app.add_option("--set", sets, "override a machine parameter, e.g. --set la=29 (repeatable)");
     app.add_option("--mode", mode_text, "orientation mode at the start of the file: G43.4, G43.5 or G49 (default: the machine's)");
     app.add_option("--extruder-letter", extruder, "input letter that carries extrusion (default E; S3-DeformFDM files use A)");
+    app.add_option("--tolerance", tolerance, "largest tip deviation from the programmed line, mm (default: the machine's, 0.01)")
+        ->check(CLI::PositiveNumber);
+    app.add_option("--angle-tolerance", angle_tolerance, "largest tool-axis deviation, degrees (default: the machine's)")
+        ->check(CLI::PositiveNumber);
+    app.add_flag("--no-segment", no_segment, "one joint move per input move: no splitting (the tip leaves the line while rotaries turn)");
     app.add_flag("--inverse", inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
     app.add_option("--preview-form", preview, "with --inverse: write orientation as G43.4 angles or G43.5 I J K")->check(CLI::IsMember({"G43.4", "G43.5"}));
     auto* machines_cmd = app.add_subcommand("machines", "list the bundled machines");
@@ -129,6 +135,9 @@ int main(int argc, char** argv) {
     std::optional<xlate5::Machine> machine;
     try {
         machine = xlate5::load_machine(machine_name, overrides);
+        if (tolerance > 0) machine->motion.tolerance = tolerance;
+        if (angle_tolerance > 0) machine->motion.angle_tolerance = angle_tolerance;
+        if (no_segment) machine->motion.segment = false;
     } catch (const xlate5::MachineError& e) {
         std::cerr << "xlate5: machine error: " << e.what() << "\n";
         return kMachineError;

@@ -121,7 +121,7 @@ const char* kGood =
 TEST_CASE("cli: a good file translates with exit code 0, from -i and from standard input") {
     TempDir d;
     const fs::path in = d.write("good.gcode", kGood);
-    const Result r = run(d, "-m rw2 -i " + quote(in.string()));
+    const Result r = run(d, "-m rw2 --no-segment -i " + quote(in.string()));
     CHECK(r.code == 0);
     CHECK(r.err.empty());
     const auto lines = lines_of(r.out);
@@ -138,7 +138,7 @@ TEST_CASE("cli: a good file translates with exit code 0, from -i and from standa
     CHECK(w.at('B') == -20);
     CHECK(w.at('E') == 2);
 
-    const Result s = run(d, "-m rw2", kGood);
+    const Result s = run(d, "-m rw2 --no-segment", kGood);
     CHECK(s.code == 0);
     CHECK(s.out == r.out);
 }
@@ -146,7 +146,7 @@ TEST_CASE("cli: a good file translates with exit code 0, from -i and from standa
 TEST_CASE("cli: bad G-code exits 1 with file:line:column: on standard error") {
     TempDir d;
     const fs::path in = d.write("bad.gcode", "G1 X1 Y1 Z1 A0 B0\nM104 S200\nG1 X1 Q5\nG1 X2\n");
-    const Result r = run(d, "-m rw2 -i " + quote(in.string()));
+    const Result r = run(d, "-m rw2 --no-segment -i " + quote(in.string()));
     CHECK(r.code == 1);
     CHECK(contains(r.err, in.string() + ":3:7:"));
     CHECK(contains(r.err, "Q"));
@@ -175,7 +175,7 @@ TEST_CASE("cli: with -o, bad input leaves no output file and an existing one unc
 
     // A good file replaces it.
     const fs::path good = d.write("good.gcode", kGood);
-    r = run(d, "-m rw2 -i " + quote(good.string()) + " -o " + quote(out.string()));
+    r = run(d, "-m rw2 --no-segment -i " + quote(good.string()) + " -o " + quote(out.string()));
     CHECK(r.code == 0);
     CHECK(r.out.empty());
     CHECK(lines_of(read(out)).size() == 7);
@@ -240,6 +240,7 @@ TEST_CASE("cli: bad options exit 2") {
     CHECK(run(d, "-m rw2 --set la", "").code == 2);
     CHECK(run(d, "-m rw2 --set la=abc", "").code == 2);
     CHECK(run(d, "-m rw2 --preview-form G99 --inverse", "").code == 2);
+    CHECK(run(d, "-m rw2 --tolerance -1", "").code == 2);
 }
 
 TEST_CASE("cli: 'machines' lists the bundled machines") {
@@ -265,7 +266,7 @@ TEST_CASE("cli: --set la=29 changes the output per eq. 4.5") {
     const std::string in = "G1 X100 Y100 Z10 A90 B0\nG1 A45 B30\n";
     for (double la : {26.5, 29.0}) {
         CAPTURE(la);
-        const Result r = run(d, la == 29.0 ? "-m rw2 --set la=29" : "-m rw2", in);
+        const Result r = run(d, la == 29.0 ? "-m rw2 --no-segment --set la=29" : "-m rw2 --no-segment", in);
         REQUIRE(r.code == 0);
         const auto lines = lines_of(r.out);
         REQUIRE(lines.size() == 2);

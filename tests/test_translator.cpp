@@ -29,9 +29,15 @@ namespace {
 // Half a unit of the third decimal (the output precision) plus floating-point slack.
 constexpr double kPrinted = 5e-4 + 1e-9;
 
-Machine load(const std::string& name) {
-    return load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml");
+Machine load(const std::string& name, bool segment = true) {
+    Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml");
+    m.motion.segment = segment;
+    return m;
 }
+
+// These tests look at what one input move becomes; splitting moves to the tolerance is the
+// motion stage's business and is tested in test_motion.cpp, so here it is off.
+constexpr bool kOneLinePerMove = false;
 
 // A machine, its kinematics and a translator, built in place (the translator keeps references).
 struct Rig {
@@ -40,8 +46,8 @@ struct Rig {
     Translator tr;
     std::string out;
 
-    explicit Rig(const std::string& name, TranslatorOptions options = {})
-        : machine(load(name)), kin(machine), tr(kin, std::move(options)) {}
+    explicit Rig(const std::string& name, TranslatorOptions options = {}, bool segment = kOneLinePerMove)
+        : machine(load(name, segment)), kin(machine), tr(kin, std::move(options)) {}
 
     int j(char letter) const {
         const int i = machine.joint_index(letter);
@@ -150,7 +156,11 @@ TEST_CASE("translator: a rotary-only move keeps the tip and moves X Y Z per eq. 
     CHECK(w.at('A') == 30);
     CHECK(w.count('Z') == 0);  // B = 0: Z' = Z, unchanged
     CHECK(w.count('B') == 0);
-    CHECK(w.count('F') == 0);  // F is modal in the firmware: not repeated
+    // A pure turn runs at the machine's rotary feed (3600 deg/min): 30 degrees take 1/120 min,
+    // and Marlin divides the XYZ length of the move by F (its rule when XYZ moves).
+    const Rw2Joints before = eq45(tip, 0, 0);
+    const double dxy = std::hypot(w.at('X') - before.x, w.at('Y') - before.y);
+    CHECK(w.at('F') == doctest::Approx(dxy / (30.0 / 3600.0)).epsilon(1e-3));
 
     // B too: now Z moves as well.
     const auto w2 = one_line(r.feed("G1 B20"));
@@ -354,15 +364,26 @@ TEST_CASE("translator: a CNC preamble splits into one command per line and consu
     CHECK_FALSE(has_line(o2, "G49"));
 }
 
-TEST_CASE("translator: under G43.4 G94 is consumed and G93 is refused") {
+TEST_CASE("translator: under G43.4 G93/G94 are understood, not sent; G93 moves need F") {
     Rig r("rw2");
     const std::string o = r.feed("G21 G40 G80 G90 G94");
     CHECK_FALSE(has_line(o, "G94"));
     CHECK(has_line(o, "G21"));
     CHECK(has_line(o, "G90"));
     CHECK(r.tr.mode() == OrientationMode::Angles);
-    const InputError e = expect_error(r, "G93");
-    CHECK(e.column() == 1);
+    r.feed("G1 A0 B0 F600");
+    CHECK(r.feed("G93") == "");
+    CHECK(r.tr.modes().inverse_time);
+    const InputError e = expect_error(r, "G1 X10 Y10 Z1");
+    CHECK(contains(e.message(), "G93"));
+    // 1/F minutes for 10 mm: F = 0.5 means 2 minutes, so 5 mm/min.
+    const auto w = one_line(r.feed("G1 X10 Y10 Z1 A0 B0 F0.5"));
+    (void)w;
+    r.feed("G1 X20 F0.5");
+    const auto w2 = words_of(lines_of(r.out).back());
+    CHECK(w2.at('F') == doctest::Approx(5.0));
+    CHECK(r.feed("G94") == "");
+    CHECK_FALSE(r.tr.modes().inverse_time);
 }
 
 // ---- G92 ----------------------------------------------------------------------------------

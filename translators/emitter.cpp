@@ -8,6 +8,7 @@ namespace xlate5 {
 
 void append_passed(std::string& out, const PassedNumber& n) {
     if (!n.text.empty()) out += n.text;
+    else if (n.decimals >= 0) append_fixed(out, n.value, n.decimals);
     else append_shortest(out, n.value);
 }
 
@@ -69,6 +70,12 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
         out += machine_.joints[j].output;
         if (fast) append_units(out, units, d);
         else format(out, j, q[j]);
+    }
+    if (f) {
+        f_text_.clear();
+        append_passed(f_text_, *f);
+        if (f_text_ == last_f_) f.reset();
+        else last_f_ = f_text_;
     }
     finish_move(out, start, empty, e, f);
 }

@@ -17,6 +17,7 @@ namespace xlate5 {
 struct PassedNumber {
     double value = 0;
     std::string_view text;
+    int decimals = -1;  // for a computed value: digits after the point (-1: shortest exact form)
 };
 void append_passed(std::string& out, const PassedNumber& n);
 
@@ -51,6 +52,7 @@ private:
     std::vector<long long> last_;
     std::vector<bool> known_;         // false: not sent since start, homing or probing
     std::vector<double> believed_;    // joint values the firmware is believed to be at
+    std::string last_f_, f_text_;     // F is modal in the firmware: written only when it changes
 };
 
 }  // namespace xlate5

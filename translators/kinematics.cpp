@@ -201,7 +201,7 @@ IkResult Kinematics::check_limits(const std::vector<double>& q) const {
 }
 
 IkResult Kinematics::solve_orientation(const Eigen::Vector3d& axis, const std::vector<double>& previous,
-                                       std::vector<double>& q) const {
+                                       std::vector<double>& q, const std::vector<double>* free_hint) const {
     const auto solutions = orientation_solutions(axis);
     if (solutions.empty()) {
         char buf[160];
@@ -224,7 +224,7 @@ IkResult Kinematics::solve_orientation(const Eigen::Vector3d& axis, const std::v
             const double prev = previous[std::size_t(j)];
             const double sol = solutions.angle[s][k];
             if (std::isnan(sol)) {  // on the pole: the joint is free, keep it where it is
-                cand[k] = prev;
+                cand[k] = free_hint ? (*free_hint)[std::size_t(j)] : prev;
                 continue;
             }
             // Of sol + 360 k, the turn nearest the previous angle that is inside the limits.

@@ -40,8 +40,10 @@ public:
     // Sets the rotary joints of q to reach tool axis `axis`: of the (up to two) solutions and
     // their 360-degree turns, the one inside the limits nearest `previous`. A joint whose axis is
     // parallel to the tool axis keeps its previous value.
+    // `free_hint`, when given, is the value a free joint takes instead of its previous one (the
+    // motion stage interpolates a free joint across a move).
     IkResult solve_orientation(const Eigen::Vector3d& axis, const std::vector<double>& previous,
-                               std::vector<double>& q) const;
+                               std::vector<double>& q, const std::vector<double>* free_hint = nullptr) const;
 
     // Both: orientation from `pose.axis`, then position.
     IkResult inverse(const Pose& pose, const std::vector<double>& previous, std::vector<double>& q) const;

@@ -23,6 +23,7 @@ struct Joint {
     double min = -1e300;     // limits, in the joint's unit; rotaries without limits are unbounded
     double max = 1e300;
     double home = 0;         // joint value after G28
+    double max_feed = 0;     // mm/min or deg/min the axis can move at; 0: no limit known
     bool bounded() const { return min > -1e299 || max < 1e299; }
 };
 
@@ -41,6 +42,16 @@ struct Dialect {
     FirmwareDialect firmware = FirmwareDialect::Marlin;
     int linear_decimals = 3;
     int rotary_decimals = 3;
+    int extrusion_decimals = 5;   // E of the pieces a move is split into
+    bool inverse_time = false;    // write G93 inverse-time feeds (RepRapFirmware supports them)
+};
+
+// How moves are split and fed (the motion stage).
+struct MotionSettings {
+    double tolerance = 0.01;       // mm: the tip may leave the programmed line by at most this
+    double angle_tolerance = 0.5;  // degrees: the tool axis may leave its great-circle path by this
+    double rotary_feed = 3600;     // deg/min for a pure reorientation (no tip motion)
+    bool segment = true;           // split moves to the tolerance (off: one joint move per input move)
 };
 
 struct Machine {
@@ -54,6 +65,7 @@ struct Machine {
     Eigen::Vector3d tool_axis = Eigen::Vector3d::UnitZ();  // tool axis in the tip frame
     OrientationMode start_mode = OrientationMode::Angles;
     Dialect dialect;
+    MotionSettings motion;
 
     int joint_index(char name) const {
         for (std::size_t i = 0; i < joints.size(); ++i)

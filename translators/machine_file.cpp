@@ -130,7 +130,7 @@ void load_joints(Reader& r, Machine& m) {
         const std::string where = "joints[" + std::to_string(i) + "]";
         const auto* t = arr->get(i)->as_table();
         if (!t) r.fail(arr->get(i), where, "expected a table");
-        r.only_keys(*t, where, {"name", "output", "type", "min", "max", "home"});
+        r.only_keys(*t, where, {"name", "output", "type", "min", "max", "home", "max_feed"});
         Joint j;
         j.name = r.letter(t->get("name"), where + ".name");
         j.output = t->contains("output") ? r.letter(t->get("output"), where + ".output") : j.name;
@@ -146,6 +146,10 @@ void load_joints(Reader& r, Machine& m) {
         if (j.min > j.max) r.fail(t->get("min"), where + ".min", "min is greater than max");
         if (t->contains("home")) j.home = r.number(t->get("home"), where + ".home");
         if (j.home < j.min || j.home > j.max) r.fail(t->get("home"), where + ".home", "home is outside min..max");
+        if (t->contains("max_feed")) {
+            j.max_feed = r.number(t->get("max_feed"), where + ".max_feed");
+            if (!(j.max_feed > 0)) r.fail(t->get("max_feed"), where + ".max_feed", "must be positive");
+        }
         for (const auto& other : m.joints) {
             if (other.name == j.name) r.fail(t->get("name"), where + ".name", std::string("joint ") + j.name + " is defined twice");
             if (other.output == j.output) r.fail(t, where + ".output", std::string("output letter ") + j.output + " is used twice");
@@ -210,7 +214,7 @@ Machine load(const std::string& text, const std::string& path, const std::map<st
     }
     Reader r(path, root);
     r.only_keys(root, "", {"name", "description", "source", "parameters", "joints", "part_chain", "tool_chain",
-                           "tool", "input", "firmware"});
+                           "tool", "input", "firmware", "motion"});
     Machine m;
     m.source_path = path;
     m.name = r.string(root.get("name"), "name");
@@ -253,7 +257,7 @@ Machine load(const std::string& text, const std::string& path, const std::map<st
     if (const auto* fw = root.get("firmware")) {
         const auto* t = fw->as_table();
         if (!t) r.fail(fw, "firmware", "expected a table");
-        r.only_keys(*t, "firmware", {"dialect", "linear_decimals", "rotary_decimals"});
+        r.only_keys(*t, "firmware", {"dialect", "linear_decimals", "rotary_decimals", "extrusion_decimals", "inverse_time"});
         if (t->contains("dialect")) {
             const std::string d = r.string(t->get("dialect"), "firmware.dialect");
             if (d == "marlin") m.dialect.firmware = FirmwareDialect::Marlin;
@@ -263,12 +267,34 @@ Machine load(const std::string& text, const std::string& path, const std::map<st
             else if (d == "generic") m.dialect.firmware = FirmwareDialect::Generic;
             else r.fail(t->get("dialect"), "firmware.dialect", "expected marlin, marlin-articulated, reprap, klipper or generic");
         }
-        for (const char* k : {"linear_decimals", "rotary_decimals"}) {
+        for (const char* k : {"linear_decimals", "rotary_decimals", "extrusion_decimals"}) {
             if (!t->contains(k)) continue;
             const double d = r.number(t->get(k), std::string("firmware.") + k);
             if (d < 0 || d > 9 || d != std::floor(d)) r.fail(t->get(k), std::string("firmware.") + k, "expected a whole number 0..9");
-            (std::string(k) == "linear_decimals" ? m.dialect.linear_decimals : m.dialect.rotary_decimals) = int(d);
+            const std::string key = k;
+            (key == "linear_decimals" ? m.dialect.linear_decimals
+                                      : key == "rotary_decimals" ? m.dialect.rotary_decimals : m.dialect.extrusion_decimals) = int(d);
         }
+        if (const auto* it = t->get("inverse_time")) {
+            const auto b = it->value<bool>();
+            if (!b) r.fail(it, "firmware.inverse_time", "expected true or false");
+            m.dialect.inverse_time = *b;
+            if (*b && m.dialect.firmware != FirmwareDialect::RepRap)
+                r.fail(it, "firmware.inverse_time", "only RepRapFirmware takes G93 inverse-time feeds");
+        }
+    }
+    if (const auto* mo = root.get("motion")) {
+        const auto* t = mo->as_table();
+        if (!t) r.fail(mo, "motion", "expected a table");
+        r.only_keys(*t, "motion", {"tolerance", "angle_tolerance", "rotary_feed"});
+        auto positive = [&](const char* k, double& into) {
+            if (!t->contains(k)) return;
+            into = r.number(t->get(k), std::string("motion.") + k);
+            if (!(into > 0)) r.fail(t->get(k), std::string("motion.") + k, "must be positive");
+        };
+        positive("tolerance", m.motion.tolerance);
+        positive("angle_tolerance", m.motion.angle_tolerance);
+        positive("rotary_feed", m.motion.rotary_feed);
     }
     return m;
 }

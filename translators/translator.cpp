@@ -75,6 +75,7 @@ Translator::Translator(const Kinematics& kinematics, TranslatorOptions options)
       options_(std::move(options)),
       emitter_(kinematics.machine()),
       tool_emitter_(kinematics.machine(), options_.preview_form),
+      motion_(kinematics, emitter_),
       q_(machine_.home_joints()),
       q_next_(q_),
       commanded_(q_.size(), false),
@@ -248,12 +249,12 @@ void Translator::apply_modal(int code10, std::uint32_t column, std::string& out)
             out += modes_.e_relative ? "G90\nM83\n" : "G90\nM82\n";
             return;
         case 930:
-            if (mode_ != OrientationMode::Joints)
-                fail(column, "G93 inverse-time feed under tool-centre-point control is not supported yet");
-            passthrough('G', code10, {}, false, out);
-            return;
         case 940:
+            // Under tool-centre-point control xlate5 computes every F itself (mm/min), so the
+            // input's feed mode is understood here and not sent; in joint space it is passed on.
+            modes_.inverse_time = code10 == 930;
             if (mode_ == OrientationMode::Joints) passthrough('G', code10, {}, false, out);
+            (void)column;
             return;
         default:
             passthrough('G', code10, {}, false, out);
@@ -405,10 +406,35 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
         const bool rotary = machine_.joints[j].rotary;
         if ((!rotary && any_xyz) || (rotary && any_ijk)) commanded_[j] = true;
     }
+    if (f && !modes_.inverse_time) modes_.feed = f->value;
+    if (modes_.inverse_time && !f && (any_xyz || any_rotary || any_ijk))
+        fail(column, "under G93 every move needs its F (1/minutes)");
+    MoveSpec spec;
+    spec.gcode = gcode;
+    // Before the program has placed the tip, the move is a joint move (one piece, F as written).
+    spec.mode = (!any_xyz && !tip_known_) ? OrientationMode::Joints : mode_;
+    spec.q0 = &q_;
+    spec.p0 = pose_;
+    spec.q1 = &q_next_;
+    spec.p1 = next;
+    spec.commanded = &commanded_;
+    spec.e = e;
+    spec.e_relative = modes_.e_relative;
+    spec.e_start = modes_.e_position;
+    spec.feed = modes_.feed;
+    spec.f = f;
+    spec.inverse_time = modes_.inverse_time && f ? f->value : 0.0;
+    if (auto res = motion_.emit(spec, out); !res.ok()) fail(column, res.message);
+    if (spec.mode == OrientationMode::Vector) q_next_ = motion_.final_joints();
     q_.swap(q_next_);
     pose_ = next;
     tip_known_ = tip_known_ || any_xyz;
-    emitter_.move(out, gcode, q_, commanded_, e, f);
+    track_extrusion(e);
+}
+
+void Translator::track_extrusion(const std::optional<PassedNumber>& e) {
+    if (!e) return;
+    modes_.e_position = modes_.e_relative ? modes_.e_position + e->value : e->value;
 }
 
 void Translator::move_joints(int gcode, std::uint32_t /*column*/, std::string& out) {
@@ -444,6 +470,7 @@ void Translator::move_joints(int gcode, std::uint32_t /*column*/, std::string& o
     tip_known_ = tip_known_ || any_linear;
     if (options_.inverse) tool_emitter_.move(out, gcode, pose_.tip, pose_.axis, q_, e, f);
     else emitter_.move(out, gcode, q_, commanded_, e, f);
+    track_extrusion(e);
 }
 
 void Translator::set_position(std::uint32_t column, std::string& out) {
@@ -458,6 +485,7 @@ void Translator::set_position(std::uint32_t column, std::string& out) {
     for (const Param& p : params_) {
         if (p.letter == 'E') {
             e = passed(p);
+            modes_.e_position = e->value;
             continue;
         }
         const bool tip_word = mode_ != OrientationMode::Joints && (p.letter == 'X' || p.letter == 'Y' || p.letter == 'Z');

@@ -12,6 +12,7 @@
 #include "translators/gcode_lexer.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
+#include "translators/motion.hpp"
 
 namespace xlate5 {
 
@@ -31,6 +32,9 @@ struct Modes {
     bool inches = false;      // G20 / G21
     bool e_relative = false;  // Marlin 2 rule: the latest of G90/G91/M82/M83 decides
     int motion = -1;          // modal G0/G1 (-1: none yet)
+    bool inverse_time = false;  // G93: F is 1/duration in minutes, per move
+    double feed = 0;          // programmed feed (G94), mm/min; 0 until the first F
+    double e_position = 0;    // absolute E (for sharing an absolute E among pieces)
     double unit() const { return inches ? 25.4 : 1.0; }
 };
 
@@ -68,6 +72,7 @@ private:
     void set_position(std::uint32_t column, std::string& out);
     void home(std::string& out);
     void passthrough(char letter, int code10, std::string_view body, bool alone, std::string& out) const;
+    void track_extrusion(const std::optional<PassedNumber>& e);
     bool is_axis_letter(char c) const;
     int joint_of(char letter) const;  // joint named by this input letter, or -1
 
@@ -76,6 +81,7 @@ private:
     TranslatorOptions options_;
     JointEmitter emitter_;
     ToolEmitter tool_emitter_;        // used by the inverse direction
+    MotionStage motion_;
     Block block_;
     std::vector<Param> params_;
     std::uint64_t line_no_ = 0;

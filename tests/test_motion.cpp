@@ -1,0 +1,336 @@
+// The motion stage against independent checks: dense FK sampling of the emitted joint path,
+// E conservation, the firmware's feed rule computed here from its definition, and the number of
+// pieces against dense uniform splitting at the same achieved error.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <string>
+
+#include "helpers.hpp"
+#include "translators/error.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+#include "translators/translator.hpp"
+
+using namespace xlate5;
+using namespace xlate5::test;
+
+namespace {
+
+Machine load(const std::string& name) { return load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml"); }
+
+double seg_dist(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    const Eigen::Vector3d ab = b - a;
+    double t = ab.squaredNorm() > 0 ? (p - a).dot(ab) / ab.squaredNorm() : 0.0;
+    t = std::clamp(t, 0.0, 1.0);
+    return (a + t * ab - p).norm();
+}
+
+std::string num(double v, int d = 6) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%.*f", d, v);
+    return b;
+}
+
+// A random tool-space move for machine m from joints q: returns the input line and sets q1.
+struct Gen {
+    const Machine& m;
+    const Kinematics& k;
+    std::mt19937 rng;
+    std::uniform_real_distribution<double> U{-1, 1};
+
+    std::vector<double> random_joints() {
+        std::vector<double> q(m.joints.size());
+        for (std::size_t j = 0; j < q.size(); ++j) {
+            const Joint& J = m.joints[j];
+            const double lo = J.bounded() ? J.min : -200, hi = J.bounded() ? J.max : 200;
+            q[j] = 0.5 * (lo + hi) + 0.3 * (hi - lo) * 0.5 * U(rng);
+        }
+        return q;
+    }
+    std::vector<double> step(const std::vector<double>& q, double rot, double lin) {
+        auto q1 = q;
+        for (std::size_t j = 0; j < q.size(); ++j) {
+            const Joint& J = m.joints[j];
+            q1[j] += (J.rotary ? rot : lin) * U(rng);
+            if (J.bounded()) q1[j] = std::clamp(q1[j], J.min + 1, J.max - 1);
+        }
+        return q1;
+    }
+    std::string line(const std::vector<double>& q, const char* extra) {
+        const Pose p = k.forward(q);
+        std::string s = "G1 X" + num(p.tip.x()) + " Y" + num(p.tip.y()) + " Z" + num(p.tip.z());
+        if (m.start_mode == OrientationMode::Vector) {
+            s += " I" + num(p.axis.x(), 9) + " J" + num(p.axis.y(), 9) + " K" + num(p.axis.z(), 9);
+        } else {
+            for (std::size_t j = 0; j < q.size(); ++j)
+                if (m.joints[j].rotary) s += std::string(" ") + m.joints[j].name + num(q[j], 6);
+        }
+        return s + extra;
+    }
+};
+
+// Joint values named by the firmware's letters in a translated line, onto q.
+bool apply_line(const Machine& m, const std::string& line, std::vector<double>& q, double* e, double* f) {
+    if (line.rfind("G1 ", 0) != 0 && line.rfind("G0 ", 0) != 0) return false;
+    const auto w = words_of(line);
+    for (std::size_t j = 0; j < m.joints.size(); ++j)
+        if (w.count(m.joints[j].output)) q[j] = w.at(m.joints[j].output);
+    if (e) *e = w.count('E') ? w.at('E') : std::nan("");
+    if (f && w.count('F')) *f = w.at('F');
+    return true;
+}
+
+// Printing joints to 3 decimals moves the tip by up to about this much (lever arms < 150 mm).
+constexpr double kPrintSlack = 0.0035;
+
+}  // namespace
+
+TEST_CASE("every machine: the emitted joint path, densely sampled through FK, stays within the tolerance") {
+    for (const std::string name : {"rw2", "pentarod", "koc5", "wpi5", "xyzac-trt"}) {
+        CAPTURE(name);
+        const Machine m = load(name);
+        const Kinematics k(m);
+        Gen g{m, k, std::mt19937(std::hash<std::string>{}(name) & 0xffff)};
+        TranslatorOptions o;
+        Translator t(k, o);
+        std::string out;
+        // Place the tool, then random 5-axis moves.
+        auto q = g.random_joints();
+        t.feed(g.line(q, " F1200"), 1, out);
+        std::vector<double> fw = t.joints();  // what the firmware was told (unrounded start is fine)
+        double worst = 0, worst_rounded = 0;
+        int pieces = 0, moves = 0, refused = 0;
+        for (int i = 0; i < 150; ++i) {
+            const auto q1 = g.step(q, 25, 8);
+            const Pose a = k.forward(q), b = k.forward(q1);
+            out.clear();
+            try {
+                t.feed(g.line(q1, ""), std::uint64_t(i + 2), out);
+            } catch (const InputError&) {
+                ++refused;  // a path point out of reach: refused, not a wrong move
+                continue;
+            }
+            ++moves;
+            // Dense FK along each printed piece.
+            std::vector<double> prev = fw;
+            for (const auto& l : lines_of(out)) {
+                std::vector<double> cur = prev;
+                if (!apply_line(m, l, cur, nullptr, nullptr)) continue;
+                ++pieces;
+                for (int s = 1; s < 200; ++s) {
+                    std::vector<double> qq(cur.size());
+                    for (std::size_t j = 0; j < qq.size(); ++j) qq[j] = prev[j] + (cur[j] - prev[j]) * s / 200.0;
+                    worst_rounded = std::max(worst_rounded, seg_dist(k.forward(qq).tip, a.tip, b.tip));
+                }
+                prev = cur;
+            }
+            fw = prev;
+            // And the unrounded pieces the stage chose.
+            worst = std::max(worst, 0.0);
+            q = t.joints();
+        }
+        MESSAGE(name << ": " << moves << " moves -> " << pieces << " pieces, worst printed-path deviation " << worst_rounded
+                     << " mm, refused " << refused);
+        CHECK(moves > 100);
+        CHECK(pieces > moves);  // these moves turn the rotaries a lot: they must be split
+        CHECK(worst_rounded <= m.motion.tolerance + kPrintSlack);
+    }
+}
+
+TEST_CASE("seven interior samples per piece do not miss the error: dense sampling agrees") {
+    const Machine m = load("rw2");
+    const Kinematics k(m);
+    JointEmitter em(m);
+    MotionStage stage(k, em);
+    Gen g{m, k, std::mt19937(11)};
+    std::vector<bool> commanded(m.joints.size(), true);
+    double worst_ratio = 0;
+    for (int i = 0; i < 300; ++i) {
+        auto q0 = g.random_joints();
+        auto q1 = g.step(q0, 60, 20);
+        MoveSpec mv;
+        mv.mode = OrientationMode::Angles;
+        mv.q0 = &q0;
+        mv.q1 = &q1;
+        mv.p0 = k.forward(q0);
+        mv.p1 = k.forward(q1);
+        mv.commanded = &commanded;
+        mv.feed = 1000;
+        std::string out;
+        REQUIRE(stage.emit(mv, out).ok());
+        const auto& s = stage.split_params();
+        const auto& qs = stage.split_joints();
+        const double* qa = q0.data();
+        double sa = 0;
+        for (std::size_t p = 0; p < s.size(); ++p) {
+            double tip = 0, ang = 0;
+            stage.piece_error(mv, sa, s[p], qa, &qs[p * q0.size()], 400, tip, ang);
+            worst_ratio = std::max(worst_ratio, tip / m.motion.tolerance);
+            qa = &qs[p * q0.size()];
+            sa = s[p];
+        }
+    }
+    MESSAGE("worst dense-sampled error / tolerance: " << worst_ratio);
+    CHECK(worst_ratio <= 1.02);
+}
+
+TEST_CASE("pieces stay near the minimum: against dense uniform splitting at the same achieved error") {
+    const Machine m = load("pentarod");
+    const Kinematics k(m);
+    JointEmitter em(m);
+    MotionStage stage(k, em);
+    Gen g{m, k, std::mt19937(5)};
+    std::vector<bool> commanded(m.joints.size(), true);
+    double total_adaptive = 0, total_uniform = 0;
+    for (int i = 0; i < 60; ++i) {
+        auto q0 = g.random_joints();
+        auto q1 = g.step(q0, 40, 15);
+        MoveSpec mv;
+        mv.mode = OrientationMode::Vector;
+        mv.q0 = &q0;
+        mv.q1 = &q1;
+        mv.p0 = k.forward(q0);
+        mv.p1 = k.forward(q1);
+        mv.commanded = &commanded;
+        std::string out;
+        MoveResult res;
+        if (!stage.emit(mv, out, &res).ok()) continue;
+        if (res.pieces < 3) continue;
+        // The smallest uniform split (IK at equal steps of s, dense check) reaching the same error.
+        const double achieved = std::max(res.tip_error / m.motion.tolerance, res.angle_error / m.motion.angle_tolerance);
+        int uniform = 0;
+        for (int n = 1; n <= 4 * res.pieces && !uniform; ++n) {
+            std::vector<double> prev = q0, cur;
+            double worst = 0;
+            bool ok = true;
+            for (int p = 1; p <= n && ok; ++p) {
+                const double s = double(p) / n;
+                Pose target;
+                target.tip = mv.p0.tip + s * (mv.p1.tip - mv.p0.tip);
+                const double ang = std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
+                target.axis = ang < 1e-12 ? mv.p0.axis
+                                          : ((std::sin((1 - s) * ang) * mv.p0.axis + std::sin(s * ang) * mv.p1.axis) / std::sin(ang)).normalized();
+                ok = k.inverse(target, prev, cur).ok();
+                double tip = 0, an = 0;
+                if (ok) stage.piece_error(mv, double(p - 1) / n, s, prev.data(), cur.data(), 50, tip, an);
+                worst = std::max({worst, tip / m.motion.tolerance, an / m.motion.angle_tolerance});
+                prev = cur;
+            }
+            if (ok && worst <= achieved * 1.0001) uniform = n;
+        }
+        if (!uniform) continue;
+        total_adaptive += res.pieces;
+        total_uniform += uniform;
+    }
+    REQUIRE(total_uniform > 0);
+    const double ratio = total_adaptive / total_uniform;
+    MESSAGE("pieces, adaptive / minimal uniform at the same error: " << ratio << " (" << total_adaptive << " / " << total_uniform << ")");
+    CHECK(ratio <= 1.25);
+}
+
+TEST_CASE("E is conserved exactly across pieces, absolute and relative") {
+    for (const bool relative : {false, true}) {
+        CAPTURE(relative);
+        const Machine m = load("rw2");
+        const Kinematics k(m);
+        Translator t(k, {});
+        std::string out;
+        t.feed(relative ? "M83" : "M82", 1, out);
+        t.feed("G1 X100 Y100 Z10 A0 B0 F1200", 2, out);
+        double e_in = 0, e_abs = 0;
+        std::mt19937 rng(9);
+        std::uniform_real_distribution<double> U(0, 1);
+        for (int i = 0; i < 200; ++i) {
+            const double de = std::round(U(rng) * 1e5) / 1e5;
+            e_in += de;
+            e_abs += de;
+            const std::string line = "G1 X" + num(100 + 20 * U(rng), 3) + " Y" + num(100 + 20 * U(rng), 3) + " A" + num(120 * U(rng) - 60, 2) +
+                                     " B" + num(60 * U(rng) - 30, 2) + " E" + num(relative ? de : e_abs, 5);
+            t.feed(line, std::uint64_t(i + 3), out);
+        }
+        double e_out = 0, last_abs = 0;
+        int pieces = 0;
+        for (const auto& l : lines_of(out)) {
+            std::vector<double> q(m.joints.size());
+            double e = std::nan("");
+            if (!apply_line(m, l, q, &e, nullptr) || std::isnan(e)) continue;
+            ++pieces;
+            if (relative) e_out += e;
+            else {
+                CHECK(e >= last_abs - 1e-9);  // absolute E never runs backwards within the extrusion
+                e_out += e - last_abs;
+                last_abs = e;
+            }
+        }
+        CHECK(pieces > 250);
+        CHECK(std::abs(e_out - e_in) <= 1e-9 * e_in);
+    }
+}
+
+TEST_CASE("F follows each firmware's rule so the tip moves at the programmed speed") {
+    for (const std::string dialect : {"marlin", "marlin-articulated", "reprap", "klipper"}) {
+        CAPTURE(dialect);
+        std::string text;
+        {
+            std::FILE* f = std::fopen((std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/rw2.toml").c_str(), "rb");
+            REQUIRE(f);
+            char buf[4096];
+            std::size_t n;
+            while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) text.append(buf, n);
+            std::fclose(f);
+        }
+        const auto at = text.find("dialect = \"marlin\"");
+        REQUIRE(at != std::string::npos);
+        text.replace(at, 18, "dialect = \"" + dialect + "\"");
+        const Machine m = load_machine_text(text, "rw2-" + dialect + ".toml");
+        const Kinematics k(m);
+        Translator t(k, {});
+        std::string out;
+        t.feed("G1 X100 Y100 Z10 A0 B0 F1200", 1, out);
+        std::vector<double> fw = t.joints();
+        const double feed = 900;
+        std::mt19937 rng(1);
+        std::uniform_real_distribution<double> U(-1, 1);
+        int checked = 0;
+        for (int i = 0; i < 60; ++i) {
+            out.clear();
+            const Pose a = t.pose();
+            const std::string line = "G1 X" + num(100 + 15 * U(rng), 3) + " Y" + num(100 + 15 * U(rng), 3) + " Z" + num(10 + 2 * U(rng), 3) +
+                                     " A" + num(90 * U(rng), 2) + " B" + num(40 * U(rng), 2) + " F" + num(feed, 0);
+            t.feed(line, std::uint64_t(i + 2), out);
+            const Pose b = t.pose();
+            const double length = (b.tip - a.tip).norm();
+            double f = 0;
+            std::vector<double> prev = fw;
+            for (const auto& l : lines_of(out)) {
+                std::vector<double> cur = prev;
+                if (!apply_line(m, l, cur, nullptr, &f)) continue;
+                // The piece's share of the programmed tip path: its tip ends, projected on the line.
+                const Eigen::Vector3d dir = (b.tip - a.tip) / length;
+                const double piece = (k.forward(cur).tip - k.forward(prev).tip).dot(dir);
+                const double minutes = piece / feed;
+                // The firmware's length, by its documented rule.
+                double lin2 = 0, rot2 = 0, rot_max = 0;
+                for (std::size_t j = 0; j < cur.size(); ++j) {
+                    const double d = cur[j] - prev[j];
+                    if (m.joints[j].rotary) rot2 += d * d, rot_max = std::max(rot_max, std::abs(d));
+                    else lin2 += d * d;
+                }
+                double dfw = lin2 > 0 ? std::sqrt(lin2) : std::sqrt(rot2);
+                if (dialect == "marlin-articulated") dfw = std::sqrt(lin2 + rot2);
+                if (dialect == "klipper") dfw = lin2 > 0 ? std::sqrt(lin2) : rot_max;
+                // The firmware then spends dfw / F minutes on the piece: that must be the tip's time.
+                if (minutes > 1e-5) {
+                    CHECK(dfw / f == doctest::Approx(minutes).epsilon(0.01));
+                    ++checked;
+                }
+                prev = cur;
+            }
+            fw = prev;
+        }
+        CHECK(checked > 100);
+    }
+}

@@ -1,0 +1,269 @@
+#include "translators/motion.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+
+#include "translators/number.hpp"
+
+namespace xlate5 {
+
+namespace {
+
+constexpr double kDegPerRad = 57.29577951308232;
+constexpr int kCheckSamples = 7;     // interior points checked per piece (see piece_error)
+constexpr int kMaxPieces = 100000;   // a move needing more is refused, not silently truncated
+
+// Great-circle interpolation of unit vectors; antipodal ends have no unique arc.
+Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) {
+    const double c = std::clamp(a.dot(b), -1.0, 1.0);
+    const double angle = std::acos(c);
+    if (angle < 1e-12) return a;
+    const double sn = std::sin(angle);
+    return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
+}
+
+double printed(const Machine& m, std::size_t j, double v) {
+    const int d = m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals;
+    long long units = 0;
+    if (!to_units(v, d, units)) return v;
+    return double(units) / std::pow(10.0, d);
+}
+
+// Distance from p to the segment ab.
+double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    const Eigen::Vector3d ab = b - a;
+    const double len2 = ab.squaredNorm();
+    double t = len2 > 0 ? (p - a).dot(ab) / len2 : 0.0;
+    t = std::clamp(t, 0.0, 1.0);
+    return (a + t * ab - p).norm();
+}
+
+}  // namespace
+
+double firmware_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1) {
+    double lin2 = 0, rot2 = 0, rot_max = 0;
+    for (std::size_t j = 0; j < q0.size(); ++j) {
+        const double d = printed(m, j, q1[j]) - printed(m, j, q0[j]);
+        if (m.joints[j].rotary) {
+            rot2 += d * d;
+            rot_max = std::max(rot_max, std::abs(d));
+        } else {
+            lin2 += d * d;
+        }
+    }
+    switch (m.dialect.firmware) {
+        case FirmwareDialect::MarlinArticulated:
+            return std::sqrt(lin2 + rot2);  // every axis counts, mm and degrees alike
+        case FirmwareDialect::Klipper:
+            return lin2 > 0 ? std::sqrt(lin2) : rot_max;  // XYZ length, else the largest single-axis move
+        case FirmwareDialect::Marlin:
+        case FirmwareDialect::RepRap:
+        case FirmwareDialect::Generic:
+        default:
+            return lin2 > 0 ? std::sqrt(lin2) : std::sqrt(rot2);  // NIST rule: XYZ if any moves, else rotaries
+    }
+}
+
+MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
+    : kin_(kinematics), machine_(kinematics.machine()), emitter_(emitter) {}
+
+Pose MotionStage::pose_at(const MoveSpec& mv, double s) const {
+    Pose p;
+    p.tip = mv.p0.tip + s * (mv.p1.tip - mv.p0.tip);
+    p.axis = slerp(mv.p0.axis, mv.p1.axis, s);
+    return p;
+}
+
+IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<double>& previous, std::vector<double>& q) const {
+    const auto& q0 = *mv.q0;
+    const auto& q1 = *mv.q1;
+    q = previous;
+    const Pose target = pose_at(mv, s);
+    if (mv.mode == OrientationMode::Angles) {
+        // The angles are the programmed orientation: they move linearly, as the firmware moves them.
+        for (std::size_t j = 0; j < q.size(); ++j)
+            if (machine_.joints[j].rotary) q[j] = q0[j] + s * (q1[j] - q0[j]);
+    } else {
+        // A free joint (axis along the tool) follows the line from its start to its end value.
+        std::vector<double>& hint = const_cast<std::vector<double>&>(lerp_);
+        hint.resize(q.size());
+        for (std::size_t j = 0; j < q.size(); ++j) hint[j] = q0[j] + s * (q1[j] - q0[j]);
+        if (auto r = kin_.solve_orientation(target.axis, previous, q, &hint); !r.ok()) return r;
+    }
+    if (auto r = kin_.solve_position(target.tip, q); !r.ok()) return r;
+    return kin_.check_limits(q);
+}
+
+void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, int samples,
+                              double& tip, double& angle) const {
+    tip = 0;
+    angle = 0;
+    std::vector<double> q(machine_.joints.size());
+    for (int i = 1; i <= samples; ++i) {
+        const double t = double(i) / double(samples + 1);
+        for (std::size_t j = 0; j < q.size(); ++j) q[j] = qa[j] + t * (qb[j] - qa[j]);
+        const Pose fw = kin_.forward(q);
+        tip = std::max(tip, segment_distance(fw.tip, mv.p0.tip, mv.p1.tip));
+        if (mv.mode == OrientationMode::Vector) {
+            const Eigen::Vector3d ideal = slerp(mv.p0.axis, mv.p1.axis, sa + t * (sb - sa));
+            angle = std::max(angle, std::acos(std::clamp(fw.axis.dot(ideal), -1.0, 1.0)) * kDegPerRad);
+        }
+    }
+}
+
+IkResult MotionStage::split(const MoveSpec& mv) {
+    const std::size_t n = machine_.joints.size();
+    const auto& q0 = *mv.q0;
+    const auto& q1 = *mv.q1;
+    s_.assign(1, 1.0);
+    qs_.assign(q1.begin(), q1.end());
+    bool rotates = false;
+    for (std::size_t j = 0; j < n; ++j) rotates = rotates || (machine_.joints[j].rotary && q1[j] != q0[j]);
+    // With the rotaries still the tip is affine in the linear joints: the firmware's line is exact.
+    if (!rotates || mv.mode == OrientationMode::Joints || !machine_.motion.segment) return {};
+
+    const double tol = machine_.motion.tolerance, atol = machine_.motion.angle_tolerance;
+    double tip = 0, ang = 0;
+    piece_error(mv, 0, 1, q0.data(), q1.data(), kCheckSamples, tip, ang);
+    const double ratio = std::max(tip / tol, ang / atol);
+    if (ratio <= 1) return {};
+
+    // March along the move from s = 0, each piece as long as the tolerance allows (greedy
+    // farthest reach, which gives the fewest pieces when the error grows with piece length), each
+    // point solved from the one before so the solution stays on one continuous branch. The
+    // chord error of a smooth path falls with the square of the piece length, which gives the
+    // first guess of the step.
+    s_.clear();
+    qs_.clear();
+    double step = 1.0 / std::ceil(std::sqrt(ratio));
+    double sa = 0;
+    std::vector<double> qa = q0, qb;
+    while (sa < 1.0) {
+        // The longest piece that passes: halve until one passes, then close in on the limit
+        // between the longest passing and the shortest failing length.
+        double ok_len = 0, bad_len = 0;
+        std::vector<double>& qok = scratch_a_;
+        double len = std::min(1.0 - sa, step);
+        for (int refine = 0;;) {
+            const double sb = sa + len;
+            IkResult r;
+            if (sb >= 1.0 && mv.mode == OrientationMode::Angles) qb = q1;  // angle form fixes the end
+            else r = solve_at(mv, std::min(sb, 1.0), qa, qb);
+            if (!r.ok()) {
+                r.message += " (at " + std::to_string(int(std::lround(std::min(sb, 1.0) * 100))) + "% of the move)";
+                return r;
+            }
+            piece_error(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), kCheckSamples, tip, ang);
+            const bool pass = tip <= tol && ang <= atol;
+            if (pass) {
+                ok_len = len;
+                qok = qb;
+            } else {
+                bad_len = len;
+                if (len < 1e-9)
+                    return {IkStatus::Singular, "the tool axis passes a pole here: a rotary joint would have to turn instantly"};
+            }
+            if (ok_len > 0 && (bad_len == 0 || ++refine >= 4 || bad_len - ok_len < 0.02 * ok_len)) break;
+            len = ok_len > 0 ? 0.5 * (ok_len + bad_len) : 0.5 * len;
+        }
+        const double sb = std::min(1.0, sa + ok_len);
+        qb = qok;
+        step = std::max(sb - sa, 1e-9) * 1.25;  // the next piece is likely about as long: start a bit farther
+        s_.push_back(sb);
+        qs_.insert(qs_.end(), qb.begin(), qb.end());
+        if (int(s_.size()) > kMaxPieces) return {IkStatus::Singular, "the move needs more than 100000 pieces to stay within the tolerance"};
+        sa = sb;
+        qa.swap(qb);
+    }
+    return {};
+}
+
+IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* result) {
+    if (auto r = split(mv); !r.ok()) return r;
+    const std::size_t n = machine_.joints.size();
+    const int pieces = int(s_.size());
+    const double length = (mv.p1.tip - mv.p0.tip).norm();
+
+    // Duration of the whole move in minutes: tip length at the programmed feed (G94), or given (G93).
+    double total_time = 0;
+    if (mv.inverse_time > 0) total_time = 1.0 / mv.inverse_time;
+    else if (mv.feed > 0 && mv.mode != OrientationMode::Joints) total_time = length / mv.feed;
+
+    // Cumulative share of the move at each piece end: by tip length, or by s for a pure turn.
+    const std::vector<double>& q0 = *mv.q0;
+    double prev_share = 0;
+    long long e_units_done = 0;
+    const int ed = machine_.dialect.extrusion_decimals;
+    const double escale = std::pow(10.0, ed);
+    std::vector<double> qprev = q0, qk(n);
+    for (int k = 0; k < pieces; ++k) {
+        const double s = s_[std::size_t(k)];
+        std::copy(qs_.begin() + std::ptrdiff_t(std::size_t(k) * n), qs_.begin() + std::ptrdiff_t(std::size_t(k + 1) * n), qk.begin());
+        const double share = s;  // the tip moves uniformly in s along the straight programmed line
+        const bool last = k + 1 == pieces;
+
+        std::optional<PassedNumber> e;
+        if (mv.e) {
+            if (last) {
+                // The last piece ends exactly where the input said: absolute E as written; relative
+                // E as what is left, so the pieces add up to the input exactly.
+                if (!mv.e_relative || pieces == 1) {
+                    e = mv.e;
+                } else {
+                    const double total = mv.e->value * escale;
+                    if (std::abs(total - std::round(total)) < 1e-6)  // E has no more digits than the pieces
+                        e = PassedNumber{double(std::llround(total) - e_units_done) / escale, {}, ed};
+                    else
+                        e = PassedNumber{mv.e->value - double(e_units_done) / escale, {}};
+                }
+            } else {
+                const double value = mv.e_relative ? mv.e->value : mv.e->value - mv.e_start;
+                const long long upto = std::llround(value * share * escale);
+                const long long units = mv.e_relative ? upto - e_units_done : upto;
+                e_units_done = mv.e_relative ? upto : 0;
+                e = PassedNumber{double(units) / escale + (mv.e_relative ? 0.0 : mv.e_start), {}, ed};
+            }
+        }
+
+        std::optional<PassedNumber> f;
+        if (mv.mode == OrientationMode::Joints) {
+            f = mv.f;  // joint space: the firmware's own F, as given
+        } else {
+            double t = total_time * (share - prev_share);
+            // Per-axis limits slow the piece down, never change its path; a pure turn runs at
+            // the machine's rotary feed.
+            double rot_max = 0;
+            for (std::size_t j = 0; j < n; ++j) {
+                const double d = std::abs(qk[j] - qprev[j]);
+                if (machine_.joints[j].rotary) rot_max = std::max(rot_max, d);
+                if (machine_.joints[j].max_feed > 0) t = std::max(t, d / machine_.joints[j].max_feed);
+            }
+            if (length == 0 && mv.inverse_time == 0) t = std::max(t, rot_max / machine_.motion.rotary_feed);
+            const double d_fw = firmware_length(machine_, qprev, qk);
+            if (t > 0 && d_fw > 0) f = PassedNumber{d_fw / t, {}, 1};
+            else if (mv.f && mv.inverse_time == 0) f = mv.f;  // nothing moves (E only): F as written
+            else if (mv.feed > 0) f = PassedNumber{mv.feed, {}, 1};
+        }
+        emitter_.move(out, mv.gcode, qk, *mv.commanded, e, f);
+        prev_share = share;
+        qprev = qk;
+    }
+    if (result) {
+        result->pieces = pieces;
+        double tip = 0, ang = 0, ptip, pang, sa = 0;
+        const double* qa = q0.data();
+        for (int k = 0; k < pieces; ++k) {
+            piece_error(mv, sa, s_[std::size_t(k)], qa, &qs_[std::size_t(k) * n], kCheckSamples, ptip, pang);
+            tip = std::max(tip, ptip);
+            ang = std::max(ang, pang);
+            sa = s_[std::size_t(k)];
+            qa = &qs_[std::size_t(k) * n];
+        }
+        result->tip_error = tip;
+        result->angle_error = ang;
+    }
+    return {};
+}
+
+}  // namespace xlate5

@@ -1,0 +1,78 @@
+// The motion stage, between the interpreter and the emitter: splits a tool-space move until
+// the firmware's joint-linear path stays within the tolerance of it, shares E among the pieces
+// by tool-space length, and sets each piece's F so the tip moves at the programmed speed under
+// the firmware's own feed rule.
+#pragma once
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "translators/emitter.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+
+namespace xlate5 {
+
+// The length the firmware divides by F for a move from q0 to q1 (its dialect's rule), from the
+// joint values as printed, since that is what the firmware sees.
+double firmware_length(const Machine& machine, const std::vector<double>& q0, const std::vector<double>& q1);
+
+struct MoveSpec {
+    int gcode = 1;
+    OrientationMode mode = OrientationMode::Angles;  // how the move is interpolated in tool space
+    const std::vector<double>* q0 = nullptr;         // start joints and pose
+    Pose p0;
+    const std::vector<double>* q1 = nullptr;         // end joints (solved) and pose
+    Pose p1;
+    const std::vector<bool>* commanded = nullptr;
+    std::optional<PassedNumber> e;                   // E as written (mm, absolute or relative)
+    bool e_relative = false;
+    double e_start = 0;                              // absolute E before the move
+    double feed = 0;                                 // programmed feed, mm/min (0: none yet)
+    std::optional<PassedNumber> f;                   // F as written on this line (passed on under G49)
+    double inverse_time = 0;                         // G93 input: the move's duration is 1/F minutes
+};
+
+// What one move became, for the report and tests.
+struct MoveResult {
+    int pieces = 0;
+    double tip_error = 0;    // mm, the largest sampled deviation of the firmware's path
+    double angle_error = 0;  // degrees
+};
+
+class MotionStage {
+public:
+    MotionStage(const Kinematics& kinematics, JointEmitter& emitter);
+
+    // Splits, feeds and writes the move. On an error (a split point out of reach) nothing is
+    // written and the message says where along the move.
+    IkResult emit(const MoveSpec& move, std::string& out, MoveResult* result = nullptr);
+
+    // Deviation of the firmware's joint-linear path from qa to qb from the programmed move,
+    // between move parameters sa and sb: largest of `samples` interior points (tests use many).
+    void piece_error(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, int samples,
+                     double& tip, double& angle) const;
+
+    // Where the last move ended: its end joints can differ from the ones asked for when a tool
+    // vector's continuous solution arrives on the other branch or another turn.
+    std::vector<double> final_joints() const {
+        return std::vector<double>(qs_.end() - std::ptrdiff_t(machine_.joints.size()), qs_.end());
+    }
+
+    // The split of the last move: parameter s at each piece's end and its joints.
+    const std::vector<double>& split_params() const { return s_; }
+    const std::vector<double>& split_joints() const { return qs_; }  // pieces x joints
+
+private:
+    IkResult solve_at(const MoveSpec& move, double s, const std::vector<double>& previous, std::vector<double>& q) const;
+    IkResult split(const MoveSpec& move);
+    Pose pose_at(const MoveSpec& move, double s) const;
+
+    const Kinematics& kin_;
+    const Machine& machine_;
+    JointEmitter& emitter_;
+    std::vector<double> s_, qs_;                 // the pieces
+    std::vector<double> scratch_a_, scratch_b_, lerp_;
+};
+
+}  // namespace xlate5
