@@ -1,6 +1,7 @@
 // Benchmark (not a test): translate a large generated 5-axis file and report input lines/s,
-// MB/s and peak memory. Run it at two sizes to see that memory does not grow with the file.
-//   bench_translate [lines=1000000] [machine=rw2|pentarod|...]
+// MB/s, lines out per line in and peak memory. Run it at two sizes to see that memory does not
+// grow with the file; with and without splitting to see what the motion stage costs.
+//   bench_translate [lines=1000000] [machine=rw2|pentarod|...] [tolerance mm, 0 = no splitting]
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -49,7 +50,12 @@ void generate(const std::string& path, long lines, const xlate5::Machine& m) {
 int main(int argc, char** argv) {
     const long lines = argc > 1 ? std::atol(argv[1]) : 1000000;
     const std::string machine = argc > 2 ? argv[2] : "rw2";
-    const xlate5::Machine m = xlate5::load_machine(machine);
+    xlate5::Machine m = xlate5::load_machine(machine);
+    if (argc > 3) {
+        const double tol = std::atof(argv[3]);
+        if (tol > 0) m.motion.tolerance = tol;
+        else m.motion.segment = false;
+    }
     const xlate5::Kinematics k(m);
     const std::string path = "/tmp/xlate5-bench-" + std::to_string(::getpid()) + ".gcode";
     generate(path, lines, m);
@@ -70,8 +76,10 @@ int main(int argc, char** argv) {
 
     rusage ru{};
     ::getrusage(RUSAGE_SELF, &ru);
-    std::printf("machine %s, %llu input lines, %.1f MB in, %.1f MB out\n", machine.c_str(),
-                (unsigned long long)stats.lines_in, double(stats.bytes_in) / 1e6, double(stats.bytes_out) / 1e6);
+    std::printf("machine %s, %s, %llu lines in, %llu lines out (%.2f per line in), %.1f MB in, %.1f MB out\n", machine.c_str(),
+                m.motion.segment ? ("tolerance " + std::to_string(m.motion.tolerance) + " mm").c_str() : "no splitting",
+                (unsigned long long)stats.lines_in, (unsigned long long)stats.lines_out, double(stats.lines_out) / double(stats.lines_in),
+                double(stats.bytes_in) / 1e6, double(stats.bytes_out) / 1e6);
     std::printf("time %.3f s: %.2f M lines/s, %.1f MB/s (input), peak RSS %.1f MB\n", seconds,
                 double(stats.lines_in) / seconds / 1e6, double(stats.bytes_in) / seconds / 1e6, double(ru.ru_maxrss) / 1024.0);
     return 0;

@@ -201,8 +201,15 @@ IkResult Kinematics::check_limits(const std::vector<double>& q) const {
 }
 
 IkResult Kinematics::solve_orientation(const Eigen::Vector3d& axis, const std::vector<double>& previous,
-                                       std::vector<double>& q, const std::vector<double>* free_hint) const {
-    const auto solutions = orientation_solutions(axis);
+                                       std::vector<double>& q, const std::vector<double>* free_hint, int branch) const {
+    auto solutions = orientation_solutions(axis);
+    if (branch >= 0 && branch < solutions.count) {
+        solutions.angle[0][0] = solutions.angle[branch][0];
+        solutions.angle[0][1] = solutions.angle[branch][1];
+        solutions.count = 1;
+    } else if (branch >= 0) {
+        return {IkStatus::Unreachable, "no such orientation branch"};
+    }
     if (solutions.empty()) {
         char buf[160];
         std::snprintf(buf, sizeof buf, "tool axis (%.6f, %.6f, %.6f) is out of this machine's reach", axis.x(), axis.y(), axis.z());

@@ -42,8 +42,10 @@ public:
     // parallel to the tool axis keeps its previous value.
     // `free_hint`, when given, is the value a free joint takes instead of its previous one (the
     // motion stage interpolates a free joint across a move).
+    // `branch` 0 or 1 restricts the choice to that orientation solution (the motion stage tries
+    // the other branch where the continuous one would swing a joint round a pole).
     IkResult solve_orientation(const Eigen::Vector3d& axis, const std::vector<double>& previous,
-                               std::vector<double>& q, const std::vector<double>* free_hint = nullptr) const;
+                               std::vector<double>& q, const std::vector<double>* free_hint = nullptr, int branch = -1) const;
 
     // Both: orientation from `pose.axis`, then position.
     IkResult inverse(const Pose& pose, const std::vector<double>& previous, std::vector<double>& q) const;

@@ -24,10 +24,11 @@ Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double
 }
 
 double printed(const Machine& m, std::size_t j, double v) {
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
     const int d = m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals;
     long long units = 0;
     if (!to_units(v, d, units)) return v;
-    return double(units) / std::pow(10.0, d);
+    return double(units) / kPow10[d];
 }
 
 // Distance from p to the segment ab.
@@ -75,7 +76,8 @@ Pose MotionStage::pose_at(const MoveSpec& mv, double s) const {
     return p;
 }
 
-IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<double>& previous, std::vector<double>& q) const {
+IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<double>& previous, std::vector<double>& q,
+                               int branch) const {
     const auto& q0 = *mv.q0;
     const auto& q1 = *mv.q1;
     q = previous;
@@ -89,7 +91,7 @@ IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<d
         std::vector<double>& hint = const_cast<std::vector<double>&>(lerp_);
         hint.resize(q.size());
         for (std::size_t j = 0; j < q.size(); ++j) hint[j] = q0[j] + s * (q1[j] - q0[j]);
-        if (auto r = kin_.solve_orientation(target.axis, previous, q, &hint); !r.ok()) return r;
+        if (auto r = kin_.solve_orientation(target.axis, previous, q, &hint, branch); !r.ok()) return r;
     }
     if (auto r = kin_.solve_position(target.tip, q); !r.ok()) return r;
     return kin_.check_limits(q);
@@ -99,7 +101,8 @@ void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const do
                               double& tip, double& angle) const {
     tip = 0;
     angle = 0;
-    std::vector<double> q(machine_.joints.size());
+    std::vector<double>& q = sample_;
+    q.resize(machine_.joints.size());
     for (int i = 1; i <= samples; ++i) {
         const double t = double(i) / double(samples + 1);
         for (std::size_t j = 0; j < q.size(); ++j) q[j] = qa[j] + t * (qb[j] - qa[j]);
@@ -138,7 +141,9 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     qs_.clear();
     double step = 1.0 / std::ceil(std::sqrt(ratio));
     double sa = 0;
-    std::vector<double> qa = q0, qb;
+    std::vector<double>& qa = march_a_;
+    std::vector<double>& qb = march_b_;
+    qa = q0;
     while (sa < 1.0) {
         // The longest piece that passes: halve until one passes, then close in on the limit
         // between the longest passing and the shortest failing length.
@@ -155,7 +160,21 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                 return r;
             }
             piece_error(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), kCheckSamples, tip, ang);
-            const bool pass = tip <= tol && ang <= atol;
+            bool pass = tip <= tol && ang <= atol;
+            if (!pass && mv.mode == OrientationMode::Vector) {
+                // Near a pole the continuous branch swings a joint round; the other branch may
+                // cut across within the tolerance (a tilt through zero instead of a half turn).
+                std::vector<double>& alt = scratch_b_;
+                for (int b = 0; b < 2 && !pass; ++b) {
+                    if (!solve_at(mv, std::min(sb, 1.0), qa, alt, b).ok() || alt == qb) continue;
+                    double t2 = 0, a2 = 0;
+                    piece_error(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), kCheckSamples, t2, a2);
+                    if (t2 <= tol && a2 <= atol) {
+                        pass = true;
+                        qb = alt;
+                    }
+                }
+            }
             if (pass) {
                 ok_len = len;
                 qok = qb;
@@ -180,6 +199,57 @@ IkResult MotionStage::split(const MoveSpec& mv) {
 }
 
 IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* result) {
+    if (mv.mode == OrientationMode::Vector && machine_.motion.segment) {
+        // Leaving a pole: at the start the tool axis is on a rotary axis, so that joint was free
+        // and kept its old angle, but the path leaves in a direction that needs another angle.
+        // Turn it first, with the tip and the tool axis held (a re-index about the pole), then
+        // make the move; never a jump inside one joint move.
+        std::vector<double>& q_eps = scratch_b_;
+        // Probe just off the start, far enough (1e-4 rad) that the joint is no longer free.
+        const double turn_angle = std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
+        const double probe = turn_angle > 1e-4 ? 1e-4 / turn_angle : 1.0;
+        const auto at_start = kin_.orientation_solutions(mv.p0.axis);
+        bool on_pole = false;
+        for (int b = 0; b < at_start.count; ++b)
+            for (std::size_t k = 0; k < kin_.rotary_joints().size(); ++k) on_pole = on_pole || std::isnan(at_start.angle[b][k]);
+        if (auto r = solve_at(mv, probe, *mv.q0, q_eps); on_pole && r.ok() && turn_angle > 0) {
+            double jump = 0;
+            for (std::size_t j = 0; j < q_eps.size(); ++j)
+                if (machine_.joints[j].rotary) jump = std::max(jump, std::abs(q_eps[j] - (*mv.q0)[j]));
+            if (jump > 1.0) {
+                std::vector<double> turned = *mv.q0;
+                for (std::size_t j = 0; j < turned.size(); ++j)
+                    if (machine_.joints[j].rotary && std::abs(q_eps[j] - turned[j]) > 1.0) turned[j] = q_eps[j];
+                if (auto rp = kin_.solve_position(mv.p0.tip, turned); !rp.ok()) return rp;
+                if (auto rl = kin_.check_limits(turned); !rl.ok()) return rl;
+                MoveSpec turn = mv;
+                turn.mode = OrientationMode::Angles;
+                turn.q1 = &turned;
+                turn.p1 = mv.p0;
+                turn.p1.axis = kin_.forward(turned).axis;
+                turn.e.reset();
+                turn.f.reset();
+                turn.inverse_time = 0;
+                std::string text;
+                MoveResult first;
+                if (auto r1 = emit_one(turn, text, &first); !r1.ok()) return r1;
+                MoveSpec rest = mv;
+                rest.q0 = &turned;
+                if (auto r2 = emit_one(rest, text, result); !r2.ok()) return r2;
+                out += text;
+                if (result) {
+                    result->pieces += first.pieces;
+                    result->tip_error = std::max(result->tip_error, first.tip_error);
+                    result->angle_error = std::max(result->angle_error, first.angle_error);
+                }
+                return {};
+            }
+        }
+    }
+    return emit_one(mv, out, result);
+}
+
+IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult* result) {
     if (auto r = split(mv); !r.ok()) return r;
     const std::size_t n = machine_.joints.size();
     const int pieces = int(s_.size());
@@ -196,7 +266,10 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
     long long e_units_done = 0;
     const int ed = machine_.dialect.extrusion_decimals;
     const double escale = std::pow(10.0, ed);
-    std::vector<double> qprev = q0, qk(n);
+    std::vector<double>& qprev = piece_prev_;
+    std::vector<double>& qk = piece_q_;
+    qprev = q0;
+    qk.resize(n);
     for (int k = 0; k < pieces; ++k) {
         const double s = s_[std::size_t(k)];
         std::copy(qs_.begin() + std::ptrdiff_t(std::size_t(k) * n), qs_.begin() + std::ptrdiff_t(std::size_t(k + 1) * n), qk.begin());

@@ -64,7 +64,9 @@ public:
     const std::vector<double>& split_joints() const { return qs_; }  // pieces x joints
 
 private:
-    IkResult solve_at(const MoveSpec& move, double s, const std::vector<double>& previous, std::vector<double>& q) const;
+    IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
+    IkResult solve_at(const MoveSpec& move, double s, const std::vector<double>& previous, std::vector<double>& q,
+                      int branch = -1) const;
     IkResult split(const MoveSpec& move);
     Pose pose_at(const MoveSpec& move, double s) const;
 
@@ -72,7 +74,9 @@ private:
     const Machine& machine_;
     JointEmitter& emitter_;
     std::vector<double> s_, qs_;                 // the pieces
-    std::vector<double> scratch_a_, scratch_b_, lerp_;
+    // Scratch space reused move after move (no allocation on the hot path).
+    std::vector<double> scratch_a_, scratch_b_, lerp_, march_a_, march_b_, piece_prev_, piece_q_;
+    mutable std::vector<double> sample_;
 };
 
 }  // namespace xlate5

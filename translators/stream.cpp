@@ -1,5 +1,6 @@
 #include "translators/stream.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -114,11 +115,13 @@ StreamStats translate_stream(LineReader& reader, Translator& translator, OutputS
         if (out.size() >= kFlushAt) {
             sink.write(out);
             stats.bytes_out += out.size();
+            stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));
             out.clear();
         }
     }
     sink.write(out);
     stats.bytes_out += out.size();
+    stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));
     stats.lines_in = reader.line_number();
     stats.bytes_in = reader.bytes_read();
     return stats;

@@ -56,6 +56,7 @@ struct StreamStats {
     std::uint64_t lines_in = 0;
     std::uint64_t bytes_in = 0;
     std::uint64_t bytes_out = 0;
+    std::uint64_t lines_out = 0;
 };
 
 // Runs every line of `reader` through `translator` into `sink`.
