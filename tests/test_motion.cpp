@@ -413,3 +413,45 @@ TEST_CASE("axis speed limits slow a piece down and never change its path") {
     CHECK(minutes >= 150.0 / 7200.0 * 0.999);
     CHECK(std::abs(prev[std::size_t(A)] - 150) < 1e-3);
 }
+
+TEST_CASE("RepRapFirmware inverse-time output: G93 once, each piece's F is 1/its duration") {
+    std::string text;
+    {
+        std::FILE* f = std::fopen((std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/pentarod.toml").c_str(), "rb");
+        REQUIRE(f);
+        char buf[4096];
+        std::size_t n;
+        while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) text.append(buf, n);
+        std::fclose(f);
+    }
+    text.replace(text.find("[firmware]"), 10, "[firmware]\ninverse_time = true");
+    for (auto mf = text.find("max_feed"); mf != std::string::npos; mf = text.find("max_feed", mf + 3)) text.insert(mf, "# ");
+    const Machine m = load_machine_text(text, "pentarod-g93.toml");
+    const Kinematics k(m);
+    Translator t(k, {});
+    std::string out;
+    t.feed("G1 X0 Y0 Z5 I0 J0.1 K1 F600", 1, out);
+    const Pose a = t.pose();
+    out.clear();
+    t.feed("G1 X20 Y10 Z5 I0.5 J0.3 K1", 2, out);
+    const Pose b = t.pose();
+    const auto lines = lines_of(out);
+    REQUIRE(lines.size() > 2);  // split
+    double minutes = 0;
+    for (const auto& l : lines) {
+        if (l.rfind("G1", 0) != 0) continue;
+        const auto w = words_of(l);
+        REQUIRE(w.count('F'));  // every move under G93 carries F
+        minutes += 1.0 / w.at('F');
+    }
+    // The pieces together take the tip's time at 600 mm/min (F printed to 4 decimals).
+    CHECK(minutes == doctest::Approx((b.tip - a.tip).norm() / 600.0).epsilon(1e-3));
+    // G93 was sent before the first tool-space move, once.
+    std::string all;
+    Translator t2(k, {});
+    t2.feed("G1 X0 Y0 Z5 I0 J0.1 K1 F600", 1, all);
+    t2.feed("G1 X1 Y0 Z5 F600", 2, all);
+    std::size_t count = 0;
+    for (const auto& l : lines_of(all)) count += l == "G93";
+    CHECK(count == 1);
+}

@@ -52,7 +52,12 @@ void JointEmitter::invalidate(const std::vector<double>& q) {
 }
 
 void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<bool>& commanded,
-                        std::optional<PassedNumber> e, std::optional<PassedNumber> f) {
+                        std::optional<PassedNumber> e, std::optional<PassedNumber> f, bool inverse_time) {
+    if (inverse_time != inverse_time_) {
+        out += inverse_time ? "G93\n" : "G94\n";
+        inverse_time_ = inverse_time;
+        last_f_.clear();
+    }
     const std::size_t start = out.size();
     out += gcode == 0 ? "G0" : "G1";
     const std::size_t empty = out.size();
@@ -71,7 +76,7 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
         if (fast) append_units(out, units, d);
         else format(out, j, q[j]);
     }
-    if (f) {
+    if (f && !inverse_time_) {  // under G93 every move carries its own F
         f_text_.clear();
         append_passed(f_text_, *f);
         if (f_text_ == last_f_) f.reset();

@@ -28,8 +28,10 @@ public:
     // "G0"/"G1" with every joint whose printed value changed, then E and F when given. A joint
     // whose firmware position is not known is written when the input commands it (`commanded`)
     // or its value changes. Writes nothing when nothing would change.
+    // `inverse_time`: F is 1/minutes (G93, written on every move); the emitter switches the
+    // firmware between G93 and G94 as needed.
     void move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<bool>& commanded,
-              std::optional<PassedNumber> e, std::optional<PassedNumber> f);
+              std::optional<PassedNumber> e, std::optional<PassedNumber> f, bool inverse_time = false);
 
     // "G92" for the joints in `which` (the firmware is told where they are) and E when given.
     void set_position(std::string& out, const std::vector<double>& q, const std::vector<bool>& which,
@@ -53,6 +55,7 @@ private:
     std::vector<bool> known_;         // false: not sent since start, homing or probing
     std::vector<double> believed_;    // joint values the firmware is believed to be at
     std::string last_f_, f_text_;     // F is modal in the firmware: written only when it changes
+    bool inverse_time_ = false;       // the firmware's feed mode as xlate5 last set it
 };
 
 }  // namespace xlate5

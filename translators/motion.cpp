@@ -266,6 +266,8 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     long long e_units_done = 0;
     const int ed = machine_.dialect.extrusion_decimals;
     const double escale = std::pow(10.0, ed);
+    // Inverse-time output where the firmware takes it, for tool-space moves that have a duration.
+    const bool inverse_time_out = machine_.dialect.inverse_time && mv.mode != OrientationMode::Joints && (total_time > 0 || mv.feed > 0);
     std::vector<double>& qprev = piece_prev_;
     std::vector<double>& qk = piece_q_;
     qprev = q0;
@@ -314,11 +316,17 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
             }
             if (length == 0 && mv.inverse_time == 0) t = std::max(t, rot_max / machine_.motion.rotary_feed);
             const double d_fw = firmware_length(machine_, qprev, qk);
-            if (t > 0 && d_fw > 0) f = PassedNumber{d_fw / t, {}, 1};
+            if (inverse_time_out) {
+                // RepRapFirmware's G93: F is 1 / the piece's duration in minutes. An E-only piece
+                // takes its extrusion at the programmed feed.
+                if (t <= 0 && mv.e && mv.feed > 0) t = std::abs(mv.e_relative ? mv.e->value : mv.e->value - mv.e_start) * (share - prev_share) / mv.feed;
+                if (t <= 0 && mv.feed > 0) t = d_fw / mv.feed;
+                if (t > 0) f = PassedNumber{1.0 / t, {}, 4};
+            } else if (t > 0 && d_fw > 0) f = PassedNumber{d_fw / t, {}, 1};
             else if (mv.f && mv.inverse_time == 0) f = mv.f;  // nothing moves (E only): F as written
             else if (mv.feed > 0) f = PassedNumber{mv.feed, {}, 1};
         }
-        emitter_.move(out, mv.gcode, qk, *mv.commanded, e, f);
+        emitter_.move(out, mv.gcode, qk, *mv.commanded, e, f, inverse_time_out);
         prev_share = share;
         qprev = qk;
     }
