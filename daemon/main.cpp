@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version", std::string("xlate5 ") + XLATE5_VERSION);
     app.require_subcommand(0, 1);
 
-    std::string machine_name, input = "-", output = "-", mode_text, preview = "G43.4", extruder = "E";
+    std::string machine_name, input = "-", output = "-", mode_text, preview = "G43.4", extruder = "E", report_path, plot_path;
     std::vector<std::string> sets;
     bool inverse = false, no_segment = false;
     double tolerance = 0, angle_tolerance = 0;
@@ -97,6 +97,8 @@ int main(int argc, char** argv) {
     app.add_option("--angle-tolerance", angle_tolerance, "largest tool-axis deviation, degrees (default: the machine's)")
         ->check(CLI::PositiveNumber);
     app.add_flag("--no-segment", no_segment, "one joint move per input move: no splitting (the tip leaves the line while rotaries turn)");
+    app.add_option("--report", report_path, "write the kinematic-error report (JSON) of the translation to this file");
+    app.add_option("--plot", plot_path, "write the tip deviation along the file as an SVG plot to this file");
     app.add_flag("--inverse", inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
     app.add_option("--preview-form", preview, "with --inverse: write orientation as G43.4 angles or G43.5 I J K")->check(CLI::IsMember({"G43.4", "G43.5"}));
     auto* machines_cmd = app.add_subcommand("machines", "list the bundled machines");
@@ -156,11 +158,25 @@ int main(int argc, char** argv) {
             in_fd = ::open(input.c_str(), O_RDONLY | O_CLOEXEC);
             if (in_fd < 0) throw xlate5::IoError(input + ": cannot open: " + std::strerror(errno));
         }
+        std::optional<xlate5::DeviationReport> report;
+        if (!report_path.empty() || !plot_path.empty()) {
+            report.emplace(options.input_name, machine->name, machine->motion.tolerance, machine->motion.angle_tolerance);
+            options.report = &*report;
+        }
         xlate5::Translator translator(*kinematics, options);
         xlate5::LineReader reader(in_fd, options.input_name);
         xlate5::OutputSink sink(output);
-        xlate5::translate_stream(reader, translator, sink);
+        const auto stats = xlate5::translate_stream(reader, translator, sink);
+        // The report files are written like the output: whole, or not at all.
+        std::optional<xlate5::OutputSink> report_sink, plot_sink;
+        if (report) {
+            report->set_lines(stats.lines_in, stats.lines_out);
+            if (!report_path.empty()) report_sink.emplace(report_path), report_sink->write(report->json());
+            if (!plot_path.empty()) plot_sink.emplace(plot_path), plot_sink->write(report->svg());
+        }
         sink.commit();
+        if (report_sink) report_sink->commit();
+        if (plot_sink) plot_sink->commit();
     } catch (const xlate5::InputError& e) {
         std::cerr << e.what() << "\n";
         return kInputError;

@@ -38,6 +38,8 @@ struct MoveResult {
     int pieces = 0;
     double tip_error = 0;    // mm, the largest sampled deviation of the firmware's path
     double angle_error = 0;  // degrees
+    double feed_error = 0;   // relative: the tip's speed under the firmware over the programmed, - 1 (worst piece)
+    std::vector<double> travel;  // degrees (or mm) each joint moves, summed over the pieces
 };
 
 class MotionStage {
@@ -77,6 +79,7 @@ private:
     // Scratch space reused move after move (no allocation on the hot path).
     std::vector<double> scratch_a_, scratch_b_, lerp_, march_a_, march_b_, piece_prev_, piece_q_;
     mutable std::vector<double> sample_;
+    std::vector<double> piece_time_;  // minutes each piece of the last move takes
 };
 
 }  // namespace xlate5

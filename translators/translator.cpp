@@ -424,7 +424,13 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
     spec.feed = modes_.feed;
     spec.f = f;
     spec.inverse_time = modes_.inverse_time && f ? f->value : 0.0;
-    if (auto res = motion_.emit(spec, out); !res.ok()) fail(column, res.message);
+    MoveResult* measured = options_.report && spec.mode != OrientationMode::Joints ? &move_result_ : nullptr;
+    if (auto res = motion_.emit(spec, out, measured); !res.ok()) fail(column, res.message);
+    if (measured) {
+        options_.report->add_move(line_no_, measured->tip_error, measured->angle_error, measured->feed_error, measured->pieces);
+        for (std::size_t j = 0; j < measured->travel.size(); ++j)
+            if (machine_.joints[j].rotary) options_.report->add_rotary_travel(machine_.joints[j].name, measured->travel[j]);
+    }
     if (spec.mode == OrientationMode::Vector) q_next_ = motion_.final_joints();
     q_.swap(q_next_);
     pose_ = next;

@@ -13,6 +13,7 @@
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/motion.hpp"
+#include "translators/report.hpp"
 
 namespace xlate5 {
 
@@ -24,6 +25,7 @@ struct TranslatorOptions {
     // output tool space in `preview_form` (G43.4 angles or G43.5 vector), through FK.
     bool inverse = false;
     OrientationMode preview_form = OrientationMode::Angles;
+    DeviationReport* report = nullptr;  // when set, every tool-space move is measured into it
 };
 
 // The part of the modal state that the inverse direction shares.
@@ -82,6 +84,7 @@ private:
     JointEmitter emitter_;
     ToolEmitter tool_emitter_;        // used by the inverse direction
     MotionStage motion_;
+    MoveResult move_result_;
     Block block_;
     std::vector<Param> params_;
     std::uint64_t line_no_ = 0;

@@ -1,0 +1,92 @@
+// The kinematic-error report: agrees with an independent dense check, stays bounded in size.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <string>
+
+#include "helpers.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+#include "translators/report.hpp"
+#include "translators/translator.hpp"
+
+using namespace xlate5;
+using namespace xlate5::test;
+
+namespace {
+
+double field(const std::string& json, const std::string& object, const std::string& key) {
+    const auto o = json.find("\"" + object + "\"");
+    REQUIRE(o != std::string::npos);
+    const auto k = json.find("\"" + key + "\": ", o);
+    REQUIRE(k != std::string::npos);
+    return std::stod(json.substr(k + key.size() + 4));
+}
+
+}  // namespace
+
+TEST_CASE("the report's worst tip deviation is what dense FK sampling of the output finds") {
+    const std::vector<std::string> in = {"G1 X100 Y100 Z10 A0 B0 F1200", "G1 X110 Y100 A40 B20", "G1 X120 Y110 A-20 B35",
+                                         "G1 X100 Y120 A10 B0", "G1 X100 Y100"};
+    for (const bool segment : {false, true}) {
+        CAPTURE(segment);
+        Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/rw2.toml");
+        m.motion.segment = segment;
+        const Kinematics k(m);
+        DeviationReport report("t.gcode", "rw2", m.motion.tolerance, m.motion.angle_tolerance);
+        TranslatorOptions o;
+        o.report = &report;
+        Translator t(k, o);
+        // Independent: each input move's programmed segment against 400 FK samples along every
+        // printed joint line it became.
+        std::vector<double> fw = t.joints();
+        double worst = 0;
+        std::uint64_t n = 0;
+        for (const auto& line : in) {
+            const Pose a = t.pose();
+            std::string out;
+            t.feed(line, ++n, out);
+            const Pose b = t.pose();
+            for (const auto& l : lines_of(out)) {
+                if (l.rfind("G1", 0) != 0) continue;
+                std::vector<double> q = fw;
+                const auto w = words_of(l);
+                for (std::size_t j = 0; j < q.size(); ++j)
+                    if (w.count(m.joints[j].output)) q[j] = w.at(m.joints[j].output);
+                for (int s = 1; s < 400; ++s) {
+                    std::vector<double> qq(q.size());
+                    for (std::size_t j = 0; j < q.size(); ++j) qq[j] = fw[j] + (q[j] - fw[j]) * s / 400.0;
+                    const Eigen::Vector3d p = k.forward(qq).tip, ab = b.tip - a.tip;
+                    const double tt = ab.squaredNorm() > 0 ? std::clamp((p - a.tip).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+                    worst = std::max(worst, (a.tip + tt * ab - p).norm());
+                }
+                fw = q;
+            }
+        }
+        const std::string json = report.json();
+        const double reported = field(json, "tip_deviation_mm", "max");
+        MESSAGE("segment " << segment << ": reported " << reported << " mm, dense check " << worst << " mm");
+        // The report samples the unrounded pieces; the dense check the printed ones (3 decimals).
+        CHECK(std::abs(reported - worst) <= 0.02 * worst + 0.003);
+        if (segment) CHECK(reported <= m.motion.tolerance);
+        else CHECK(reported > 10 * m.motion.tolerance);
+        CHECK(field(json, "tip_deviation_mm", "moves") == 5);
+    }
+}
+
+TEST_CASE("report memory is bounded: a million moves, a plot of at most 2000 points") {
+    DeviationReport r("big.gcode", "rw2", 0.01, 0.5);
+    for (std::uint64_t i = 1; i <= 1000000; ++i) r.add_move(i, 0.005 + 0.004 * std::sin(double(i) * 1e-4), 0.1, 1e-4, 1 + int(i % 3 == 0));
+    const std::string svg = r.svg();
+    std::size_t points = 0;
+    const auto poly = svg.find("<polyline");
+    REQUIRE(poly != std::string::npos);
+    for (std::size_t at = svg.find(',', poly); at != std::string::npos; at = svg.find(',', at + 1)) ++points;
+    CHECK(points <= 2000);
+    CHECK(points >= 500);
+    CHECK(r.max_tip() == doctest::Approx(0.009).epsilon(1e-3));
+    const std::string json = r.json();
+    CHECK(field(json, "tip_deviation_mm", "p50") == doctest::Approx(0.005).epsilon(0.3));
+    CHECK(field(json, "tip_deviation_mm", "moves") == 1000000);
+    CHECK(json.find("\"moves_split\": 333333") != std::string::npos);
+}

@@ -1,0 +1,168 @@
+#include "translators/report.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace xlate5 {
+
+namespace {
+
+constexpr double kLogMin = -7, kLogMax = 3;
+
+std::string num(double v) {
+    char b[48];
+    std::snprintf(b, sizeof b, "%.6g", v);
+    return b;
+}
+
+std::string escape(const std::string& s) {
+    std::string o;
+    for (char c : s) {
+        if (c == '"' || c == '\\') o += '\\';
+        if (static_cast<unsigned char>(c) < 0x20) {
+            char b[8];
+            std::snprintf(b, sizeof b, "\\u%04x", c);
+            o += b;
+            continue;
+        }
+        o += c;
+    }
+    return o;
+}
+
+}  // namespace
+
+void DeviationReport::Distribution::add(double v, std::uint64_t line) {
+    ++count;
+    sum += v;
+    if (v > max || count == 1) {
+        max = std::max(max, v);
+        max_line = line;
+    }
+    if (!(v > 0)) {
+        ++zeros;
+        return;
+    }
+    const double x = (std::log10(v) - kLogMin) / (kLogMax - kLogMin) * kBins;
+    bins[std::size_t(std::clamp(int(x), 0, kBins - 1))]++;
+}
+
+double DeviationReport::Distribution::percentile(double p) const {
+    if (count == 0) return 0;
+    const double want = p * double(count);
+    double seen = double(zeros);
+    if (seen >= want) return 0;
+    for (int i = 0; i < kBins; ++i) {
+        seen += double(bins[std::size_t(i)]);
+        if (seen >= want) return std::min(max, std::pow(10.0, kLogMin + (i + 1) * (kLogMax - kLogMin) / kBins));  // bin's upper edge
+    }
+    return max;
+}
+
+std::string DeviationReport::Distribution::json() const {
+    return "{\"max\": " + num(max) + ", \"max_at_line\": " + std::to_string(max_line) + ", \"mean\": " +
+           num(count ? sum / double(count) : 0.0) + ", \"p50\": " + num(percentile(0.5)) + ", \"p95\": " + num(percentile(0.95)) +
+           ", \"p99\": " + num(percentile(0.99)) + ", \"moves\": " + std::to_string(count) + "}";
+}
+
+DeviationReport::DeviationReport(std::string file, std::string machine, double tolerance, double angle_tolerance)
+    : file_(std::move(file)), machine_(std::move(machine)), tolerance_(tolerance), angle_tolerance_(angle_tolerance) {}
+
+void DeviationReport::add_move(std::uint64_t line, double tip, double angle, double feed_error, int pieces) {
+    ++moves_;
+    pieces_ += std::uint64_t(pieces);
+    if (pieces > 1) ++split_moves_;
+    tip_.add(tip, line);
+    angle_.add(angle, line);
+    feed_.add(std::abs(feed_error), line);
+    // The series: each point the worst of `bucket_` consecutive moves; when full, pairs merge.
+    if (in_bucket_ == 0) series_.push_back({line, line, tip, angle});
+    Point& p = series_.back();
+    p.last_line = line;
+    p.tip = std::max(p.tip, tip);
+    p.angle = std::max(p.angle, angle);
+    if (++in_bucket_ == bucket_) in_bucket_ = 0;
+    if (series_.size() > kMaxPoints && in_bucket_ == 0) {
+        std::vector<Point> merged;
+        for (std::size_t i = 0; i < series_.size(); i += 2) {
+            Point m = series_[i];
+            if (i + 1 < series_.size()) {
+                m.last_line = series_[i + 1].last_line;
+                m.tip = std::max(m.tip, series_[i + 1].tip);
+                m.angle = std::max(m.angle, series_[i + 1].angle);
+            }
+            merged.push_back(m);
+        }
+        series_.swap(merged);
+        bucket_ *= 2;
+    }
+}
+
+void DeviationReport::add_rotary_travel(char joint, double degrees) {
+    for (auto& [j, d] : travel_)
+        if (j == joint) {
+            d += degrees;
+            return;
+        }
+    travel_.emplace_back(joint, degrees);
+}
+
+std::string DeviationReport::json() const {
+    std::string o = "{\n";
+    o += "  \"file\": \"" + escape(file_) + "\",\n";
+    o += "  \"machine\": \"" + escape(machine_) + "\",\n";
+    o += "  \"tolerance_mm\": " + num(tolerance_) + ",\n";
+    o += "  \"angle_tolerance_deg\": " + num(angle_tolerance_) + ",\n";
+    o += "  \"lines_in\": " + std::to_string(lines_in_) + ",\n";
+    o += "  \"lines_out\": " + std::to_string(lines_out_) + ",\n";
+    o += "  \"moves\": " + std::to_string(moves_) + ",\n";
+    o += "  \"moves_split\": " + std::to_string(split_moves_) + ",\n";
+    o += "  \"output_moves\": " + std::to_string(pieces_) + ",\n";
+    o += "  \"tip_deviation_mm\": " + tip_.json() + ",\n";
+    o += "  \"orientation_deviation_deg\": " + angle_.json() + ",\n";
+    o += "  \"feed_error_relative\": " + feed_.json() + ",\n";
+    o += "  \"rotary_travel_deg\": {";
+    for (std::size_t i = 0; i < travel_.size(); ++i)
+        o += std::string(i ? ", " : "") + "\"" + travel_[i].first + "\": " + num(travel_[i].second);
+    o += "}\n}\n";
+    return o;
+}
+
+std::string DeviationReport::svg() const {
+    // Tip deviation (mm) along the file, with the tolerance as a line; 900 x 360 plot area.
+    const double W = 900, H = 300, left = 70, top = 30;
+    double ymax = std::max(tolerance_ * 1.25, tip_.max * 1.1);
+    if (!(ymax > 0)) ymax = 1;
+    const double first = series_.empty() ? 0 : double(series_.front().first_line);
+    const double last = series_.empty() ? 1 : std::max(double(series_.back().last_line), first + 1);
+    auto X = [&](double line) { return left + (line - first) / (last - first) * W; };
+    auto Y = [&](double v) { return top + H - std::min(v, ymax) / ymax * H; };
+    std::string o;
+    o += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + num(W + left + 30) + "\" height=\"" + num(H + top + 60) + "\">\n";
+    o += "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+    o += "<text x=\"" + num(left) + "\" y=\"18\" font-family=\"sans-serif\" font-size=\"13\">" + escape(file_) + " on " +
+         escape(machine_) + ": largest tip deviation from the programmed path per move (max " + num(tip_.max) + " mm at line " +
+         std::to_string(tip_.max_line) + ")</text>\n";
+    o += "<line x1=\"" + num(left) + "\" y1=\"" + num(top + H) + "\" x2=\"" + num(left + W) + "\" y2=\"" + num(top + H) + "\" stroke=\"black\"/>\n";
+    o += "<line x1=\"" + num(left) + "\" y1=\"" + num(top) + "\" x2=\"" + num(left) + "\" y2=\"" + num(top + H) + "\" stroke=\"black\"/>\n";
+    for (int i = 0; i <= 4; ++i) {
+        const double v = ymax * i / 4;
+        o += "<text x=\"" + num(left - 6) + "\" y=\"" + num(Y(v) + 4) + "\" font-family=\"sans-serif\" font-size=\"11\" text-anchor=\"end\">" +
+             num(v) + "</text>\n";
+    }
+    o += "<text x=\"" + num(left) + "\" y=\"" + num(top + H + 18) + "\" font-family=\"sans-serif\" font-size=\"11\">line " + num(first) +
+         "</text>\n<text x=\"" + num(left + W) + "\" y=\"" + num(top + H + 18) +
+         "\" font-family=\"sans-serif\" font-size=\"11\" text-anchor=\"end\">line " + num(last) + "</text>\n";
+    o += "<text x=\"" + num(left + W / 2) + "\" y=\"" + num(top + H + 40) +
+         "\" font-family=\"sans-serif\" font-size=\"12\" text-anchor=\"middle\">input line (mm of tip deviation, red: tolerance " + num(tolerance_) +
+         " mm)</text>\n";
+    o += "<line x1=\"" + num(left) + "\" y1=\"" + num(Y(tolerance_)) + "\" x2=\"" + num(left + W) + "\" y2=\"" + num(Y(tolerance_)) +
+         "\" stroke=\"red\" stroke-dasharray=\"6,4\"/>\n";
+    o += "<polyline fill=\"none\" stroke=\"steelblue\" stroke-width=\"1\" points=\"";
+    for (const Point& p : series_) o += num(X(0.5 * double(p.first_line + p.last_line))) + "," + num(Y(p.tip)) + " ";
+    o += "\"/>\n</svg>\n";
+    return o;
+}
+
+}  // namespace xlate5

@@ -1,0 +1,56 @@
+// The kinematic-error report: how far the firmware's joint-linear path leaves the programmed
+// tool-space path, per file, so a user can inspect a file before printing it. Memory is bounded
+// whatever the file size (histograms and a series that halves its resolution as it grows).
+#pragma once
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace xlate5 {
+
+class DeviationReport {
+public:
+    DeviationReport(std::string file, std::string machine, double tolerance, double angle_tolerance);
+
+    // One input move: its largest sampled tip (mm) and axis (degrees) deviation, its feed error
+    // (relative: tip speed the firmware will produce over the programmed speed, minus 1), and
+    // how many output moves it became.
+    void add_move(std::uint64_t line, double tip, double angle, double feed_error, int pieces);
+    void add_rotary_travel(char joint, double degrees);
+    void set_lines(std::uint64_t in, std::uint64_t out) { lines_in_ = in, lines_out_ = out; }
+
+    std::string json() const;
+    std::string svg() const;
+
+    double max_tip() const { return tip_.max; }
+    std::uint64_t worst_tip_line() const { return tip_.max_line; }
+
+private:
+    // Counts in logarithmic bins (1e-7 .. 1e3), for percentiles without keeping every value.
+    struct Distribution {
+        static constexpr int kBins = 200;
+        std::array<std::uint64_t, kBins> bins{};
+        std::uint64_t count = 0, zeros = 0;
+        double max = 0, sum = 0;
+        std::uint64_t max_line = 0;
+        void add(double v, std::uint64_t line);
+        double percentile(double p) const;
+        std::string json() const;
+    };
+    struct Point {
+        std::uint64_t first_line, last_line;
+        double tip, angle;
+    };
+
+    std::string file_, machine_;
+    double tolerance_, angle_tolerance_;
+    std::uint64_t lines_in_ = 0, lines_out_ = 0, moves_ = 0, split_moves_ = 0, pieces_ = 0;
+    Distribution tip_, angle_, feed_;
+    std::vector<std::pair<char, double>> travel_;
+    std::vector<Point> series_;  // at most kMaxPoints, each the worst of `bucket_` moves
+    std::uint64_t bucket_ = 1, in_bucket_ = 0;
+    static constexpr std::size_t kMaxPoints = 2000;
+};
+
+}  // namespace xlate5
