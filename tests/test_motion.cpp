@@ -455,3 +455,100 @@ TEST_CASE("RepRapFirmware inverse-time output: G93 once, each piece's F is 1/its
     for (const auto& l : lines_of(all)) count += l == "G93";
     CHECK(count == 1);
 }
+
+namespace {
+// Largest distance of the printed joint path (dense FK) from a circle (centre c, radius r in
+// the plane with axes a, b; n the normal, linear from n0 to n1 for a helix).
+double arc_deviation(const Machine& m, const Kinematics& k, std::vector<double> fw, const std::string& out, const Eigen::Vector3d& c,
+                     double r, int a, int b, int nrm, double n0, double n1) {
+    double worst = 0;
+    for (const auto& l : lines_of(out)) {
+        std::vector<double> cur = fw;
+        if (!apply_line(m, l, cur, nullptr, nullptr)) continue;
+        for (int s = 1; s < 60; ++s) {
+            std::vector<double> qq(cur.size());
+            for (std::size_t j = 0; j < qq.size(); ++j) qq[j] = fw[j] + (cur[j] - fw[j]) * s / 60.0;
+            const Eigen::Vector3d p = k.forward(qq).tip;
+            const double radial = std::hypot(p[a] - c[a], p[b] - c[b]) - r;
+            const double normal = std::min(std::abs(p[nrm] - n0), std::abs(p[nrm] - n1));
+            const double along = (n0 == n1) ? std::abs(p[nrm] - n0) : (p[nrm] >= std::min(n0, n1) - 1e-6 && p[nrm] <= std::max(n0, n1) + 1e-6 ? 0.0 : normal);
+            worst = std::max(worst, std::hypot(radial, along));
+        }
+        fw = cur;
+    }
+    return worst;
+}
+}  // namespace
+
+TEST_CASE("arcs under tool-centre-point control are linearised within the tolerance, any plane") {
+    const Machine m = load("pentarod");
+    const Kinematics k(m);
+    struct Case {
+        std::string setup, arc;
+        Eigen::Vector3d c;
+        double r;
+        int a, b, n;
+        double n0, n1;
+        double sweep_deg;  // expected, to check direction and size
+    };
+    const Case cases[] = {
+        // G17, G3 (counter-clockwise) quarter from (10,0) to (0,10) about the origin, tool tilted.
+        {"G17", "G3 X0 Y10 I-10 J0", {0, 0, 5}, 10, 0, 1, 2, 5, 5, 90},
+        // The same end by R; G2 takes the other way round (270 degrees) with R < 0.
+        {"G17", "G2 X0 Y10 R-10", {0, 0, 5}, 10, 0, 1, 2, 5, 5, 270},
+        // A full helical turn in G17: equal ends, Z rises 2 mm.
+        {"G17", "G2 X10 Y0 Z7 I-10 J0", {0, 0, 0}, 10, 0, 1, 2, 5, 7, 360},
+        // G18 (ZX plane, centre words K I) and G19 (YZ, J K).
+        {"G18", "G2 X0 Z15 I-10 K0", {0, 0, 5}, 10, 2, 0, 1, 0, 0, 90},
+        {"G19", "G3 Y0 Z15 J-10 K0", {10, 0, 5}, 10, 1, 2, 0, 10, 10, 90},
+    };
+    for (const Case& c : cases) {
+        CAPTURE(c.arc);
+        Translator t(k, {});
+        std::string out;
+        t.feed(c.setup, 1, out);
+        // Start on the arc's first point with a tilted tool.
+        t.feed(c.setup == "G19" ? "G1 X10 Y10 Z5 I0.2 J0.1 K1 F1200" : "G1 X10 Y0 Z5 I0.2 J0.1 K1 F1200", 2, out);
+        const std::vector<double> fw = t.joints();
+        out.clear();
+        REQUIRE_NOTHROW(t.feed(c.arc, 3, out));
+        const double dev = arc_deviation(m, k, fw, out, c.c, c.r, c.a, c.b, c.n, c.n0, c.n1);
+        std::size_t moves = 0;
+        for (const auto& l : lines_of(out)) moves += l.rfind("G1 ", 0) == 0;
+        MESSAGE(c.arc << ": " << moves << " lines, worst deviation from the arc " << dev << " mm");
+        CHECK(dev <= m.motion.tolerance + kPrintSlack);
+        // Chord count grows with the sweep: a 360-degree arc needs about 4x a quarter's lines.
+        CHECK(moves >= std::size_t(c.sweep_deg / 90.0 * 20));
+    }
+    // Bad arcs are refused with the reason.
+    Translator t(k, {});
+    std::string out;
+    t.feed("G1 X10 Y0 Z5 I0 J0 K1 F1200", 1, out);
+    CHECK_THROWS_WITH_AS(t.feed("G2 X0 Y10", 2, out), doctest::Contains("centre"), InputError);
+    CHECK_THROWS_WITH_AS(t.feed("G2 X0 Y10 I-5 J0", 2, out), doctest::Contains("not on its circle"), InputError);
+    CHECK_THROWS_WITH_AS(t.feed("G2 X30 Y0 R5", 2, out), doctest::Contains("too small"), InputError);
+}
+
+TEST_CASE("an arc's extrusion adds up exactly and its end is the programmed end") {
+    const Machine m = load("rw2");
+    const Kinematics k(m);
+    for (const bool relative : {false, true}) {
+        Translator t(k, {});
+        std::string out;
+        t.feed(relative ? "M83" : "M82", 1, out);
+        t.feed("G1 X110 Y100 Z5 A0 B10 E0 F1200", 2, out);
+        out.clear();
+        t.feed(relative ? "G3 X100 Y110 I-10 J0 A60 E1.25" : "G3 X100 Y110 I-10 J0 A60 E1.25", 3, out);
+        double e_sum = 0, last = 0;
+        for (const auto& l : lines_of(out)) {
+            if (l.rfind("G1 ", 0) != 0) continue;
+            const auto w = words_of(l);
+            if (!w.count('E')) continue;
+            if (relative) e_sum += w.at('E');
+            else last = w.at('E');
+        }
+        CHECK((relative ? e_sum : last) == doctest::Approx(1.25).epsilon(1e-12));
+        CHECK((t.pose().tip - Eigen::Vector3d(100, 110, 5)).norm() < 1e-9);
+        CHECK(t.joints()[std::size_t(m.joint_index('A'))] == doctest::Approx(60));
+    }
+}

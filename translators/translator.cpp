@@ -234,6 +234,13 @@ void Translator::apply_modal(int code10, std::uint32_t column, std::string& out)
             modes_.inches = code10 == 200;
             out += "G21\n";
             return;
+        case 170:
+        case 180:
+        case 190:
+            // The arc plane: xlate5 linearises arcs under tool-centre-point control itself.
+            modes_.plane = code10 / 10;
+            if (mode_ == OrientationMode::Joints) passthrough('G', code10, {}, false, out);
+            return;
         case 434:
         case 435:
         case 490:
@@ -300,9 +307,11 @@ void Translator::run_command(char letter, int code10, std::uint32_t column, std:
             return;
         case 20:
         case 30:
-            if (mode_ != OrientationMode::Joints)
-                fail(column, "G2/G3 arcs under tool-centre-point control are not supported yet: "
-                             "linearise them, or use G49 for a joint-space arc");
+            modes_.motion = code10 / 10;
+            if (mode_ != OrientationMode::Joints) {
+                arc(code10 == 20, column, out);
+                return;
+            }
             if (!modes_.absolute || modes_.inches)
                 fail(column, "joint-space arcs are passed on only in G90 and G21 (millimetres)");
             if (options_.inverse) fail(column, "joint-space arcs cannot be turned back into tool space");
@@ -557,6 +566,129 @@ void Translator::home(std::string& out) {
     pose_ = kin_.forward(q_);
     emitter_.invalidate(q_);
     tool_emitter_.invalidate();
+}
+
+}  // namespace xlate5
+
+namespace xlate5 {
+
+// G2/G3 under tool-centre-point control: the arc (I J K centre or R radius, any plane, helical
+// along the plane's normal, P full turns) is cut into chords within half the tolerance in tool
+// space; each chord is then a move like any other, so the motion stage bounds the rest.
+void Translator::arc(bool clockwise, std::uint32_t column, std::string& out) {
+    const double unit = modes_.unit();
+    // Plane axes (a, b) and normal n: G17 XY, G18 ZX, G19 YZ (RS274), with the centre words.
+    int a = 0, b = 1, n = 2;
+    char ca = 'I', cb = 'J';
+    if (modes_.plane == 18) a = 2, b = 0, n = 1, ca = 'K', cb = 'I';
+    if (modes_.plane == 19) a = 1, b = 2, n = 0, ca = 'J', cb = 'K';
+    const Eigen::Vector3d start = pose_.tip - offset_;
+    Eigen::Vector3d end = start;
+    double off_a = 0, off_b = 0, radius = 0;
+    bool centre = false, by_radius = false;
+    int turns = 1;
+    std::vector<Param> rotary_words, other;
+    std::optional<Param> e_word, f_word;
+    for (const Param& p : params_) {
+        switch (p.letter) {
+            case 'X': case 'Y': case 'Z': {
+                const int i = p.letter - 'X';
+                const double v = number(p) * unit;
+                end[i] = modes_.absolute ? v : start[i] + v;
+                break;
+            }
+            case 'I': case 'J': case 'K':
+                if (p.letter == ca) off_a = number(p) * unit, centre = true;
+                else if (p.letter == cb) off_b = number(p) * unit, centre = true;
+                else fail(p.column, std::string("word ") + p.letter + " is not a centre offset in this arc plane");
+                break;
+            case 'R': radius = number(p) * unit, by_radius = true; break;
+            case 'P': {
+                const double v = number(p);
+                if (v < 1 || v != std::floor(v)) fail(p.column, "P (turns) must be a whole number >= 1");
+                turns = int(v);
+                break;
+            }
+            case 'E': e_word = p; break;
+            case 'F': f_word = p; break;
+            default: {
+                const int j = joint_of(p.letter);
+                if (j < 0 || !machine_.joints[std::size_t(j)].rotary || mode_ != OrientationMode::Angles)
+                    fail(p.column, std::string("word ") + p.letter + " is not understood on an arc here");
+                rotary_words.push_back(p);
+            }
+        }
+    }
+    if (centre == by_radius) fail(column, "an arc needs its centre as I J K offsets or its radius as R (one of them)");
+    const Eigen::Vector2d s2(start[a], start[b]), e2(end[a], end[b]);
+    Eigen::Vector2d c2;
+    if (centre) {
+        c2 = s2 + Eigen::Vector2d(off_a, off_b);
+    } else {
+        // R > 0: the shorter arc, R < 0: the longer; the centre lies on the chord's bisector.
+        const Eigen::Vector2d chord = e2 - s2;
+        const double d = chord.norm();
+        if (d == 0 || std::abs(radius) < d / 2 - 1e-9) fail(column, "arc radius R is too small for the distance to the end point");
+        const double h = std::sqrt(std::max(0.0, radius * radius - d * d / 4));
+        const Eigen::Vector2d mid = 0.5 * (s2 + e2), left(-chord.y() / d, chord.x() / d);
+        // For G2 (clockwise) with R > 0 the centre is on the right of the chord.
+        const double side = ((clockwise ? -1.0 : 1.0) * (radius > 0 ? 1.0 : -1.0));
+        c2 = mid + side * h * left;
+    }
+    const double r0 = (s2 - c2).norm(), r1 = (e2 - c2).norm();
+    if (!(r0 > 1e-9)) fail(column, "arc radius is 0");
+    if (std::abs(r0 - r1) > 0.01 + 1e-3 * r0)
+        fail(column, "the arc's end point is not on its circle (radius " + std::to_string(r0) + " at the start, " + std::to_string(r1) +
+                         " at the end)");
+    const double t0 = std::atan2(s2.y() - c2.y(), s2.x() - c2.x()), t1 = std::atan2(e2.y() - c2.y(), e2.x() - c2.x());
+    constexpr double kTwoPi = 6.283185307179586;
+    double sweep = clockwise ? t0 - t1 : t1 - t0;
+    while (sweep <= 1e-12) sweep += kTwoPi;  // equal ends: a full circle
+    sweep += kTwoPi * (turns - 1);
+    // Chords within half the tolerance, the other half left for the joint-space split.
+    const double chord_tol = 0.5 * machine_.motion.tolerance;
+    const double step = chord_tol < r0 ? 2 * std::acos(1 - chord_tol / r0) : kTwoPi / 4;
+    const int chords = std::max(1, int(std::ceil(sweep / step)));
+
+    // Each chord runs through move() as an absolute, metric G1 with its own words.
+    const Modes saved = modes_;
+    std::vector<double> q_start = q_;
+    const double e_total = e_word ? number(*e_word) * unit : 0.0;
+    const double e0 = modes_.e_position;
+    const std::vector<Param> original = params_;
+    for (int k = 1; k <= chords; ++k) {
+        const double f = double(k) / chords;
+        const double th = t0 + (clockwise ? -1.0 : 1.0) * sweep * f;
+        Eigen::Vector3d p;
+        p[a] = c2.x() + r0 * std::cos(th);
+        p[b] = c2.y() + r0 * std::sin(th);
+        p[n] = start[n] + (end[n] - start[n]) * f;
+        if (k == chords) p[a] = end[a], p[b] = end[b];
+        params_.clear();
+        for (int i = 0; i < 3; ++i) params_.push_back({char('X' + i), p[i], column, true, {}});
+        for (const Param& rw : rotary_words) {
+            const int j = joint_of(rw.letter);
+            const double target = saved.absolute ? number(rw) : q_start[std::size_t(j)] + number(rw);
+            params_.push_back({rw.letter, q_start[std::size_t(j)] + (target - q_start[std::size_t(j)]) * f, column, true, {}});
+        }
+        if (e_word) {
+            double v;
+            if (saved.e_relative) v = e_total / chords;  // equal chords: equal shares
+            else v = e0 + (e_total - e0) * f;
+            const bool last = k == chords;
+            params_.push_back({'E', last && !saved.e_relative ? number(*e_word) * unit : v, e_word->column, true,
+                               last && !saved.e_relative && !saved.inches ? e_word->text : std::string_view{}});
+        }
+        if (f_word && k == 1) params_.push_back(*f_word);
+        modes_.absolute = true;
+        modes_.inches = false;
+        if (f_word && k == 1 && saved.inches) params_.back().value *= 25.4, params_.back().text = {};
+        move(1, column, out);
+        modes_.absolute = saved.absolute;
+        modes_.inches = saved.inches;
+    }
+    params_ = original;
+    modes_.motion = clockwise ? 2 : 3;
 }
 
 }  // namespace xlate5

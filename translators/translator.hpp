@@ -33,7 +33,8 @@ struct Modes {
     bool absolute = true;     // G90 / G91
     bool inches = false;      // G20 / G21
     bool e_relative = false;  // Marlin 2 rule: the latest of G90/G91/M82/M83 decides
-    int motion = -1;          // modal G0/G1 (-1: none yet)
+    int motion = -1;          // modal G0/G1/G2/G3 (-1: none yet)
+    int plane = 17;           // G17 XY, G18 ZX, G19 YZ: the plane of arcs
     bool inverse_time = false;  // G93: F is 1/duration in minutes, per move
     double feed = 0;          // programmed feed (G94), mm/min; 0 until the first F
     double e_position = 0;    // absolute E (for sharing an absolute E among pieces)
@@ -70,6 +71,7 @@ private:
     void apply_modal(int code10, std::uint32_t column, std::string& out);
     void run_command(char letter, int code10, std::uint32_t column, std::string_view body, bool alone, std::string& out);
     void move(int gcode, std::uint32_t column, std::string& out);
+    void arc(bool clockwise, std::uint32_t column, std::string& out);
     void move_joints(int gcode, std::uint32_t column, std::string& out);
     void set_position(std::uint32_t column, std::string& out);
     void home(std::string& out);
