@@ -687,16 +687,18 @@ TEST_CASE("translator: a failing line leaves output and state unchanged") {
     check_rw2_joints(r, {101, 100, 10}, 30, 10);
 }
 
-TEST_CASE("translator: G2/G3 under tool-centre-point control are refused, naming arcs") {
+TEST_CASE("translator: G2/G3 under tool-centre-point control are linearised; bad arcs name the line") {
     Rig r("rw2");
     place_rw2(r);
-    InputError e = expect_error(r, "G2 X110 Y100 I5 J0", 3);
-    CHECK(contains(e.message(), "arc"));
-    CHECK(e.column() == 1);
-    e = expect_error(r, "G1 X1\nG3 X1", 3);  // the lexer rejects the embedded newline first
-    e = expect_error(r, "  G3 X110 Y100 R5", 4);
+    std::string o;
+    CHECK_NOTHROW(o = r.feed("G2 X110 Y100 I5 J0", 3));
+    CHECK(lines_of(o).size() > 10);  // a half circle of radius 5 in chords
+    CHECK(near(r.tr.pose().tip, {110, 100, 10}, 1e-9));
+    InputError e = expect_error(r, "G1 X1\nG3 X1", 3);  // the lexer rejects the embedded newline first
+    e = expect_error(r, "  G3 X110 Y100 R5", 4);       // start = end: no arc by radius
     CHECK(contains(e.message(), "arc"));
     CHECK(e.column() == 3);
+    CHECK(e.line() == 4);
 }
 
 TEST_CASE("translator: a word the machine does not have is an error") {
