@@ -552,3 +552,42 @@ TEST_CASE("an arc's extrusion adds up exactly and its end is the programmed end"
         CHECK(t.joints()[std::size_t(m.joint_index('A'))] == doctest::Approx(60));
     }
 }
+
+TEST_CASE("an unbounded turntable is re-zeroed with G92 on travel moves, never on a printed line") {
+    const Machine m = load("koc5");  // C: rezero_beyond = 1800
+    const Kinematics k(m);
+    Translator t(k, {});
+    std::string out;
+    const int C = m.joint_index('C');
+    // A tilted tool circling the part: C winds up turn after turn; every 8th move is a travel.
+    double fw_c = 0, worst_abs = 0;
+    int rezeros = 0;
+    for (int i = 0; i < 800; ++i) {
+        const double az = rad(15.0 * i), tilt = rad(30);
+        const bool travel = i % 8 == 0;
+        std::string line = "G1 X" + num(20 * std::cos(az)) + " Y" + num(20 * std::sin(az)) + " Z5 I" + num(std::sin(tilt) * std::cos(az), 9) +
+                           " J" + num(std::sin(tilt) * std::sin(az), 9) + " K" + num(std::cos(tilt), 9) + (travel ? "" : " E0.01") +
+                           (i == 0 ? " F1200" : "");
+        std::string o;
+        t.feed(line, std::uint64_t(i + 1), o);
+        for (const auto& l : lines_of(o)) {
+            const auto w = words_of(l);
+            if (!w.count('C')) continue;
+            if (l.rfind("G92", 0) == 0) {
+                ++rezeros;
+                CHECK(travel);  // only after a travel move
+                // The firmware is told the same physical angle, a whole number of turns nearer zero.
+                const double turns = (fw_c - w.at('C')) / 360.0;
+                CHECK(std::abs(turns - std::round(turns)) < 1e-6);
+                CHECK(std::abs(w.at('C')) <= 180 + 1e-6);
+            }
+            fw_c = w.at('C');
+            worst_abs = std::max(worst_abs, std::abs(fw_c));
+        }
+        out += o;
+        CHECK(std::abs(t.joints()[std::size_t(C)] - fw_c) < 1e-3);
+    }
+    MESSAGE("re-zeroed " << rezeros << " times; largest |C| sent " << worst_abs);
+    CHECK(rezeros >= 3);
+    CHECK(worst_abs <= 1800 + 8 * 15 + 1);
+}

@@ -24,6 +24,7 @@ struct Joint {
     double max = 1e300;
     double home = 0;         // joint value after G28
     double max_feed = 0;     // mm/min or deg/min the axis can move at; 0: no limit known
+    double rezero_beyond = 0;  // unbounded rotary: past +-this many degrees, re-zero with G92 on a travel move (0: never)
     bool bounded() const { return min > -1e299 || max < 1e299; }
 };
 

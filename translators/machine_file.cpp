@@ -130,7 +130,7 @@ void load_joints(Reader& r, Machine& m) {
         const std::string where = "joints[" + std::to_string(i) + "]";
         const auto* t = arr->get(i)->as_table();
         if (!t) r.fail(arr->get(i), where, "expected a table");
-        r.only_keys(*t, where, {"name", "output", "type", "min", "max", "home", "max_feed"});
+        r.only_keys(*t, where, {"name", "output", "type", "min", "max", "home", "max_feed", "rezero_beyond"});
         Joint j;
         j.name = r.letter(t->get("name"), where + ".name");
         j.output = t->contains("output") ? r.letter(t->get("output"), where + ".output") : j.name;
@@ -146,6 +146,11 @@ void load_joints(Reader& r, Machine& m) {
         if (j.min > j.max) r.fail(t->get("min"), where + ".min", "min is greater than max");
         if (t->contains("home")) j.home = r.number(t->get("home"), where + ".home");
         if (j.home < j.min || j.home > j.max) r.fail(t->get("home"), where + ".home", "home is outside min..max");
+        if (t->contains("rezero_beyond")) {
+            j.rezero_beyond = r.number(t->get("rezero_beyond"), where + ".rezero_beyond");
+            if (!j.rotary || j.bounded()) r.fail(t->get("rezero_beyond"), where + ".rezero_beyond", "only an unbounded rotary joint is re-zeroed");
+            if (!(j.rezero_beyond >= 180)) r.fail(t->get("rezero_beyond"), where + ".rezero_beyond", "must be at least 180 degrees");
+        }
         if (t->contains("max_feed")) {
             j.max_feed = r.number(t->get("max_feed"), where + ".max_feed");
             if (!(j.max_feed > 0)) r.fail(t->get("max_feed"), where + ".max_feed", "must be positive");

@@ -441,6 +441,20 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
             if (machine_.joints[j].rotary) options_.report->add_rotary_travel(machine_.joints[j].name, measured->travel[j]);
     }
     if (spec.mode == OrientationMode::Vector) q_next_ = motion_.final_joints();
+    // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move
+    // (no extrusion), where a G92 cannot disturb a printed line: firmware without wrapping
+    // (Marlin, soft endstops) then never runs out of range.
+    if (!e || e->value == 0) {
+        for (std::size_t j = 0; j < q_next_.size(); ++j) {
+            const Joint& J = machine_.joints[j];
+            if (J.rezero_beyond <= 0 || std::abs(q_next_[j]) <= J.rezero_beyond) continue;
+            const double turns = std::round(q_next_[j] / 360.0);
+            std::vector<bool> which(q_next_.size(), false);
+            which[j] = true;
+            q_next_[j] -= 360.0 * turns;
+            emitter_.set_position(out, q_next_, which, std::nullopt);
+        }
+    }
     q_.swap(q_next_);
     pose_ = next;
     tip_known_ = tip_known_ || any_xyz;
