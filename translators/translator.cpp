@@ -410,7 +410,11 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
         }
     }
     if (r.ok()) r = kin_.check_limits(q_next_);
-    if (!r.ok()) fail(column, r.message);
+    if (!r.ok()) {
+        if (r.status == IkStatus::OutOfLimits)
+            r.message += "; turn the joint back on a travel move before this line, or plan the path within the limits";
+        fail(column, r.message);
+    }
     for (std::size_t j = 0; j < q_.size(); ++j) {
         const bool rotary = machine_.joints[j].rotary;
         if ((!rotary && any_xyz) || (rotary && any_ijk)) commanded_[j] = true;
@@ -434,7 +438,11 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
     spec.f = f;
     spec.inverse_time = modes_.inverse_time && f ? f->value : 0.0;
     MoveResult* measured = options_.report && spec.mode != OrientationMode::Joints ? &move_result_ : nullptr;
-    if (auto res = motion_.emit(spec, out, measured); !res.ok()) fail(column, res.message);
+    if (auto res = motion_.emit(spec, out, measured); !res.ok()) {
+        if (res.status == IkStatus::OutOfLimits)
+            res.message += "; turn the joint back on a travel move before this line, or plan the path within the limits";
+        fail(column, res.message);
+    }
     if (measured) {
         options_.report->add_move(line_no_, measured->tip_error, measured->angle_error, measured->feed_error, measured->pieces);
         for (std::size_t j = 0; j < measured->travel.size(); ++j)
