@@ -12,6 +12,7 @@
 #include <string>
 #include <unistd.h>
 
+#include "translators/compensation.hpp"
 #include "translators/error.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
@@ -75,6 +76,48 @@ int list_machines() {
     return kOk;
 }
 
+// xlate5 calibrate fit: least-squares Fourier series through a measured table, printed as a
+// [[compensation]] term with the residual, so a user can paste it into a machine file.
+int calibrate_fit(const std::string& path, int order, const std::string& joint, const std::string& by) {
+    std::FILE* f = std::fopen(path.c_str(), "r");
+    if (!f) {
+        std::cerr << "xlate5: " << path << ": cannot open\n";
+        return kIoError;
+    }
+    std::vector<double> angle, error;
+    char buf[512];
+    int line = 0;
+    while (std::fgets(buf, sizeof buf, f)) {
+        ++line;
+        std::string l(buf);
+        if (auto h = l.find('#'); h != std::string::npos) l.resize(h);
+        if (l.find_first_not_of(" \t\r\n") == std::string::npos) continue;
+        double a = 0, e = 0;
+        char sep = 0;
+        if (std::sscanf(l.c_str(), " %lf %c %lf", &a, &sep, &e) != 3 || (sep != ',' && sep != ';') || !std::isfinite(a) || !std::isfinite(e)) {
+            std::cerr << path << ":" << line << ":1: expected 'angle,error'\n";
+            std::fclose(f);
+            return kInputError;
+        }
+        angle.push_back(a);
+        error.push_back(e);
+    }
+    std::fclose(f);
+    if (int(angle.size()) < 2 * order + 1) {
+        std::cerr << "xlate5: " << path << ": " << angle.size() << " points cannot fit " << order << " harmonics (need " << 2 * order + 1 << ")\n";
+        return kInputError;
+    }
+    double residual = 0;
+    const auto t = xlate5::fit_fourier(angle, error, order, residual);
+    std::printf("# fitted to %zu points of %s: largest residual %.4f mm\n", angle.size(), path.c_str(), residual);
+    std::printf("[[compensation]]\njoint = \"%s\"\nby = \"%s\"\nfourier = { a0 = %.6f, cos = [", joint.c_str(), by.c_str(), t.a0);
+    for (std::size_t k = 0; k < t.cosines.size(); ++k) std::printf("%s%.6f", k ? ", " : "", t.cosines[k]);
+    std::printf("], sin = [");
+    for (std::size_t k = 0; k < t.sines.size(); ++k) std::printf("%s%.6f", k ? ", " : "", t.sines[k]);
+    std::printf("] }\n");
+    return kOk;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -82,7 +125,7 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version", std::string("xlate5 ") + XLATE5_VERSION);
     app.require_subcommand(0, 1);
 
-    std::string machine_name, input = "-", output = "-", mode_text, preview = "G43.4", extruder = "E", report_path, plot_path;
+    std::string machine_name, input = "-", output = "-", mode_text, preview = "G43.4", extruder = "E", report_path, plot_path, compensation_path;
     std::vector<std::string> sets;
     bool inverse = false, no_segment = false;
     double tolerance = 0, angle_tolerance = 0;
@@ -97,11 +140,21 @@ int main(int argc, char** argv) {
     app.add_option("--angle-tolerance", angle_tolerance, "largest tool-axis deviation, degrees (default: the machine's)")
         ->check(CLI::PositiveNumber);
     app.add_flag("--no-segment", no_segment, "one joint move per input move: no splitting (the tip leaves the line while rotaries turn)");
+    app.add_option("--compensation", compensation_path, "measured-error compensation file ([[compensation]] terms), replacing the machine's own");
     app.add_option("--report", report_path, "write the kinematic-error report (JSON) of the translation to this file");
     app.add_option("--plot", plot_path, "write the tip deviation along the file as an SVG plot to this file");
     app.add_flag("--inverse", inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
     app.add_option("--preview-form", preview, "with --inverse: write orientation as G43.4 angles or G43.5 I J K")->check(CLI::IsMember({"G43.4", "G43.5"}));
     auto* machines_cmd = app.add_subcommand("machines", "list the bundled machines");
+    auto* calibrate_cmd = app.add_subcommand("calibrate", "turn measurements into machine-file values");
+    calibrate_cmd->require_subcommand(1);
+    auto* fit_cmd = calibrate_cmd->add_subcommand("fit", "fit a Fourier series to a measured error table (CSV: angle,error per line)");
+    std::string fit_table, fit_joint = "X", fit_by = "A";
+    int fit_order = 1;
+    fit_cmd->add_option("table", fit_table, "CSV file: angle (degrees), error (mm) per line; '#' starts a comment")->required();
+    fit_cmd->add_option("--order", fit_order, "harmonics (default 1)")->check(CLI::Range(1, 12));
+    fit_cmd->add_option("--joint", fit_joint, "joint the error is taken off (for the printed [[compensation]] term)");
+    fit_cmd->add_option("--by", fit_by, "rotary joint the error depends on");
 
     try {
         app.parse(argc, argv);
@@ -113,6 +166,7 @@ int main(int argc, char** argv) {
     }
 
     if (machines_cmd->parsed()) return list_machines();
+    if (fit_cmd->parsed()) return calibrate_fit(fit_table, fit_order, fit_joint, fit_by);
 
     std::map<std::string, double> overrides;
     xlate5::TranslatorOptions options;
@@ -140,6 +194,7 @@ int main(int argc, char** argv) {
         if (tolerance > 0) machine->motion.tolerance = tolerance;
         if (angle_tolerance > 0) machine->motion.angle_tolerance = angle_tolerance;
         if (no_segment) machine->motion.segment = false;
+        if (!compensation_path.empty()) xlate5::load_compensation_file(compensation_path, *machine);
     } catch (const xlate5::MachineError& e) {
         std::cerr << "xlate5: machine error: " << e.what() << "\n";
         return kMachineError;

@@ -328,3 +328,35 @@ TEST_CASE("cli: --version prints a version") {
     CHECK(i > 7);
     CHECK(dots == 2);
 }
+
+TEST_CASE("cli: calibrate fit recovers a known series from noisy measurements, within the noise") {
+    TempDir d;
+    // e(A) = 0.3 - 0.25 cos A - 0.4 sin A + 0.1 cos 2A, sampled every 15 degrees, +-0.01 noise.
+    std::string csv = "# angle, error\n";
+    for (int a = -165; a <= 165; a += 15) {
+        const double r = rad(a), noise = 0.01 * std::sin(a * 12.9898);
+        char line[64];
+        std::snprintf(line, sizeof line, "%d,%.6f\n", a, 0.3 - 0.25 * std::cos(r) - 0.4 * std::sin(r) + 0.1 * std::cos(2 * r) + noise);
+        csv += line;
+    }
+    const fs::path table = d.write("t.csv", csv);
+    const Result r = run(d, "calibrate fit " + quote(table.string()) + " --order 2 --joint Z --by A");
+    REQUIRE(r.code == 0);
+    CAPTURE(r.out);
+    double a0 = 0, c1 = 0, c2 = 0, s1 = 0, s2 = 0, residual = 0;
+    REQUIRE(std::sscanf(r.out.c_str(), "# fitted to %*d points of %*s largest residual %lf", &residual) == 1);
+    const auto at = r.out.find("fourier = { a0 = ");
+    REQUIRE(at != std::string::npos);
+    REQUIRE(std::sscanf(r.out.c_str() + at, "fourier = { a0 = %lf, cos = [%lf, %lf], sin = [%lf, %lf] }", &a0, &c1, &c2, &s1, &s2) == 5);
+    CHECK(std::abs(a0 - 0.3) < 0.01);
+    CHECK(std::abs(c1 + 0.25) < 0.01);
+    CHECK(std::abs(s1 + 0.4) < 0.01);
+    CHECK(std::abs(c2 - 0.1) < 0.01);
+    CHECK(std::abs(s2) < 0.01);
+    CHECK(residual <= 0.0101);
+    // A malformed line names itself.
+    const fs::path bad = d.write("bad.csv", "0,1\n15 2\n");
+    const Result b = run(d, "calibrate fit " + quote(bad.string()));
+    CHECK(b.code == 1);
+    CHECK(contains(b.err, "bad.csv:2:1:"));
+}

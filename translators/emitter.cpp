@@ -2,6 +2,7 @@
 
 #include <limits>
 
+#include "translators/error.hpp"
 #include "translators/number.hpp"
 
 namespace xlate5 {
@@ -61,10 +62,18 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
     const std::size_t start = out.size();
     out += gcode == 0 ? "G0" : "G1";
     const std::size_t empty = out.size();
+    // Measured errors are taken off here, the last step before text, so every piece of every
+    // move is corrected and nothing upstream sees anything but nominal joints.
+    const std::vector<double>* sent = &q;
+    if (!machine_.compensation.empty()) {
+        sent_ = q;
+        if (auto why = machine_.compensation.apply(sent_); !why.empty()) throw LineError(1, why);
+        sent = &sent_;
+    }
     for (std::size_t j = 0; j < q.size(); ++j) {
         long long units = 0;
         const int d = decimals(j);
-        const bool fast = to_units(q[j], d, units);
+        const bool fast = to_units((*sent)[j], d, units);
         if (!fast) units = std::numeric_limits<long long>::min();  // never equal: always written
         const bool write = known_[j] ? units != last_[j] : (commanded[j] || q[j] != believed_[j]);
         believed_[j] = q[j];
@@ -74,7 +83,7 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
         out += ' ';
         out += machine_.joints[j].output;
         if (fast) append_units(out, units, d);
-        else format(out, j, q[j]);
+        else format(out, j, (*sent)[j]);
     }
     if (f && !inverse_time_) {  // under G93 every move carries its own F
         f_text_.clear();
@@ -87,19 +96,25 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
 
 void JointEmitter::set_position(std::string& out, const std::vector<double>& q, const std::vector<bool>& which,
                                 std::optional<PassedNumber> e) {
+    const std::vector<double>* sent = &q;
+    if (!machine_.compensation.empty()) {
+        sent_ = q;
+        if (auto why = machine_.compensation.apply(sent_); !why.empty()) throw LineError(1, why);
+        sent = &sent_;
+    }
     const std::size_t start = out.size();
     out += "G92";
     const std::size_t empty = out.size();
     for (std::size_t j = 0; j < q.size(); ++j) {
         if (!which[j]) continue;
         long long units = 0;
-        if (!to_units(q[j], decimals(j), units)) units = std::numeric_limits<long long>::min();
+        if (!to_units((*sent)[j], decimals(j), units)) units = std::numeric_limits<long long>::min();
         last_[j] = units;
         known_[j] = true;
         believed_[j] = q[j];
         out += ' ';
         out += machine_.joints[j].output;
-        format(out, j, q[j]);
+        format(out, j, (*sent)[j]);
     }
     if (e) {
         out += " E";

@@ -54,6 +54,7 @@ private:
     std::vector<long long> last_;
     std::vector<bool> known_;         // false: not sent since start, homing or probing
     std::vector<double> believed_;    // joint values the firmware is believed to be at
+    std::vector<double> sent_;        // this move's joints as sent: after error compensation
     std::string last_f_, f_text_;     // F is modal in the firmware: written only when it changes
     bool inverse_time_ = false;       // the firmware's feed mode as xlate5 last set it
 };

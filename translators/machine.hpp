@@ -2,6 +2,8 @@
 // Loaded from a TOML file (machine_file.cpp); all the math on it lives in kinematics.cpp.
 #pragma once
 #include <Eigen/Geometry>
+
+#include "translators/compensation.hpp"
 #include <map>
 #include <optional>
 #include <string>
@@ -67,6 +69,7 @@ struct Machine {
     OrientationMode start_mode = OrientationMode::Angles;
     Dialect dialect;
     MotionSettings motion;
+    Compensation compensation;   // measured errors, subtracted from every emitted move
 
     int joint_index(char name) const {
         for (std::size_t i = 0; i < joints.size(); ++i)
@@ -85,6 +88,10 @@ struct Machine {
 Machine load_machine(const std::string& name_or_path, const std::map<std::string, double>& overrides = {});
 Machine load_machine_text(const std::string& toml_text, const std::string& source_name,
                           const std::map<std::string, double>& overrides = {});
+
+// Reads a compensation file ([[compensation]] terms, as in a machine file) for `machine`,
+// replacing the machine's own. Throws MachineError naming the file, line and key.
+void load_compensation_file(const std::string& path, Machine& machine);
 
 // Where bundled machines are looked up: $XLATE5_MACHINES, the source tree, the install prefix.
 std::vector<std::string> machine_search_path();

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <utility>
 #include <sstream>
 #include <toml++/toml.h>
 
@@ -208,6 +209,65 @@ std::vector<ChainElement> load_chain(Reader& r, Machine& m, const char* key, std
     return chain;
 }
 
+// [[compensation]] terms: joint, by, and either points (+ interpolation, outside) or fourier.
+Compensation load_terms(Reader& r, const Machine& m, toml::node_view<const toml::node> node) {
+    Compensation c;
+    const auto* arr = node.as_array();
+    if (!arr) r.fail(node, "compensation", "expected an array of tables ([[compensation]])");
+    for (std::size_t i = 0; i < arr->size(); ++i) {
+        const std::string where = "compensation[" + std::to_string(i) + "]";
+        const auto* t = arr->get(i)->as_table();
+        if (!t) r.fail(arr->get(i), where, "expected a table");
+        r.only_keys(*t, where, {"joint", "by", "points", "interpolation", "outside", "fourier"});
+        CompensationTerm term;
+        term.joint = m.joint_index(r.letter(t->get("joint"), where + ".joint"));
+        if (term.joint < 0) r.fail(t->get("joint"), where + ".joint", "no such joint");
+        term.by = m.joint_index(r.letter(t->get("by"), where + ".by"));
+        if (term.by < 0 || !m.joints[std::size_t(term.by)].rotary) r.fail(t->get("by"), where + ".by", "expected a rotary joint");
+        if (term.by == term.joint) r.fail(t->get("by"), where + ".by", "a joint cannot compensate itself");
+        if (t->contains("points") == t->contains("fourier")) r.fail(t, where, "give points (a measured table) or fourier (a fitted series)");
+        if (const auto* pts = t->get("points")) {
+            const auto* pa = pts->as_array();
+            if (!pa || pa->size() < 2) r.fail(pts, where + ".points", "expected at least two [angle, error] pairs");
+            for (std::size_t k = 0; k < pa->size(); ++k) {
+                const auto* pair = pa->get(k)->as_array();
+                const std::string key = where + ".points[" + std::to_string(k) + "]";
+                if (!pair || pair->size() != 2) r.fail(pa->get(k), key, "expected [angle, error]");
+                term.angle.push_back(r.number(pair->get(0), key));
+                term.error.push_back(r.number(pair->get(1), key));
+                if (k > 0 && !(term.angle[k] > term.angle[k - 1])) r.fail(pa->get(k), key, "angles must increase");
+            }
+            const std::string interp = t->contains("interpolation") ? r.string(t->get("interpolation"), where + ".interpolation") : "linear";
+            if (interp == "periodic") term.periodic = true;
+            else if (interp != "linear") r.fail(t->get("interpolation"), where + ".interpolation", "expected \"linear\" or \"periodic\"");
+            if (term.periodic && term.angle.back() - term.angle.front() >= 360)
+                r.fail(pts, where + ".points", "a periodic table spans less than 360 degrees");
+            const std::string outside = t->contains("outside") ? r.string(t->get("outside"), where + ".outside") : "refuse";
+            if (outside == "clamp") term.clamp = true;
+            else if (outside != "refuse") r.fail(t->get("outside"), where + ".outside", "expected \"refuse\" or \"clamp\"");
+        } else {
+            const auto* f = t->get("fourier")->as_table();
+            if (!f) r.fail(t->get("fourier"), where + ".fourier", "expected { a0 = .., cos = [..], sin = [..] }");
+            r.only_keys(*f, where + ".fourier", {"a0", "cos", "sin"});
+            term.kind = CompensationTerm::Kind::Fourier;
+            if (f->contains("a0")) term.a0 = r.number(f->get("a0"), where + ".fourier.a0");
+            for (const char* k : {"cos", "sin"}) {
+                if (!f->contains(k)) continue;
+                const auto* ca = f->get(k)->as_array();
+                if (!ca) r.fail(f->get(k), where + ".fourier." + k, "expected an array of numbers");
+                for (std::size_t j = 0; j < ca->size(); ++j)
+                    (std::string(k) == "cos" ? term.cosines : term.sines).push_back(r.number(ca->get(j), where + ".fourier." + k));
+            }
+        }
+        c.terms.push_back(term);
+    }
+    // Undo is exact only if no corrected joint is also an input of a term.
+    for (const auto& a : c.terms)
+        for (const auto& b : c.terms)
+            if (a.joint == b.by) r.fail(node, "compensation", std::string("joint ") + m.joints[std::size_t(a.joint)].name + " is both corrected and an input");
+    return c;
+}
+
 Machine load(const std::string& text, const std::string& path, const std::map<std::string, double>& overrides) {
     toml::table root;
     try {
@@ -219,7 +279,7 @@ Machine load(const std::string& text, const std::string& path, const std::map<st
     }
     Reader r(path, root);
     r.only_keys(root, "", {"name", "description", "source", "parameters", "joints", "part_chain", "tool_chain",
-                           "tool", "input", "firmware", "motion"});
+                           "tool", "input", "firmware", "motion", "compensation"});
     Machine m;
     m.source_path = path;
     m.name = r.string(root.get("name"), "name");
@@ -301,10 +361,35 @@ Machine load(const std::string& text, const std::string& path, const std::map<st
         positive("angle_tolerance", m.motion.angle_tolerance);
         positive("rotary_feed", m.motion.rotary_feed);
     }
+    if (root.contains("compensation")) {
+        m.compensation = load_terms(r, m, std::as_const(root)["compensation"]);
+        m.compensation.source = path;
+    }
     return m;
 }
 
 }  // namespace
+
+void load_compensation_file(const std::string& path, Machine& m) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw MachineError(path + ": cannot open compensation file");
+    std::ostringstream text;
+    text << in.rdbuf();
+    toml::table root;
+    try {
+        root = toml::parse(text.str(), path);
+    } catch (const toml::parse_error& e) {
+        std::ostringstream os;
+        os << path << ":" << e.source().begin.line << ": " << e.description();
+        throw MachineError(os.str());
+    }
+    Reader r(path, root);
+    r.params = m.parameters;
+    r.only_keys(root, "", {"description", "source", "compensation"});
+    if (!root.contains("compensation")) r.fail(nullptr, "compensation", "missing: list the terms as [[compensation]]");
+    m.compensation = load_terms(r, m, std::as_const(root)["compensation"]);
+    m.compensation.source = path;
+}
 
 std::vector<std::string> machine_search_path() {
     std::vector<std::string> dirs;

@@ -78,6 +78,7 @@ Translator::Translator(const Kinematics& kinematics, TranslatorOptions options)
       motion_(kinematics, emitter_),
       q_(machine_.home_joints()),
       q_next_(q_),
+      sent_q_(q_),
       commanded_(q_.size(), false),
       pose_(kin_.forward(q_)),
       mode_(options_.inverse ? OrientationMode::Joints : options_.start_mode.value_or(machine_.start_mode)) {}
@@ -214,6 +215,7 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
                 run_command(commands[i].letter, commands[i].code10, commands[i].column, block_.body, alone, out);
         if (!owner && !params_.empty()) run_command('G', implicit.code10, implicit.column, block_.body, false, out);
     } catch (...) {
+        // Nothing of a failed line stays: output, joints, pose, modes.
         out.resize(out_start);
         q_.assign(q_saved_.begin(), q_saved_.end());
         pose_ = pose_saved;
@@ -222,7 +224,12 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
         mode_ = mode_saved;
         modes_ = modes_saved;
         emitter_.invalidate(q_);
-        throw;
+        try {
+            throw;
+        } catch (const LineError& e) {
+            // A stage below the interpreter refused (e.g. outside a compensation table).
+            throw InputError(options_.input_name, line_no_, e.column(), e.what());
+        }
     }
 }
 
@@ -478,7 +485,8 @@ void Translator::move_joints(int gcode, std::uint32_t /*column*/, std::string& o
     const double unit = modes_.unit();
     std::optional<PassedNumber> e, f;
     bool any_linear = false;
-    q_next_ = q_;
+    // The inverse works on what the firmware was sent; words left out keep their sent value.
+    q_next_ = options_.inverse ? sent_q_ : q_;
     commanded_.assign(q_.size(), false);
     for (const Param& p : params_) {
         switch (p.letter) {
@@ -500,6 +508,11 @@ void Translator::move_joints(int gcode, std::uint32_t /*column*/, std::string& o
                 break;
             }
         }
+    }
+    // The inverse reads what the firmware was sent: measured errors are added back first.
+    if (options_.inverse) {
+        sent_q_ = q_next_;
+        machine_.compensation.undo(q_next_);
     }
     if (auto r = kin_.check_limits(q_next_); !r.ok()) fail(params_.empty() ? 1 : params_.front().column, r.message);
     q_.swap(q_next_);
@@ -532,6 +545,7 @@ void Translator::set_position(std::uint32_t column, std::string& out) {
             fail(p.column, std::string("G92 word ") + p.letter + " is not a joint of machine " + machine_.name);
         const bool rotary = machine_.joints[std::size_t(j)].rotary;
         q_[std::size_t(j)] = number(p) * (rotary ? 1.0 : unit);
+        sent_q_[std::size_t(j)] = q_[std::size_t(j)];
         which[std::size_t(j)] = true;
         any_rotary = any_rotary || rotary;
     }
@@ -585,6 +599,7 @@ void Translator::home(std::string& out) {
     out += '\n';
     offset_.setZero();
     tip_known_ = false;
+    sent_q_ = q_;
     pose_ = kin_.forward(q_);
     emitter_.invalidate(q_);
     tool_emitter_.invalidate();

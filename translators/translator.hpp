@@ -93,6 +93,7 @@ private:
 
     std::vector<double> q_;         // joint values the firmware will be at
     std::vector<double> q_next_;    // scratch for the move being solved
+    std::vector<double> sent_q_;    // inverse: the joints as the firmware was told them (compensated)
     std::vector<double> q_saved_;   // state before the current line, restored if it fails
     std::vector<bool> commanded_;   // joints the current line names (directly or through the tip)
     Pose pose_;                     // tip and tool axis in the part frame

@@ -1,0 +1,191 @@
+// Error compensation against seed 001: its tables reproduce its measurements, agree with its
+// fitted eq. 4.7-4.9 within the scatter of the measurements, and undo exactly in --inverse.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <string>
+
+#include "helpers.hpp"
+#include "translators/compensation.hpp"
+#include "translators/error.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+#include "translators/translator.hpp"
+
+using namespace xlate5;
+using namespace xlate5::test;
+
+namespace {
+
+const std::string kDir = XLATE5_MACHINE_DIR_FOR_TESTS;
+
+Machine rw2_measured() {
+    Machine m = load_machine(kDir + "/rw2.toml", {{"la", 29.0}});
+    load_compensation_file(kDir + "/compensation/rw2-seed001.toml", m);
+    return m;
+}
+
+// Seed 001's fitted error functions, eq. 4.7-4.9 (A in degrees, mm).
+double ex(double a) { return 2 * std::cos(rad(a)) - 2; }
+double ey(double a) { return -2 * std::sin(rad(a)); }
+double ez(double a) { return -0.45 * std::sin(rad(a + 40)) + 0.29; }
+
+}  // namespace
+
+TEST_CASE("with la = 29 and table 4.1, the joints are table 4.1's measured X and Y") {
+    const Machine m = rw2_measured();
+    const Kinematics k(m);
+    struct Row { double a, x, y; };
+    // Table 4.1, "Measured" columns: where the tip really met the reference at (100, 100).
+    const Row rows[] = {{-135, 82.29, 48.69}, {-90, 72.8, 69}, {-45, 80.29, 90.11}, {0, 100, 100},
+                        {45, 121.11, 92.92}, {90, 131.2, 72.2}, {135, 123.91, 51.49}};
+    for (const Row& r : rows) {
+        CAPTURE(r.a);
+        Translator t(k, {});
+        std::string out;
+        t.feed("G1 X100 Y100 Z10 A" + std::to_string(r.a) + " B0 F1200", 1, out);
+        const auto w = words_of(lines_of(out).back());
+        // The table prints its theoretical values to 2 decimals, so its measured = theoretical -
+        // difference carries that rounding; the output has 3 decimals.
+        CHECK(std::abs(w.at('X') - r.x) <= 0.0055);
+        CHECK(std::abs(w.at('Y') - r.y) <= 0.0055);
+    }
+}
+
+TEST_CASE("the tables agree with eq. 4.7-4.9 within the scatter of the measurements") {
+    const Machine m = rw2_measured();
+    REQUIRE(m.compensation.terms.size() == 3);
+    double (*eq[3])(double) = {ex, ey, ez};
+    const double amplitude[3] = {2, 2, 0.45};
+    for (int i = 0; i < 3; ++i) {
+        const CompensationTerm& t = m.compensation.terms[std::size_t(i)];
+        CAPTURE(i);
+        // Scatter: how far the measured points themselves lie from the fitted curve.
+        double scatter = 0, step = 0;
+        for (std::size_t p = 0; p < t.angle.size(); ++p) {
+            scatter = std::max(scatter, std::abs(t.error[p] - eq[i](t.angle[p])));
+            if (p) step = std::max(step, t.angle[p] - t.angle[p - 1]);
+        }
+        // Between points a straight line can leave a sinusoid of this amplitude by at most this.
+        const double chord = amplitude[i] * (1 - std::cos(rad(step / 2)));
+        double worst = 0;
+        for (double a = t.angle.front(); a <= t.angle.back(); a += 0.5) {
+            double e = 0;
+            REQUIRE(t.eval(a, e));
+            worst = std::max(worst, std::abs(e - eq[i](a)));
+        }
+        MESSAGE("term " << i << ": scatter of the measurements " << scatter << " mm, table vs fitted curve at most " << worst << " mm");
+        CHECK(worst <= scatter + chord + 1e-9);
+        CHECK(scatter < (i == 2 ? 0.1 : 0.9));  // the published residuals: about 0.8 mm (X, Y), 0.05 mm (Z)
+    }
+}
+
+TEST_CASE("a Fourier fit of table 4.2 recovers eq. 4.9 (with the table's sign flipped)") {
+    const Machine m = rw2_measured();
+    const CompensationTerm& z = m.compensation.terms[2];
+    double residual = 0;
+    const CompensationTerm f = fit_fourier(z.angle, z.error, 1, residual);
+    // eq. 4.9: -0.45 sin(A + 40) + 0.29 = 0.29 - 0.45 sin 40 cos A - 0.45 cos 40 sin A.
+    const double amp = std::hypot(f.cosines[0], f.sines[0]);
+    const double phase = std::atan2(-f.cosines[0], -f.sines[0]) * 180 / kPi;
+    CHECK(f.a0 == doctest::Approx(0.29).epsilon(0.06));
+    CHECK(amp == doctest::Approx(0.45).epsilon(0.05));
+    CHECK(std::abs(phase - 40) < 3);
+    MESSAGE("one-harmonic fit of table 4.2: a0 " << f.a0 << ", amplitude " << amp << ", phase " << phase << " deg, residual " << residual);
+    CHECK(residual < 0.1);  // the table's own scatter about eq. 4.9 is 0.09 mm
+    double e = 0;
+    CHECK(f.eval(60, e));
+    CHECK(e == doctest::Approx(ez(60)).epsilon(0.2));
+}
+
+TEST_CASE("every emitted piece is compensated and --inverse undoes it exactly") {
+    const Machine m = rw2_measured();
+    const Kinematics k(m);
+    Translator fwd(k, {});
+    TranslatorOptions io;
+    io.inverse = true;
+    Translator inv(k, io);
+    std::string out, back;
+    const std::vector<std::string> in = {"G1 X100 Y100 Z10 A0 B0 F1200", "G1 X110 Y105 A60 B15", "G1 X95 Y120 A-100 B-20",
+                                         "G1 X100 Y100 A150 B0"};
+    std::uint64_t n = 0, nb = 0;
+    for (const auto& l : in) {
+        const Pose before = fwd.pose();
+        std::string o;
+        fwd.feed(l, ++n, o);
+        const Pose after = fwd.pose();
+        // Each piece, read back through the inverse, lies on the programmed line (the printed
+        // joints are rounded to 3 decimals, and the tables correct only the nominal model).
+        for (const auto& line : lines_of(o)) {
+            std::string b;
+            inv.feed(line, ++nb, b);
+            if (line.rfind("G1", 0) != 0 || n == 1) continue;
+            const Eigen::Vector3d p = inv.pose().tip, ab = after.tip - before.tip;
+            const double tt = std::clamp((p - before.tip).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+            CHECK((before.tip + tt * ab - p).norm() < m.motion.tolerance + 0.003);
+        }
+        CHECK((inv.pose().tip - after.tip).norm() < 2e-3);
+        for (std::size_t j = 0; j < m.joints.size(); ++j) CHECK(std::abs(inv.joints()[j] - fwd.joints()[j]) < 2e-3);
+        out += o;
+    }
+    // And compensation really changed the output: the same file without it differs by table 4.1.
+    Machine plain = load_machine(kDir + "/rw2.toml", {{"la", 29.0}});
+    const Kinematics kp(plain);
+    Translator t2(kp, {});
+    std::string o2;
+    t2.feed(in[0], 1, o2);
+    o2.clear();
+    t2.feed("G1 A90", 2, o2);
+    Translator t3(k, {});
+    std::string o3;
+    t3.feed(in[0], 1, o3);
+    o3.clear();
+    t3.feed("G1 A90", 2, o3);
+    const auto w2 = words_of(lines_of(o2).back()), w3 = words_of(lines_of(o3).back());
+    CHECK(w2.at('X') - w3.at('X') == doctest::Approx(-2.20).epsilon(1e-6));  // X error at A = 90
+}
+
+TEST_CASE("outside a table: refused with the line, or clamped, as the file says") {
+    Machine m = load_machine(kDir + "/rw2.toml");
+    const std::string refuse = kDir + "/../build-test-comp-refuse.toml";
+    {
+        std::FILE* f = std::fopen(refuse.c_str(), "w");
+        REQUIRE(f);
+        std::fputs("[[compensation]]\njoint = \"X\"\nby = \"A\"\npoints = [[-45, 0.1], [45, -0.1]]\n", f);
+        std::fclose(f);
+    }
+    load_compensation_file(refuse, m);
+    const Kinematics k(m);
+    Translator t(k, {});
+    std::string out;
+    t.feed("G92 A0", 1, out);  // A is at 0 (inside the table) rather than at its home switch
+    t.feed("G1 X100 Y100 Z10 A0 B0 F1200", 1, out);
+    try {
+        t.feed("G1 A60", 7, out);
+        FAIL("expected a refusal");
+    } catch (const InputError& e) {
+        CHECK(e.line() == 7);
+        CHECK(contains(e.message(), "covers -45.000 .. 45.000"));
+    }
+    // Clamped: beyond the table the end value applies.
+    {
+        std::FILE* f = std::fopen(refuse.c_str(), "w");
+        std::fputs("[[compensation]]\njoint = \"X\"\nby = \"A\"\noutside = \"clamp\"\npoints = [[-45, 0.1], [45, -0.1]]\n", f);
+        std::fclose(f);
+    }
+    load_compensation_file(refuse, m);
+    const Kinematics k2(m);
+    Translator t2(k2, {});
+    out.clear();
+    t2.feed("G92 A0", 1, out);
+    t2.feed("G1 X100 Y100 Z10 A0 B0 F1200", 1, out);
+    CHECK_NOTHROW(t2.feed("G1 A60", 2, out));
+    // A broken file names its line and key.
+    {
+        std::FILE* f = std::fopen(refuse.c_str(), "w");
+        std::fputs("[[compensation]]\njoint = \"X\"\nby = \"Y\"\npoints = [[0, 0], [1, 1]]\n", f);
+        std::fclose(f);
+    }
+    CHECK_THROWS_WITH_AS(load_compensation_file(refuse, m), doctest::Contains("compensation[0].by: expected a rotary joint"), MachineError);
+    std::remove(refuse.c_str());
+}

@@ -1,0 +1,96 @@
+#include "translators/compensation.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace xlate5 {
+
+namespace {
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+}
+
+bool CompensationTerm::eval(double x, double& e) const {
+    if (kind == Kind::Fourier) {
+        e = a0;
+        for (std::size_t k = 0; k < cosines.size(); ++k) e += cosines[k] * std::cos(double(k + 1) * x * kDeg);
+        for (std::size_t k = 0; k < sines.size(); ++k) e += sines[k] * std::sin(double(k + 1) * x * kDeg);
+        return true;
+    }
+    const std::size_t n = angle.size();
+    if (periodic) {
+        // Wrap into [first, first + 360) and interpolate across the seam between last and first.
+        double w = std::fmod(x - angle.front(), 360.0);
+        if (w < 0) w += 360.0;
+        w += angle.front();
+        for (std::size_t i = 0; i + 1 < n; ++i)
+            if (w >= angle[i] && w <= angle[i + 1]) {
+                const double t = (w - angle[i]) / (angle[i + 1] - angle[i]);
+                e = error[i] + t * (error[i + 1] - error[i]);
+                return true;
+            }
+        const double span = angle.front() + 360.0 - angle.back();
+        const double t = (w - angle.back()) / span;
+        e = error.back() + t * (error.front() - error.back());
+        return true;
+    }
+    if (x < angle.front() || x > angle.back()) {
+        if (!clamp) return false;
+        e = x < angle.front() ? error.front() : error.back();
+        return true;
+    }
+    const auto it = std::upper_bound(angle.begin(), angle.end(), x);
+    const std::size_t i = it == angle.end() ? n - 2 : std::size_t(it - angle.begin()) - 1;
+    const double t = (x - angle[i]) / (angle[i + 1] - angle[i]);
+    e = error[i] + t * (error[i + 1] - error[i]);
+    return true;
+}
+
+std::string Compensation::apply(std::vector<double>& q) const {
+    for (const auto& t : terms) {
+        double e = 0;
+        if (!t.eval(q[std::size_t(t.by)], e)) {
+            char buf[200];
+            std::snprintf(buf, sizeof buf, "the compensation table (%s) covers %.3f .. %.3f degrees, not %.3f", source.c_str(),
+                          t.angle.front(), t.angle.back(), q[std::size_t(t.by)]);
+            return buf;
+        }
+        q[std::size_t(t.joint)] -= e;
+    }
+    return {};
+}
+
+void Compensation::undo(std::vector<double>& q) const {
+    for (const auto& t : terms) {
+        double e = 0;
+        if (t.eval(q[std::size_t(t.by)], e)) q[std::size_t(t.joint)] += e;
+    }
+}
+
+CompensationTerm fit_fourier(const std::vector<double>& angle, const std::vector<double>& error, int order, double& max_residual) {
+    const std::size_t n = angle.size();
+    const int cols = 1 + 2 * order;
+    Eigen::MatrixXd A(static_cast<Eigen::Index>(n), cols);
+    Eigen::VectorXd b(static_cast<Eigen::Index>(n));
+    for (std::size_t i = 0; i < n; ++i) {
+        A(long(i), 0) = 1;
+        for (int k = 1; k <= order; ++k) {
+            A(long(i), 2 * k - 1) = std::cos(k * angle[i] * kDeg);
+            A(long(i), 2 * k) = std::sin(k * angle[i] * kDeg);
+        }
+        b(long(i)) = error[i];
+    }
+    const Eigen::VectorXd c = A.colPivHouseholderQr().solve(b);
+    CompensationTerm t;
+    t.kind = CompensationTerm::Kind::Fourier;
+    t.a0 = c(0);
+    for (int k = 1; k <= order; ++k) {
+        t.cosines.push_back(c(2 * k - 1));
+        t.sines.push_back(c(2 * k));
+    }
+    max_residual = (A * c - b).cwiseAbs().maxCoeff();
+    return t;
+}
+
+}  // namespace xlate5

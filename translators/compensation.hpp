@@ -1,0 +1,40 @@
+// Error compensation (seed 001 eq. 4.6): measured deviations of the tip as functions of a
+// rotary angle, subtracted from the joint targets after IK and added back by --inverse.
+#pragma once
+#include <string>
+#include <vector>
+
+namespace xlate5 {
+
+struct CompensationTerm {
+    int joint = -1;  // the joint corrected (index into Machine::joints)
+    int by = -1;     // the rotary joint whose angle the error depends on
+    enum class Kind { Table, Fourier } kind = Kind::Table;
+    // Table: measured (angle, error) points, angles ascending; linear between them, or periodic
+    // (wrapping at 360 degrees, so the last point joins the first).
+    std::vector<double> angle, error;
+    bool periodic = false;
+    bool clamp = false;  // outside the table: the end value (false: refuse the move)
+    // Fourier: error = a0 + sum_k cos[k-1] cos(k angle) + sin[k-1] sin(k angle).
+    double a0 = 0;
+    std::vector<double> cosines, sines;
+
+    // The error at `angle` (degrees); false where the table refuses to extrapolate.
+    bool eval(double angle, double& e) const;
+};
+
+struct Compensation {
+    std::vector<CompensationTerm> terms;
+    std::string source;  // where it was read from, for messages
+    bool empty() const { return terms.empty(); }
+    // Nominal joints -> what the firmware is sent. Returns an empty string, or why not.
+    std::string apply(std::vector<double>& q) const;
+    // Sent joints -> nominal (exact: no corrected joint is an input of a term).
+    void undo(std::vector<double>& q) const;
+};
+
+// Least-squares Fourier series of `order` harmonics through (angle, error) points, and the
+// largest residual: what `xlate5 calibrate fit` prints.
+CompensationTerm fit_fourier(const std::vector<double>& angle, const std::vector<double>& error, int order, double& max_residual);
+
+}  // namespace xlate5
