@@ -6,12 +6,16 @@
 #include <cstdio>
 #include <cstring>
 #include <fcntl.h>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 #include <map>
 #include <optional>
 #include <string>
 #include <unistd.h>
 
+#include "translators/calibration.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
 #include "translators/kinematics.hpp"
@@ -118,12 +122,77 @@ int calibrate_fit(const std::string& path, int order, const std::string& joint, 
     return kOk;
 }
 
+// xlate5 calibrate plate: a plane through the probed points, and the machine's rho and psi.
+int calibrate_plate(const std::string& path, const std::string& machine_name, const std::string& output) {
+    std::FILE* f = std::fopen(path.c_str(), "r");
+    if (!f) {
+        std::cerr << "xlate5: " << path << ": cannot open\n";
+        return kIoError;
+    }
+    std::vector<Eigen::Vector3d> points;
+    char buf[512];
+    int line = 0;
+    while (std::fgets(buf, sizeof buf, f)) {
+        ++line;
+        std::string l(buf);
+        if (auto h = l.find('#'); h != std::string::npos) l.resize(h);
+        if (l.find_first_not_of(" \t\r\n") == std::string::npos) continue;
+        double x, y, z;
+        if (std::sscanf(l.c_str(), " %lf , %lf , %lf", &x, &y, &z) != 3 || !std::isfinite(x + y + z)) {
+            std::cerr << path << ":" << line << ":1: expected 'x,y,z'\n";
+            std::fclose(f);
+            return kInputError;
+        }
+        points.emplace_back(x, y, z);
+    }
+    std::fclose(f);
+    if (points.size() < 3) {
+        std::cerr << "xlate5: " << path << ": a plane needs at least 3 points, got " << points.size() << "\n";
+        return kInputError;
+    }
+    const auto fit = xlate5::fit_plate(points);
+    std::printf("plate normal (%.6f, %.6f, %.6f) from %zu points, largest residual %.4f mm\n", fit.normal.x(), fit.normal.y(),
+                fit.normal.z(), points.size(), fit.residual);
+    std::printf("rho = %.6f\npsi = %.6f\n", fit.rho, fit.psi);
+    if (output.empty()) return kOk;
+    if (machine_name.empty()) {
+        std::cerr << "xlate5: calibrate plate -o needs --machine (the file to start from)\n";
+        return kUsage;
+    }
+    try {
+        const auto m = xlate5::load_machine(machine_name);
+        if (std::filesystem::exists(output) && std::filesystem::equivalent(output, m.source_path)) {
+            std::cerr << "xlate5: " << output << " is the machine file itself: write the calibrated copy elsewhere\n";
+            return kUsage;
+        }
+        std::ifstream in(m.source_path, std::ios::binary);
+        std::ostringstream text;
+        text << in.rdbuf();
+        std::printf("was: rho = %.6f, psi = %.6f (%s)\n", m.parameters.count("rho") ? m.parameters.at("rho") : 0.0,
+                    m.parameters.count("psi") ? m.parameters.at("psi") : 0.0, m.source_path.c_str());
+        const std::string updated = xlate5::set_parameters(text.str(), m.source_path, {{"rho", fit.rho}, {"psi", fit.psi}});
+        (void)xlate5::load_machine_text(updated, output);  // the new file must load
+        xlate5::OutputSink sink(output);
+        sink.write(updated);
+        sink.commit();
+        std::printf("wrote %s\n", output.c_str());
+    } catch (const xlate5::MachineError& e) {
+        std::cerr << "xlate5: machine error: " << e.what() << "\n";
+        return kMachineError;
+    } catch (const xlate5::IoError& e) {
+        std::cerr << "xlate5: " << e.what() << "\n";
+        return kIoError;
+    }
+    return kOk;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
     CLI::App app{"xlate5: vendor-neutral 5-axis G-code -> joint-space G-code for a given machine"};
     app.set_version_flag("--version", std::string("xlate5 ") + XLATE5_VERSION);
     app.require_subcommand(0, 1);
+    app.fallthrough();  // --machine may come after a subcommand too
 
     std::string machine_name, input = "-", output = "-", mode_text, preview = "G43.4", extruder = "E", report_path, plot_path, compensation_path;
     std::vector<std::string> sets;
@@ -155,6 +224,10 @@ int main(int argc, char** argv) {
     fit_cmd->add_option("--order", fit_order, "harmonics (default 1)")->check(CLI::Range(1, 12));
     fit_cmd->add_option("--joint", fit_joint, "joint the error is taken off (for the printed [[compensation]] term)");
     fit_cmd->add_option("--by", fit_by, "rotary joint the error depends on");
+    auto* plate_cmd = calibrate_cmd->add_subcommand("plate", "plate tilt rho, psi from probed plate points (CSV: x,y,z per line, 3 or more)");
+    std::string plate_points, plate_out;
+    plate_cmd->add_option("points", plate_points, "CSV file of probed points, machine frame, mm")->required();
+    plate_cmd->add_option("-o,--output", plate_out, "write the machine file with rho and psi set here (never over the original)");
 
     try {
         app.parse(argc, argv);
@@ -167,6 +240,7 @@ int main(int argc, char** argv) {
 
     if (machines_cmd->parsed()) return list_machines();
     if (fit_cmd->parsed()) return calibrate_fit(fit_table, fit_order, fit_joint, fit_by);
+    if (plate_cmd->parsed()) return calibrate_plate(plate_points, machine_name, plate_out);
 
     std::map<std::string, double> overrides;
     xlate5::TranslatorOptions options;

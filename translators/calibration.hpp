@@ -1,0 +1,26 @@
+// Calibration math: measurements -> machine-file values. (The compensation fit is in
+// compensation.hpp.)
+#pragma once
+#include <Eigen/Core>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace xlate5 {
+
+// Plate tilt from probed points of the plate surface (three or more, least squares): the plane
+// through them, its upward normal n, and rho = atan2(n_x, n_z), psi = atan2(-n_y, hypot(n_x, n_z))
+// (degrees) for the tilt R_y(rho) R_x(psi) of seed 000 eq. 3.13, whose normal is
+// (cos psi sin rho, -sin psi, cos psi cos rho). `residual` is the largest point-plane distance.
+struct PlateFit {
+    double rho = 0, psi = 0;
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+    double residual = 0;
+};
+PlateFit fit_plate(const std::vector<Eigen::Vector3d>& points);
+
+// Rewrites `name = value` lines of the [parameters] table in a machine file's text, keeping
+// everything else (comments, order). Throws MachineError if a name is not there.
+std::string set_parameters(const std::string& toml_text, const std::string& source, const std::map<std::string, double>& values);
+
+}  // namespace xlate5
