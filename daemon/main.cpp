@@ -1,6 +1,7 @@
 // xlate5: the command line. Parses options, loads the machine, and runs the translation stages;
 // the stages themselves live in translators/.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -80,33 +81,47 @@ int list_machines() {
     return kOk;
 }
 
+// Rows of numbers from a small measurement file: `columns` comma-separated numbers a line,
+// '#' comments and blank lines skipped. Prints "path:line:1: ..." and returns false on a bad line.
+bool read_rows(const std::string& path, int columns, std::vector<std::vector<double>>& rows, int& exit_code) {
+    std::ifstream in(path);
+    if (!in) {
+        std::cerr << "xlate5: " << path << ": cannot open\n";
+        exit_code = kIoError;
+        return false;
+    }
+    std::string l;
+    for (int line = 1; std::getline(in, l); ++line) {
+        if (auto h = l.find('#'); h != std::string::npos) l.resize(h);
+        if (l.find_first_not_of(" \t\r") == std::string::npos) continue;
+        std::vector<double> row;
+        std::istringstream fields(l);
+        std::string field;
+        while (std::getline(fields, field, ',')) {
+            char* end = nullptr;
+            const double v = std::strtod(field.c_str(), &end);
+            while (end && (*end == ' ' || *end == '\t' || *end == '\r')) ++end;
+            if (end == field.c_str() || (end && *end) || !std::isfinite(v)) break;
+            row.push_back(v);
+        }
+        if (int(row.size()) != columns || std::count(l.begin(), l.end(), ',') != columns - 1) {
+            std::cerr << path << ":" << line << ":1: expected " << columns << " comma-separated numbers\n";
+            exit_code = kInputError;
+            return false;
+        }
+        rows.push_back(row);
+    }
+    return true;
+}
+
 // xlate5 calibrate fit: least-squares Fourier series through a measured table, printed as a
 // [[compensation]] term with the residual, so a user can paste it into a machine file.
 int calibrate_fit(const std::string& path, int order, const std::string& joint, const std::string& by) {
-    std::FILE* f = std::fopen(path.c_str(), "r");
-    if (!f) {
-        std::cerr << "xlate5: " << path << ": cannot open\n";
-        return kIoError;
-    }
+    std::vector<std::vector<double>> rows;
+    int code = kOk;
+    if (!read_rows(path, 2, rows, code)) return code;
     std::vector<double> angle, error;
-    char buf[512];
-    int line = 0;
-    while (std::fgets(buf, sizeof buf, f)) {
-        ++line;
-        std::string l(buf);
-        if (auto h = l.find('#'); h != std::string::npos) l.resize(h);
-        if (l.find_first_not_of(" \t\r\n") == std::string::npos) continue;
-        double a = 0, e = 0;
-        char sep = 0;
-        if (std::sscanf(l.c_str(), " %lf %c %lf", &a, &sep, &e) != 3 || (sep != ',' && sep != ';') || !std::isfinite(a) || !std::isfinite(e)) {
-            std::cerr << path << ":" << line << ":1: expected 'angle,error'\n";
-            std::fclose(f);
-            return kInputError;
-        }
-        angle.push_back(a);
-        error.push_back(e);
-    }
-    std::fclose(f);
+    for (const auto& r : rows) angle.push_back(r[0]), error.push_back(r[1]);
     if (int(angle.size()) < 2 * order + 1) {
         std::cerr << "xlate5: " << path << ": " << angle.size() << " points cannot fit " << order << " harmonics (need " << 2 * order + 1 << ")\n";
         return kInputError;
@@ -124,28 +139,11 @@ int calibrate_fit(const std::string& path, int order, const std::string& joint, 
 
 // xlate5 calibrate plate: a plane through the probed points, and the machine's rho and psi.
 int calibrate_plate(const std::string& path, const std::string& machine_name, const std::string& output) {
-    std::FILE* f = std::fopen(path.c_str(), "r");
-    if (!f) {
-        std::cerr << "xlate5: " << path << ": cannot open\n";
-        return kIoError;
-    }
+    std::vector<std::vector<double>> rows;
+    int code = kOk;
+    if (!read_rows(path, 3, rows, code)) return code;
     std::vector<Eigen::Vector3d> points;
-    char buf[512];
-    int line = 0;
-    while (std::fgets(buf, sizeof buf, f)) {
-        ++line;
-        std::string l(buf);
-        if (auto h = l.find('#'); h != std::string::npos) l.resize(h);
-        if (l.find_first_not_of(" \t\r\n") == std::string::npos) continue;
-        double x, y, z;
-        if (std::sscanf(l.c_str(), " %lf , %lf , %lf", &x, &y, &z) != 3 || !std::isfinite(x + y + z)) {
-            std::cerr << path << ":" << line << ":1: expected 'x,y,z'\n";
-            std::fclose(f);
-            return kInputError;
-        }
-        points.emplace_back(x, y, z);
-    }
-    std::fclose(f);
+    for (const auto& r : rows) points.emplace_back(r[0], r[1], r[2]);
     if (points.size() < 3) {
         std::cerr << "xlate5: " << path << ": a plane needs at least 3 points, got " << points.size() << "\n";
         return kInputError;
