@@ -226,6 +226,12 @@ int main(int argc, char** argv) {
     std::string plate_points, plate_out;
     plate_cmd->add_option("points", plate_points, "CSV file of probed points, machine frame, mm")->required();
     plate_cmd->add_option("-o,--output", plate_out, "write the machine file with rho and psi set here (never over the original)");
+    auto* offset_cmd = calibrate_cmd->add_subcommand("offset", "rotary zero offset from plate touches along Y (CSV: y,z per line; seed 002 eq. 5.5)");
+    std::string offset_points;
+    offset_cmd->add_option("points", offset_points, "CSV file of touches: Y, Z (mm), two or more, both sides of the axis")->required();
+    auto* centre_cmd = calibrate_cmd->add_subcommand("centre", "rotation centre from dots at several rotary angles (CSV: x,y per line)");
+    std::string centre_points;
+    centre_cmd->add_option("points", centre_points, "CSV file of measured dot positions (mm), three or more")->required();
 
     try {
         app.parse(argc, argv);
@@ -239,6 +245,28 @@ int main(int argc, char** argv) {
     if (machines_cmd->parsed()) return list_machines();
     if (fit_cmd->parsed()) return calibrate_fit(fit_table, fit_order, fit_joint, fit_by);
     if (plate_cmd->parsed()) return calibrate_plate(plate_points, machine_name, plate_out);
+    if (offset_cmd->parsed() || centre_cmd->parsed()) {
+        const bool offset = offset_cmd->parsed();
+        std::vector<std::vector<double>> rows;
+        int code = kOk;
+        if (!read_rows(offset ? offset_points : centre_points, 2, rows, code)) return code;
+        std::vector<Eigen::Vector2d> pts;
+        for (const auto& r : rows) pts.emplace_back(r[0], r[1]);
+        if (pts.size() < (offset ? 2u : 3u)) {
+            std::cerr << "xlate5: need at least " << (offset ? 2 : 3) << " points, got " << pts.size() << "\n";
+            return kInputError;
+        }
+        if (offset) {
+            const auto f = xlate5::fit_rotary_offset(pts);
+            std::printf("rotary offset %.6f deg (atan of dZ/dY over %zu touches), plate Z at Y = 0: %.4f mm, largest residual %.4f mm\n",
+                        f.offset_deg, pts.size(), f.z_error, f.residual);
+        } else {
+            const auto f = xlate5::fit_circle(pts);
+            std::printf("rotation centre (%.4f, %.4f), radius %.4f mm, largest residual %.4f mm over %zu dots\n", f.centre.x(),
+                        f.centre.y(), f.radius, f.residual, pts.size());
+        }
+        return kOk;
+    }
 
     std::map<std::string, double> overrides;
     xlate5::TranslatorOptions options;

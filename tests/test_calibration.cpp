@@ -75,3 +75,50 @@ TEST_CASE("set_parameters rewrites only the named [parameters] values and keeps 
     CHECK(contains(out, "[input]\nrho = 5\n"));  // outside [parameters]: untouched
     CHECK_THROWS_AS(set_parameters(text, "t.toml", {{"nope", 1}}), MachineError);
 }
+
+TEST_CASE("rotary zero offset: seed 002 eq. 5.5, and two-sided touches that separate tilt from Z error") {
+    // A plate tilted by the A offset about x through the origin: Z = Y tan(offset) + z0.
+    std::mt19937 rng(21);
+    std::uniform_real_distribution<double> U(-1, 1);
+    for (int trial = 0; trial < 40; ++trial) {
+        const double offset = 2 * U(rng), z0 = 0.3 * U(rng);
+        auto touch = [&](double y) { return Eigen::Vector2d(y, y * std::tan(rad(offset)) + z0); };
+        // Eq. 5.5 with an exact Z origin: one touch is enough.
+        const Eigen::Vector2d one = touch(30) - Eigen::Vector2d(0, z0);
+        CHECK(std::atan(one.y() / one.x()) * 180 / kPi == doctest::Approx(offset).epsilon(1e-9));
+        // Two sides (Y = +-30) recover both the offset and the Z-origin error.
+        const OffsetFit f = fit_rotary_offset({touch(30), touch(-30)});
+        CHECK(f.offset_deg == doctest::Approx(offset).epsilon(1e-9));
+        CHECK(std::abs(f.z_error - z0) < 1e-9);
+        // Noisy touches (0.01 mm) along Y: within the noise.
+        std::vector<Eigen::Vector2d> many;
+        std::normal_distribution<double> noise(0, 0.01);
+        for (double y = -40; y <= 40; y += 10) many.push_back(touch(y) + Eigen::Vector2d(0, noise(rng)));
+        const OffsetFit g = fit_rotary_offset(many);
+        CHECK(std::abs(g.offset_deg - offset) < std::atan(0.03 / 40) * 180 / kPi);
+        CHECK(std::abs(g.z_error - z0) < 0.02);
+    }
+}
+
+TEST_CASE("rotation centre from dots printed at several angles of C") {
+    std::mt19937 rng(4);
+    std::uniform_real_distribution<double> U(-1, 1);
+    for (int trial = 0; trial < 40; ++trial) {
+        const Eigen::Vector2d centre(3 * U(rng), 3 * U(rng));
+        const double r = 5 + 20 * (U(rng) + 1);
+        // Dots at 0, 90, 180, 270 (seed 002's procedure): exact.
+        std::vector<Eigen::Vector2d> dots;
+        for (int k = 0; k < 4; ++k) dots.push_back(centre + r * Eigen::Vector2d(std::cos(rad(90.0 * k + 10 * trial)), std::sin(rad(90.0 * k + 10 * trial))));
+        const CircleFit f = fit_circle(dots);
+        CHECK((f.centre - centre).norm() < 1e-9);
+        CHECK(f.radius == doctest::Approx(r).epsilon(1e-9));
+        // Eight noisy dots over only 120 degrees: still within a few times the noise.
+        std::vector<Eigen::Vector2d> arc;
+        std::normal_distribution<double> noise(0, 0.02);
+        for (int k = 0; k < 8; ++k)
+            arc.push_back(centre + r * Eigen::Vector2d(std::cos(rad(15.0 * k)), std::sin(rad(15.0 * k))) + Eigen::Vector2d(noise(rng), noise(rng)));
+        const CircleFit g = fit_circle(arc);
+        CHECK((g.centre - centre).norm() < 0.3);
+        CHECK(g.residual < 0.1);
+    }
+}

@@ -360,3 +360,21 @@ TEST_CASE("cli: calibrate fit recovers a known series from noisy measurements, w
     CHECK(b.code == 1);
     CHECK(contains(b.err, "bad.csv:2:1:"));
 }
+
+TEST_CASE("cli: calibrate offset gives seed 002 eq. 5.5; calibrate centre the circle through the dots") {
+    TempDir d;
+    // Seed 002 sec. 5.2.1's procedure: touch at Y = 30 and Y = -30.
+    const Result r = run(d, "calibrate offset " + quote(d.write("t.csv", "30, 0.5\n-30, -0.5\n").string()));
+    REQUIRE(r.code == 0);
+    double offset = 0;
+    REQUIRE(std::sscanf(r.out.c_str(), "rotary offset %lf", &offset) == 1);
+    CHECK(offset == doctest::Approx(std::atan(0.5 / 30) * 180 / kPi).epsilon(1e-6));
+    const Result c = run(d, "calibrate centre " + quote(d.write("c.csv", "12,3\n2,13\n-8,3\n2,-7\n").string()));
+    REQUIRE(c.code == 0);
+    double cx = 0, cy = 0, radius = 0;
+    REQUIRE(std::sscanf(c.out.c_str(), "rotation centre (%lf, %lf), radius %lf", &cx, &cy, &radius) == 3);
+    CHECK(cx == doctest::Approx(2).epsilon(1e-6));
+    CHECK(cy == doctest::Approx(3).epsilon(1e-6));
+    CHECK(radius == doctest::Approx(10).epsilon(1e-6));
+    CHECK(run(d, "calibrate centre " + quote(d.write("few.csv", "1,2\n3,4\n").string())).code == 1);
+}

@@ -27,6 +27,57 @@ PlateFit fit_plate(const std::vector<Eigen::Vector3d>& points) {
     return f;
 }
 
+OffsetFit fit_rotary_offset(const std::vector<Eigen::Vector2d>& yz) {
+    // Least-squares line z = a y + b.
+    Eigen::MatrixXd A(static_cast<Eigen::Index>(yz.size()), 2);
+    Eigen::VectorXd z(static_cast<Eigen::Index>(yz.size()));
+    for (std::size_t i = 0; i < yz.size(); ++i) {
+        A(Eigen::Index(i), 0) = yz[i].x();
+        A(Eigen::Index(i), 1) = 1;
+        z(Eigen::Index(i)) = yz[i].y();
+    }
+    const Eigen::Vector2d ab = A.colPivHouseholderQr().solve(z);
+    OffsetFit f;
+    f.offset_deg = std::atan(ab(0)) * 180.0 / 3.14159265358979323846;
+    f.z_error = ab(1);
+    f.residual = (A * ab - z).cwiseAbs().maxCoeff();
+    return f;
+}
+
+CircleFit fit_circle(const std::vector<Eigen::Vector2d>& pts) {
+    // Algebraic fit (x^2 + y^2 = 2 a x + 2 b y + c), then one Gauss-Newton refinement of the
+    // geometric distances, which is exact for points on a circle.
+    Eigen::MatrixXd A(static_cast<Eigen::Index>(pts.size()), 3);
+    Eigen::VectorXd r(static_cast<Eigen::Index>(pts.size()));
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+        A(Eigen::Index(i), 0) = 2 * pts[i].x();
+        A(Eigen::Index(i), 1) = 2 * pts[i].y();
+        A(Eigen::Index(i), 2) = 1;
+        r(Eigen::Index(i)) = pts[i].squaredNorm();
+    }
+    const Eigen::Vector3d s = A.colPivHouseholderQr().solve(r);
+    CircleFit f;
+    f.centre = Eigen::Vector2d(s(0), s(1));
+    f.radius = std::sqrt(std::max(0.0, s(2) + f.centre.squaredNorm()));
+    for (int iter = 0; iter < 5; ++iter) {
+        Eigen::MatrixXd J(static_cast<Eigen::Index>(pts.size()), 3);
+        Eigen::VectorXd res(static_cast<Eigen::Index>(pts.size()));
+        for (std::size_t i = 0; i < pts.size(); ++i) {
+            const Eigen::Vector2d d = pts[i] - f.centre;
+            const double n = std::max(d.norm(), 1e-12);
+            J(Eigen::Index(i), 0) = -d.x() / n;
+            J(Eigen::Index(i), 1) = -d.y() / n;
+            J(Eigen::Index(i), 2) = -1;
+            res(Eigen::Index(i)) = n - f.radius;
+        }
+        const Eigen::Vector3d step = J.colPivHouseholderQr().solve(-res);
+        f.centre += step.head<2>();
+        f.radius += step(2);
+    }
+    for (const auto& p : pts) f.residual = std::max(f.residual, std::abs((p - f.centre).norm() - f.radius));
+    return f;
+}
+
 std::string set_parameters(const std::string& text, const std::string& source, const std::map<std::string, double>& values) {
     std::istringstream in(text);
     std::string line, out;

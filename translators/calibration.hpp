@@ -19,6 +19,25 @@ struct PlateFit {
 };
 PlateFit fit_plate(const std::vector<Eigen::Vector3d>& points);
 
+// Rotary zero offset (seed 002 eq. 5.5, A_offset = atan(Z / Y)) from plate touches at two or
+// more points along Y: the slope of Z over Y gives the offset, the intercept the Z-origin error,
+// which a single touch (eq. 5.5 as printed) cannot tell apart from a tilt.
+struct OffsetFit {
+    double offset_deg = 0;   // atan(dZ / dY)
+    double z_error = 0;      // Z of the plate at Y = 0
+    double residual = 0;
+};
+OffsetFit fit_rotary_offset(const std::vector<Eigen::Vector2d>& yz);
+
+// Rotation centre from points printed or probed at several angles of a rotary (x, y in its
+// plane): the least-squares circle through them.
+struct CircleFit {
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+    double radius = 0;
+    double residual = 0;
+};
+CircleFit fit_circle(const std::vector<Eigen::Vector2d>& points);
+
 // Rewrites `name = value` lines of the [parameters] table in a machine file's text, keeping
 // everything else (comments, order). Throws MachineError if a name is not there.
 std::string set_parameters(const std::string& toml_text, const std::string& source, const std::map<std::string, double>& values);
