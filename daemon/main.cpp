@@ -229,6 +229,11 @@ int main(int argc, char** argv) {
     auto* offset_cmd = calibrate_cmd->add_subcommand("offset", "rotary zero offset from plate touches along Y (CSV: y,z per line; seed 002 eq. 5.5)");
     std::string offset_points;
     offset_cmd->add_option("points", offset_points, "CSV file of touches: Y, Z (mm), two or more, both sides of the axis")->required();
+    auto* pivots_cmd = calibrate_cmd->add_subcommand("pivots", "machine parameters (link lengths, pivots) from tips measured at known joints");
+    std::string pivots_points, pivots_fit, pivots_out;
+    pivots_cmd->add_option("points", pivots_points, "CSV: the joints in the machine file's order, then the measured tip x,y,z (part frame, mm)")->required();
+    pivots_cmd->add_option("--fit", pivots_fit, "parameters to fit, comma-separated, e.g. la,lb")->required();
+    pivots_cmd->add_option("-o,--output", pivots_out, "write the machine file with the fitted values here (never over the original)");
     auto* centre_cmd = calibrate_cmd->add_subcommand("centre", "rotation centre from dots at several rotary angles (CSV: x,y per line)");
     std::string centre_points;
     centre_cmd->add_option("points", centre_points, "CSV file of measured dot positions (mm), three or more")->required();
@@ -245,6 +250,61 @@ int main(int argc, char** argv) {
     if (machines_cmd->parsed()) return list_machines();
     if (fit_cmd->parsed()) return calibrate_fit(fit_table, fit_order, fit_joint, fit_by);
     if (plate_cmd->parsed()) return calibrate_plate(plate_points, machine_name, plate_out);
+    if (pivots_cmd->parsed()) {
+        try {
+            if (machine_name.empty()) throw CLI::ValidationError("--machine", "calibrate pivots needs the machine to start from");
+            const auto m = xlate5::load_machine(machine_name, parse_sets(sets));
+            std::vector<std::vector<double>> rows;
+            int code = kOk;
+            const int n = int(m.joints.size());
+            if (!read_rows(pivots_points, n + 3, rows, code)) return code;
+            std::vector<std::string> names;
+            std::stringstream list(pivots_fit);
+            for (std::string name; std::getline(list, name, ',');)
+                if (!name.empty()) names.push_back(name);
+            std::vector<std::vector<double>> joints;
+            std::vector<Eigen::Vector3d> tips;
+            for (const auto& r : rows) {
+                joints.emplace_back(r.begin(), r.begin() + n);
+                tips.emplace_back(r[std::size_t(n)], r[std::size_t(n + 1)], r[std::size_t(n + 2)]);
+            }
+            if (tips.size() * 3 < names.size()) {
+                std::cerr << "xlate5: " << tips.size() << " measurements cannot fit " << names.size() << " parameters\n";
+                return kInputError;
+            }
+            std::ifstream in(m.source_path, std::ios::binary);
+            std::ostringstream text;
+            text << in.rdbuf();
+            const auto fit = xlate5::fit_parameters(text.str(), m.source_path, names, m.parameters, joints, tips);
+            for (const auto& name : names)
+                std::printf("%s = %.6f   (was %.6f)\n", name.c_str(), fit.values.at(name), m.parameters.at(name));
+            std::printf("largest residual %.4f mm over %zu measurements\n", fit.residual, tips.size());
+            if (!pivots_out.empty()) {
+                if (std::filesystem::exists(pivots_out) && std::filesystem::equivalent(pivots_out, m.source_path)) {
+                    std::cerr << "xlate5: " << pivots_out << " is the machine file itself: write the calibrated copy elsewhere\n";
+                    return kUsage;
+                }
+                std::map<std::string, double> values;
+                for (const auto& name : names) values[name] = fit.values.at(name);
+                const std::string updated = xlate5::set_parameters(text.str(), m.source_path, values);
+                (void)xlate5::load_machine_text(updated, pivots_out);
+                xlate5::OutputSink sink(pivots_out);
+                sink.write(updated);
+                sink.commit();
+                std::printf("wrote %s\n", pivots_out.c_str());
+            }
+            return kOk;
+        } catch (const CLI::Error& e) {
+            std::cerr << "xlate5: " << e.what() << "\n";
+            return kUsage;
+        } catch (const xlate5::MachineError& e) {
+            std::cerr << "xlate5: machine error: " << e.what() << "\n";
+            return kMachineError;
+        } catch (const xlate5::IoError& e) {
+            std::cerr << "xlate5: " << e.what() << "\n";
+            return kIoError;
+        }
+    }
     if (offset_cmd->parsed() || centre_cmd->parsed()) {
         const bool offset = offset_cmd->parsed();
         std::vector<std::vector<double>> rows;

@@ -122,3 +122,54 @@ TEST_CASE("rotation centre from dots printed at several angles of C") {
         CHECK(g.residual < 0.1);
     }
 }
+
+TEST_CASE("pivot and link lengths from measured tips: rw2's la, lb and wpi5's z_offset") {
+    const std::string dir = XLATE5_MACHINE_DIR_FOR_TESTS;
+    auto read = [](const std::string& path) {
+        std::FILE* f = std::fopen(path.c_str(), "rb");
+        REQUIRE(f);
+        std::string t;
+        char buf[4096];
+        std::size_t n;
+        while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) t.append(buf, n);
+        std::fclose(f);
+        return t;
+    };
+    std::mt19937 rng(13);
+    std::uniform_real_distribution<double> U(-1, 1);
+    std::normal_distribution<double> noise(0, 0.02);
+    // rw2: the truth is la = 29 (table 4.1), lb = 47.9; the fit starts from the script's 26.5 / 45.
+    {
+        const std::string text = read(dir + "/rw2.toml");
+        const Machine truth = load_machine_text(text, "rw2", {{"la", 29.0}, {"lb", 47.9}});
+        const Kinematics k(truth);
+        std::vector<std::vector<double>> joints;
+        std::vector<Eigen::Vector3d> tips;
+        for (int i = 0; i < 12; ++i) {
+            std::vector<double> q = {100 + 20 * U(rng), 100 + 20 * U(rng), 20 + 5 * U(rng), 150 * U(rng), 60 * U(rng)};
+            joints.push_back(q);
+            tips.push_back(k.forward(q).tip + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+        }
+        const ParameterFit f = fit_parameters(text, "rw2", {"la", "lb"}, {{"la", 26.5}, {"lb", 45.0}}, joints, tips);
+        MESSAGE("rw2: la " << f.values.at("la") << ", lb " << f.values.at("lb") << ", residual " << f.residual << " mm");
+        CHECK(std::abs(f.values.at("la") - 29.0) < 0.05);
+        CHECK(std::abs(f.values.at("lb") - 47.9) < 0.05);
+        CHECK(f.residual < 0.1);
+    }
+    // wpi5: the A pivot height, exact data.
+    {
+        const std::string text = read(dir + "/wpi5.toml");
+        const Machine truth = load_machine_text(text, "wpi5", {{"z_offset", 37.5}});
+        const Kinematics k(truth);
+        std::vector<std::vector<double>> joints;
+        std::vector<Eigen::Vector3d> tips;
+        for (int i = 0; i < 6; ++i) {
+            std::vector<double> q = {30 * U(rng), 30 * U(rng), -50 + 10 * U(rng), 60 * U(rng), 180 * U(rng)};
+            joints.push_back(q);
+            tips.push_back(k.forward(q).tip);
+        }
+        const ParameterFit f = fit_parameters(text, "wpi5", {"z_offset"}, {{"z_offset", 40.0}}, joints, tips);
+        CHECK(f.values.at("z_offset") == doctest::Approx(37.5).epsilon(1e-8));
+        CHECK(f.residual < 1e-8);
+    }
+}

@@ -378,3 +378,30 @@ TEST_CASE("cli: calibrate offset gives seed 002 eq. 5.5; calibrate centre the ci
     CHECK(radius == doctest::Approx(10).epsilon(1e-6));
     CHECK(run(d, "calibrate centre " + quote(d.write("few.csv", "1,2\n3,4\n").string())).code == 1);
 }
+
+TEST_CASE("cli: calibrate pivots fits rw2's la from tips measured per eq. 4.5 and writes a copy") {
+    TempDir d;
+    // Tips the real head (la = 29) puts at these joints, from eq. 4.5 solved for the tip.
+    std::string csv;
+    const double la = 29, lb = 47.9;
+    const double js[][5] = {{100, 100, 20, 30, 10}, {110, 95, 22, -60, 20}, {90, 105, 18, 120, -30}, {100, 100, 20, -150, 40}, {105, 110, 21, 75, -15}};
+    for (const auto& j : js) {
+        const double A = rad(j[3]), B = rad(j[4]);
+        char line[200];
+        std::snprintf(line, sizeof line, "%g,%g,%g,%g,%g,%.6f,%.6f,%.6f\n", j[0], j[1], j[2], j[3], j[4],
+                      j[0] - std::sin(A) * la - std::cos(A) * std::sin(B) * lb, j[1] + la - std::cos(A) * la + std::sin(A) * std::sin(B) * lb,
+                      j[2] - std::cos(B) * lb + lb);
+        csv += line;
+    }
+    const fs::path out = d.path / "rw2-cal.toml";
+    const Result r = run(d, "--machine rw2 calibrate pivots " + quote(d.write("m.csv", csv).string()) + " --fit la -o " + quote(out.string()));
+    REQUIRE(r.code == 0);
+    CAPTURE(r.out);
+    double fitted = 0, was = 0;
+    REQUIRE(std::sscanf(r.out.c_str(), "la = %lf   (was %lf)", &fitted, &was) == 2);
+    CHECK(fitted == doctest::Approx(29).epsilon(1e-6));
+    CHECK(was == doctest::Approx(26.5));
+    CHECK(contains(read(out), "la = 29.000000"));
+    // Never over the original.
+    CHECK(run(d, "--machine rw2 calibrate pivots " + quote((d.path / "m.csv").string()) + " --fit la -o " + quote(machine_path("rw2"))).code == 2);
+}

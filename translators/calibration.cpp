@@ -6,6 +6,8 @@
 #include <sstream>
 
 #include "translators/error.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
 
 namespace xlate5 {
 
@@ -76,6 +78,38 @@ CircleFit fit_circle(const std::vector<Eigen::Vector2d>& pts) {
     }
     for (const auto& p : pts) f.residual = std::max(f.residual, std::abs((p - f.centre).norm() - f.radius));
     return f;
+}
+
+ParameterFit fit_parameters(const std::string& text, const std::string& source, const std::vector<std::string>& names,
+                            const std::map<std::string, double>& start, const std::vector<std::vector<double>>& joints,
+                            const std::vector<Eigen::Vector3d>& tips) {
+    std::map<std::string, double> p = start;
+    auto residuals = [&](const std::map<std::string, double>& values) {
+        const Machine m = load_machine_text(text, source, values);
+        const Kinematics k(m);
+        Eigen::VectorXd r(static_cast<Eigen::Index>(3 * tips.size()));
+        for (std::size_t i = 0; i < tips.size(); ++i) r.segment<3>(Eigen::Index(3 * i)) = k.forward(joints[i]).tip - tips[i];
+        return r;
+    };
+    ParameterFit fit;
+    for (fit.iterations = 1; fit.iterations <= 30; ++fit.iterations) {
+        const Eigen::VectorXd r = residuals(p);
+        Eigen::MatrixXd J(r.size(), static_cast<Eigen::Index>(names.size()));
+        for (std::size_t c = 0; c < names.size(); ++c) {
+            const double h = 1e-5 * std::max(1.0, std::abs(p[names[c]]));
+            auto plus = p, minus = p;
+            plus[names[c]] += h;
+            minus[names[c]] -= h;
+            J.col(Eigen::Index(c)) = (residuals(plus) - residuals(minus)) / (2 * h);
+        }
+        const Eigen::VectorXd step = J.colPivHouseholderQr().solve(-r);
+        for (std::size_t c = 0; c < names.size(); ++c) p[names[c]] += step(Eigen::Index(c));
+        if (step.norm() < 1e-10) break;
+    }
+    fit.values = p;
+    const Eigen::VectorXd r = residuals(p);
+    for (std::size_t i = 0; i < tips.size(); ++i) fit.residual = std::max(fit.residual, r.segment<3>(Eigen::Index(3 * i)).norm());
+    return fit;
 }
 
 std::string set_parameters(const std::string& text, const std::string& source, const std::map<std::string, double>& values) {

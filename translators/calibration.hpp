@@ -38,6 +38,18 @@ struct CircleFit {
 };
 CircleFit fit_circle(const std::vector<Eigen::Vector2d>& points);
 
+// Machine parameters (pivots, link lengths: seed 001's la, lb; seed 000's z_offset) from tip
+// positions measured at known joint values, by Gauss-Newton least squares on the machine's own
+// FK: any parameters of any machine file. Returns the fitted values and the largest residual.
+struct ParameterFit {
+    std::map<std::string, double> values;
+    double residual = 0;  // mm, largest |FK(q) - measured| after the fit
+    int iterations = 0;
+};
+ParameterFit fit_parameters(const std::string& machine_text, const std::string& source, const std::vector<std::string>& names,
+                            const std::map<std::string, double>& start, const std::vector<std::vector<double>>& joints,
+                            const std::vector<Eigen::Vector3d>& tips);
+
 // Rewrites `name = value` lines of the [parameters] table in a machine file's text, keeping
 // everything else (comments, order). Throws MachineError if a name is not there.
 std::string set_parameters(const std::string& toml_text, const std::string& source, const std::map<std::string, double>& values);
