@@ -81,6 +81,45 @@ int list_machines() {
     return kOk;
 }
 
+// Every error ends the same way: its message on standard error and the documented exit code.
+int exit_with(std::exception_ptr error) {
+    try {
+        std::rethrow_exception(error);
+    } catch (const xlate5::InputError& e) {
+        std::cerr << e.what() << "\n";
+        return kInputError;
+    } catch (const xlate5::MachineError& e) {
+        std::cerr << "xlate5: machine error: " << e.what() << "\n";
+        return kMachineError;
+    } catch (const xlate5::IoError& e) {
+        std::cerr << "xlate5: " << e.what() << "\n";
+        return kIoError;
+    } catch (const CLI::Error& e) {
+        std::cerr << "xlate5: " << e.what() << "\n";
+        return kUsage;
+    } catch (const std::exception& e) {
+        std::cerr << "xlate5: internal error: " << e.what() << "\n";
+        return kInternal;
+    }
+}
+
+// A calibrated copy of the machine file: the new values written in, checked to load, and never
+// over the original.
+int write_calibrated_copy(const xlate5::Machine& m, const std::string& text, const std::map<std::string, double>& values,
+                          const std::string& output) {
+    if (std::filesystem::exists(output) && std::filesystem::equivalent(output, m.source_path)) {
+        std::cerr << "xlate5: " << output << " is the machine file itself: write the calibrated copy elsewhere\n";
+        return kUsage;
+    }
+    const std::string updated = xlate5::set_parameters(text, m.source_path, values);
+    (void)xlate5::load_machine_text(updated, output);
+    xlate5::OutputSink sink(output);
+    sink.write(updated);
+    sink.commit();
+    std::printf("wrote %s\n", output.c_str());
+    return kOk;
+}
+
 // Rows of numbers from a small measurement file: `columns` comma-separated numbers a line,
 // '#' comments and blank lines skipped. Prints "path:line:1: ..." and returns false on a bad line.
 bool read_rows(const std::string& path, int columns, std::vector<std::vector<double>>& rows, int& exit_code) {
@@ -159,27 +198,14 @@ int calibrate_plate(const std::string& path, const std::string& machine_name, co
     }
     try {
         const auto m = xlate5::load_machine(machine_name);
-        if (std::filesystem::exists(output) && std::filesystem::equivalent(output, m.source_path)) {
-            std::cerr << "xlate5: " << output << " is the machine file itself: write the calibrated copy elsewhere\n";
-            return kUsage;
-        }
         std::ifstream in(m.source_path, std::ios::binary);
         std::ostringstream text;
         text << in.rdbuf();
         std::printf("was: rho = %.6f, psi = %.6f (%s)\n", m.parameters.count("rho") ? m.parameters.at("rho") : 0.0,
                     m.parameters.count("psi") ? m.parameters.at("psi") : 0.0, m.source_path.c_str());
-        const std::string updated = xlate5::set_parameters(text.str(), m.source_path, {{"rho", fit.rho}, {"psi", fit.psi}});
-        (void)xlate5::load_machine_text(updated, output);  // the new file must load
-        xlate5::OutputSink sink(output);
-        sink.write(updated);
-        sink.commit();
-        std::printf("wrote %s\n", output.c_str());
-    } catch (const xlate5::MachineError& e) {
-        std::cerr << "xlate5: machine error: " << e.what() << "\n";
-        return kMachineError;
-    } catch (const xlate5::IoError& e) {
-        std::cerr << "xlate5: " << e.what() << "\n";
-        return kIoError;
+        return write_calibrated_copy(m, text.str(), {{"rho", fit.rho}, {"psi", fit.psi}}, output);
+    } catch (...) {
+        return exit_with(std::current_exception());
     }
     return kOk;
 }
@@ -279,30 +305,12 @@ int main(int argc, char** argv) {
             for (const auto& name : names)
                 std::printf("%s = %.6f   (was %.6f)\n", name.c_str(), fit.values.at(name), m.parameters.at(name));
             std::printf("largest residual %.4f mm over %zu measurements\n", fit.residual, tips.size());
-            if (!pivots_out.empty()) {
-                if (std::filesystem::exists(pivots_out) && std::filesystem::equivalent(pivots_out, m.source_path)) {
-                    std::cerr << "xlate5: " << pivots_out << " is the machine file itself: write the calibrated copy elsewhere\n";
-                    return kUsage;
-                }
-                std::map<std::string, double> values;
-                for (const auto& name : names) values[name] = fit.values.at(name);
-                const std::string updated = xlate5::set_parameters(text.str(), m.source_path, values);
-                (void)xlate5::load_machine_text(updated, pivots_out);
-                xlate5::OutputSink sink(pivots_out);
-                sink.write(updated);
-                sink.commit();
-                std::printf("wrote %s\n", pivots_out.c_str());
-            }
-            return kOk;
-        } catch (const CLI::Error& e) {
-            std::cerr << "xlate5: " << e.what() << "\n";
-            return kUsage;
-        } catch (const xlate5::MachineError& e) {
-            std::cerr << "xlate5: machine error: " << e.what() << "\n";
-            return kMachineError;
-        } catch (const xlate5::IoError& e) {
-            std::cerr << "xlate5: " << e.what() << "\n";
-            return kIoError;
+            if (pivots_out.empty()) return kOk;
+            std::map<std::string, double> values;
+            for (const auto& name : names) values[name] = fit.values.at(name);
+            return write_calibrated_copy(m, text.str(), values, pivots_out);
+        } catch (...) {
+            return exit_with(std::current_exception());
         }
     }
     if (offset_cmd->parsed() || centre_cmd->parsed()) {
@@ -340,9 +348,8 @@ int main(int argc, char** argv) {
         if (extruder.size() != 1 || !std::isalpha(static_cast<unsigned char>(extruder[0])))
             throw CLI::ValidationError("--extruder-letter", "expected one letter");
         options.extruder_letter = char(std::toupper(static_cast<unsigned char>(extruder[0])));
-    } catch (const CLI::Error& e) {
-        std::cerr << "xlate5: " << e.what() << "\n";
-        return kUsage;
+    } catch (...) {
+        return exit_with(std::current_exception());
     }
     options.inverse = inverse;
     options.preview_form = preview == "G43.5" ? xlate5::OrientationMode::Vector : xlate5::OrientationMode::Angles;
@@ -355,20 +362,13 @@ int main(int argc, char** argv) {
         if (angle_tolerance > 0) machine->motion.angle_tolerance = angle_tolerance;
         if (no_segment) machine->motion.segment = false;
         if (!compensation_path.empty()) xlate5::load_compensation_file(compensation_path, *machine);
-    } catch (const xlate5::MachineError& e) {
-        std::cerr << "xlate5: machine error: " << e.what() << "\n";
-        return kMachineError;
+    } catch (...) {
+        return exit_with(std::current_exception());
     }
 
     int in_fd = 0;
     try {
-        std::optional<xlate5::Kinematics> kinematics;
-        try {
-            kinematics.emplace(*machine);
-        } catch (const xlate5::MachineError& e) {
-            std::cerr << "xlate5: machine error: " << e.what() << "\n";
-            return kMachineError;
-        }
+        const xlate5::Kinematics kinematics(*machine);  // a layout outside the family: MachineError
         if (input != "-") {
             in_fd = ::open(input.c_str(), O_RDONLY | O_CLOEXEC);
             if (in_fd < 0) throw xlate5::IoError(input + ": cannot open: " + std::strerror(errno));
@@ -378,7 +378,7 @@ int main(int argc, char** argv) {
             report.emplace(options.input_name, machine->name, machine->motion.tolerance, machine->motion.angle_tolerance);
             options.report = &*report;
         }
-        xlate5::Translator translator(*kinematics, options);
+        xlate5::Translator translator(kinematics, options);
         xlate5::LineReader reader(in_fd, options.input_name);
         xlate5::OutputSink sink(output);
         const auto stats = xlate5::translate_stream(reader, translator, sink);
@@ -392,15 +392,8 @@ int main(int argc, char** argv) {
         sink.commit();
         if (report_sink) report_sink->commit();
         if (plot_sink) plot_sink->commit();
-    } catch (const xlate5::InputError& e) {
-        std::cerr << e.what() << "\n";
-        return kInputError;
-    } catch (const xlate5::IoError& e) {
-        std::cerr << "xlate5: " << e.what() << "\n";
-        return kIoError;
-    } catch (const std::exception& e) {
-        std::cerr << "xlate5: internal error: " << e.what() << "\n";
-        return kInternal;
+    } catch (...) {
+        return exit_with(std::current_exception());
     }
     if (in_fd > 0) ::close(in_fd);
     return kOk;
