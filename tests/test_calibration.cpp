@@ -2,8 +2,15 @@
 // the machine model itself, recovered through the corrected closed form.
 #include <doctest/doctest.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <Eigen/Geometry>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <random>
+#include <sstream>
 
 #include "helpers.hpp"
 #include "translators/calibration.hpp"
@@ -13,10 +20,58 @@
 
 using namespace xlate5;
 using namespace xlate5::test;
+namespace fs = std::filesystem;
 
 namespace {
 Eigen::Matrix3d Rx(double d) { return Eigen::AngleAxisd(rad(d), Eigen::Vector3d::UnitX()).toRotationMatrix(); }
 Eigen::Matrix3d Ry(double d) { return Eigen::AngleAxisd(rad(d), Eigen::Vector3d::UnitY()).toRotationMatrix(); }
+
+std::string machine_path(const std::string& name) { return std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml"; }
+
+std::string read(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+std::string quote(const std::string& s) {
+    std::string q = "'";
+    for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return q + "'";
+}
+
+// The calibrate commands as a user runs them: the xlate5 binary in a scratch directory of its own.
+struct Scratch {
+    fs::path path;
+    Scratch() {
+        std::string pattern = (fs::temp_directory_path() / "xlate5-calib-XXXXXX").string();
+        REQUIRE(::mkdtemp(pattern.data()) != nullptr);
+        path = pattern;
+    }
+    ~Scratch() {
+        std::error_code ec;
+        fs::remove_all(path, ec);
+    }
+    Scratch(const Scratch&) = delete;
+    Scratch& operator=(const Scratch&) = delete;
+    fs::path write(const std::string& name, const std::string& text) const {
+        std::ofstream(path / name, std::ios::binary) << text;
+        return path / name;
+    }
+    struct Result {
+        int code = -1;
+        std::string out, err;
+    };
+    Result run(const std::string& args) const {
+        const fs::path out = path / ".out", err = path / ".err";
+        const std::string cmd = quote(XLATE5_BINARY) + " " + args + " </dev/null >" + quote(out.string()) + " 2>" + quote(err.string());
+        const int status = std::system(cmd.c_str());
+        REQUIRE(status != -1);
+        REQUIRE(WIFEXITED(status));
+        return {WEXITSTATUS(status), read(out), read(err)};
+    }
+};
 }  // namespace
 
 TEST_CASE("three exact points give rho and psi exactly; many noisy points within the noise") {
@@ -172,4 +227,113 @@ TEST_CASE("pivot and link lengths from measured tips: rw2's la, lb and wpi5's z_
         CHECK(f.values.at("z_offset") == doctest::Approx(37.5).epsilon(1e-8));
         CHECK(f.residual < 1e-8);
     }
+}
+
+TEST_CASE("CLI: calibrate offset writes pentarod's a_offset from touches the tilted table gives, within the noise") {
+    const Scratch d;
+    // The truth: a table tilted 0.8 degrees at A = 0. Touches are simulated with pentarod's own
+    // FK: at (X 0, Y y, A 0, C 0), the Z where the nozzle tip meets the plate (part z = 0),
+    // then 0.01 mm of probe noise.
+    const double truth = 0.8, sigma = 0.01;
+    const Machine m = load_machine(machine_path("pentarod"), {{"a_offset", truth}});
+    const Kinematics k(m);
+    std::mt19937 rng(5);
+    std::normal_distribution<double> noise(0, sigma);
+    std::string csv = "# y, z\n";
+    double sum_y2 = 0;
+    for (double y = -40; y <= 40; y += 10) {
+        // The tip's part-frame z is affine in the Z joint: two evaluations give the touch.
+        const double z0 = k.forward({0, y, 0, 0, 0}).tip.z(), z1 = k.forward({0, y, 1, 0, 0}).tip.z();
+        char line[64];
+        std::snprintf(line, sizeof line, "%g, %.6f\n", y, -z0 / (z1 - z0) + noise(rng));
+        csv += line;
+        sum_y2 += y * y;
+    }
+    const fs::path touches = d.write("touches.csv", csv);
+    // A copy of the machine file, so the refusal below can be checked on a file we own.
+    const fs::path original = d.write("pentarod.toml", read(machine_path("pentarod")));
+    const fs::path out = d.path / "pentarod-cal.toml";
+    const Scratch::Result r = d.run("--machine " + quote(original.string()) + " calibrate offset " + quote(touches.string()) + " --param a_offset -o " +
+                                quote(out.string()));
+    CAPTURE(r.out);
+    CAPTURE(r.err);
+    REQUIRE(r.code == 0);
+    CHECK(contains(r.out, "a_offset: 0.000000 -> "));
+    CHECK(contains(r.out, "largest residual"));
+    // The written file loads and holds the tilt within 4 standard deviations of a line fit's slope.
+    const Machine cal = load_machine(out.string());
+    const double bound = 4 * sigma / std::sqrt(sum_y2) * 180 / kPi;
+    MESSAGE("a_offset recovered " << cal.parameters.at("a_offset") << " (truth " << truth << ", bound " << bound << ")");
+    CHECK(std::abs(cal.parameters.at("a_offset") - truth) < bound);
+    // Never over the original, whichever way its path is spelled; the original is unchanged.
+    const std::string before = read(original);
+    for (const fs::path& target : {original, d.path / "." / "pentarod.toml"}) {
+        const Scratch::Result again = d.run("--machine " + quote(original.string()) + " calibrate offset " + quote(touches.string()) +
+                                        " --param a_offset -o " + quote(target.string()));
+        CHECK(again.code == 2);
+        CHECK(contains(again.err, "is the machine file itself"));
+    }
+    CHECK(read(original) == before);
+    // -o without --param, and a parameter the machine does not have.
+    CHECK(d.run("--machine pentarod calibrate offset " + quote(touches.string()) + " -o " + quote((d.path / "x.toml").string())).code == 2);
+    const Scratch::Result nope = d.run("--machine pentarod calibrate offset " + quote(touches.string()) + " --param b_offset -o " +
+                                   quote((d.path / "x.toml").string()));
+    CHECK(nope.code == 3);
+    CHECK(contains(nope.err, "no 'b_offset'"));
+    CHECK_FALSE(fs::exists(d.path / "x.toml"));
+}
+
+TEST_CASE("CLI: calibrate centre writes the C axis position (pentarod cx, cy; koc5 wx, wy) from dots, within the noise") {
+    const Scratch d;
+    const double sigma = 0.01;
+    std::mt19937 rng(17);
+    std::normal_distribution<double> noise(0, sigma);
+    struct Case {
+        const char* machine;
+        const char* names;
+        std::map<std::string, double> truth;
+        std::vector<double> joints;  // the nozzle's place; C (last) is turned for each dot
+    };
+    const Case cases[] = {{"pentarod", "cx,cy", {{"cx", 1.3}, {"cy", -0.7}}, {15, 5, 0, 0, 0}},
+                          {"koc5", "wx,wy", {{"wx", -2.1}, {"wy", 0.9}}, {10, -5, 0, 0, 0}}};
+    for (const Case& c : cases) {
+        CAPTURE(c.machine);
+        // Dots printed with the nozzle held still while the plate turns by C (seed 002: every
+        // 90 degrees; here every 45), found through the machine's own FK: the plate point under
+        // the nozzle. Read back at C = 0 the part frame is the machine frame.
+        const Machine truth = load_machine(machine_path(c.machine), c.truth);
+        const Kinematics k(truth);
+        std::string csv;
+        for (int i = 0; i < 8; ++i) {
+            std::vector<double> q = c.joints;
+            q.back() = 45.0 * i;
+            const Eigen::Vector3d dot = k.forward(q).tip;
+            char line[80];
+            std::snprintf(line, sizeof line, "%.6f,%.6f\n", dot.x() + noise(rng), dot.y() + noise(rng));
+            csv += line;
+        }
+        const fs::path dots = d.write(std::string(c.machine) + "-dots.csv", csv);
+        const fs::path out = d.path / (std::string(c.machine) + "-cal.toml");
+        const Scratch::Result r = d.run(std::string("--machine ") + c.machine + " calibrate centre " + quote(dots.string()) + " --param " + c.names +
+                                    " -o " + quote(out.string()));
+        CAPTURE(r.out);
+        CAPTURE(r.err);
+        REQUIRE(r.code == 0);
+        const Machine cal = load_machine(out.string());
+        // Eight dots with independent x, y noise: the centre's error is about sigma / 2 per axis.
+        for (const auto& [name, value] : c.truth) {
+            CHECK(contains(r.out, name + ": 0.000000 -> "));
+            CHECK(std::abs(cal.parameters.at(name) - value) < 4 * sigma);
+        }
+        // Everything else in the file is as it was.
+        for (const auto& [name, value] : load_machine(machine_path(c.machine)).parameters)
+            if (!c.truth.count(name)) CHECK(cal.parameters.at(name) == value);
+        CHECK(d.run(std::string("--machine ") + c.machine + " calibrate centre " + quote(dots.string()) + " --param " + c.names + " -o " +
+                         quote(machine_path(c.machine)))
+                  .code == 2);
+    }
+    // Two names, X then Y.
+    const fs::path dots = d.path / "pentarod-dots.csv";
+    CHECK(d.run("--machine pentarod calibrate centre " + quote(dots.string()) + " --param cx -o " + quote((d.path / "y.toml").string())).code == 2);
+    CHECK_FALSE(fs::exists(d.path / "y.toml"));
 }
