@@ -158,7 +158,7 @@ TEST_CASE("cli: bad G-code exits 1 with file:line:column: on standard error") {
 
 TEST_CASE("cli: with -o, bad input leaves no output file and an existing one unchanged") {
     TempDir d;
-    const fs::path in = d.write("bad.gcode", "G1 X1 Y1 Z1 A0 B0\nG1 X2\nG1 A170\n");
+    const fs::path in = d.write("bad.gcode", "G1 X1 Y1 Z1 A0 B0\nG1 X2\nG1 B-101\n");
     const fs::path out = d.path / "out.gcode";
     Result r = run(d, "-m rw2 -i " + quote(in.string()) + " -o " + quote(out.string()));
     CHECK(r.code == 1);

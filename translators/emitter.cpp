@@ -52,6 +52,16 @@ void JointEmitter::invalidate(const std::vector<double>& q) {
     believed_ = q;
 }
 
+void JointEmitter::copy_state_from(const JointEmitter& other) {
+    last_ = other.last_;
+    known_ = other.known_;
+    believed_ = other.believed_;
+    sent_ = other.sent_;
+    last_f_ = other.last_f_;
+    f_text_ = other.f_text_;
+    inverse_time_ = other.inverse_time_;
+}
+
 void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<bool>& commanded,
                         std::optional<PassedNumber> e, std::optional<PassedNumber> f, bool inverse_time) {
     if (inverse_time != inverse_time_) {

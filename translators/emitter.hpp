@@ -42,6 +42,10 @@ public:
     // belief (a machine file's home that differs from the firmware's) never causes a surprise move.
     void invalidate(const std::vector<double>& q);
 
+    // Takes over everything `other` remembers of the firmware (the translator rewinds to a
+    // checkpoint when a limit further on is unwound on an earlier travel move).
+    void copy_state_from(const JointEmitter& other);
+
     // Appends one joint word (" A12.5") as the emitter would print it.
     void append_joint(std::string& out, std::size_t joint, double value) const;
 

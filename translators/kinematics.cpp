@@ -87,6 +87,9 @@ Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
     if (rotary_.size() > 2) throw MachineError(machine.source_path + ": at most two rotary joints are supported");
     if (rotary_.size() == 2 && w_[0].cross(w_[1]).norm() < 1e-9)
         throw MachineError(machine.source_path + ": the two rotary axes are parallel; such a machine cannot orient the tool");
+    // R(w1, 180) fixes p (p along w1) and turns w2 into -w2 (w2 normal to w1), so
+    // R(w1, t1 + 180) R(w2, -t2) p = R(w1, t1) R(w2, t2) R(w1, 180) p = R(w1, t1) R(w2, t2) p.
+    flip_ = rotary_.size() == 2 && std::abs(w_[0].dot(w_[1])) < 1e-9 && w_[0].cross(p_).norm() < 1e-9;
 }
 
 void Kinematics::eval(const std::vector<ChainElement>& chain, const std::vector<double>& q, Eigen::Matrix3d& R,
@@ -201,7 +204,8 @@ IkResult Kinematics::check_limits(const std::vector<double>& q) const {
 }
 
 IkResult Kinematics::solve_orientation(const Eigen::Vector3d& axis, const std::vector<double>& previous,
-                                       std::vector<double>& q, const std::vector<double>* free_hint, int branch) const {
+                                       std::vector<double>& q, const std::vector<double>* free_hint, int branch,
+                                       bool limited) const {
     auto solutions = orientation_solutions(axis);
     if (branch >= 0 && branch < solutions.count) {
         solutions.angle[0][0] = solutions.angle[branch][0];
@@ -239,6 +243,10 @@ IkResult Kinematics::solve_orientation(const Eigen::Vector3d& axis, const std::v
             double chosen = std::numeric_limits<double>::quiet_NaN();
             for (int turn : {0, 1, -1, 2, -2}) {
                 const double v = nearest + 360.0 * turn;
+                if (!limited) {
+                    chosen = nearest;
+                    break;
+                }
                 if (v >= J.min - 1e-9 && v <= J.max + 1e-9 && (std::isnan(chosen) || std::abs(v - prev) < std::abs(chosen - prev)))
                     chosen = v;
             }

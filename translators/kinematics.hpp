@@ -44,8 +44,11 @@ public:
     // motion stage interpolates a free joint across a move).
     // `branch` 0 or 1 restricts the choice to that orientation solution (the motion stage tries
     // the other branch where the continuous one would swing a joint round a pole).
+    // `limited` false: the nearest turn of the nearest branch whatever the limits (the continuous
+    // solution, to tell where a path leaves them).
     IkResult solve_orientation(const Eigen::Vector3d& axis, const std::vector<double>& previous,
-                               std::vector<double>& q, const std::vector<double>* free_hint = nullptr, int branch = -1) const;
+                               std::vector<double>& q, const std::vector<double>* free_hint = nullptr, int branch = -1,
+                               bool limited = true) const;
 
     // Both: orientation from `pose.axis`, then position.
     IkResult inverse(const Pose& pose, const std::vector<double>& previous, std::vector<double>& q) const;
@@ -64,6 +67,12 @@ public:
     Solutions orientation_solutions(const Eigen::Vector3d& axis) const;
     const std::vector<int>& rotary_joints() const { return rotary_; }
 
+    // True when (theta1 + 180, -theta2) gives the same tool axis as (theta1, theta2) for every
+    // angle: the second rotary is normal to the first and the tool axis (at zero) lies along the
+    // first (rw2's A/B head, A/C and B/C tables). Then the other orientation branch is an affine
+    // image of the first, so angle-form moves can be carried over to it exactly.
+    bool has_flip() const { return flip_; }
+
 private:
     struct Factor;
     void eval(const std::vector<ChainElement>& chain, const std::vector<double>& q, Eigen::Matrix3d& R,
@@ -75,6 +84,7 @@ private:
     std::vector<Eigen::Vector3d> w_;   // rotation axes in the frame of u' = G0^T u
     Eigen::Matrix3d g0_ = Eigen::Matrix3d::Identity();
     Eigen::Vector3d p_ = Eigen::Vector3d::UnitZ();
+    bool flip_ = false;
 };
 
 // Wraps an angle in degrees to (-180, 180].

@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "translators/number.hpp"
 
@@ -100,6 +101,22 @@ IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<d
     return kin_.check_limits(q);
 }
 
+IkResult MotionStage::leaves_limits(const MoveSpec& mv, double s, const std::vector<double>& previous) const {
+    if (mv.mode != OrientationMode::Vector) return {};
+    std::vector<double>& cont = sample_;
+    cont = previous;
+    if (!kin_.solve_orientation(pose_at(mv, s).axis, previous, cont, nullptr, -1, false).ok()) return {};
+    for (std::size_t j = 0; j < cont.size(); ++j) {
+        const Joint& J = machine_.joints[j];
+        if (!J.rotary || (cont[j] >= J.min - 1e-9 && cont[j] <= J.max + 1e-9)) continue;
+        char buf[200];
+        std::snprintf(buf, sizeof buf, "joint %c would run past its limit %.3f at %d%% of the move (limits %.3f .. %.3f)",
+                      J.name, cont[j] > J.max ? J.max : J.min, int(std::lround(s * 100)), J.min, J.max);
+        return {IkStatus::OutOfLimits, buf};
+    }
+    return {};
+}
+
 void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, int samples,
                               double& tip, double& angle) const {
     tip = 0;
@@ -183,8 +200,12 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                 qok = qb;
             } else {
                 bad_len = len;
-                if (len < 1e-9)
+                if (len < 1e-9) {
+                    // Either a pole, or the continuous solution runs out of a joint's limits here
+                    // and the nearest one inside them is on another branch or turn: say which.
+                    if (auto rl = leaves_limits(mv, std::min(sb, 1.0), qa); !rl.ok()) return rl;
                     return {IkStatus::Singular, "the tool axis passes a pole here: a rotary joint would have to turn instantly"};
+                }
             }
             if (ok_len > 0 && (bad_len == 0 || ++refine >= 4 || bad_len - ok_len < 0.02 * ok_len)) break;
             len = ok_len > 0 ? 0.5 * (ok_len + bad_len) : 0.5 * len;

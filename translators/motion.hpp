@@ -71,6 +71,9 @@ private:
                       int branch = -1) const;
     IkResult split(const MoveSpec& move);
     Pose pose_at(const MoveSpec& move, double s) const;
+    // An OutOfLimits result when the continuous solution at s (from `previous`) is outside a
+    // rotary joint's limits.
+    IkResult leaves_limits(const MoveSpec& move, double s, const std::vector<double>& previous) const;
 
     const Kinematics& kin_;
     const Machine& machine_;

@@ -110,6 +110,7 @@ StreamStats translate_stream(LineReader& reader, Translator& translator, OutputS
     std::string out;
     out.reserve(kFlushAt + 4096);
     std::string_view line;
+    translator.set_lookback(Translator::kDefaultLookback);  // a limit further on can be unwound on an earlier travel move
     while (reader.next(line)) {
         translator.feed(line, reader.line_number(), out);
         if (out.size() >= kFlushAt) {
@@ -119,6 +120,7 @@ StreamStats translate_stream(LineReader& reader, Translator& translator, OutputS
             out.clear();
         }
     }
+    translator.finish(out);
     sink.write(out);
     stats.bytes_out += out.size();
     stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));

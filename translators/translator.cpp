@@ -81,7 +81,9 @@ Translator::Translator(const Kinematics& kinematics, TranslatorOptions options)
       sent_q_(q_),
       commanded_(q_.size(), false),
       pose_(kin_.forward(q_)),
-      mode_(options_.inverse ? OrientationMode::Joints : options_.start_mode.value_or(machine_.start_mode)) {}
+      mode_(options_.inverse ? OrientationMode::Joints : options_.start_mode.value_or(machine_.start_mode)),
+      before_line_(kinematics.machine()),
+      checkpoint_(kinematics.machine()) {}
 
 int Translator::joint_of(char letter) const {
     if (!options_.inverse) return machine_.joint_index(letter);
@@ -115,8 +117,10 @@ bool Translator::is_axis_letter(char c) const {
     return c == 'X' || c == 'Y' || c == 'Z' || c == 'I' || c == 'J' || c == 'K' || joint_of(c) >= 0;
 }
 
-void Translator::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
+void Translator::feed_line(std::string_view line, std::uint64_t line_no, std::string& out) {
     line_no_ = line_no;
+    line_travels_ = false;
+    line_hit_limit_ = false;
     try {
         lex_line(line, block_);
     } catch (const LineError& e) {
@@ -206,6 +210,7 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
     const bool tip_known_saved = tip_known_;
     const auto mode_saved = mode_;
     const auto modes_saved = modes_;
+    const auto image_saved = image_;
     try {
         for (std::size_t i = 0; i < n_commands; ++i)
             if (commands[i].letter == 'G' && is_modal_only(commands[i].code10))
@@ -223,6 +228,7 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
         tip_known_ = tip_known_saved;
         mode_ = mode_saved;
         modes_ = modes_saved;
+        image_ = image_saved;
         emitter_.invalidate(q_);
         try {
             throw;
@@ -231,6 +237,247 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
             throw InputError(options_.input_name, line_no_, e.column(), e.what());
         }
     }
+}
+
+void Translator::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
+    if (lookback_ == 0 || options_.inverse) {
+        feed_line(line, line_no, out);
+        return;
+    }
+    save(before_line_);
+    const std::size_t held_start = held_.size(), moves_start = pending_.size();
+    try {
+        feed_line(line, line_no, held_);
+    } catch (const InputError& e) {
+        if (!line_hit_limit_) throw;
+        const bool had_checkpoint = have_checkpoint_;
+        if (!unwind_before(line, line_no)) {
+            std::string message = e.message();
+            if (had_checkpoint)
+                message += "; turning it back on the travel move at line " + std::to_string(checkpoint_line_) +
+                           " does not keep the printing from there to here within the limits: add a travel move (G0, or G1 "
+                           "without E) nearer this line, where the joint can turn back, or plan the path within the limits";
+            else
+                message += "; there is no travel move (G0, or G1 without E) within the " + std::to_string(lookback_) +
+                           " lines before this one to turn the joint back on: add one before this line, or plan the path "
+                           "within the limits";
+            throw InputError(e.file(), e.line(), e.column(), message);
+        }
+    }
+    if (line_travels_) {
+        // A travel move: the next checkpoint. What came before it is final.
+        release(held_start, moves_start, out);
+        checkpoint_.q = before_line_.q;
+        checkpoint_.sent_q = before_line_.sent_q;
+        checkpoint_.pose = before_line_.pose;
+        checkpoint_.offset = before_line_.offset;
+        checkpoint_.tip_known = before_line_.tip_known;
+        checkpoint_.mode = before_line_.mode;
+        checkpoint_.modes = before_line_.modes;
+        checkpoint_.image = before_line_.image;
+        checkpoint_.emitter.copy_state_from(before_line_.emitter);
+        have_checkpoint_ = true;
+        checkpoint_line_ = line_no;
+        chosen_ = -1;
+        window_text_.clear();
+        window_lines_.clear();
+    }
+    if (have_checkpoint_) {
+        window_text_.append(line);
+        window_text_ += '\n';
+        window_lines_.push_back(line_no);
+    }
+    // Memory stays bounded: past the window (or a few MB of output) the held lines are final.
+    constexpr std::size_t kMaxHeldBytes = std::size_t(8) << 20;
+    if (!have_checkpoint_ || window_lines_.size() > lookback_ || held_.size() > kMaxHeldBytes) {
+        release(held_.size(), pending_.size(), out);
+        have_checkpoint_ = false;
+        window_text_.clear();
+        window_lines_.clear();
+    }
+}
+
+void Translator::finish(std::string& out) {
+    release(held_.size(), pending_.size(), out);
+    have_checkpoint_ = false;
+    window_text_.clear();
+    window_lines_.clear();
+}
+
+// The line at line_no runs a joint past its limit: translate the window again from the
+// checkpoint, its travel move ending on each other solution of its pose in turn (nearest
+// first), until the window and this line fit. On failure everything is as before.
+bool Translator::unwind_before(std::string_view line, std::uint64_t line_no) {
+    if (!have_checkpoint_ || window_lines_.empty()) return false;
+    const std::string held_saved = held_;
+    const std::vector<PendingMove> pending_saved = pending_;
+    const std::vector<std::pair<char, double>> travel_saved = pending_travel_;
+    const int was = chosen_;
+    for (int k = 0; k < 64; ++k) {
+        if (k == was) continue;
+        restore(checkpoint_);
+        held_.clear();
+        pending_.clear();
+        pending_travel_.clear();
+        forced_ = k;
+        forced_missing_ = false;
+        bool ok = true;
+        try {
+            std::size_t at = 0;
+            for (const std::uint64_t no : window_lines_) {
+                const std::size_t nl = window_text_.find('\n', at);
+                feed_line(std::string_view(window_text_).substr(at, nl - at), no, held_);
+                forced_ = -1;
+                at = nl + 1;
+            }
+            feed_line(line, line_no, held_);
+        } catch (const InputError&) {
+            ok = false;
+        }
+        forced_ = -1;
+        if (ok) {
+            chosen_ = k;
+            return true;
+        }
+        if (forced_missing_) break;
+    }
+    restore(before_line_);
+    held_ = held_saved;
+    pending_ = pending_saved;
+    pending_travel_ = travel_saved;
+    return false;
+}
+
+void Translator::release(std::size_t bytes, std::size_t moves, std::string& out) {
+    out.append(held_, 0, bytes);
+    held_.erase(0, bytes);
+    if (moves == 0) return;
+    const std::size_t travel_end = pending_[moves - 1].travel_end;
+    for (std::size_t i = 0, t = 0; i < moves; ++i) {
+        const PendingMove& m = pending_[i];
+        options_.report->add_move(m.line, m.tip, m.angle, m.feed, m.pieces);
+        for (; t < m.travel_end; ++t) options_.report->add_rotary_travel(pending_travel_[t].first, pending_travel_[t].second);
+    }
+    pending_.erase(pending_.begin(), pending_.begin() + std::ptrdiff_t(moves));
+    pending_travel_.erase(pending_travel_.begin(), pending_travel_.begin() + std::ptrdiff_t(travel_end));
+    for (PendingMove& m : pending_) m.travel_end -= travel_end;
+}
+
+void Translator::report_move(const MoveResult& m) {
+    const bool hold = lookback_ > 0 && !options_.inverse;
+    for (std::size_t j = 0; j < m.travel.size(); ++j) {
+        if (!machine_.joints[j].rotary) continue;
+        if (hold) pending_travel_.emplace_back(machine_.joints[j].name, m.travel[j]);
+        else options_.report->add_rotary_travel(machine_.joints[j].name, m.travel[j]);
+    }
+    if (hold) pending_.push_back({line_no_, m.tip_error, m.angle_error, m.feed_error, m.pieces, pending_travel_.size()});
+    else options_.report->add_move(line_no_, m.tip_error, m.angle_error, m.feed_error, m.pieces);
+}
+
+void Translator::save(Snapshot& s) const {
+    s.q.assign(q_.begin(), q_.end());
+    s.sent_q.assign(sent_q_.begin(), sent_q_.end());
+    s.pose = pose_;
+    s.offset = offset_;
+    s.tip_known = tip_known_;
+    s.mode = mode_;
+    s.modes = modes_;
+    s.image = image_;
+    s.emitter.copy_state_from(emitter_);
+}
+
+void Translator::restore(const Snapshot& s) {
+    q_.assign(s.q.begin(), s.q.end());
+    sent_q_.assign(s.sent_q.begin(), s.sent_q.end());
+    pose_ = s.pose;
+    offset_ = s.offset;
+    tip_known_ = s.tip_known;
+    mode_ = s.mode;
+    modes_ = s.modes;
+    image_ = s.image;
+    emitter_.copy_state_from(s.emitter);
+}
+
+void Translator::map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const {
+    const auto& rot = kin_.rotary_joints();
+    for (std::size_t k = 0; k < rot.size(); ++k) {
+        const std::size_t j = std::size_t(rot[k]);
+        q[j] = image.sign[k] * a[j] + image.shift[k];
+    }
+}
+
+void Translator::unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const {
+    const auto& rot = kin_.rotary_joints();
+    for (std::size_t k = 0; k < rot.size(); ++k) {
+        const std::size_t j = std::size_t(rot[k]);
+        a[j] = (q[j] - image.shift[k]) * image.sign[k];
+    }
+}
+
+// Where else a travel move to `end` may stop: every solution of that pose inside the limits
+// other than `usual` (the continuous one), nearest the current joints first. Under G43.4 each is
+// an image of the programmed angles (another turn, or the flipped branch), so the moves after it
+// keep their programmed interpolation.
+void Translator::end_candidates(const Pose& end, const std::vector<double>& programmed, const std::vector<double>& usual) {
+    candidates_.clear();
+    const auto& rot = kin_.rotary_joints();
+    if (rot.empty()) return;
+    auto same = [&](const std::vector<double>& a, const std::vector<double>& b) {
+        for (const int j : rot)
+            if (std::abs(a[std::size_t(j)] - b[std::size_t(j)]) > 1e-6) return false;
+        return true;
+    };
+    std::vector<double> q;
+    auto consider = [&](const AngleImage& image) {
+        if (!kin_.solve_position(end.tip, q).ok() || !kin_.check_limits(q).ok() || same(q, usual)) return;
+        for (const Candidate& c : candidates_)
+            if (same(c.q, q)) return;
+        candidates_.push_back({q, image});
+    };
+    const int turns1 = rot.size() > 1 ? 2 : 0;
+    if (mode_ == OrientationMode::Angles) {
+        for (const bool flip : {false, true}) {
+            if (flip && !kin_.has_flip()) continue;
+            AngleImage base;
+            base.sign[1] = flip ? -1 : 1;
+            base.shift[0] = flip ? 180 : 0;
+            // Turns counted from the one nearest the current joints.
+            double centre[2];
+            for (std::size_t k = 0; k < rot.size(); ++k) {
+                const std::size_t j = std::size_t(rot[k]);
+                centre[k] = std::round((q_[j] - (base.sign[k] * programmed[j] + base.shift[k])) / 360.0);
+            }
+            for (int t0 = -2; t0 <= 2; ++t0)
+                for (int t1 = -turns1; t1 <= turns1; ++t1) {
+                    AngleImage image = base;
+                    image.shift[0] += 360.0 * (centre[0] + t0);
+                    if (rot.size() > 1) image.shift[1] += 360.0 * (centre[1] + t1);
+                    q = usual;
+                    map_angles(image, programmed, q);
+                    consider(image);
+                }
+        }
+    } else {
+        const auto solutions = kin_.orientation_solutions(end.axis);
+        for (int b = 0; b < solutions.count; ++b)
+            for (int t0 = -2; t0 <= 2; ++t0)
+                for (int t1 = -turns1; t1 <= turns1; ++t1) {
+                    q = usual;
+                    for (std::size_t k = 0; k < rot.size(); ++k) {
+                        const std::size_t j = std::size_t(rot[k]);
+                        const double sol = solutions.angle[b][k];
+                        if (std::isnan(sol)) continue;  // free at a pole: it stays
+                        q[j] = q_[j] + wrap180(sol - q_[j]) + 360.0 * (k == 0 ? t0 : t1);
+                    }
+                    consider(image_);
+                }
+    }
+    auto distance = [&](const Candidate& c) {
+        double d = 0;
+        for (const int j : rot) d += (c.q[std::size_t(j)] - q_[std::size_t(j)]) * (c.q[std::size_t(j)] - q_[std::size_t(j)]);
+        return d;
+    };
+    std::stable_sort(candidates_.begin(), candidates_.end(), [&](const Candidate& a, const Candidate& b) { return distance(a) < distance(b); });
 }
 
 void Translator::apply_modal(int code10, std::uint32_t column, std::string& out) {
@@ -252,7 +499,11 @@ void Translator::apply_modal(int code10, std::uint32_t column, std::string& out)
         case 435:
         case 490:
             if (options_.inverse) fail(column, "joint-space input has no G43.4/G43.5/G49");
-            mode_ = code10 == 434 ? OrientationMode::Angles : code10 == 435 ? OrientationMode::Vector : OrientationMode::Joints;
+        {
+            const OrientationMode mode = code10 == 434 ? OrientationMode::Angles : code10 == 435 ? OrientationMode::Vector : OrientationMode::Joints;
+            if (mode != mode_) image_ = {};  // entering G43.4: its angles mean the joints as they are
+            mode_ = mode;
+        }
             return;
         case 900:
         case 910:
@@ -361,6 +612,9 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
     std::optional<PassedNumber> e, f;
     q_next_ = q_;
     commanded_.assign(q_.size(), false);
+    // Under G43.4 the rotary words are programmed angles; the joints are their image.
+    angles_.assign(q_.begin(), q_.end());
+    unmap_angles(image_, q_, angles_);
     for (const Param& p : params_) {
         switch (p.letter) {
             case 'X': case 'Y': case 'Z': {
@@ -390,13 +644,14 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
                 if (mode_ == OrientationMode::Vector)
                     fail(p.column, std::string("rotary word ") + p.letter + " under G43.5: give the tool axis as I J K, or switch to G43.4");
                 const double v = number(p);
-                q_next_[std::size_t(j)] = modes_.absolute ? v : q_[std::size_t(j)] + v;
+                angles_[std::size_t(j)] = modes_.absolute ? v : angles_[std::size_t(j)] + v;
                 commanded_[std::size_t(j)] = true;
                 any_rotary = true;
                 break;
             }
         }
     }
+    if (any_rotary) map_angles(image_, angles_, q_next_);
     Eigen::Vector3d axis = pose_.axis;
     if (any_ijk) {
         if (!(ijk.norm() > 1e-12)) fail(ijk_column, "tool vector I J K has length 0");
@@ -417,8 +672,32 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
         }
     }
     if (r.ok()) r = kin_.check_limits(q_next_);
+    // A travel move (tool space, no extrusion) may end on another solution of its pose: when its
+    // usual end is outside a joint's limits, or when the look-back replays it to unwind a joint
+    // for the printing that follows. Printing moves never change solution: their path is printed.
+    const bool tool_space = mode_ != OrientationMode::Joints && (any_xyz || tip_known_);
+    const bool prints = e && (modes_.e_relative ? e->value != 0 : e->value != modes_.e_position);
+    const bool travel = tool_space && !prints && (any_xyz || any_rotary || any_ijk);
+    line_travels_ = line_travels_ || travel;
+    bool unwind = false;
+    const int forced = travel ? forced_ : -1;
+    if (travel) forced_ = -1;
+    if (travel && (forced >= 0 || (!r.ok() && r.status == IkStatus::OutOfLimits))) {
+        end_candidates(next, angles_, q_next_);
+        const std::size_t k = forced >= 0 ? std::size_t(forced) : 0;
+        if (k < candidates_.size()) {
+            q_next_ = candidates_[k].q;
+            if (mode_ == OrientationMode::Angles) image_ = candidates_[k].image;
+            unwind = true;
+            r = {};
+        } else if (forced >= 0) {
+            forced_missing_ = true;
+            fail(column, "no other solution of this pose inside the limits");
+        }
+    }
     if (!r.ok()) {
-        if (r.status == IkStatus::OutOfLimits)
+        line_hit_limit_ = r.status == IkStatus::OutOfLimits;
+        if (r.status == IkStatus::OutOfLimits && lookback_ == 0)
             r.message += "; turn the joint back on a travel move before this line, or plan the path within the limits";
         fail(column, r.message);
     }
@@ -444,17 +723,30 @@ void Translator::move(int gcode, std::uint32_t column, std::string& out) {
     spec.feed = modes_.feed;
     spec.f = f;
     spec.inverse_time = modes_.inverse_time && f ? f->value : 0.0;
+    // An unwinding travel move turns the rotaries linearly from their start to the chosen end
+    // (angle form) while the split holds the tip on the straight travel line, rather than
+    // reorienting in place at one end: the tip never leaves the path the slicer planned for it
+    // (usually lifted clear of the part), no end of a printed bead gets a hot nozzle sweeping
+    // round on it, and each rotary moves monotonically between two values inside its limits.
+    // For a branch flip (rw2: A by 180 degrees, B to -B) the tool passes upright (B = 0) on the
+    // way instead of sweeping a full turn at its printing tilt.
+    if (unwind) spec.mode = OrientationMode::Angles;
     MoveResult* measured = options_.report && spec.mode != OrientationMode::Joints ? &move_result_ : nullptr;
-    if (auto res = motion_.emit(spec, out, measured); !res.ok()) {
-        if (res.status == IkStatus::OutOfLimits)
+    auto res = motion_.emit(spec, out, measured);
+    if (!res.ok() && res.status == IkStatus::OutOfLimits && travel && !unwind && spec.mode == OrientationMode::Vector) {
+        // The continuous path of this travel move leaves the limits, though its end (the
+        // solution nearest the start inside them) does not: turn there in angle form instead.
+        spec.mode = OrientationMode::Angles;
+        unwind = true;
+        res = motion_.emit(spec, out, measured);
+    }
+    if (!res.ok()) {
+        line_hit_limit_ = res.status == IkStatus::OutOfLimits;
+        if (res.status == IkStatus::OutOfLimits && lookback_ == 0)
             res.message += "; turn the joint back on a travel move before this line, or plan the path within the limits";
         fail(column, res.message);
     }
-    if (measured) {
-        options_.report->add_move(line_no_, measured->tip_error, measured->angle_error, measured->feed_error, measured->pieces);
-        for (std::size_t j = 0; j < measured->travel.size(); ++j)
-            if (machine_.joints[j].rotary) options_.report->add_rotary_travel(machine_.joints[j].name, measured->travel[j]);
-    }
+    if (measured) report_move(*measured);
     if (spec.mode == OrientationMode::Vector) q_next_ = motion_.final_joints();
     // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move
     // (no extrusion), where a G92 cannot disturb a printed line: firmware without wrapping
@@ -548,6 +840,7 @@ void Translator::set_position(std::uint32_t column, std::string& out) {
         sent_q_[std::size_t(j)] = q_[std::size_t(j)];
         which[std::size_t(j)] = true;
         any_rotary = any_rotary || rotary;
+        image_ = {};  // the program and the firmware now agree on the joint
     }
     // The machine did not move: its true pose follows from the joints it now says it is at.
     if (mode_ == OrientationMode::Joints || any_rotary) pose_ = kin_.forward(q_);
@@ -598,6 +891,7 @@ void Translator::home(std::string& out) {
     }
     out += '\n';
     offset_.setZero();
+    image_ = {};
     tip_known_ = false;
     sent_q_ = q_;
     pose_ = kin_.forward(q_);
@@ -690,6 +984,7 @@ void Translator::arc(bool clockwise, std::uint32_t column, std::string& out) {
     // Each chord runs through move() as an absolute, metric G1 with its own words.
     const Modes saved = modes_;
     std::vector<double> q_start = q_;
+    unmap_angles(image_, q_, q_start);  // rotary words are programmed angles
     const double e_total = e_word ? number(*e_word) * unit : 0.0;
     const double e0 = modes_.e_position;
     const std::vector<Param> original = params_;

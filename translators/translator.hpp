@@ -50,6 +50,16 @@ public:
     // is then unchanged by that line.
     void feed(std::string_view line, std::uint64_t line_no, std::string& out);
 
+    // Look-back for joint limits: the output from the latest travel move on is held (for at most
+    // `lines` input lines), so that when a printing move further on would take a bounded rotary
+    // past its limit, that travel move can be translated again ending on another solution of its
+    // pose (the other branch or another turn) and the printed path stays continuous. 0 (the
+    // default): every line's output is appended at once, and only the travel move that itself
+    // runs into a limit unwinds. With look-back on, call finish() after the last line.
+    void set_lookback(std::size_t lines) { lookback_ = lines; }
+    void finish(std::string& out);
+    static constexpr std::size_t kDefaultLookback = 2000;
+
     const std::vector<double>& joints() const { return q_; }
     const Pose& pose() const { return pose_; }            // part frame
     const Eigen::Vector3d& program_offset() const { return offset_; }
@@ -57,6 +67,37 @@ public:
     const Modes& modes() const { return modes_; }
 
 private:
+    // Under G43.4 the programmed angles are carried onto the joints through q = sign * a + shift
+    // per rotary (in rotary_joints() order): identity until a travel move unwinds onto another
+    // turn (shift 360 k) or, where the machine has the flip, the other branch (+180, -1).
+    struct AngleImage {
+        double sign[2] = {1, 1};
+        double shift[2] = {0, 0};
+        bool operator==(const AngleImage&) const = default;
+    };
+    // The state a line can change, for rolling back a failed line and for the look-back checkpoint.
+    struct Snapshot {
+        explicit Snapshot(const Machine& m) : emitter(m) {}
+        std::vector<double> q, sent_q;
+        Pose pose;
+        Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+        bool tip_known = false;
+        OrientationMode mode = OrientationMode::Angles;
+        Modes modes;
+        AngleImage image;
+        JointEmitter emitter;
+    };
+    // A move measured for the report, held with its output until that is released.
+    struct PendingMove {
+        std::uint64_t line;
+        double tip, angle, feed;
+        int pieces;
+        std::size_t travel_end;  // its rotary travel ends here in pending_travel_
+    };
+    struct Candidate {
+        std::vector<double> q;
+        AngleImage image;
+    };
     struct Param {
         char letter;
         double value;
@@ -70,6 +111,15 @@ private:
     PassedNumber passed(const Param& p) const;  // E or F, in mm
     void apply_modal(int code10, std::uint32_t column, std::string& out);
     void run_command(char letter, int code10, std::uint32_t column, std::string_view body, bool alone, std::string& out);
+    void feed_line(std::string_view line, std::uint64_t line_no, std::string& out);
+    void save(Snapshot& s) const;
+    void restore(const Snapshot& s);
+    bool unwind_before(std::string_view line, std::uint64_t line_no);
+    void release(std::size_t bytes, std::size_t moves, std::string& out);
+    void report_move(const MoveResult& m);
+    void map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const;
+    void unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
+    void end_candidates(const Pose& end, const std::vector<double>& programmed, const std::vector<double>& usual);
     void move(int gcode, std::uint32_t column, std::string& out);
     void arc(bool clockwise, std::uint32_t column, std::string& out);
     void move_joints(int gcode, std::uint32_t column, std::string& out);
@@ -101,6 +151,26 @@ private:
     bool tip_known_ = false;        // has the program placed the tip since start or G28?
     OrientationMode mode_;
     Modes modes_;
+    AngleImage image_;              // G43.4: programmed angles -> joints
+    std::vector<double> angles_;    // scratch: programmed angles of the current move
+
+    // Joint limits: where a travel move may end (its pose's solutions inside the limits), and
+    // the look-back window (see set_lookback).
+    std::vector<Candidate> candidates_;
+    bool line_travels_ = false;     // the line just translated was a tool-space travel move
+    bool line_hit_limit_ = false;   // the line failed on a joint limit
+    int forced_ = -1;               // replaying: the checkpoint's travel move takes candidate forced_
+    int chosen_ = -1;               // the candidate the checkpoint's travel move took (-1: its usual end)
+    bool forced_missing_ = false;   // there is no candidate forced_
+    std::size_t lookback_ = 0;
+    bool have_checkpoint_ = false;
+    std::uint64_t checkpoint_line_ = 0;
+    Snapshot before_line_, checkpoint_;
+    std::string window_text_;       // input lines from the checkpoint's travel move on, '\n'-separated
+    std::vector<std::uint64_t> window_lines_;
+    std::string held_;              // their output, not yet released
+    std::vector<PendingMove> pending_;
+    std::vector<std::pair<char, double>> pending_travel_;  // rotary travel of the held moves
 };
 
 }  // namespace xlate5
