@@ -3,7 +3,8 @@
 set -euo pipefail
 pkgs=(build-essential cmake pkg-config
       libeigen3-dev libboost-dev libtomlplusplus-dev libspdlog-dev libfmt-dev
-      doctest-dev libcli11-dev libserialport-dev)
+      doctest-dev libcli11-dev libserialport-dev libsystemd-dev
+      printcore python3-serial)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

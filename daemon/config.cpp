@@ -1,0 +1,172 @@
+#include "daemon/config.hpp"
+
+#include <cstdlib>
+#include <sstream>
+#include <toml++/toml.h>
+
+#include "translators/error.hpp"
+
+namespace xlate5 {
+namespace {
+
+class ConfigReader {
+public:
+    ConfigReader(const toml::table& root, std::string path) : root_(root), path_(std::move(path)) {}
+
+    [[noreturn]] void fail(const toml::node* node, const std::string& key, const std::string& why) const {
+        std::ostringstream os;
+        os << path_;
+        if (node && node->source().begin.line) os << ":" << node->source().begin.line;
+        os << ": " << key << ": " << why;
+        throw MachineError(os.str());
+    }
+    const toml::node* find(const std::string& dotted) const { return root_.at_path(dotted).node(); }
+
+    void get(const std::string& key, std::string& out) const {
+        if (auto* n = find(key)) {
+            auto v = n->value<std::string>();
+            if (!v) fail(n, key, "expected a string");
+            out = *v;
+        }
+    }
+    void get(const std::string& key, double& out, double lo, double hi) const {
+        if (auto* n = find(key)) {
+            auto v = n->value<double>();
+            if (!v) fail(n, key, "expected a number");
+            if (!(*v >= lo && *v <= hi)) fail(n, key, "must be between " + num(lo) + " and " + num(hi));
+            out = *v;
+        }
+    }
+    template <class Int>
+    void get_int(const std::string& key, Int& out, long long lo, long long hi) const {
+        if (auto* n = find(key)) {
+            auto v = n->value<long long>();
+            if (!v || !n->is_integer()) fail(n, key, "expected a whole number");
+            if (*v < lo || *v > hi) fail(n, key, "must be between " + std::to_string(lo) + " and " + std::to_string(hi));
+            out = Int(*v);
+        }
+    }
+    void get(const std::string& key, bool& out) const {
+        if (auto* n = find(key)) {
+            auto v = n->value<bool>();
+            if (!v) fail(n, key, "expected true or false");
+            out = *v;
+        }
+    }
+    // Every key in the file must be one this reader knows: a typo is an error, not a silent default.
+    void check_known(const toml::table& t, const std::string& prefix, const std::vector<std::string>& known) const {
+        for (const auto& [k, v] : t) {
+            const std::string key = prefix + std::string(k.str());
+            bool ok = false;
+            for (const auto& n : known) ok = ok || n == key;
+            if (!ok) fail(&v, key, "unknown setting");
+        }
+    }
+    static std::string num(double v) {
+        std::ostringstream os;
+        os << v;
+        return os.str();
+    }
+
+private:
+    const toml::table& root_;
+    std::string path_;
+};
+
+}  // namespace
+
+void set_sim_fault(SimFaults& f, const std::string& a) {
+    const auto eq = a.find('=');
+    if (eq == std::string::npos) throw std::invalid_argument("expected NAME=VALUE, got '" + a + "'");
+    const std::string v = a.substr(eq + 1);
+    char* end = nullptr;
+    const double d = std::strtod(v.c_str(), &end);
+    if (v.empty() || *end) throw std::invalid_argument("'" + v + "' is not a number in '" + a + "'");
+    set_sim_fault(f, a.substr(0, eq), d);
+}
+
+void set_sim_fault(SimFaults& f, const std::string& k, double d) {
+    if (!(d >= 0)) throw std::invalid_argument("must not be negative");
+    if (k == "corrupt") f.corrupt = d;
+    else if (k == "drop") f.drop = d;
+    else if (k == "garble_reply") f.garble_reply = d;
+    else if (k == "spurious_resend") f.spurious_resend = d;
+    else if (k == "no_ok_after_resend") f.no_ok_after_resend = d != 0;
+    else if (k == "busy") f.busy = d;
+    else if (k == "busy_seconds") f.busy_seconds = d;
+    else if (k == "busy_interval") f.busy_interval = d;
+    else if (k == "move_ms") f.move_ms = d;
+    else if (k == "reset_after") f.reset_after = std::uint64_t(d);
+    else if (k == "kill_after") f.kill_after = std::uint64_t(d);
+    else if (k == "unplug_after") f.unplug_after = std::uint64_t(d);
+    else if (k == "seed") f.seed = std::uint64_t(d);
+    else throw std::invalid_argument("unknown fault '" + k + "'");
+}
+
+ServeConfig load_serve_config(const std::string& path) {
+    toml::table root;
+    try {
+        root = toml::parse_file(path);
+    } catch (const toml::parse_error& e) {
+        std::ostringstream os;
+        os << path << ":" << e.source().begin.line << ": " << e.description();
+        throw MachineError(os.str());
+    }
+    ConfigReader r(root, path);
+    r.check_known(root, "", {"machine", "compensation", "tolerance", "firmware", "sender", "sim", "log"});
+    if (auto* t = root["firmware"].as_table())
+        r.check_known(*t, "firmware.", {"firmware.port", "firmware.baud", "firmware.flavor", "firmware.window", "firmware.rx_bytes",
+                                        "firmware.max_line", "firmware.reply_timeout", "firmware.boot_wait", "firmware.max_timeouts"});
+    if (auto* t = root["sender"].as_table())
+        r.check_known(*t, "sender.", {"sender.pty", "sender.tcp", "sender.allow_remote", "sender.queue_lines", "sender.drain_timeout"});
+    if (auto* t = root["sim"].as_table())
+        r.check_known(*t, "sim.", {"sim.flavor", "sim.advanced_ok", "sim.buffer", "sim.planner", "sim.baud", "sim.record", "sim.faults"});
+    if (auto* t = root["log"].as_table()) r.check_known(*t, "log.", {"log.level"});
+
+    ServeConfig c;
+    c.source = path;
+    r.get("machine", c.machine);
+    r.get("compensation", c.compensation);
+    r.get("tolerance", c.tolerance, 0, 10);
+    r.get("firmware.port", c.port);
+    r.get_int("firmware.baud", c.baud, 300, 4000000);
+    std::string flavor = "marlin";
+    r.get("firmware.flavor", flavor);
+    if (flavor != "marlin" && flavor != "reprap") r.fail(r.find("firmware.flavor"), "firmware.flavor", "expected \"marlin\" or \"reprap\"");
+    c.firmware.reprap = flavor == "reprap";
+    r.get_int("firmware.window", c.firmware.window, 0, 64);
+    r.get_int("firmware.rx_bytes", c.firmware.rx_bytes, 64, 1 << 20);
+    r.get_int("firmware.max_line", c.firmware.max_line, 32, 4096);
+    r.get("firmware.reply_timeout", c.firmware.reply_timeout, 0.05, 600);
+    r.get("firmware.boot_wait", c.firmware.boot_wait, 0, 60);
+    r.get_int("firmware.max_timeouts", c.firmware.max_timeouts, 1, 1000);
+    r.get("sender.pty", c.pty);
+    r.get("sender.tcp", c.tcp);
+    r.get("sender.allow_remote", c.allow_remote);
+    r.get_int("sender.queue_lines", c.queue_lines, 1, 1 << 20);
+    r.get("sender.drain_timeout", c.drain_timeout, 0, 86400);
+    std::string sim_flavor = "marlin";
+    r.get("sim.flavor", sim_flavor);
+    if (sim_flavor != "marlin" && sim_flavor != "reprap") r.fail(r.find("sim.flavor"), "sim.flavor", "expected \"marlin\" or \"reprap\"");
+    c.sim.reprap = sim_flavor == "reprap";
+    r.get("sim.advanced_ok", c.sim.advanced_ok);
+    r.get_int("sim.buffer", c.sim.buffer, 1, 64);
+    r.get_int("sim.planner", c.sim.planner, 1, 256);
+    r.get_int("sim.baud", c.sim.baud, 0, 4000000);
+    r.get("sim.record", c.sim.record_path);
+    if (auto* t = root.at_path("sim.faults").as_table()) {
+        for (const auto& [k, v] : *t) {
+            auto d = v.value<double>();
+            if (!d) r.fail(&v, "sim.faults." + std::string(k.str()), "expected a number");
+            try {
+                set_sim_fault(c.sim.faults, std::string(k.str()), *d);
+            } catch (const std::invalid_argument& e) {
+                r.fail(&v, "sim.faults." + std::string(k.str()), e.what());
+            }
+        }
+    }
+    r.get("log.level", c.log_level);
+    return c;
+}
+
+}  // namespace xlate5

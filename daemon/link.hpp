@@ -1,0 +1,97 @@
+// A line-oriented, full-duplex byte link over any Asio stream (a serial port or pseudo-terminal
+// descriptor, a TCP socket): lines in through a callback, text out through an ordered write
+// queue. Both sides of the service and the virtual printer talk through it.
+#pragma once
+#include <array>
+#include <functional>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include <utility>  // before Asio: Boost 1.74's awaitable.hpp uses std::exchange without it
+
+#include <boost/asio.hpp>
+
+namespace xlate5 {
+
+namespace asio = boost::asio;
+
+class Link : public std::enable_shared_from_this<Link> {
+public:
+    using LineHandler = std::function<void(std::string_view line)>;
+    // Called once when the link ends: `why` is empty for an orderly close by this side.
+    using CloseHandler = std::function<void(const std::string& why)>;
+
+    virtual ~Link() = default;
+    // Starts reading. Lines end at '\n' (a '\r' before it is dropped); a line longer than
+    // `max_line` bytes is cut there, as a firmware's buffer would.
+    void start(LineHandler on_line, CloseHandler on_close);
+    // Queues text (whole lines, with their '\n') to be written in order.
+    void send(std::string_view text);
+    void close();
+    bool open() const { return open_; }
+    std::size_t unsent_bytes() const { return out_.size() + writing_.size(); }
+    const std::string& name() const { return name_; }
+    asio::any_io_executor stream_executor() { return executor(); }
+    std::size_t max_line = 1 << 16;
+
+protected:
+    explicit Link(std::string name) : name_(std::move(name)) {}
+    virtual void read_some(asio::mutable_buffer buffer, std::function<void(boost::system::error_code, std::size_t)> done) = 0;
+    virtual void write_all(asio::const_buffer buffer, std::function<void(boost::system::error_code, std::size_t)> done) = 0;
+    virtual void close_stream() = 0;
+    // A read error that means "nobody on the other end right now" rather than the end of the
+    // link (a pseudo-terminal whose sender closed it): reading is retried after a pause.
+    virtual bool transient(const boost::system::error_code&) const { return false; }
+    virtual asio::any_io_executor executor() = 0;
+
+private:
+    void read();
+    void write();
+    void finish(const std::string& why);
+
+    std::string name_;
+    LineHandler on_line_;
+    CloseHandler on_close_;
+    std::array<char, 4096> buffer_{};
+    std::string partial_;
+    std::string out_, writing_;
+    bool writing_now_ = false;
+    bool open_ = true;
+    bool overlong_ = false;
+    std::unique_ptr<asio::steady_timer> retry_;
+};
+
+// The Link over a concrete Asio stream.
+template <class Stream>
+class StreamLink final : public Link {
+public:
+    StreamLink(Stream stream, std::string name) : Link(std::move(name)), stream_(std::move(stream)) {}
+    Stream& stream() { return stream_; }
+    // For pseudo-terminal masters: EIO means the sender has closed its end, not that the link is gone.
+    bool eio_is_transient = false;
+
+protected:
+    void read_some(asio::mutable_buffer b, std::function<void(boost::system::error_code, std::size_t)> done) override {
+        stream_.async_read_some(b, std::move(done));
+    }
+    void write_all(asio::const_buffer b, std::function<void(boost::system::error_code, std::size_t)> done) override {
+        asio::async_write(stream_, b, std::move(done));
+    }
+    void close_stream() override {
+        boost::system::error_code ignored;
+        stream_.close(ignored);
+    }
+    bool transient(const boost::system::error_code& ec) const override {
+        return eio_is_transient && ec == boost::system::errc::io_error;
+    }
+    asio::any_io_executor executor() override { return stream_.get_executor(); }
+
+private:
+    Stream stream_;
+};
+
+using DescriptorLink = StreamLink<asio::posix::stream_descriptor>;
+using TcpLink = StreamLink<asio::ip::tcp::socket>;
+
+}  // namespace xlate5

@@ -1,0 +1,49 @@
+// The sender side: xlate5 as the printer an OctoPrint-style sender believes it talks to. Checks
+// "N<n> … *<cs>" lines the way Marlin does (Error:/Resend:/ok), handles the line-protocol and
+// emergency commands itself, and hands every other command to the service, which answers ok
+// once the command is in xlate5's queue.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "daemon/link.hpp"
+
+namespace xlate5 {
+
+class SenderSession : public std::enable_shared_from_this<SenderSession> {
+public:
+    class Host {
+    public:
+        virtual ~Host() = default;
+        // A command for the queue (comments kept: the translator reads them as the file would).
+        virtual void sender_command(SenderSession& s, std::string_view command, std::uint64_t line_no) = 0;
+        // M112, M108, M410: to the firmware at once, ahead of the queue.
+        virtual void sender_emergency(SenderSession& s, std::string_view command) = 0;
+        // M115's answer, without the final ok.
+        virtual std::string sender_m115() = 0;
+        virtual void sender_gone(SenderSession& s) = 0;
+    };
+
+    SenderSession(std::shared_ptr<Link> link, Host& host, std::string name);
+    void start();
+    void close();
+    void send_line(std::string_view line);      // one reply line; '\n' added
+    void ok(std::string_view payload = {});     // "ok" + payload
+    const std::string& name() const { return name_; }
+    std::int64_t last_line() const { return last_n_; }
+    bool open() const { return link_->open(); }
+
+private:
+    void on_line(std::string_view line);
+    void refuse(const char* why);
+
+    std::shared_ptr<Link> link_;
+    Host& host_;
+    std::string name_;
+    std::int64_t last_n_ = 0;
+    std::uint64_t received_ = 0;
+};
+
+}  // namespace xlate5

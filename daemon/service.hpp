@@ -1,0 +1,99 @@
+// The service: senders' lines in, through the translator, into a bounded queue, out to the
+// firmware link; the firmware's replies back to the senders (positions converted to tool space).
+// One io_context drives everything; nothing blocks and nothing polls.
+#pragma once
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "daemon/firmware_link.hpp"
+#include "daemon/sender_session.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+#include "translators/translator.hpp"
+
+namespace xlate5 {
+
+struct ServiceOptions {
+    std::size_t queue_lines = 64;     // translated lines waiting for the firmware before senders are held
+    double busy_interval = 2.0;       // seconds between "busy: processing" to a sender held by a full queue
+    TranslatorOptions translator;
+};
+
+struct ServiceStats {
+    std::uint64_t lines_in = 0, lines_out = 0, rejected = 0, split_long = 0;
+};
+
+class Service final : public FirmwareLink::Listener, public SenderSession::Host {
+public:
+    Service(asio::io_context& io, const Machine& machine, ServiceOptions options);
+    ~Service() override;
+
+    // The firmware end (a serial port or the virtual printer's pseudo-terminal).
+    void attach_firmware(std::shared_ptr<Link> link, FirmwareOptions options);
+    // A sender end (the pseudo-terminal, or a TCP connection).
+    void add_sender(std::shared_ptr<Link> link, const std::string& name);
+
+    // Stop taking lines from senders and call `done` once every accepted line is executed (or
+    // the firmware faulted); after `timeout` seconds, the unsent lines are dropped explicitly.
+    void drain(double timeout, std::function<void(const std::string& outcome)> done);
+    bool idle() const;
+    bool stopped() const { return !stop_reason_.empty(); }
+    const std::string& stop_reason() const { return stop_reason_; }
+    FirmwareLink* firmware() { return firmware_.get(); }
+    const ServiceStats& stats() const { return stats_; }
+    // Replaces the machine (SIGHUP reload); only when idle. Returns false when busy.
+    bool replace_machine(const Machine& machine);
+
+    // FirmwareLink::Listener
+    void firmware_ready(const std::vector<std::string>& m115) override;
+    void firmware_acked(std::uint64_t tag, std::string_view ok_payload) override;
+    void firmware_message(std::string_view line) override;
+    void firmware_fault(const std::string& why, std::size_t lines_not_executed) override;
+    void firmware_progress() override;
+    // SenderSession::Host
+    void sender_command(SenderSession& s, std::string_view command, std::uint64_t line_no) override;
+    void sender_emergency(SenderSession& s, std::string_view command) override;
+    std::string sender_m115() override;
+    void sender_gone(SenderSession& s) override;
+
+private:
+    struct Pending {
+        std::weak_ptr<SenderSession> session;
+        std::string command;
+        std::uint64_t line_no;
+    };
+    void pump();
+    void process(const Pending& p);
+    void stop(const std::string& why);
+    void broadcast(std::string_view line);
+    void arm_busy();
+    void check_drained();
+    std::string tool_space_position(std::string_view report) const;
+    void reset_translator();
+
+    asio::io_context& io_;
+    Machine machine_;
+    std::unique_ptr<Kinematics> kin_;
+    ServiceOptions opt_;
+    std::unique_ptr<Translator> translator_;
+    std::unique_ptr<FirmwareLink> firmware_;
+    std::vector<std::shared_ptr<SenderSession>> sessions_;
+    std::deque<Pending> pending_;                                   // received, not yet in the queue
+    std::map<std::uint64_t, std::weak_ptr<SenderSession>> deferred_;  // tag -> who waits for the firmware's ok
+    std::uint64_t next_tag_ = 1;
+    std::string stop_reason_;
+    bool draining_ = false;
+    std::function<void(const std::string&)> drained_;
+    asio::steady_timer busy_timer_, drain_timer_;
+    bool busy_armed_ = false;
+    std::string out_;  // translator output scratch
+    ServiceStats stats_;
+};
+
+}  // namespace xlate5
