@@ -2,8 +2,13 @@
 // fitted eq. 4.7-4.9 within the scatter of the measurements, and undo exactly in --inverse.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
+#include <unistd.h>
 
 #include "helpers.hpp"
 #include "translators/compensation.hpp"
@@ -188,4 +193,145 @@ TEST_CASE("outside a table: refused with the line, or clamped, as the file says"
     }
     CHECK_THROWS_WITH_AS(load_compensation_file(refuse, m), doctest::Contains("compensation[0].by: expected a rotary joint"), MachineError);
     std::remove(refuse.c_str());
+}
+
+namespace {
+
+// Independent reference for the tables below: the periodic table closed with its first point one
+// turn on, the angle brought into that turn; the clamped one evaluated at the angle held to its ends.
+double interpolate(std::vector<std::pair<double, double>> pts, double a, bool periodic) {
+    if (periodic) {
+        pts.push_back({pts.front().first + 360, pts.front().second});
+        a -= 360 * std::floor((a - pts.front().first) / 360);
+    } else {
+        a = std::clamp(a, pts.front().first, pts.back().first);
+    }
+    for (std::size_t i = 1; i < pts.size(); ++i)
+        if (a <= pts[i].first) return pts[i - 1].second + (a - pts[i - 1].first) / (pts[i].first - pts[i - 1].first) * (pts[i].second - pts[i - 1].second);
+    return pts.back().second;
+}
+
+std::string table_text(const std::vector<std::pair<double, double>>& pts) {
+    std::ostringstream s;
+    s << "[";
+    for (std::size_t i = 0; i < pts.size(); ++i) s << (i ? ", " : "") << "[" << pts[i].first << ", " << pts[i].second << "]";
+    return s.str() + "]";
+}
+
+std::string translate_text(const Machine& m, const std::string& text, TranslatorOptions options) {
+    const Kinematics k(m);
+    Translator t(k, options);
+    std::istringstream in(text);
+    std::string line, out;
+    std::uint64_t n = 0;
+    while (std::getline(in, line)) t.feed(line, ++n, out);
+    return out;
+}
+
+// Every G0/G1 line of a file with the modal value of each letter after it (from `home` at the
+// start and after G28, where the firmware has them), and the E word the line carries (NaN if none).
+struct Move {
+    std::map<char, double> at;
+    double e = std::nan("");
+};
+std::vector<Move> moves_of(const std::string& text, const std::map<char, double>& home) {
+    std::vector<Move> moves;
+    std::map<char, double> modal = home;
+    std::istringstream in(text);
+    std::string line;
+    while (std::getline(in, line)) {
+        if (auto c = line.find(';'); c != std::string::npos) line.resize(c);
+        while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+        if (line.rfind("G28", 0) == 0) modal = home;
+        if (line.empty() || line[0] != 'G' || line.find_first_of(" ") == std::string::npos) continue;
+        const auto w = words_of(line);
+        if (w.at('G') != 0 && w.at('G') != 1) continue;
+        Move m;
+        for (const auto& [letter, value] : w)
+            if (letter != 'G' && letter != 'F' && letter != 'E') modal[letter] = value;
+        m.at = modal;
+        if (w.count('E')) m.e = w.at('E');
+        moves.push_back(m);
+    }
+    return moves;
+}
+
+double at(const Move& m, char letter) { return m.at.count(letter) ? m.at.at(letter) : std::nan(""); }
+
+}  // namespace
+
+TEST_CASE("compensation over a real file: S4's joint-space R-theta print on koc5, corrected by the tables and undone by --inverse") {
+    // The corpus file turns B from -54 to 12 degrees and C through 4000 degrees, so the tables
+    // are read all round, across the periodic seam and beyond the linear table's ends. The
+    // tables are seed 001's table 4.1 X column re-targeted to koc5's C (no koc5 measurement
+    // exists), and a made-up Z by B that clamps.
+    const std::vector<std::pair<double, double>> x_by_c = {{-135, -2.80}, {-90, -1.80}, {-45, -0.80}, {0, 0.00}, {45, -0.60}, {90, -2.20}, {135, -3.40}};
+    const std::vector<std::pair<double, double>> z_by_b = {{-30, 0.12}, {-10, 0.03}, {0, 0}, {10, -0.05}, {30, -0.2}};
+    const std::string comp_path = (std::filesystem::temp_directory_path() / ("xlate5-koc5-comp-" + std::to_string(::getpid()) + ".toml")).string();
+    std::ofstream(comp_path) << "[[compensation]]\njoint = \"X\"\nby = \"C\"\ninterpolation = \"periodic\"\npoints = " << table_text(x_by_c)
+                             << "\n\n[[compensation]]\njoint = \"Z\"\nby = \"B\"\noutside = \"clamp\"\npoints = " << table_text(z_by_b) << "\n";
+    const Machine plain = load_machine(kDir + "/koc5.toml");
+    Machine comp = plain;
+    load_compensation_file(comp_path, comp);
+    std::filesystem::remove(comp_path);
+    REQUIRE(comp.compensation.terms.size() == 2);
+
+    std::ifstream f(std::string(XLATE5_CORPUS_DIR) + "/s4/pi_3mm_side_paint_rtheta.gcode", std::ios::binary);
+    REQUIRE(f);
+    const std::string input((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    TranslatorOptions joints;
+    joints.start_mode = OrientationMode::Joints;
+    const std::string out_plain = translate_text(plain, input, joints), out_comp = translate_text(comp, input, joints);
+    TranslatorOptions inverse;
+    inverse.inverse = true;
+    const std::string preview = translate_text(comp, out_comp, inverse);
+
+    // koc5 homes every joint to 0, where its tip is at the part origin with the tool vertical.
+    const std::map<char, double> home = {{'X', 0}, {'Y', 0}, {'Z', 0}, {'B', 0}, {'C', 0}};
+    for (const auto& j : plain.joints) REQUIRE(j.home == 0);
+    REQUIRE(Kinematics(plain).forward({0, 0, 0, 0, 0}).tip.norm() < 1e-12);
+    const auto in = moves_of(input, home), p = moves_of(out_plain, home), c = moves_of(out_comp, home), v = moves_of(preview, home);
+    REQUIRE(in.size() > 5000);
+    REQUIRE(p.size() == in.size());
+    REQUIRE(c.size() == in.size());
+    REQUIRE(v.size() == in.size());
+    const Kinematics k(plain);
+    // Printed joints carry 3 decimals, so a difference of two of them is good to 0.001.
+    const double printed = 1e-3 + 1e-9;
+    double c_min = 1e9, c_max = -1e9, b_min = 1e9, worst_x = 0, worst_z = 0, worst_tip = 0;
+    int compared = 0, in_seam = 0, clamped = 0;
+    for (std::size_t i = 0; i < in.size(); ++i) {
+        CAPTURE(i);
+        // E is never touched: the preview carries the input's E, word for word.
+        CHECK((std::isnan(in[i].e) ? std::isnan(v[i].e) && std::isnan(c[i].e) : in[i].e == v[i].e && in[i].e == c[i].e));
+        const double B = at(p[i], 'B'), C = at(p[i], 'C');
+        ++compared;
+        c_min = std::min(c_min, C), c_max = std::max(c_max, C), b_min = std::min(b_min, B);
+        const double wrapped = C - 360 * std::floor((C + 180) / 360);
+        in_seam += std::abs(wrapped) > 135;
+        clamped += B < -30;
+        // The rotaries and the uncorrected Y are the same; X and Z moved by the table at this B, C.
+        CHECK(at(c[i], 'B') == B);
+        CHECK(at(c[i], 'C') == C);
+        CHECK(std::abs(at(c[i], 'Y') - at(p[i], 'Y')) < 1e-12);
+        const double dx = at(p[i], 'X') - at(c[i], 'X') - interpolate(x_by_c, C, true);
+        const double dz = at(p[i], 'Z') - at(c[i], 'Z') - interpolate(z_by_b, B, false);
+        worst_x = std::max(worst_x, std::abs(dx)), worst_z = std::max(worst_z, std::abs(dz));
+        CHECK(std::abs(dx) <= printed);
+        CHECK(std::abs(dz) <= printed);
+        // The preview through the same compensation is the nominal tool path: FK of the joints
+        // the file asked for (here, as written without compensation).
+        const Pose want = k.forward({at(p[i], 'X'), at(p[i], 'Y'), at(p[i], 'Z'), B, C});
+        const Eigen::Vector3d got(at(v[i], 'X'), at(v[i], 'Y'), at(v[i], 'Z'));
+        worst_tip = std::max(worst_tip, (got - want.tip).norm());
+        CHECK((got - want.tip).norm() < 2e-3);
+        CHECK(std::abs(at(v[i], 'B') - B) < 1e-9);
+        CHECK(std::abs(at(v[i], 'C') - C) < 1e-9);
+    }
+    MESSAGE(compared << " moves: C " << c_min << " .. " << c_max << ", B down to " << b_min << "; " << in_seam << " in the periodic seam, " << clamped
+                     << " clamped; X vs table " << worst_x << " mm, Z vs table " << worst_z << " mm, preview tip vs FK " << worst_tip << " mm");
+    CHECK(compared > 5000);
+    CHECK(c_max - c_min > 720);
+    CHECK(in_seam > 100);
+    CHECK(clamped > 100);
 }
