@@ -1,0 +1,320 @@
+// Joint limits and unwinding on rw2 (A within +-168 degrees, cables): a tool azimuth that keeps
+// turning would take the continuous solution past +168. Every check is against FK of the
+// emitted joints, sampled densely along the firmware's joint-linear moves, and the programmed
+// path computed here from the input (never against stored answers).
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "helpers.hpp"
+#include "translators/error.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+#include "translators/translator.hpp"
+
+using namespace xlate5;
+using namespace xlate5::test;
+
+namespace {
+
+Machine load(const std::string& name) { return load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml"); }
+
+std::string num(double v, int d = 6) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%.*f", d, v);
+    return b;
+}
+
+double seg_dist(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    const Eigen::Vector3d ab = b - a;
+    double t = ab.squaredNorm() > 0 ? (p - a).dot(ab) / ab.squaredNorm() : 0.0;
+    t = std::clamp(t, 0.0, 1.0);
+    return (a + t * ab - p).norm();
+}
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180.0 / kPi;
+}
+
+// One programmed move: tip and angles (A, B) at both ends, and whether it extrudes.
+struct Move {
+    Eigen::Vector3d tip0, tip1;
+    double a0, b0, a1, b1;
+    bool prints;
+};
+
+// A circle of radius 20 about (110, 110) with the tool leaning 30 degrees out of it: the tip at
+// polar angle -A, so A keeps growing as the loop goes round. `travel_at`: the programmed A at
+// which a travel move (a lift to the next layer) interrupts the printing; NaN: none.
+struct Program {
+    std::vector<std::string> lines;  // input, with a ";M<k>" marker before move k
+    std::vector<Move> moves;
+    std::vector<std::uint64_t> line_of;  // input line number of move k
+};
+
+Program azimuth_loop(const Kinematics& k, double a_end, double travel_at, bool vector_form, double a_start = 0) {
+    Program p;
+    auto tip_at = [](double a, double z) { return Eigen::Vector3d(110 + 20 * std::cos(rad(-a)), 110 + 20 * std::sin(rad(-a)), z); };
+    auto add = [&](const std::string& text) { p.lines.push_back(text); };
+    add("M83");
+    if (vector_form) add("G43.5");
+    double a = a_start, z = 5;
+    Eigen::Vector3d tip = k.forward(k.machine().home_joints()).tip;  // the placing move starts at home
+    auto words = [&](double aa, const Eigen::Vector3d& t) {
+        std::string s = " X" + num(t.x()) + " Y" + num(t.y()) + " Z" + num(t.z());
+        if (vector_form) {
+            std::vector<double> q(5, 0.0);
+            q[3] = aa, q[4] = 30;
+            const Eigen::Vector3d u = k.forward(q).axis;
+            s += " I" + num(u.x(), 9) + " J" + num(u.y(), 9) + " K" + num(u.z(), 9);
+        } else {
+            s += " A" + num(aa, 3) + " B30";
+        }
+        return s;
+    };
+    auto move = [&](double a1, double z1, bool prints, const char* g) {
+        const Eigen::Vector3d t1 = tip_at(a1, z1);
+        p.moves.push_back({tip, t1, a, 30, a1, 30, prints});
+        add(";M" + std::to_string(p.moves.size() - 1));
+        p.line_of.push_back(p.lines.size() + 1);
+        add(std::string(g) + words(a1, t1) + (prints ? " E0.05" : "") + (p.moves.size() == 1 ? " F1200" : ""));
+        tip = t1, a = a1, z = z1;
+    };
+    move(a, z, false, "G0");  // place the tool (a travel move)
+    while (a < a_end - 1e-9) {
+        const double next = std::min(a + 5, a_end);
+        if (!std::isnan(travel_at) && std::abs(a - travel_at) < 1e-9) move(a, z + 0.3, false, "G0");  // layer change
+        move(next, z, true, "G1");
+    }
+    return p;
+}
+
+struct Verdict {
+    double worst_tip = 0;          // mm, any move
+    double worst_print_axis = 0;   // degrees, printing moves: FK axis against the programmed one
+    double worst_print_excess = 0; // degrees a printing move turns a rotary beyond its programmed turn
+    double worst_limit_excess = 0; // degrees (or mm) beyond any limit
+    int unwinds = 0;               // travel moves that ended off the programmed angles
+    bool negative_b_printed = false;
+};
+
+// Walks the output: every joint-linear move, sampled through FK, against the input move whose
+// marker it follows.
+Verdict check(const Machine& m, const Kinematics& k, const Program& p, const std::string& out, bool vector_form) {
+    Verdict v;
+    std::vector<double> q = m.home_joints();
+    int current = -1;
+    std::vector<double> start_of_move = q;
+    std::vector<double> travel(5, 0.0);
+    auto finish_move = [&]() {
+        if (current < 0) return;
+        const Move& mv = p.moves[std::size_t(current)];
+        if (mv.prints) {
+            v.worst_print_excess = std::max(v.worst_print_excess, travel[3] - std::abs(mv.a1 - mv.a0));
+            v.worst_print_excess = std::max(v.worst_print_excess, travel[4] - std::abs(mv.b1 - mv.b0));
+        } else if (current > 0) {
+            // The travel move's end: the programmed orientation, on whatever solution.
+            std::vector<double> prog(5, 0.0);
+            prog[3] = mv.a1, prog[4] = mv.b1;
+            CHECK(angle_deg(k.forward(q).axis, k.forward(prog).axis) < 0.01);
+            if (std::abs(q[3] - mv.a1) > 1e-3 || std::abs(q[4] - mv.b1) > 1e-3) ++v.unwinds;
+        }
+    };
+    for (const auto& line : lines_of(out)) {
+        if (line.rfind(";M", 0) == 0) {
+            finish_move();
+            current = std::stoi(line.substr(2));
+            start_of_move = q;
+            travel.assign(5, 0.0);
+            continue;
+        }
+        if (line.rfind("G1 ", 0) != 0 && line.rfind("G0 ", 0) != 0) continue;
+        REQUIRE(current >= 0);
+        const Move& mv = p.moves[std::size_t(current)];
+        std::vector<double> cur = q;
+        const auto w = words_of(line);
+        for (std::size_t j = 0; j < m.joints.size(); ++j)
+            if (w.count(m.joints[j].output)) cur[j] = w.at(m.joints[j].output);
+        for (std::size_t j = 0; j < m.joints.size(); ++j) {
+            v.worst_limit_excess = std::max({v.worst_limit_excess, cur[j] - m.joints[j].max, m.joints[j].min - cur[j]});
+            travel[j] += std::abs(cur[j] - q[j]);
+        }
+        if (mv.prints && cur[4] < 0) v.negative_b_printed = true;
+        for (int s = 1; s <= 60; ++s) {
+            std::vector<double> qq(cur.size());
+            for (std::size_t j = 0; j < qq.size(); ++j) qq[j] = q[j] + (cur[j] - q[j]) * s / 60.0;
+            const Pose fk = k.forward(qq);
+            v.worst_tip = std::max(v.worst_tip, seg_dist(fk.tip, mv.tip0, mv.tip1));
+            if (!mv.prints) continue;
+            // The programmed axis at the same place along the move.
+            const Eigen::Vector3d d = mv.tip1 - mv.tip0;
+            const double t = std::clamp((fk.tip - mv.tip0).dot(d) / d.squaredNorm(), 0.0, 1.0);
+            std::vector<double> prog(5, 0.0), p0(5, 0.0), p1(5, 0.0);
+            prog[3] = mv.a0 + t * (mv.a1 - mv.a0), prog[4] = mv.b0 + t * (mv.b1 - mv.b0);
+            p0[3] = mv.a0, p0[4] = mv.b0, p1[3] = mv.a1, p1[4] = mv.b1;
+            Eigen::Vector3d want = k.forward(prog).axis;
+            if (vector_form) {  // G43.5: the great circle between the ends
+                const Eigen::Vector3d u0 = k.forward(p0).axis, u1 = k.forward(p1).axis;
+                const double ang = std::acos(std::clamp(u0.dot(u1), -1.0, 1.0));
+                want = ang < 1e-12 ? u0 : ((std::sin((1 - t) * ang) * u0 + std::sin(t * ang) * u1) / std::sin(ang)).normalized();
+            }
+            v.worst_print_axis = std::max(v.worst_print_axis, angle_deg(fk.axis, want));
+        }
+        q = cur;
+    }
+    finish_move();
+    return v;
+}
+
+std::string run(Translator& t, const Program& p) {
+    std::string out;
+    for (std::size_t i = 0; i < p.lines.size(); ++i) t.feed(p.lines[i], i + 1, out);
+    t.finish(out);
+    return out;
+}
+
+// Printing joints to 3 decimals moves the tip by up to about this much.
+constexpr double kPrintSlack = 0.0035;
+
+}  // namespace
+
+TEST_CASE("limits: a layer change before the crossing unwinds A there (other branch, B < 0); the printing stays continuous") {
+    const Machine m = load("rw2");
+    const Kinematics k(m);
+    REQUIRE(k.has_flip());
+    for (const bool vector_form : {false, true}) {
+        CAPTURE(vector_form);
+        // Print A 0 -> 150, change layer, print A 150 -> 300: the continuous solution would
+        // pass +168 twenty degrees after the layer change.
+        const Program p = azimuth_loop(k, 300, 150, vector_form);
+        TranslatorOptions o;
+        Translator t(k, o);
+        t.set_lookback(Translator::kDefaultLookback);
+        std::string out;
+        REQUIRE_NOTHROW(out = run(t, p));
+        const Verdict v = check(m, k, p, out, vector_form);
+        MESSAGE((vector_form ? "G43.5" : "G43.4") << ": worst tip deviation " << v.worst_tip << " mm, printed axis "
+                                                 << v.worst_print_axis << " deg, unwinds " << v.unwinds);
+        CHECK(v.worst_limit_excess <= 1e-9);
+        CHECK(v.worst_tip <= m.motion.tolerance + kPrintSlack);
+        CHECK(v.worst_print_axis <= (vector_form ? m.motion.angle_tolerance : 0.0) + 0.05);
+        // No printing move turns a rotary more than programmed (G43.5: B follows the great
+        // circle, a few hundredths of a degree off the programmed tilt).
+        CHECK(v.worst_print_excess <= (vector_form ? 0.1 : 2e-3));
+        CHECK(v.unwinds == 1);                // the layer change, and only it
+        CHECK(v.negative_b_printed);          // the second layer is printed on the B < 0 branch
+    }
+}
+
+TEST_CASE("limits: without a travel move before the crossing, a clear error names the line") {
+    const Machine m = load("rw2");
+    const Kinematics k(m);
+    for (const bool vector_form : {false, true}) {
+        CAPTURE(vector_form);
+        const Program p = azimuth_loop(k, 300, std::nan(""), vector_form);
+        Translator t(k, {});
+        t.set_lookback(Translator::kDefaultLookback);
+        std::string out;
+        std::uint64_t failed = 0;
+        std::string message;
+        try {
+            run(t, p);
+        } catch (const InputError& e) {
+            failed = e.line();
+            message = e.message();
+        }
+        MESSAGE(message);
+        // The first move whose programmed A passes 168.
+        std::uint64_t expected = 0;
+        for (std::size_t i = 0; i < p.moves.size() && !expected; ++i)
+            if (p.moves[i].a1 > 168) expected = p.line_of[i];
+        CHECK(failed == expected);
+        CHECK(contains(message, "joint A"));
+        CHECK(contains(message, "168.000"));
+        CHECK(contains(message, "limits"));
+        CHECK(contains(message, "travel move"));
+    }
+}
+
+TEST_CASE("limits: the look-back window is bounded: a travel move too far back does not help") {
+    const Machine m = load("rw2");
+    const Kinematics k(m);
+    // The layer change at A = 50: 24 moves (and markers) before the crossing.
+    const Program p = azimuth_loop(k, 300, 50, false, 0);
+    Translator t(k, {});
+    t.set_lookback(10);
+    std::uint64_t failed = 0;
+    std::string message;
+    try {
+        run(t, p);
+    } catch (const InputError& e) {
+        failed = e.line();
+        message = e.message();
+    }
+    CHECK(failed > 0);
+    CHECK(contains(message, "within the 10 lines"));
+    // With a window that reaches it, the same program translates, within the limits.
+    Translator wide(k, {});
+    wide.set_lookback(200);
+    std::string out;
+    REQUIRE_NOTHROW(out = run(wide, p));
+    const Verdict v = check(m, k, p, out, false);
+    CHECK(v.worst_limit_excess <= 1e-9);
+    CHECK(v.worst_tip <= m.motion.tolerance + kPrintSlack);
+    CHECK(v.unwinds == 1);
+}
+
+TEST_CASE("limits: a travel move whose end is outside the limits takes the other branch by itself") {
+    const Machine m = load("rw2");
+    const Kinematics k(m);
+    // No look-back: the travel move at A = 150 -> 200 (programmed) ends past +168 itself.
+    Program p = azimuth_loop(k, 150, std::nan(""), false);
+    Move travel{p.moves.back().tip1, {}, 150, 30, 200, 30, false};
+    travel.tip1 = Eigen::Vector3d(110 + 20 * std::cos(rad(-200.0)), 110 + 20 * std::sin(rad(-200.0)), 5.3);
+    p.moves.push_back(travel);
+    p.lines.push_back(";M" + std::to_string(p.moves.size() - 1));
+    p.lines.push_back("G0 X" + num(travel.tip1.x()) + " Y" + num(travel.tip1.y()) + " Z5.3 A200 B30");
+    // Then printing on from there, programmed A 200 -> 260 (joints: the flipped image).
+    for (double a = 200; a < 260; a += 5) {
+        Move mv{p.moves.back().tip1, {}, a, 30, a + 5, 30, true};
+        mv.tip1 = Eigen::Vector3d(110 + 20 * std::cos(rad(-(a + 5))), 110 + 20 * std::sin(rad(-(a + 5))), 5.3);
+        p.moves.push_back(mv);
+        p.lines.push_back(";M" + std::to_string(p.moves.size() - 1));
+        p.lines.push_back("G1 X" + num(mv.tip1.x()) + " Y" + num(mv.tip1.y()) + " Z5.3 A" + num(a + 5, 3) + " B30 E0.05");
+    }
+    Translator t(k, {});
+    std::string out;
+    for (std::size_t i = 0; i < p.lines.size(); ++i) REQUIRE_NOTHROW(t.feed(p.lines[i], i + 1, out));
+    const Verdict v = check(m, k, p, out, false);
+    CHECK(v.worst_limit_excess <= 1e-9);
+    CHECK(v.worst_tip <= m.motion.tolerance + kPrintSlack);
+    CHECK(v.worst_print_axis <= 0.05);
+    CHECK(v.worst_print_excess <= 2e-3);
+    CHECK(v.unwinds == 1);
+    CHECK(v.negative_b_printed);
+    // G91 after the unwind: a relative A is a programmed angle, carried through the same image.
+    const std::vector<double> before = t.joints();
+    out.clear();
+    t.feed("G91", 100, out);
+    t.feed("G1 A5 E0.05", 101, out);
+    std::vector<double> prog(5, 0.0), now(5, 0.0);
+    prog[3] = 265, prog[4] = 30;
+    now[3] = t.joints()[3], now[4] = t.joints()[4];
+    CHECK(angle_deg(k.forward(prog).axis, k.forward(now).axis) < 1e-6);
+    CHECK(std::abs(t.joints()[3] - before[3]) == doctest::Approx(5).epsilon(1e-9));
+}
+
+TEST_CASE("limits: without any limit trouble the look-back changes nothing in the output") {
+    const Machine m = load("rw2");
+    const Kinematics k(m);
+    const Program p = azimuth_loop(k, 160, 80, false);
+    Translator direct(k, {}), held(k, {});
+    held.set_lookback(Translator::kDefaultLookback);
+    std::string a, b;
+    for (std::size_t i = 0; i < p.lines.size(); ++i) direct.feed(p.lines[i], i + 1, a);
+    b = run(held, p);
+    CHECK(a == b);
+}
