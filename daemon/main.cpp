@@ -16,6 +16,7 @@
 #include <string>
 #include <unistd.h>
 
+#include "daemon/serve_cli.hpp"
 #include "translators/calibration.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
@@ -210,6 +211,41 @@ int calibrate_plate(const std::string& path, const std::string& machine_name, co
     return kOk;
 }
 
+// calibrate offset / centre: shows what the fitted values change in the machine (old -> new) and,
+// with -o, writes the calibrated copy. The measurements are absolute (joint space, machine frame),
+// so the values replace the file's rather than adding to them.
+int store_calibration(const char* command, const std::string& machine_name, const std::vector<std::pair<std::string, double>>& values,
+                      const std::string& output) {
+    try {
+        if (values.empty()) {
+            if (!output.empty())
+                throw CLI::ValidationError("--param", std::string("calibrate ") + command + " -o needs --param (the machine parameter(s) to set)");
+            return kOk;
+        }
+        if (machine_name.empty())
+            throw CLI::ValidationError("--machine", std::string("calibrate ") + command + " --param needs --machine (the file to start from)");
+        const auto m = xlate5::load_machine(machine_name);
+        std::map<std::string, double> set;
+        for (const auto& [name, value] : values) {
+            const auto it = m.parameters.find(name);
+            if (it == m.parameters.end()) {
+                std::string known;
+                for (const auto& p : m.parameters) known += (known.empty() ? "" : ", ") + p.first;
+                throw xlate5::MachineError(m.source_path + ": [parameters] has no '" + name + "' (it has: " + (known.empty() ? "none" : known) + ")");
+            }
+            std::printf("%s: %.6f -> %.6f\n", name.c_str(), it->second, value);
+            set[name] = value;
+        }
+        if (output.empty()) return kOk;
+        std::ifstream in(m.source_path, std::ios::binary);
+        std::ostringstream text;
+        text << in.rdbuf();
+        return write_calibrated_copy(m, text.str(), set, output);
+    } catch (...) {
+        return exit_with(std::current_exception());
+    }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -239,6 +275,7 @@ int main(int argc, char** argv) {
     app.add_flag("--inverse", inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
     app.add_option("--preview-form", preview, "with --inverse: write orientation as G43.4 angles or G43.5 I J K")->check(CLI::IsMember({"G43.4", "G43.5"}));
     auto* machines_cmd = app.add_subcommand("machines", "list the bundled machines");
+    const auto serve_cmds = xlate5::add_serve_commands(app);
     auto* calibrate_cmd = app.add_subcommand("calibrate", "turn measurements into machine-file values");
     calibrate_cmd->require_subcommand(1);
     auto* fit_cmd = calibrate_cmd->add_subcommand("fit", "fit a Fourier series to a measured error table (CSV: angle,error per line)");
@@ -253,16 +290,20 @@ int main(int argc, char** argv) {
     plate_cmd->add_option("points", plate_points, "CSV file of probed points, machine frame, mm")->required();
     plate_cmd->add_option("-o,--output", plate_out, "write the machine file with rho and psi set here (never over the original)");
     auto* offset_cmd = calibrate_cmd->add_subcommand("offset", "rotary zero offset from plate touches along Y (CSV: y,z per line; seed 002 eq. 5.5)");
-    std::string offset_points;
+    std::string offset_points, offset_param, offset_out;
     offset_cmd->add_option("points", offset_points, "CSV file of touches: Y, Z (mm), two or more, both sides of the axis")->required();
+    offset_cmd->add_option("--param", offset_param, "machine parameter that holds the offset, e.g. a_offset (pentarod)");
+    offset_cmd->add_option("-o,--output", offset_out, "write the machine file with the offset set here (never over the original)");
     auto* pivots_cmd = calibrate_cmd->add_subcommand("pivots", "machine parameters (link lengths, pivots) from tips measured at known joints");
     std::string pivots_points, pivots_fit, pivots_out;
     pivots_cmd->add_option("points", pivots_points, "CSV: the joints in the machine file's order, then the measured tip x,y,z (part frame, mm)")->required();
     pivots_cmd->add_option("--fit", pivots_fit, "parameters to fit, comma-separated, e.g. la,lb")->required();
     pivots_cmd->add_option("-o,--output", pivots_out, "write the machine file with the fitted values here (never over the original)");
     auto* centre_cmd = calibrate_cmd->add_subcommand("centre", "rotation centre from dots at several rotary angles (CSV: x,y per line)");
-    std::string centre_points;
+    std::string centre_points, centre_param, centre_out;
     centre_cmd->add_option("points", centre_points, "CSV file of measured dot positions (mm), three or more")->required();
+    centre_cmd->add_option("--param", centre_param, "the two machine parameters that hold the centre, X then Y, e.g. cx,cy (pentarod) or wx,wy (koc5)");
+    centre_cmd->add_option("-o,--output", centre_out, "write the machine file with the centre set here (never over the original)");
 
     try {
         app.parse(argc, argv);
@@ -274,6 +315,7 @@ int main(int argc, char** argv) {
     }
 
     if (machines_cmd->parsed()) return list_machines();
+    if (const int code = xlate5::run_serve_commands(*serve_cmds, machine_name); code >= 0) return code;
     if (fit_cmd->parsed()) return calibrate_fit(fit_table, fit_order, fit_joint, fit_by);
     if (plate_cmd->parsed()) return calibrate_plate(plate_points, machine_name, plate_out);
     if (pivots_cmd->parsed()) {
@@ -324,16 +366,26 @@ int main(int argc, char** argv) {
             std::cerr << "xlate5: need at least " << (offset ? 2 : 3) << " points, got " << pts.size() << "\n";
             return kInputError;
         }
+        std::vector<std::pair<std::string, double>> values;
         if (offset) {
             const auto f = xlate5::fit_rotary_offset(pts);
             std::printf("rotary offset %.6f deg (atan of dZ/dY over %zu touches), plate Z at Y = 0: %.4f mm, largest residual %.4f mm\n",
                         f.offset_deg, pts.size(), f.z_error, f.residual);
+            if (!offset_param.empty()) values = {{offset_param, f.offset_deg}};
         } else {
             const auto f = xlate5::fit_circle(pts);
             std::printf("rotation centre (%.4f, %.4f), radius %.4f mm, largest residual %.4f mm over %zu dots\n", f.centre.x(),
                         f.centre.y(), f.radius, f.residual, pts.size());
+            if (!centre_param.empty()) {
+                std::vector<std::string> names;
+                std::stringstream list(centre_param);
+                for (std::string name; std::getline(list, name, ',');) names.push_back(name);
+                if (names.size() != 2 || names[0].empty() || names[1].empty() || names[0] == names[1])
+                    return exit_with(std::make_exception_ptr(CLI::ValidationError("--param", "expected two parameter names, X,Y (e.g. cx,cy), got '" + centre_param + "'")));
+                values = {{names[0], f.centre.x()}, {names[1], f.centre.y()}};
+            }
         }
-        return kOk;
+        return store_calibration(offset ? "offset" : "centre", machine_name, values, offset ? offset_out : centre_out);
     }
 
     std::map<std::string, double> overrides;
