@@ -318,3 +318,28 @@ TEST_CASE("limits: without any limit trouble the look-back changes nothing in th
     b = run(held, p);
     CHECK(a == b);
 }
+
+TEST_CASE("limits: where a machine claims the flip, FK agrees: (t1 + 180, -t2) gives the same tool axis") {
+    int machines_with_flip = 0;
+    for (const std::string name : {"rw2", "pentarod", "koc5", "wpi5", "xyzac-trt", "addin4"}) {
+        CAPTURE(name);
+        const Machine m = load(name);
+        const Kinematics k(m);
+        if (!k.has_flip()) continue;
+        ++machines_with_flip;
+        const auto& rot = k.rotary_joints();
+        REQUIRE(rot.size() == 2);
+        std::vector<double> q = m.home_joints(), f = q;
+        double worst = 0;
+        for (int i = 0; i < 200; ++i) {
+            q[std::size_t(rot[0])] = -180 + 1.7 * i;
+            q[std::size_t(rot[1])] = -90 + 0.83 * i;
+            f = q;
+            f[std::size_t(rot[0])] += 180;
+            f[std::size_t(rot[1])] = -q[std::size_t(rot[1])];
+            worst = std::max(worst, angle_deg(k.forward(q).axis, k.forward(f).axis));
+        }
+        CHECK(worst < 1e-9);
+    }
+    CHECK(machines_with_flip >= 2);  // rw2's head and the A/C tables at least
+}
