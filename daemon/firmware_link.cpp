@@ -13,7 +13,7 @@ std::chrono::milliseconds seconds(double s) { return std::chrono::milliseconds(s
 
 FirmwareLink::FirmwareLink(std::shared_ptr<Link> link, FirmwareOptions options, Listener& listener)
     : link_(std::move(link)), opt_(options), listener_(listener),
-      boot_timer_(link_->stream_executor()), reply_timer_(link_->stream_executor()) {}
+      boot_timer_(link_->stream_executor()), reply_timer_(link_->stream_executor()), grace_timer_(link_->stream_executor()) {}
 
 FirmwareLink::~FirmwareLink() {
     *alive_ = false;
@@ -56,7 +56,8 @@ void FirmwareLink::hello() {
     waiting_.clear();
     sent_.clear();
     in_flight_.clear();
-    swallow_ok_ = probing_ = false;
+    after_resend_ = probing_ = false;
+    grace_timer_.cancel();
     timeouts_in_row_ = 0;
     m115_.clear();
     state_ = State::Hello;
@@ -95,7 +96,7 @@ std::size_t FirmwareLink::bytes_in_flight() const {
 }
 
 void FirmwareLink::transmit() {
-    if (state_ != State::Ready && state_ != State::Hello) return;
+    if ((state_ != State::Ready && state_ != State::Hello) || after_resend_) return;
     const std::size_t limit = state_ == State::Hello ? 1 : std::size_t(window());
     std::size_t bytes = bytes_in_flight();
     while (in_flight_.size() < limit) {
@@ -157,13 +158,21 @@ void FirmwareLink::on_timeout() {
 
 void FirmwareLink::on_line(std::string_view line) {
     const auto reply = proto::classify(line);
-    const bool swallow = swallow_ok_;
-    swallow_ok_ = false;
     timeouts_in_row_ = 0;  // any sign of life
     if (!in_flight_.empty()) arm_timer();
+    if (after_resend_) {
+        after_resend_ = false;
+        grace_timer_.cancel();
+        if (reply.kind == proto::ReplyKind::Ok) {
+            resend_ok_ = ResendOk::Yes;  // the ok that follows Resend belongs to the refused line
+            transmit();
+            return;
+        }
+        if (resend_ok_ == ResendOk::Unknown) resend_ok_ = ResendOk::No;
+        transmit();
+    }
     switch (reply.kind) {
         case proto::ReplyKind::Ok:
-            if (swallow) return;  // the ok that follows Resend belongs to the refused line
             on_ok(line);
             return;
         case proto::ReplyKind::Resend:
@@ -193,6 +202,10 @@ void FirmwareLink::on_line(std::string_view line) {
         case proto::ReplyKind::Other:
             if (state_ == State::Hello && (line.rfind("FIRMWARE_NAME", 0) == 0 || line.rfind("Cap:", 0) == 0)) {
                 m115_.emplace_back(line);
+                return;
+            }
+            if (state_ == State::Booting || state_ == State::Hello) {
+                spdlog::info("firmware: {}", line);  // its boot messages are for xlate5, not the sender
                 return;
             }
             listener_.firmware_message(line);
@@ -245,7 +258,17 @@ void FirmwareLink::acknowledge(std::int64_t n, std::string_view payload) {
 
 void FirmwareLink::on_resend(std::int64_t n) {
     ++stats_.resend_requests;
-    swallow_ok_ = true;
+    if (resend_ok_ != ResendOk::No) {
+        after_resend_ = true;
+        auto alive = alive_;
+        grace_timer_.expires_after(std::chrono::milliseconds(100));
+        grace_timer_.async_wait([this, alive](boost::system::error_code ec) {
+            if (ec || !*alive || !after_resend_) return;
+            after_resend_ = false;  // no ok came with the Resend
+            if (resend_ok_ == ResendOk::Unknown) resend_ok_ = ResendOk::No;
+            transmit();
+        });
+    }
     if (n < first_n_ || n > last_n_ + 1) {
         fault("the firmware asked for line " + std::to_string(n) + ", which xlate5 " +
               (n < first_n_ ? "no longer keeps" : "never sent") + " (it restarted or lost its place)");
@@ -283,6 +306,8 @@ void FirmwareLink::fault(const std::string& why) {
     next_tx_ = last_n_ + 1;
     reply_timer_.cancel();
     boot_timer_.cancel();
+    grace_timer_.cancel();
+    after_resend_ = false;
     spdlog::error("firmware: {} ({} lines not executed)", why, lost);
     listener_.firmware_fault(why, lost);
 }

@@ -89,7 +89,12 @@ private:
     std::int64_t first_n_ = 0, last_n_ = -1, next_tx_ = 0;
     std::deque<Flight> in_flight_;      // transmitted, awaiting their ok
     std::uint64_t epoch_ = 0;           // bumped by each rewind: older flights will be refused
-    bool swallow_ok_ = false;           // the line after Resend: an ok there belongs to the refused line
+    // Whether this firmware follows Resend with an ok (Marlin mostly does, some versions do not):
+    // learned from the first Resend. Until the line after a Resend has come (or a short grace
+    // has passed), nothing is sent, so an ok there can only belong to the refused line.
+    enum class ResendOk { Unknown, Yes, No } resend_ok_ = ResendOk::Unknown;
+    bool after_resend_ = false;
+    asio::steady_timer grace_timer_;
     bool probing_ = false;              // a line was resent after a timeout
     int timeouts_in_row_ = 0;
     int learned_window_ = 0;

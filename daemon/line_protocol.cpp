@@ -51,17 +51,20 @@ std::string numbered(std::int64_t n, std::string_view command) {
 Received parse_received(std::string_view line) {
     Received r;
     line = trim(line);
-    // The checksum covers everything before the last '*'.
+    // The checksum covers everything before the last '*' outside a ';' comment. A '*' without
+    // an N is still a checksum (Marlin refuses it: "No Line Number with checksum").
     std::string_view body = line;
-    if (const auto star = line.rfind('*'); star != std::string_view::npos && !line.empty() && (line[0] == 'N' || line[0] == 'n')) {
+    const auto semicolon = line.find(';');
+    const auto star = line.substr(0, semicolon).rfind('*');
+    if (star != std::string_view::npos) {
         r.has_checksum = true;
-        std::string_view digits = trim(line.substr(star + 1));
+        std::string_view digits = trim(line.substr(star + 1, semicolon == std::string_view::npos ? std::string_view::npos : semicolon - star - 1));
         unsigned cs = 0;
         const auto res = std::from_chars(digits.data(), digits.data() + digits.size(), cs);
         r.checksum_ok = res.ec == std::errc() && res.ptr == digits.data() + digits.size() && cs == checksum(line.substr(0, star));
         body = line.substr(0, star);
     }
-    if (!body.empty() && (body[0] == 'N' || body[0] == 'n')) {
+    if (!body.empty() && body[0] == 'N') {
         std::string_view rest = body.substr(1);
         std::int64_t n = 0;
         const auto res = std::from_chars(rest.data(), rest.data() + rest.size(), n);

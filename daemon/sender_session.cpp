@@ -45,6 +45,8 @@ void SenderSession::on_line(std::string_view raw) {
         if (!r.checksum_ok) return refuse("checksum mismatch");
         if (!code.is('M', 110) && *r.number != last_n_ + 1) return refuse("Line Number is not Last Line Number+1");
         last_n_ = *r.number;
+    } else if (r.has_checksum) {
+        return refuse("No Line Number with checksum");
     }
     const std::string bare = proto::strip_comment(r.command);
     if (bare.empty()) {

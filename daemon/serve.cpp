@@ -55,6 +55,77 @@ int run_ports() {
     return 0;
 }
 
+void assemble(asio::io_context& io, const ServeConfig& config, const Machine& machine, Assembly& a) {
+    ServiceOptions sopt;
+    sopt.queue_lines = config.queue_lines;
+    sopt.translator.input_name = "sender";
+    a.service = std::make_unique<Service>(io, machine, sopt);
+    Service& service = *a.service;
+
+    // The firmware end. With the virtual printer, it sits on the master of a pseudo-terminal and
+    // xlate5 opens the slave exactly as it would open a USB serial port.
+    std::string device = config.port;
+    if (config.port == "sim") {
+        a.sim_pty = std::make_unique<Pty>();
+        device = a.sim_pty->path();
+    }
+    a.port = std::make_unique<SerialPort>(device, config.baud);
+    auto link = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, a.port->release_fd()), device);
+    if (a.sim_pty) {
+        SimOptions so = config.sim;
+        so.axes.clear();
+        for (const auto& j : machine.joints) so.axes += j.output;
+        a.sim = std::make_shared<VirtualPrinter>(io, a.sim_pty->release_master(), so);
+        a.sim->start();
+        spdlog::info("firmware: the virtual printer ({}) on {}", so.reprap ? "RepRapFirmware-like" : "Marlin-like", device);
+    } else {
+        spdlog::info("firmware: {} at {} baud", device, config.baud);
+    }
+    service.attach_firmware(link, config.firmware);
+
+    // Sender ends.
+    if (!config.pty.empty()) {
+        a.sender_pty = std::make_unique<Pty>(config.pty);
+        auto sl = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, a.sender_pty->release_master()), a.sender_pty->link());
+        sl->eio_is_transient = true;  // a sender closing the port is not the end of the service
+        service.add_sender(sl, "pty " + config.pty);
+        spdlog::info("senders: open {} (-> {}) as the printer's serial port", config.pty, a.sender_pty->path());
+    }
+    if (!config.tcp.empty()) {
+        const auto colon = config.tcp.rfind(':');
+        if (colon == std::string::npos) throw IoError("sender.tcp: expected host:port, got '" + config.tcp + "'");
+        boost::system::error_code ec;
+        const auto address = asio::ip::make_address(config.tcp.substr(0, colon), ec);
+        if (ec) throw IoError("sender.tcp: '" + config.tcp.substr(0, colon) + "' is not an IP address");
+        if (!is_loopback(address) && !config.allow_remote)
+            throw IoError("sender.tcp: " + config.tcp + " is not a loopback address; set allow_remote = true to bind it");
+        const auto port = static_cast<unsigned short>(std::stoi(config.tcp.substr(colon + 1)));
+        a.acceptor.emplace(io);
+        const asio::ip::tcp::endpoint ep(address, port);
+        a.acceptor->open(ep.protocol());
+        a.acceptor->set_option(asio::socket_base::reuse_address(true));
+        a.acceptor->bind(ep, ec);
+        if (ec) throw IoError("sender.tcp: cannot bind " + config.tcp + ": " + ec.message());
+        a.acceptor->listen();
+        spdlog::info("senders: tcp {}:{}", address.to_string(), a.acceptor->local_endpoint().port());
+        a.accept_next = std::make_shared<std::function<void()>>();
+        auto* acceptor = &*a.acceptor;
+        std::weak_ptr<std::function<void()>> next = a.accept_next;
+        *a.accept_next = [acceptor, &service, next] {
+            acceptor->async_accept([acceptor, &service, next](boost::system::error_code e, asio::ip::tcp::socket socket) {
+                if (e) return;
+                socket.set_option(asio::ip::tcp::no_delay(true));
+                boost::system::error_code pe;
+                const auto rep = socket.remote_endpoint(pe);
+                const auto peer = "tcp " + rep.address().to_string() + ":" + std::to_string(rep.port());
+                service.add_sender(std::make_shared<TcpLink>(std::move(socket), peer), peer);
+                if (auto n = next.lock()) (*n)();
+            });
+        };
+        (*a.accept_next)();
+    }
+}
+
 int run_serve(const ServeConfig& config) {
     setup_logging(config.log_level);
     Machine machine;
@@ -66,83 +137,19 @@ int run_serve(const ServeConfig& config) {
     }
 
     asio::io_context io;
-    ServiceOptions sopt;
-    sopt.queue_lines = config.queue_lines;
-    sopt.translator.input_name = "sender";
-    Service service(io, machine, sopt);
-
-    // The firmware end. With the virtual printer, it sits on the master of a pseudo-terminal and
-    // xlate5 opens the slave exactly as it would open a USB serial port.
-    std::unique_ptr<Pty> sim_pty;
-    std::shared_ptr<VirtualPrinter> sim;
-    std::string device = config.port;
-    std::unique_ptr<SerialPort> port;
+    Assembly parts;
     try {
-        if (config.port == "sim") {
-            sim_pty = std::make_unique<Pty>();
-            device = sim_pty->path();
-        }
-        port = std::make_unique<SerialPort>(device, config.baud);
-        auto link = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, port->release_fd()), device);
-        if (sim_pty) {
-            SimOptions so = config.sim;
-            so.axes.clear();
-            for (const auto& j : machine.joints) so.axes += j.output;
-            sim = std::make_shared<VirtualPrinter>(io, sim_pty->release_master(), so);
-            sim->start();
-            spdlog::info("firmware: the virtual printer ({}) on {}", so.reprap ? "RepRapFirmware-like" : "Marlin-like", device);
-        } else {
-            spdlog::info("firmware: {} at {} baud", device, config.baud);
-        }
-        service.attach_firmware(link, config.firmware);
-    } catch (const IoError& e) {
-        spdlog::error("{}", e.what());
-        return 4;
-    }
-
-    // Sender ends.
-    std::unique_ptr<Pty> sender_pty;
-    std::optional<asio::ip::tcp::acceptor> acceptor;
-    try {
-        if (!config.pty.empty()) {
-            sender_pty = std::make_unique<Pty>(config.pty);
-            auto link = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, sender_pty->release_master()),
-                                                         sender_pty->link());
-            link->eio_is_transient = true;  // a sender closing the port is not the end of the service
-            service.add_sender(link, "pty " + config.pty);
-            spdlog::info("senders: open {} (-> {}) as the printer's serial port", config.pty, sender_pty->path());
-        }
-        if (!config.tcp.empty()) {
-            const auto colon = config.tcp.rfind(':');
-            if (colon == std::string::npos) throw IoError("sender.tcp: expected host:port, got '" + config.tcp + "'");
-            const auto address = asio::ip::make_address(config.tcp.substr(0, colon));
-            if (!is_loopback(address) && !config.allow_remote)
-                throw IoError("sender.tcp: " + config.tcp + " is not a loopback address; set allow_remote = true to bind it");
-            const auto port = static_cast<unsigned short>(std::stoi(config.tcp.substr(colon + 1)));
-            acceptor.emplace(io, asio::ip::tcp::endpoint(address, port));
-            spdlog::info("senders: tcp {}:{}", address.to_string(), acceptor->local_endpoint().port());
-            auto accept = std::make_shared<std::function<void()>>();
-            *accept = [&, accept] {
-                acceptor->async_accept([&, accept](boost::system::error_code ec, asio::ip::tcp::socket socket) {
-                    if (ec) return;
-                    socket.set_option(asio::ip::tcp::no_delay(true));
-                    const auto peer = socket.remote_endpoint().address().to_string() + ":" + std::to_string(socket.remote_endpoint().port());
-                    service.add_sender(std::make_shared<TcpLink>(std::move(socket), "tcp " + peer), "tcp " + peer);
-                    (*accept)();
-                });
-            };
-            (*accept)();
-        }
+        assemble(io, config, machine, parts);
     } catch (const std::exception& e) {
         spdlog::error("{}", e.what());
         return 4;
     }
+    Service& service = *parts.service;
 
     // SIGTERM/SIGINT: drain, then stop; a second one stops at once (between lines). SIGHUP:
     // reload the machine when idle.
     asio::signal_set signals(io, SIGINT, SIGTERM, SIGHUP);
     bool stopping = false;
-    int exit_code = 0;
     std::function<void()> wait_signal = [&] {
         signals.async_wait([&](boost::system::error_code ec, int sig) {
             if (ec) return;
@@ -173,7 +180,6 @@ int run_serve(const ServeConfig& config) {
             spdlog::info("stopping: draining the queue (up to {} s)", config.drain_timeout);
             service.drain(config.drain_timeout, [&](const std::string& outcome) {
                 spdlog::info("{}", outcome);
-                if (outcome.rfind("drained", 0) != 0) exit_code = 0;
                 io.stop();
             });
             wait_signal();
@@ -184,8 +190,10 @@ int run_serve(const ServeConfig& config) {
     io.run();
     const auto& st = service.stats();
     spdlog::info("lines from senders {}, lines to the firmware {}, refused {}", st.lines_in, st.lines_out, st.rejected);
-    if (sim) spdlog::info("virtual printer: executed {}, refused {}, dropped {}", sim->stats().executed, sim->stats().refused, sim->stats().dropped);
-    return exit_code;
+    if (parts.sim)
+        spdlog::info("virtual printer: executed {}, refused {}, dropped {}", parts.sim->stats().executed, parts.sim->stats().refused,
+                     parts.sim->stats().dropped);
+    return 0;
 }
 
 }  // namespace xlate5

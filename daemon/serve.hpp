@@ -3,7 +3,27 @@
 #pragma once
 #include "daemon/config.hpp"
 
+#include <memory>
+#include <optional>
+
+#include "daemon/ports.hpp"
+#include "daemon/service.hpp"
+#include "daemon/virtual_printer.hpp"
+
 namespace xlate5 {
+
+// The service and its ends, wired as `xlate5 serve` wires them (tests build the same thing).
+struct Assembly {
+    std::unique_ptr<Pty> sim_pty, sender_pty;
+    std::unique_ptr<SerialPort> port;
+    std::shared_ptr<VirtualPrinter> sim;
+    std::unique_ptr<Service> service;
+    std::optional<asio::ip::tcp::acceptor> acceptor;
+    std::shared_ptr<std::function<void()>> accept_next;
+};
+// Opens the firmware port (or starts the virtual printer), the sender pseudo-terminal and TCP
+// endpoint. Throws IoError naming the port or address and the cause.
+void assemble(asio::io_context& io, const ServeConfig& config, const Machine& machine, Assembly& a);
 
 // Runs until SIGTERM/SIGINT (queue drained, or stopped between lines after drain_timeout).
 // Returns the process exit code.

@@ -151,7 +151,8 @@ void Service::sender_command(SenderSession& s, std::string_view command, std::ui
 }
 
 void Service::pump() {
-    while (!pending_.empty()) {
+    // While draining for a stop, lines not yet acknowledged stay with the sender, unsent.
+    while (!pending_.empty() && !draining_) {
         if (!stopped() && firmware_ && (firmware_->state() != FirmwareLink::State::Ready || firmware_->queued() >= opt_.queue_lines)) {
             arm_busy();  // the sender waits for its ok: keep it from timing out
             return;
@@ -322,7 +323,7 @@ void Service::drain(double timeout, std::function<void(const std::string&)> done
 void Service::check_drained() {
     if (!draining_ || !drained_) return;
     const bool fw_done = !firmware_ || firmware_->idle() || firmware_->state() == FirmwareLink::State::Faulted;
-    if (!fw_done || !pending_.empty()) return;
+    if (!fw_done) return;
     drain_timer_.cancel();
     auto done = std::move(drained_);
     drained_ = nullptr;

@@ -95,11 +95,21 @@ void VirtualPrinter::on_line(std::string_view raw) {
         line[at(rng_)] ^= char(1 << bit(rng_));
         ++stats_.corrupted;
     }
+    if (!carry_.empty()) {
+        line = carry_ + line;  // the newline before this line was lost: the two arrive as one
+        carry_.clear();
+    }
     if (f.drop > 0 && !line.empty() && uni_(rng_) < f.drop) {
-        std::uniform_int_distribution<std::size_t> at(0, line.size() - 1), len(1, 4);
+        // One byte lost (a single lost byte always changes an XOR checksum; several can cancel
+        // out, which no XOR-checked firmware can notice), or the newline.
+        std::uniform_int_distribution<std::size_t> at(0, line.size());
         const auto a = at(rng_);
-        line.erase(a, len(rng_));
         ++stats_.corrupted;
+        if (a == line.size()) {
+            carry_ = line;
+            return;
+        }
+        line.erase(a, 1);
     }
     if (opt_.baud <= 0) {
         accept(line);
@@ -174,6 +184,16 @@ void VirtualPrinter::accept(std::string_view line) {
     } else if (code.is('M', 110)) {
         const auto p = command.find_first_of("Nn", 1);
         if (p != std::string::npos) last_n_ = std::strtoll(command.c_str() + p + 1, nullptr, 10);
+    }
+    if (!r.number && r.has_checksum) {
+        if (!r.checksum_ok || !opt_.reprap) {
+            // A damaged N: Marlin refuses it, RepRapFirmware drops it (the checksum fails).
+            if (opt_.reprap) {
+                ++stats_.dropped;
+                return;
+            }
+            return refuse("No Line Number with checksum");
+        }
     }
     buffer_.push_back({command, r.number.value_or(-1)});
     run_queue();

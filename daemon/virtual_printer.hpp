@@ -85,6 +85,7 @@ private:
     bool running_ = false;  // run_queue is waiting on a timer
     bool halted_ = false;
     bool unplugged_ = false;
+    std::string carry_;  // a line whose newline was dropped
     std::vector<std::string> executed_;
     std::ofstream record_;
     std::vector<double> pos_;  // per axis letter, plus E last

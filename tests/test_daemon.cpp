@@ -1,0 +1,308 @@
+// The service end to end on real pseudo-terminals: a sender streams tool-space G-code into
+// xlate5, xlate5 drives the virtual printer, and what the printer executed must equal the
+// offline translation of the same lines: nothing lost, duplicated or reordered, under every
+// fault the virtual printer can inject.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+
+#include "tests/daemon_rig.hpp"
+#include "translators/error.hpp"
+
+using namespace xlate5;
+using namespace xlate5::test;
+
+namespace {
+
+// Streams `lines` and checks the executed sequence against the offline translation.
+void stream_and_compare(Rig& rig, const std::vector<std::string>& lines, double seconds, bool numbered = true) {
+    REQUIRE(rig.ready());
+    const auto expected = offline(rig.machine, lines);
+    TestSender sender(rig.io, rig.config.pty, numbered);
+    sender.stream(lines);
+    const bool finished = rig.run_until([&] { return sender.done() && rig.service().idle(); }, seconds);
+    CHECK_MESSAGE(finished, "stream did not finish: executed " << rig.sim().executed().size() << " of " << expected.size());
+    const auto executed = rig.executed_after_hello();
+    CHECK(executed.size() == expected.size());
+    // The first difference, if any, is the useful message.
+    const auto mismatch = std::mismatch(executed.begin(), executed.end(), expected.begin(), expected.end());
+    if (mismatch.first != executed.end() || mismatch.second != expected.end()) {
+        const auto at = mismatch.first - executed.begin();
+        FAIL("executed differs from the offline translation at command " << at << ": '"
+             << (mismatch.first != executed.end() ? *mismatch.first : "<end>") << "' vs '"
+             << (mismatch.second != expected.end() ? *mismatch.second : "<end>") << "'");
+    }
+    CHECK(rig.service().stop_reason().empty());
+    for (const auto& r : sender.received) CHECK_MESSAGE(r.rfind("Error", 0) != 0, "sender got: " << r);
+}
+
+}  // namespace
+
+TEST_CASE("a clean print executes exactly the offline translation, numbered or bare sender") {
+    const auto lines = rw2_print(3000);
+    {
+        Rig rig("rw2");
+        stream_and_compare(rig, lines, 60);
+        CHECK(rig.service().firmware()->stats().resend_requests == 0);
+    }
+    {
+        Rig rig("rw2");
+        stream_and_compare(rig, lines, 60, /*numbered=*/false);  // a cncjs-style sender
+    }
+}
+
+TEST_CASE("1% line corruption over 100k lines: every line executed once, in order") {
+    const auto lines = rw2_print(100000, 11);
+    Rig rig("rw2", [](ServeConfig& c) {
+        c.sim.faults.corrupt = 0.01;
+        c.sim.faults.seed = 5;
+    });
+    stream_and_compare(rig, lines, 600);
+    INFO("corrupted " << rig.sim().stats().corrupted << ", resend requests " << rig.service().firmware()->stats().resend_requests);
+    CHECK(rig.sim().stats().corrupted > 500);
+    CHECK(rig.service().firmware()->stats().resend_requests >= rig.sim().stats().corrupted);
+}
+
+TEST_CASE("fault classes: dropped bytes, spurious resends with and without ok, garbled replies, busy, slow planner") {
+    const auto lines = rw2_print(4000, 3);
+    SUBCASE("dropped bytes (a lost newline merges two lines)") {
+        Rig rig("rw2", [](ServeConfig& c) { c.sim.faults.drop = 0.02; });
+        stream_and_compare(rig, lines, 120);
+        CHECK(rig.sim().stats().corrupted > 20);
+    }
+    SUBCASE("resend requests followed by ok") {
+        Rig rig("rw2", [](ServeConfig& c) { c.sim.faults.spurious_resend = 0.03; });
+        stream_and_compare(rig, lines, 120);
+        CHECK(rig.sim().stats().refused > 50);
+    }
+    SUBCASE("resend requests without the ok after them") {
+        Rig rig("rw2", [](ServeConfig& c) {
+            c.sim.faults.spurious_resend = 0.03;
+            c.sim.faults.no_ok_after_resend = true;
+        });
+        stream_and_compare(rig, lines, 120);
+        CHECK(rig.sim().stats().refused > 50);
+    }
+    SUBCASE("garbled replies (lost oks recovered by timeout, never run twice)") {
+        Rig rig("rw2", [](ServeConfig& c) {
+            c.sim.faults.garble_reply = 0.005;
+            c.firmware.reply_timeout = 0.1;
+        });
+        stream_and_compare(rig, lines, 240);
+        CHECK(rig.sim().stats().garbled > 10);
+    }
+    SUBCASE("busy periods with keepalives") {
+        Rig rig("rw2", [](ServeConfig& c) {
+            c.sim.faults.busy = 0.002;
+            c.sim.faults.busy_seconds = 0.4;
+            c.sim.faults.busy_interval = 0.1;
+            c.firmware.reply_timeout = 0.25;  // shorter than the busy period: keepalives must hold it off
+        });
+        stream_and_compare(rig, lines, 120);
+        CHECK(rig.service().firmware()->stats().busy > 5);
+        CHECK(rig.service().firmware()->stats().timeouts == 0);
+    }
+    SUBCASE("slow planner with ADVANCED_OK: the window is learned, oks held back") {
+        const auto few = rw2_print(600, 4);
+        Rig rig("rw2", [](ServeConfig& c) {
+            c.sim.faults.move_ms = 2;
+            c.sim.advanced_ok = true;
+            c.firmware.reply_timeout = 2;
+        });
+        stream_and_compare(rig, few, 120);
+        CHECK(rig.service().firmware()->window() == rig.config.sim.buffer);
+    }
+}
+
+TEST_CASE("RepRapFirmware drops bad lines silently: recovered by timeout") {
+    const auto lines = rw2_print(3000, 9);
+    Rig rig("rw2", [](ServeConfig& c) {
+        c.firmware.reprap = true;
+        c.sim.reprap = true;
+        c.sim.faults.corrupt = 0.01;
+        c.firmware.reply_timeout = 0.05;
+    });
+    stream_and_compare(rig, lines, 120);
+    CHECK(rig.sim().stats().dropped > 10);
+    CHECK(rig.service().firmware()->stats().timeouts >= rig.sim().stats().dropped);
+}
+
+TEST_CASE("a firmware that resets, halts or vanishes stops the print: sender told, nothing replayed") {
+    const auto lines = rw2_print(2000, 5);
+    struct Case {
+        const char* name;
+        std::function<void(SimFaults&)> set;
+        const char* says;
+    };
+    const Case cases[] = {
+        {"reset", [](SimFaults& f) { f.reset_after = 700; }, "restarted"},
+        {"kill", [](SimFaults& f) { f.kill_after = 700; }, "halted"},
+        {"unplug", [](SimFaults& f) { f.unplug_after = 700; }, "closed"},
+    };
+    for (const auto& k : cases) {
+        CAPTURE(k.name);
+        Rig rig("rw2", [&](ServeConfig& c) { k.set(c.sim.faults); });
+        REQUIRE(rig.ready());
+        const auto expected = offline(rig.machine, lines);
+        TestSender sender(rig.io, rig.config.pty);
+        sender.stream(lines);
+        REQUIRE(rig.run_until([&] { return rig.service().stopped(); }, 30));
+        // The sender goes on sending (printcore does): every further line is refused, not run.
+        rig.run_until([&] { return sender.done(); }, 30);
+        const auto executed = rig.executed_after_hello();
+        // What ran is exactly a prefix of the translation: in order, nothing twice, and nothing
+        // after the fault (the greeting counts as two executed commands).
+        CHECK(executed.size() == 700 - 2);
+        REQUIRE(executed.size() <= expected.size());
+        CHECK(std::equal(executed.begin(), executed.end(), expected.begin()));
+        bool told = false;
+        for (const auto& r : sender.received) told = told || (r.rfind("Error:", 0) == 0 && r.find(k.says) != std::string::npos);
+        CHECK_MESSAGE(told, "the sender was not told why");
+        CHECK(rig.service().firmware()->queued() == 0);
+    }
+}
+
+TEST_CASE("M112 reaches the firmware at once while the queue is full") {
+    Rig rig("rw2", [](ServeConfig& c) {
+        c.sim.faults.move_ms = 200;  // a slow printer: the queue fills and the sender is held
+        c.queue_lines = 32;
+        c.firmware.reply_timeout = 5;
+    });
+    REQUIRE(rig.ready());
+    TestSender sender(rig.io, rig.config.pty);
+    sender.stream(rw2_print(500, 2));
+    REQUIRE(rig.run_until([&] { return rig.service().firmware()->queued() >= 32; }, 20));
+    const auto before = rig.sim().executed().size();
+    sender.send_now("M112");
+    REQUIRE(rig.run_until([&] { return rig.sim().halted(); }, 2));
+    const auto& e = rig.sim().executed();
+    CHECK(e.back() == "M112");
+    CHECK(e.size() <= before + 2);                // nothing from the queue went ahead of it
+    CHECK(rig.service().stopped());
+    CHECK(rig.service().firmware()->queued() == 0);  // the rest of the queue is dropped, not sent later
+}
+
+TEST_CASE("M114 answers in tool space; M105 gets the firmware's report on its ok; M115 adds xlate5") {
+    Rig rig("rw2");
+    REQUIRE(rig.ready());
+    TestSender sender(rig.io, rig.config.pty);
+    sender.stream({"G28", "G92 A-168", "G1 A0 B0 F3000", "G1 X10.5 Y20.25 Z5 A30 B10 F1200", "M114", "M105", "M115"});
+    REQUIRE(rig.run_until([&] { return sender.done(); }, 10));
+    bool position = false, xlate5_line = false, firmware_name = false;
+    for (const auto& r : sender.received) {
+        if (r.rfind("X:", 0) == 0) {
+            position = true;
+            // The tip the program asked for, not the joints (X is offset by la sin A + ... on rw2).
+            CHECK(r == "X:10.50 Y:20.25 Z:5.00 A:30.00 B:10.00 E:0.00");
+        }
+        xlate5_line = xlate5_line || r.rfind("XLATE5:", 0) == 0;
+        firmware_name = firmware_name || r.rfind("FIRMWARE_NAME:Marlin", 0) == 0;
+    }
+    CHECK(position);
+    CHECK(xlate5_line);
+    CHECK(firmware_name);
+    bool temps = false;
+    for (const auto& ok : sender.oks) temps = temps || ok.find("T:21.50") != std::string::npos;
+    CHECK(temps);
+}
+
+TEST_CASE("sender side: Marlin's answers to bad checksums, skipped numbers and missing checksums") {
+    Rig rig("rw2");
+    REQUIRE(rig.ready());
+    TestSender sender(rig.io, rig.config.pty);
+    sender.send_raw(proto::numbered(0, "M110 N0"));
+    sender.send_raw("N1 G28*99");                     // wrong checksum
+    sender.send_raw(proto::numbered(3, "G28"));       // skips 1 and 2
+    sender.send_raw("N1 G28");                        // no checksum
+    sender.send_raw(proto::numbered(1, "G28"));       // right
+    REQUIRE(rig.run_until([&] { return sender.oks.size() >= 5; }, 5));
+    REQUIRE(sender.received.size() == 3);
+    CHECK(sender.received[0] == "Error:checksum mismatch, Last Line: 0");
+    CHECK(sender.received[1] == "Error:Line Number is not Last Line Number+1, Last Line: 0");
+    CHECK(sender.received[2] == "Error:No Checksum with line number, Last Line: 0");
+    CHECK(sender.resends == 3);
+    rig.run_until([&] { return rig.service().idle(); }, 5);
+    CHECK(rig.executed_after_hello() == std::vector<std::string>{"G28"});
+}
+
+TEST_CASE("lines longer than the firmware's buffer are split, never sent long") {
+    const auto lines = rw2_print(500, 8);
+    // A buffer just long enough for every move without its F: the longest moves with F must be split.
+    std::size_t longest_without_f = 0, longest = 0;
+    {
+        Rig probe("rw2");
+        for (const auto& l : offline(probe.machine, lines)) {
+            longest = std::max(longest, l.size());
+            std::string without_f = l;
+            if (const auto f = l.find(" F"); f != std::string::npos) {
+                const auto end = l.find(' ', f + 1);
+                without_f = l.substr(0, f) + (end == std::string::npos ? "" : l.substr(end));
+            }
+            longest_without_f = std::max(longest_without_f, without_f.size());
+        }
+    }
+    REQUIRE(longest > longest_without_f);
+    const std::size_t max_line = longest_without_f + 15;
+    Rig rig("rw2", [&](ServeConfig& c) {
+        c.firmware.max_line = max_line;
+        c.sim.max_line = max_line;
+    });
+    REQUIRE(rig.ready());
+    auto expected = offline(rig.machine, lines);
+    TestSender sender(rig.io, rig.config.pty);
+    sender.stream(lines);
+    REQUIRE(rig.run_until([&] { return sender.done() && rig.service().idle(); }, 60));
+    // Put the F that was moved to a line of its own back on its move: the result is the translation.
+    std::vector<std::string> joined;
+    const auto& e = rig.executed_after_hello();
+    for (std::size_t i = 0; i < e.size(); ++i) {
+        CHECK(proto::numbered(99999999, e[i]).size() + 1 <= max_line);
+        if (e[i].rfind("G1 F", 0) == 0 && e[i].find(' ', 3) == std::string::npos && i + 1 < e.size()) {
+            joined.push_back(e[i + 1] + " " + e[i].substr(3));
+            ++i;
+        } else {
+            joined.push_back(e[i]);
+        }
+    }
+    CHECK(rig.service().stats().split_long > 0);
+    REQUIRE(joined.size() == expected.size());
+    for (std::size_t i = 0; i < joined.size(); ++i) REQUIRE(joined[i] == expected[i]);
+}
+
+TEST_CASE("an untranslatable line stops the print at that line with file, line and cause") {
+    Rig rig("rw2");
+    REQUIRE(rig.ready());
+    TestSender sender(rig.io, rig.config.pty);
+    sender.stream({"G28", "G92 A-168", "G1 A0 B0 F3000", "G1 X10 Y10 Z5", "G1 X10 Q5", "G1 X20"});
+    REQUIRE(rig.run_until([&] { return sender.done(); }, 10));
+    rig.run_until([&] { return rig.service().idle(); }, 5);
+    bool named = false;
+    for (const auto& r : sender.received) named = named || r.rfind("Error:xlate5: sender:5:", 0) == 0;
+    CHECK(named);
+    const auto e = rig.executed_after_hello();
+    REQUIRE(!e.empty());
+    CHECK(e.back().find("X10") != std::string::npos);  // G1 X20 (line 6) never ran
+}
+
+TEST_CASE("TCP senders on loopback; a remote address needs allow_remote") {
+    Rig rig("rw2", [](ServeConfig& c) { c.tcp = "127.0.0.1:0"; });
+    REQUIRE(rig.ready());
+    const auto port = rig.parts.acceptor->local_endpoint().port();
+    asio::ip::tcp::socket sock(rig.io);
+    sock.connect({asio::ip::make_address("127.0.0.1"), port});
+    auto link = std::make_shared<TcpLink>(std::move(sock), "client");
+    std::vector<std::string> got;
+    link->start([&](std::string_view l) { got.emplace_back(l); }, [](const std::string&) {});
+    link->send("M115\n");
+    REQUIRE(rig.run_until([&] { return !got.empty() && got.back() == "ok"; }, 5));
+    CHECK(got.front().rfind("FIRMWARE_NAME:", 0) == 0);
+    link->close();
+
+    ServeConfig c;
+    c.port = "sim";
+    c.pty.clear();
+    c.tcp = "0.0.0.0:0";
+    asio::io_context io;
+    Assembly a;
+    CHECK_THROWS_WITH_AS(assemble(io, c, rig.machine, a), doctest::Contains("allow_remote"), IoError);
+}
