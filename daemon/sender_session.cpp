@@ -9,10 +9,16 @@ namespace xlate5 {
 SenderSession::SenderSession(std::shared_ptr<Link> link, Host& host, std::string name)
     : link_(std::move(link)), host_(host), name_(std::move(name)) {}
 
+SenderSession::~SenderSession() { link_->close(); }
+
 void SenderSession::start() {
-    auto self = shared_from_this();
-    link_->start([this, self](std::string_view line) { on_line(line); },
-                 [this, self](const std::string&) { host_.sender_gone(*this); });
+    // Weak: the service owns the session; the link must not keep it alive in a cycle.
+    std::weak_ptr<SenderSession> weak = shared_from_this();
+    link_->start([weak](std::string_view line) {
+        if (auto self = weak.lock()) self->on_line(line);
+    }, [weak](const std::string&) {
+        if (auto self = weak.lock()) self->host_.sender_gone(*self);
+    });
 }
 
 void SenderSession::close() { link_->close(); }

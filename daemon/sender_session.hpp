@@ -27,6 +27,7 @@ public:
     };
 
     SenderSession(std::shared_ptr<Link> link, Host& host, std::string name);
+    ~SenderSession();
     void start();
     void close();
     void send_line(std::string_view line);      // one reply line; '\n' added

@@ -48,9 +48,15 @@ VirtualPrinter::VirtualPrinter(asio::io_context& io, int master_fd, SimOptions o
     if (!opt_.record_path.empty()) record_.open(opt_.record_path, std::ios::trunc);
 }
 
+VirtualPrinter::~VirtualPrinter() { link_->close(); }
+
 void VirtualPrinter::start() {
-    auto self = shared_from_this();
-    link_->start([this, self](std::string_view line) { on_line(line); }, [](const std::string&) {});
+    // A weak reference: the link must not keep its owner alive (the record file is flushed when
+    // the printer goes away).
+    std::weak_ptr<VirtualPrinter> weak = shared_from_this();
+    link_->start([weak](std::string_view line) {
+        if (auto self = weak.lock()) self->on_line(line);
+    }, [](const std::string&) {});
     boot();
 }
 

@@ -52,6 +52,7 @@ class VirtualPrinter : public std::enable_shared_from_this<VirtualPrinter> {
 public:
     // Takes the master side of a pseudo-terminal; xlate5 opens the slave as its serial port.
     VirtualPrinter(asio::io_context& io, int master_fd, SimOptions options);
+    ~VirtualPrinter();
     void start();   // boots: sends "start" and the echo lines
     void unplug();  // the port vanishes
     const std::vector<std::string>& executed() const { return executed_; }

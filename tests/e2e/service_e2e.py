@@ -1,0 +1,77 @@
+#!/usr/bin/python3
+"""End to end: `xlate5 serve` with its virtual printer, a real sender streaming a tool-space file
+into its pseudo-terminal, SIGTERM (drain), then the commands the printer executed compared with
+the offline translation of the same file (`xlate5 --machine M -i FILE`). Nothing may be lost,
+duplicated or reordered.
+
+Usage: service_e2e.py XLATE5 MACHINE FILE printcore|bare [extra serve flags...]
+"""
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def strip(line):
+    line = line.split(";", 1)[0]
+    out, depth = [], 0
+    for ch in line:
+        if ch == "(":
+            depth += 1
+        elif ch == ")" and depth:
+            depth -= 1
+        elif not depth:
+            out.append(ch)
+    return "".join(out).strip()
+
+
+def main():
+    xlate5, machine, path, sender = sys.argv[1:5]
+    extra = sys.argv[5:]
+    with tempfile.TemporaryDirectory(prefix="xlate5-e2e-") as tmp:
+        pty = os.path.join(tmp, "printer")
+        record = os.path.join(tmp, "executed.gcode")
+        log = open(os.path.join(tmp, "serve.log"), "w+")
+        serve = subprocess.Popen([xlate5, "serve", "--machine", machine, "--printer", "sim", "--pty", pty,
+                                  "--record", record, "--boot-wait", "0.2", *extra], stderr=log)
+        try:
+            deadline = time.time() + 20
+            while not os.path.exists(pty):
+                if time.time() > deadline or serve.poll() is not None:
+                    log.seek(0)
+                    raise SystemExit("xlate5 serve did not start:\n" + log.read())
+                time.sleep(0.05)
+            result = subprocess.run(["/usr/bin/python3", os.path.join(HERE, "senders.py"), sender, pty, path],
+                                    capture_output=True, text=True, timeout=900)
+            print(result.stdout.strip())
+            if result.returncode != 0:
+                print(result.stderr[-3000:])
+                raise SystemExit("the sender failed")
+        finally:
+            serve.send_signal(signal.SIGTERM)
+            code = serve.wait(timeout=120)
+        log.seek(0)
+        if code != 0:
+            raise SystemExit("xlate5 serve exited with %d:\n%s" % (code, log.read()))
+        offline = subprocess.run([xlate5, "--machine", machine, "-i", path], capture_output=True, text=True, check=True).stdout
+        expected = [c for c in (strip(l) for l in offline.splitlines()) if c]
+        with open(record) as f:
+            executed = [l.rstrip("\n") for l in f]
+        # xlate5's own greeting (M110 N0, M115) and the senders' temperature polls are not part
+        # of the file.
+        executed = [c for c in executed if c not in ("M110 N0", "M115", "M105")]
+        expected = [c for c in expected if c != "M105"]
+        if executed != expected:
+            for i, (a, b) in enumerate(zip(executed, expected)):
+                if a != b:
+                    raise SystemExit("command %d: executed '%s', offline '%s'" % (i, a, b))
+            raise SystemExit("executed %d commands, offline translation has %d" % (len(executed), len(expected)))
+        print("%s: %d commands executed, identical to the offline translation" % (sender, len(executed)))
+
+
+if __name__ == "__main__":
+    main()
