@@ -93,6 +93,7 @@ void VirtualPrinter::reply(std::string line) {
 
 void VirtualPrinter::on_line(std::string_view raw) {
     if (unplugged_) return;
+    stats_.bytes += raw.size() + 1;
     std::string line(raw);
     auto& f = opt_.faults;
     if (f.corrupt > 0 && !line.empty() && uni_(rng_) < f.corrupt) {

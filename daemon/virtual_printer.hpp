@@ -45,7 +45,7 @@ struct SimOptions {
 
 struct SimStats {
     std::uint64_t received = 0, executed = 0, refused = 0, dropped = 0, corrupted = 0, garbled = 0, resets = 0;
-    std::uint64_t overlong = 0;
+    std::uint64_t bytes = 0;  // received, newlines included
 };
 
 class VirtualPrinter : public std::enable_shared_from_this<VirtualPrinter> {
