@@ -118,7 +118,7 @@ ServeConfig load_serve_config(const std::string& path) {
         r.check_known(*t, "firmware.", {"firmware.port", "firmware.baud", "firmware.flavor", "firmware.window", "firmware.rx_bytes",
                                         "firmware.max_line", "firmware.reply_timeout", "firmware.boot_wait", "firmware.max_timeouts"});
     if (auto* t = root["sender"].as_table())
-        r.check_known(*t, "sender.", {"sender.pty", "sender.tcp", "sender.allow_remote", "sender.queue_lines", "sender.drain_timeout"});
+        r.check_known(*t, "sender.", {"sender.pty", "sender.pty_group", "sender.tcp", "sender.allow_remote", "sender.queue_lines", "sender.drain_timeout"});
     if (auto* t = root["sim"].as_table())
         r.check_known(*t, "sim.", {"sim.flavor", "sim.advanced_ok", "sim.buffer", "sim.planner", "sim.baud", "sim.record", "sim.faults"});
     if (auto* t = root["log"].as_table()) r.check_known(*t, "log.", {"log.level"});
@@ -141,6 +141,7 @@ ServeConfig load_serve_config(const std::string& path) {
     r.get("firmware.boot_wait", c.firmware.boot_wait, 0, 60);
     r.get_int("firmware.max_timeouts", c.firmware.max_timeouts, 1, 1000);
     r.get("sender.pty", c.pty);
+    r.get("sender.pty_group", c.pty_group);
     r.get("sender.tcp", c.tcp);
     r.get("sender.allow_remote", c.allow_remote);
     r.get_int("sender.queue_lines", c.queue_lines, 1, 1 << 20);

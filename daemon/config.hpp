@@ -19,6 +19,7 @@ struct ServeConfig {
     FirmwareOptions firmware;
     // Senders
     std::string pty = "/run/xlate5/printer";  // symlink to the pseudo-terminal senders open ("" for none)
+    std::string pty_group;              // give the pseudo-terminal to this group ("" : the service's own)
     std::string tcp;                    // "host:port" ("" for none)
     bool allow_remote = false;          // binding beyond loopback must be asked for
     std::size_t queue_lines = 64;

@@ -3,6 +3,8 @@
 #include <cerrno>
 #include <cstring>
 #include <fcntl.h>
+#include <grp.h>
+#include <sys/stat.h>
 #include <filesystem>
 #include <libserialport.h>
 #include <pty.h>
@@ -106,11 +108,20 @@ int SerialPort::release_fd() {
     return copy;
 }
 
-Pty::Pty(const std::string& link_path) {
+Pty::Pty(const std::string& link_path, const std::string& group) {
     int slave = -1;
     char name[256] = {};
     if (::openpty(&master_, &slave, name, nullptr, nullptr) != 0) throw IoError(std::string("openpty: ") + std::strerror(errno));
     ::fcntl(master_, F_SETFD, FD_CLOEXEC);
+    if (!group.empty()) {
+        const struct group* g = ::getgrnam(group.c_str());
+        if (!g || ::fchown(slave, uid_t(-1), g->gr_gid) != 0 || ::fchmod(slave, 0660) != 0) {
+            const std::string why = g ? std::strerror(errno) : "no such group";
+            ::close(slave);
+            ::close(master_);
+            throw IoError(std::string(name) + ": cannot give it to group " + group + ": " + why);
+        }
+    }
     make_raw(slave);  // a sender that does not configure the port must not get its lines echoed back
     ::close(slave);   // reading the master then fails with EIO until a sender opens the slave
     path_ = name;

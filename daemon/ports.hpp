@@ -29,10 +29,12 @@ private:
 };
 
 // A pseudo-terminal for a sender: raw, no echo. `path` is the slave device; with a link path,
-// a symlink to it is made (replacing a stale one) and removed on destruction.
+// a symlink to it is made (replacing a stale one) and removed on destruction. With a group, the
+// device is given to that group, read-write (a sender running as another user, e.g. OctoPrint
+// in dialout, can open it).
 class Pty {
 public:
-    explicit Pty(const std::string& link_path = "");
+    explicit Pty(const std::string& link_path = "", const std::string& group = "");
     ~Pty();
     Pty(const Pty&) = delete;
     Pty& operator=(const Pty&) = delete;

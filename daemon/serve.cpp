@@ -85,7 +85,7 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
 
     // Sender ends.
     if (!config.pty.empty()) {
-        a.sender_pty = std::make_unique<Pty>(config.pty);
+        a.sender_pty = std::make_unique<Pty>(config.pty, config.pty_group);
         auto sl = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, a.sender_pty->release_master()), a.sender_pty->link());
         sl->eio_is_transient = true;  // a sender closing the port is not the end of the service
         service.add_sender(sl, "pty " + config.pty);

@@ -17,6 +17,7 @@ std::unique_ptr<ServeCommands> add_serve_commands(CLI::App& app) {
     s->add_option("--baud", c->baud, "the firmware's baud rate (default 115200)")->check(CLI::PositiveNumber);
     s->add_option("--flavor", c->flavor, "the firmware: marlin or reprap")->check(CLI::IsMember({"marlin", "reprap"}));
     s->add_option("--pty", c->pty, "path of the symlink to the pseudo-terminal senders open (default /run/xlate5/printer)");
+    s->add_option("--pty-group", c->pty_group, "give the pseudo-terminal to this group, read-write (e.g. dialout, for OctoPrint)");
     s->add_flag("--no-pty", c->no_pty, "no pseudo-terminal endpoint (TCP only)");
     s->add_option("--tcp", c->tcp, "also accept senders on HOST:PORT (loopback unless --allow-remote)");
     s->add_flag("--allow-remote", c->allow_remote, "allow --tcp on an address other than loopback");
@@ -47,6 +48,7 @@ int run_serve_commands(const ServeCommands& c, const std::string& machine) {
         if (c.baud) cfg.baud = c.baud;
         if (!c.flavor.empty()) cfg.firmware.reprap = c.flavor == "reprap";
         if (!c.pty.empty()) cfg.pty = c.pty;
+        if (!c.pty_group.empty()) cfg.pty_group = c.pty_group;
         if (c.no_pty) cfg.pty.clear();
         if (!c.tcp.empty()) cfg.tcp = c.tcp;
         if (c.allow_remote) cfg.allow_remote = true;

@@ -306,3 +306,31 @@ TEST_CASE("TCP senders on loopback; a remote address needs allow_remote") {
     Assembly a;
     CHECK_THROWS_WITH_AS(assemble(io, c, rig.machine, a), doctest::Contains("allow_remote"), IoError);
 }
+
+TEST_CASE("the shipped configuration loads with its documented defaults; a broken one names file, line and key") {
+    const auto dir = std::filesystem::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path();
+    const auto c = load_serve_config((dir / "config" / "xlate5.toml").string());
+    const ServeConfig defaults;
+    CHECK(c.machine == defaults.machine);
+    CHECK(c.port == defaults.port);
+    CHECK(c.baud == defaults.baud);
+    CHECK(c.firmware.max_line == defaults.firmware.max_line);
+    CHECK(c.firmware.reply_timeout == defaults.firmware.reply_timeout);
+    CHECK(c.queue_lines == defaults.queue_lines);
+    CHECK(c.pty == defaults.pty);
+
+    TempDir tmp;
+    const auto write = [&](const std::string& text) {
+        const auto p = (tmp.path / "bad.toml").string();
+        FILE* f = std::fopen(p.c_str(), "w");
+        std::fputs(text.c_str(), f);
+        std::fclose(f);
+        return p;
+    };
+    CHECK_THROWS_WITH_AS(load_serve_config(write("machine = \"rw2\"\n[firmware]\nbaud = \"fast\"\n")),
+                         doctest::Contains("bad.toml:3: firmware.baud: expected a whole number"), MachineError);
+    CHECK_THROWS_WITH_AS(load_serve_config(write("[sender]\nqueue = 5\n")), doctest::Contains("bad.toml:2: sender.queue: unknown setting"),
+                         MachineError);
+    CHECK_THROWS_WITH_AS(load_serve_config(write("[sim.faults]\ncorupt = 0.1\n")), doctest::Contains("sim.faults.corupt"), MachineError);
+    CHECK_THROWS_WITH_AS(load_serve_config(write("[firmware\n")), doctest::Contains("bad.toml:1:"), MachineError);
+}

@@ -36,8 +36,10 @@ def main():
         pty = os.path.join(tmp, "printer")
         record = os.path.join(tmp, "executed.gcode")
         log = open(os.path.join(tmp, "serve.log"), "w+")
-        serve = subprocess.Popen([xlate5, "serve", "--machine", machine, "--printer", "sim", "--pty", pty,
-                                  "--record", record, "--boot-wait", "0.2", *extra], stderr=log)
+        config = os.path.join(tmp, "printer.toml")
+        with open(config, "w") as f:
+            f.write('machine = "%s"\n[firmware]\nport = "sim"\nboot_wait = 0.2\n[sim]\nrecord = "%s"\n' % (machine, record))
+        serve = subprocess.Popen([xlate5, "serve", "--config", config, "--pty", pty, *extra], stderr=log)
         try:
             deadline = time.time() + 20
             while not os.path.exists(pty):
@@ -51,6 +53,16 @@ def main():
             if result.returncode != 0:
                 print(result.stderr[-3000:])
                 raise SystemExit("the sender failed")
+            # Idle now: SIGHUP re-reads the configuration.
+            serve.send_signal(signal.SIGHUP)
+            deadline = time.time() + 10
+            while True:
+                log.seek(0)
+                if "SIGHUP: reloaded" in log.read():
+                    break
+                if time.time() > deadline:
+                    raise SystemExit("SIGHUP did not reload the configuration")
+                time.sleep(0.05)
         finally:
             serve.send_signal(signal.SIGTERM)
             code = serve.wait(timeout=120)
