@@ -51,6 +51,12 @@ public:
     // `tag` != 0 is reported back through firmware_acked with the ok's payload.
     void enqueue(std::string command, std::uint64_t tag = 0);
     bool fits(std::string_view command) const;  // within the firmware's line buffer with N and checksum
+    // Forgets the lines not yet sent (an emergency stop): what is in flight stays accounted for.
+    std::size_t drop_unsent() {
+        const auto n = waiting_.size();
+        waiting_.clear();
+        return n;
+    }
     // Sends at once, unnumbered, ahead of the queue (M112, M108, M410: the firmware's emergency parser).
     void send_now(std::string_view command);
     std::size_t queued() const { return waiting_.size() + unsent_numbered() + in_flight_.size(); }

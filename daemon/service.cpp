@@ -125,7 +125,11 @@ std::string Service::sender_m115() {
 void Service::sender_emergency(SenderSession& s, std::string_view command) {
     spdlog::warn("{}: {} sent to the firmware at once", s.name(), command);
     if (firmware_) firmware_->send_now(command);
-    if (proto::command_code(command).is('M', 112)) stop("emergency stop (M112) from " + s.name());
+    if (proto::command_code(command).is('M', 112)) {
+        // Whether or not the firmware acts on it at once (EMERGENCY_PARSER), nothing queued behind it may run.
+        const auto dropped = firmware_ ? firmware_->drop_unsent() : 0;
+        stop("emergency stop (M112) from " + s.name() + "; " + std::to_string(dropped) + " queued lines dropped");
+    }
 }
 
 void Service::sender_command(SenderSession& s, std::string_view command, std::uint64_t line_no) {

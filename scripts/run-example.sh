@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Installs the dependencies, builds xlate5, and translates the bundled rw2 example
 # (tool space, seed 001's dialect) into joint space for stock Marlin; then turns the result
-# back into tool space to show the round trip.
+# back into tool space to show the round trip. Then the service: `xlate5 serve` with its virtual
+# printer, Printrun's printcore streaming the same file into it as into a printer, and the
+# commands the virtual printer executed compared with the offline translation.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/install-deps.sh
@@ -15,3 +17,5 @@ echo "output (joint space): out/rw2_flared_wall.joints.gcode ($(wc -l < out/rw2_
 echo "preview (inverse):    out/rw2_flared_wall.preview.gcode"
 echo "--- first moves of the translated file:"
 grep -m 12 '^G[01] ' out/rw2_flared_wall.joints.gcode
+echo "--- the service: printcore -> xlate5 serve -> virtual printer"
+/usr/bin/python3 tests/e2e/service_e2e.py ./build/daemon/xlate5 rw2 examples/rw2_flared_wall.gcode printcore
