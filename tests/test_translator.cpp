@@ -386,6 +386,19 @@ TEST_CASE("translator: under G43.4 G93/G94 are understood, not sent; G93 moves n
     CHECK_FALSE(r.tr.modes().inverse_time);
 }
 
+TEST_CASE("translator: under G49 and G93 every joint move keeps its F, even when it repeats") {
+    // LinuxCNC and RepRapFirmware read F as 1/minutes per move under G93: a move without F is
+    // an error there, so the feed that the same value had on the line before must be written again.
+    Rig r("rw2");
+    r.feed("G49");
+    CHECK(has_line(r.feed("G93"), "G93"));
+    CHECK(one_line(r.feed("G1 X1 F10")).at('F') == 10);
+    CHECK(one_line(r.feed("G1 X2 F10")).at('F') == 10);
+    CHECK(has_line(r.feed("G94"), "G94"));
+    r.feed("G1 X3 F600");
+    CHECK(one_line(r.feed("G1 X4 F600")).count('F') == 0);  // per minute: modal, written once
+}
+
 // ---- G92 ----------------------------------------------------------------------------------
 
 TEST_CASE("translator: G92 E0 passes through") {

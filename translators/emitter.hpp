@@ -46,6 +46,13 @@ public:
     // checkpoint when a limit further on is unwound on an earlier travel move).
     void copy_state_from(const JointEmitter& other);
 
+    // A G93/G94 passed on to the firmware as written (joint space): from now on F is inverse
+    // time and written on every move (or feed per minute and written when it changes).
+    void feed_mode_sent(bool inverse_time) {
+        inverse_time_ = inverse_time;
+        last_f_.clear();
+    }
+
     // Appends one joint word (" A12.5") as the emitter would print it.
     void append_joint(std::string& out, std::size_t joint, double value) const;
 

@@ -493,7 +493,10 @@ void Translator::apply_modal(int code10, std::uint32_t column, std::string& out)
         case 190:
             // The arc plane: xlate5 linearises arcs under tool-centre-point control itself.
             modes_.plane = code10 / 10;
-            if (mode_ == OrientationMode::Joints) passthrough('G', code10, {}, false, out);
+            if (mode_ == OrientationMode::Joints) {
+                passthrough('G', code10, {}, false, out);
+                emitter_.feed_mode_sent(modes_.inverse_time);
+            }
             return;
         case 434:
         case 435:
@@ -518,7 +521,10 @@ void Translator::apply_modal(int code10, std::uint32_t column, std::string& out)
             // Under tool-centre-point control xlate5 computes every F itself (mm/min), so the
             // input's feed mode is understood here and not sent; in joint space it is passed on.
             modes_.inverse_time = code10 == 930;
-            if (mode_ == OrientationMode::Joints) passthrough('G', code10, {}, false, out);
+            if (mode_ == OrientationMode::Joints) {
+                passthrough('G', code10, {}, false, out);
+                emitter_.feed_mode_sent(modes_.inverse_time);
+            }
             (void)column;
             return;
         default:
@@ -811,7 +817,7 @@ void Translator::move_joints(int gcode, std::uint32_t /*column*/, std::string& o
     pose_ = kin_.forward(q_);
     tip_known_ = tip_known_ || any_linear;
     if (options_.inverse) tool_emitter_.move(out, gcode, pose_.tip, pose_.axis, q_, e, f);
-    else emitter_.move(out, gcode, q_, commanded_, e, f);
+    else emitter_.move(out, gcode, q_, commanded_, e, f, modes_.inverse_time);  // under G93 every move keeps its F
     track_extrusion(e);
 }
 
