@@ -64,24 +64,30 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
 
     // The firmware end. With the virtual printer, it sits on the master of a pseudo-terminal and
     // xlate5 opens the slave exactly as it would open a USB serial port.
-    std::string device = config.port;
-    if (config.port == "sim") {
-        a.sim_pty = std::make_unique<Pty>();
-        device = a.sim_pty->path();
-    }
-    a.port = std::make_unique<SerialPort>(device, config.baud);
-    auto link = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, a.port->release_fd()), device);
-    if (a.sim_pty) {
-        SimOptions so = config.sim;
-        so.axes.clear();
-        for (const auto& j : machine.joints) so.axes += j.output;
-        a.sim = std::make_shared<VirtualPrinter>(io, a.sim_pty->release_master(), so);
-        a.sim->start();
-        spdlog::info("firmware: the virtual printer ({}) on {}", so.reprap ? "RepRapFirmware-like" : "Marlin-like", device);
-    } else {
-        spdlog::info("firmware: {} at {} baud", device, config.baud);
-    }
-    service.attach_firmware(link, config.firmware);
+    // Opening is also how the port comes back after it vanished (M999): for the virtual printer,
+    // a fresh one is plugged in.
+    SimOptions so = config.sim;
+    so.axes.clear();
+    for (const auto& j : machine.joints) so.axes += j.output;
+    auto open = [&io, &a, config, so]() -> std::shared_ptr<Link> {
+        std::string device = config.port;
+        if (config.port == "sim") {
+            a.sim_pty = std::make_unique<Pty>();
+            device = a.sim_pty->path();
+        }
+        a.port = std::make_unique<SerialPort>(device, config.baud);
+        auto link = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, a.port->release_fd()), device);
+        if (config.port == "sim") {
+            a.sim = std::make_shared<VirtualPrinter>(io, a.sim_pty->release_master(), so);
+            a.sim->start();
+            spdlog::info("firmware: the virtual printer ({}) on {}", so.reprap ? "RepRapFirmware-like" : "Marlin-like", device);
+        } else {
+            spdlog::info("firmware: {} at {} baud", device, config.baud);
+        }
+        return link;
+    };
+    service.attach_firmware(open(), config.firmware);
+    service.set_reopen(open);
 
     // Sender ends.
     if (!config.pty.empty()) {

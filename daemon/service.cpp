@@ -83,6 +83,8 @@ bool Service::replace_machine(const Machine& machine) {
 }
 
 void Service::attach_firmware(std::shared_ptr<Link> link, FirmwareOptions options) {
+    firmware_options_ = options;
+    firmware_.reset();
     firmware_ = std::make_unique<FirmwareLink>(std::move(link), options, *this);
     firmware_->start();
 }
@@ -142,11 +144,27 @@ void Service::sender_command(SenderSession& s, std::string_view command, std::ui
             return;
         }
         spdlog::info("{}: M999, restarting after: {}", s.name(), stop_reason_);
+        if (firmware_ && !firmware_->link().open()) {
+            // The port went away: open it again, or stay stopped and say why.
+            if (!reopen_) {
+                s.send_line("Error:xlate5: the firmware's port is gone and cannot be reopened; restart the service");
+                s.ok();
+                return;
+            }
+            try {
+                attach_firmware(reopen_(), firmware_options_);
+            } catch (const std::exception& e) {
+                s.send_line(std::string("Error:xlate5: cannot reopen the firmware's port: ") + e.what());
+                s.ok();
+                return;
+            }
+        } else if (firmware_) {
+            firmware_->restart();
+        }
         stop_reason_.clear();
         pending_.clear();
         deferred_.clear();
         reset_translator();
-        if (firmware_) firmware_->restart();
         s.ok();
         return;
     }

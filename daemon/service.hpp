@@ -36,6 +36,9 @@ public:
 
     // The firmware end (a serial port or the virtual printer's pseudo-terminal).
     void attach_firmware(std::shared_ptr<Link> link, FirmwareOptions options);
+    // How to open the firmware's port again after it vanished (M999 after a USB unplug); throws
+    // IoError when it is still not there.
+    void set_reopen(std::function<std::shared_ptr<Link>()> reopen) { reopen_ = std::move(reopen); }
     // A sender end (the pseudo-terminal, or a TCP connection).
     void add_sender(std::shared_ptr<Link> link, const std::string& name);
 
@@ -83,6 +86,8 @@ private:
     ServiceOptions opt_;
     std::unique_ptr<Translator> translator_;
     std::unique_ptr<FirmwareLink> firmware_;
+    FirmwareOptions firmware_options_;
+    std::function<std::shared_ptr<Link>()> reopen_;
     std::vector<std::shared_ptr<SenderSession>> sessions_;
     std::deque<Pending> pending_;                                   // received, not yet in the queue
     std::map<std::uint64_t, std::weak_ptr<SenderSession>> deferred_;  // tag -> who waits for the firmware's ok

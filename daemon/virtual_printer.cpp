@@ -230,8 +230,11 @@ void VirtualPrinter::run_queue() {
                 // A long wait (as G28 or M400 cause): keepalives, then the command completes.
                 running_ = true;
                 const auto until = now + ms(opt_.faults.busy_seconds * 1000);
+                // The keepalive loop holds itself only through the pending timer's handler (a
+                // weak self-reference), so it goes away when the loop ends.
                 auto keepalive = std::make_shared<std::function<void()>>();
-                *keepalive = [this, self, until, keepalive]() {
+                std::weak_ptr<std::function<void()>> loop = keepalive;
+                *keepalive = [this, self, until, loop]() {
                     if (halted_ || unplugged_) { running_ = false; return; }
                     if (Clock::now() >= until) {
                         running_ = false;
@@ -243,7 +246,7 @@ void VirtualPrinter::run_queue() {
                     }
                     reply("echo:busy: processing");
                     busy_timer_.expires_after(ms(opt_.faults.busy_interval * 1000));
-                    busy_timer_.async_wait([keepalive](boost::system::error_code ec) { if (!ec) (*keepalive)(); });
+                    busy_timer_.async_wait([again = loop.lock()](boost::system::error_code ec) { if (!ec && again) (*again)(); });
                 };
                 busy_timer_.expires_after(ms(opt_.faults.busy_interval * 1000));
                 busy_timer_.async_wait([keepalive](boost::system::error_code ec) { if (!ec) (*keepalive)(); });

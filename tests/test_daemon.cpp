@@ -159,6 +159,29 @@ TEST_CASE("a firmware that resets, halts or vanishes stops the print: sender tol
         for (const auto& r : sender.received) told = told || (r.rfind("Error:", 0) == 0 && r.find(k.says) != std::string::npos);
         CHECK_MESSAGE(told, "the sender was not told why");
         CHECK(rig.service().firmware()->queued() == 0);
+
+        // M999 starts over: the firmware is greeted again (a vanished port is opened again: here
+        // a fresh virtual printer is plugged in) and a new print runs from a clean state.
+        const std::vector<std::string> again = {"G28", "G92 A-168", "G1 A0 B0 F3000", "G1 X50 Y50 Z5"};
+        std::vector<std::string> with_m999 = {"M999"};
+        with_m999.insert(with_m999.end(), again.begin(), again.end());
+        const auto before = rig.sim().executed().size();
+        sender.stream(with_m999);
+        REQUIRE(rig.run_until([&] { return sender.done() && rig.service().idle(); }, 20));
+        const auto& e = rig.sim().executed();
+        if (std::string(k.name) == "kill") {
+            // After kill() only a reset brings Marlin back: the greeting goes unanswered, the
+            // print stays stopped and nothing runs.
+            CHECK(rig.service().stopped());
+            CHECK(e.size() == before);
+            continue;
+        }
+        CHECK_FALSE(rig.service().stopped());
+        const auto expect_again = offline(rig.machine, again);
+        REQUIRE(e.size() >= expect_again.size());
+        CHECK(std::vector<std::string>(e.end() - std::ptrdiff_t(expect_again.size()), e.end()) == expect_again);
+        if (std::string(k.name) == "unplug") CHECK(e.size() == 2 + expect_again.size());  // a new printer
+        else CHECK(e.size() == before + 2 + expect_again.size());                         // greeted again
     }
 }
 
