@@ -76,29 +76,6 @@ std::vector<std::string> print_lines(std::size_t n) {
     return l;
 }
 
-// The joint-space lines xlate5 sends for `lines`, for the direct run.
-std::vector<std::string> offline_joint_lines(const Machine& m, const std::vector<std::string>& lines) {
-    Kinematics kin(m);
-    TranslatorOptions o;
-    Translator t(kin, o);
-    std::vector<std::string> out;
-    std::string text;
-    std::uint64_t no = 0;
-    for (const auto& l : lines) {
-        text.clear();
-        t.feed(l, ++no, text);
-        std::size_t b = 0;
-        while (b < text.size()) {
-            auto e = text.find('\n', b);
-            if (e == std::string::npos) e = text.size();
-            auto c = proto::strip_comment(std::string_view(text).substr(b, e - b));
-            if (!c.empty()) out.push_back(std::move(c));
-            b = e + 1;
-        }
-    }
-    return out;
-}
-
 double percentile(std::vector<double> v, double p) {
     if (v.empty()) return 0;
     std::sort(v.begin(), v.end());
@@ -165,7 +142,7 @@ int main(int argc, char** argv) {
         so.axes = "XYZAB";
         auto sim = std::make_shared<VirtualPrinter>(io, pty.release_master(), so);
         sim->start();
-        Sender direct(io, sender_fd, offline_joint_lines(machine, lines));
+        Sender direct(io, sender_fd, firmware_commands(machine, lines));
         direct.send();
         run(io, [&] { return direct.done; }, 3600);
         const double p50 = percentile(direct.latency_us, 0.5), p99 = percentile(direct.latency_us, 0.99);

@@ -90,6 +90,17 @@ std::string strip_comment(std::string_view command) {
     return std::string(trim(out));
 }
 
+void append_commands(std::string_view text, std::vector<std::string>& out) {
+    std::size_t begin = 0;
+    while (begin < text.size()) {
+        auto end = text.find('\n', begin);
+        if (end == std::string_view::npos) end = text.size();
+        std::string cmd = strip_comment(text.substr(begin, end - begin));
+        if (!cmd.empty()) out.push_back(std::move(cmd));
+        begin = end + 1;
+    }
+}
+
 Code command_code(std::string_view command) {
     command = trim(command);
     Code c;

@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace xlate5::proto {
 
@@ -28,6 +29,9 @@ Received parse_received(std::string_view line);
 // The command without comments (';' to the end, '( … )') and surrounding blanks: what a
 // firmware with a small line buffer needs to see.
 std::string strip_comment(std::string_view command);
+
+// The commands in a block of translator output: one a line, comments stripped, blanks skipped.
+void append_commands(std::string_view text, std::vector<std::string>& out);
 
 // The G or M code a command starts with, e.g. ('M', 1150) for "M115" (code x10, so G43.4 is 434);
 // letter 0 when the command does not start with one.

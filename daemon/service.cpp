@@ -57,6 +57,22 @@ bool split_for_firmware(const FirmwareLink& fw, const std::string& cmd, std::vec
 
 }  // namespace
 
+std::vector<std::string> firmware_commands(const Machine& machine, const std::vector<std::string>& lines, const TranslatorOptions& options) {
+    const Kinematics kin(machine);
+    TranslatorOptions o = options;
+    o.input_name = "sender";
+    Translator t(kin, o);
+    std::vector<std::string> out;
+    std::string text;
+    std::uint64_t n = 0;
+    for (const auto& l : lines) {
+        text.clear();
+        t.feed(l, ++n, text);
+        proto::append_commands(text, out);
+    }
+    return out;
+}
+
 Service::Service(asio::io_context& io, const Machine& machine, ServiceOptions options)
     : io_(io), machine_(machine), opt_(std::move(options)), busy_timer_(io), drain_timer_(io) {
     kin_ = std::make_unique<Kinematics>(machine_);
@@ -209,15 +225,9 @@ void Service::process(const Pending& p) {
     }
     const bool wait_for_firmware = answered_by_firmware(proto::command_code(proto::strip_comment(p.command)));
     std::uint64_t tag = 0;
-    std::vector<std::string> parts;
-    std::size_t begin = 0;
-    std::vector<std::string> lines;
-    while (begin < out_.size()) {
-        auto end = out_.find('\n', begin);
-        if (end == std::string::npos) end = out_.size();
-        std::string cmd = proto::strip_comment(std::string_view(out_).substr(begin, end - begin));
-        begin = end + 1;
-        if (cmd.empty()) continue;
+    std::vector<std::string> parts, commands, lines;
+    proto::append_commands(out_, commands);
+    for (const auto& cmd : commands) {
         if (!split_for_firmware(*firmware_, cmd, parts)) {
             if (session) session->send_line("Error:xlate5: line " + std::to_string(p.line_no) + ": '" + cmd +
                                             "' is longer than the firmware's line buffer");

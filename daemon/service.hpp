@@ -29,6 +29,11 @@ struct ServiceStats {
     std::uint64_t lines_in = 0, lines_out = 0, rejected = 0, split_long = 0;
 };
 
+// What the service sends the firmware for `lines` (before any line is split for a short
+// buffer): the translation of a whole stream, as one sender would send it.
+std::vector<std::string> firmware_commands(const Machine& machine, const std::vector<std::string>& lines,
+                                           const TranslatorOptions& options = {});
+
 class Service final : public FirmwareLink::Listener, public SenderSession::Host {
 public:
     Service(asio::io_context& io, const Machine& machine, ServiceOptions options);

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "daemon/line_protocol.hpp"
+#include "tests/helpers.hpp"
 #include "daemon/link.hpp"
 #include "daemon/ports.hpp"
 #include "daemon/serve.hpp"
@@ -24,17 +25,6 @@
 
 namespace xlate5::test {
 
-struct TempDir {
-    std::filesystem::path path;
-    TempDir() {
-        char tmpl[] = "/tmp/xlate5-test-XXXXXX";
-        path = ::mkdtemp(tmpl);
-    }
-    ~TempDir() {
-        std::error_code ec;
-        std::filesystem::remove_all(path, ec);
-    }
-};
 
 // A sender: ping-pong (one line in flight), numbered and checksummed like printcore/OctoPrint,
 // or bare like cncjs. On "Resend: n" it goes back to line n, as printcore does.
@@ -168,28 +158,7 @@ struct Rig {
 };
 
 // The offline translation of `lines`, as the firmware should receive it (comments stripped).
-inline std::vector<std::string> offline(const Machine& m, const std::vector<std::string>& lines) {
-    Kinematics kin(m);
-    TranslatorOptions o;
-    o.input_name = "sender";
-    Translator t(kin, o);
-    std::vector<std::string> out;
-    std::string text;
-    std::uint64_t n = 0;
-    for (const auto& l : lines) {
-        text.clear();
-        t.feed(l, ++n, text);
-        std::size_t b = 0;
-        while (b < text.size()) {
-            auto e = text.find('\n', b);
-            if (e == std::string::npos) e = text.size();
-            auto c = proto::strip_comment(std::string_view(text).substr(b, e - b));
-            if (!c.empty()) out.push_back(std::move(c));
-            b = e + 1;
-        }
-    }
-    return out;
-}
+inline std::vector<std::string> offline(const Machine& m, const std::vector<std::string>& lines) { return firmware_commands(m, lines); }
 
 // A 5-axis print for rw2: start code, then short printing moves that turn both rotaries.
 inline std::vector<std::string> rw2_print(std::size_t moves, std::uint64_t seed = 7) {

@@ -42,23 +42,7 @@ std::string quote(const std::string& s) {
 }
 
 // The calibrate commands as a user runs them: the xlate5 binary in a scratch directory of its own.
-struct Scratch {
-    fs::path path;
-    Scratch() {
-        std::string pattern = (fs::temp_directory_path() / "xlate5-calib-XXXXXX").string();
-        REQUIRE(::mkdtemp(pattern.data()) != nullptr);
-        path = pattern;
-    }
-    ~Scratch() {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-    Scratch(const Scratch&) = delete;
-    Scratch& operator=(const Scratch&) = delete;
-    fs::path write(const std::string& name, const std::string& text) const {
-        std::ofstream(path / name, std::ios::binary) << text;
-        return path / name;
-    }
+struct Scratch : TempDir {
     struct Result {
         int code = -1;
         std::string out, err;
