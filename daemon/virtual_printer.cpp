@@ -40,7 +40,7 @@ bool known(const proto::Code& c, bool reprap) {
 }  // namespace
 
 VirtualPrinter::VirtualPrinter(asio::io_context& io, int master_fd, SimOptions options)
-    : io_(io), opt_(std::move(options)), rng_(opt_.faults.seed), run_timer_(io), wire_timer_(io), busy_timer_(io) {
+    : opt_(std::move(options)), rng_(opt_.faults.seed), run_timer_(io), wire_timer_(io), busy_timer_(io) {
     link_ = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, master_fd), "virtual printer");
     link_->eio_is_transient = true;  // xlate5 may close and reopen its end
     link_->max_line = opt_.max_line;  // a longer line is cut, as in the firmware's buffer

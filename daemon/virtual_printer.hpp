@@ -71,7 +71,6 @@ private:
     void boot();
     std::string position_report() const;
 
-    asio::io_context& io_;
     std::shared_ptr<DescriptorLink> link_;
     SimOptions opt_;
     std::mt19937_64 rng_;
