@@ -12,6 +12,7 @@
 #include <fcntl.h>
 #include <random>
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
 #include <unistd.h>
 #include <vector>
 
@@ -27,60 +28,68 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
+// The print: start code, then short 5-axis moves, line i computed from i alone (the sender needs
+// no copy of the file: the benchmark's own memory stays flat too).
+constexpr std::size_t kStart = 4;
+std::string print_line(std::size_t i) {
+    static const char* start[kStart] = {"G28", "G92 A-168", "G1 A0 B0 F3000", "M83"};
+    if (i < kStart) return start[i];
+    const double t = double(i) * 0.01;
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "G1 X%.3f Y%.3f Z10 A%.2f B%.2f E0.02 F1800", 100 + 30 * std::cos(t), 100 + 30 * std::sin(t),
+                  60 * std::sin(t * 0.3), 25 * std::sin(t * 0.7));
+    return buf;
+}
+
+// Send-to-ok times in 1 us buckets up to 100 ms: fixed memory.
+struct Latency {
+    std::vector<std::uint32_t> buckets = std::vector<std::uint32_t>(100000, 0);
+    std::uint64_t count = 0;
+    void add(double us) {
+        ++buckets[std::min<std::size_t>(buckets.size() - 1, std::size_t(us))];
+        ++count;
+    }
+    double percentile(double p) const {
+        std::uint64_t seen = 0;
+        for (std::size_t i = 0; i < buckets.size(); ++i)
+            if ((seen += buckets[i]) > std::uint64_t(p * double(count))) return double(i);
+        return double(buckets.size());
+    }
+};
+
 // Ping-pong sender, numbered and checksummed (as printcore and OctoPrint send while printing).
 struct Sender {
     std::shared_ptr<DescriptorLink> link;
-    std::vector<std::string> lines;
-    std::size_t next = 0;
+    std::function<std::string(std::size_t)> line;
+    std::size_t count, next = 0;
     std::int64_t resend = -1;
     Clock::time_point sent_at;
-    std::vector<double> latency_us;
+    Latency latency;
     bool done = false;
 
-    Sender(asio::io_context& io, int fd, std::vector<std::string> l) : lines(std::move(l)) {
+    Sender(asio::io_context& io, int fd, std::size_t n, std::function<std::string(std::size_t)> l) : line(std::move(l)), count(n) {
         make_raw(fd);
         link = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, fd), "bench sender");
         link->start([this](std::string_view r) { on_line(r); }, [](const std::string&) {});
     }
     void send() {
-        if (next >= lines.size()) {
+        if (next >= count) {
             done = true;
             return;
         }
         sent_at = Clock::now();
-        link->send(proto::numbered(std::int64_t(next) + 1, lines[next]) + "\n");
+        link->send(proto::numbered(std::int64_t(next) + 1, line(next)) + "\n");
     }
     void on_line(std::string_view r) {
         const auto c = proto::classify(r);
         if (c.kind == proto::ReplyKind::Resend) resend = c.resend_line;
         if (c.kind != proto::ReplyKind::Ok) return;
-        latency_us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - sent_at).count());
+        latency.add(std::chrono::duration<double, std::micro>(Clock::now() - sent_at).count());
         if (resend > 0) next = std::size_t(resend - 1), resend = -1;
         else ++next;
         send();
     }
 };
-
-std::vector<std::string> print_lines(std::size_t n) {
-    std::vector<std::string> l = {"G28", "G92 A-168", "G1 A0 B0 F3000", "M83"};
-    std::mt19937_64 rng(3);
-    std::uniform_real_distribution<double> step(-0.8, 0.8), turn(-1.5, 1.5);
-    double x = 100, y = 100, a = 0, b = 0;
-    char buf[160];
-    for (std::size_t i = 0; i < n; ++i) {
-        x = std::clamp(x + step(rng), 60.0, 140.0), y = std::clamp(y + step(rng), 60.0, 140.0);
-        a = std::clamp(a + turn(rng), -90.0, 90.0), b = std::clamp(b + turn(rng), -30.0, 30.0);
-        std::snprintf(buf, sizeof buf, "G1 X%.3f Y%.3f Z10 A%.2f B%.2f E0.02 F1800", x, y, a, b);
-        l.emplace_back(buf);
-    }
-    return l;
-}
-
-double percentile(std::vector<double> v, double p) {
-    if (v.empty()) return 0;
-    std::sort(v.begin(), v.end());
-    return v[std::min(v.size() - 1, std::size_t(p * double(v.size())))];
-}
 
 bool run(asio::io_context& io, const std::function<bool()>& done, double seconds) {
     const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
@@ -99,7 +108,7 @@ int main(int argc, char** argv) {
     const std::string machine_name = argc > 3 ? argv[3] : "rw2";
     spdlog::set_level(spdlog::level::warn);
     std::setvbuf(stdout, nullptr, _IOLBF, 0);
-    const auto lines = print_lines(n);
+    const std::size_t total = kStart + n;
 
     // Through xlate5.
     asio::io_context io;
@@ -115,7 +124,7 @@ int main(int argc, char** argv) {
     Assembly parts;
     assemble(io, cfg, machine, parts);
     run(io, [&] { return parts.service->firmware()->state() == FirmwareLink::State::Ready; }, 5);
-    Sender sender(io, ::open(cfg.pty.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC), lines);
+    Sender sender(io, ::open(cfg.pty.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC), total, print_line);
     const auto t0 = Clock::now();
     sender.send();
     const bool ok = run(io, [&] { return sender.done && parts.service->idle(); }, 3600);
@@ -124,14 +133,17 @@ int main(int argc, char** argv) {
     const auto bytes = parts.sim->stats().bytes;
     const double wire_capacity = baud > 0 ? double(baud) / 10.0 * seconds : 0;  // bytes the link could carry
     std::printf("through xlate5 (%s, %s):\n", machine_name.c_str(), baud > 0 ? (std::to_string(baud) + " baud").c_str() : "unlimited link");
-    std::printf("  %zu sender lines in %.2f s: %.0f lines/s in, %.0f lines/s to the firmware (%llu executed)%s\n", lines.size(),
-                seconds, double(lines.size()) / seconds, double(executed) / seconds, static_cast<unsigned long long>(executed),
+    std::printf("  %zu sender lines in %.2f s: %.0f lines/s in, %.0f lines/s to the firmware (%llu executed)%s\n", total,
+                seconds, double(total) / seconds, double(executed) / seconds, static_cast<unsigned long long>(executed),
                 ok ? "" : "  (DID NOT FINISH)");
     if (baud > 0)
         std::printf("  firmware link busy %.1f%% of the time (%llu bytes of %.0f it could carry): %s\n", 100.0 * double(bytes) / wire_capacity,
                     static_cast<unsigned long long>(bytes), wire_capacity,
                     double(bytes) / wire_capacity > 0.97 ? "xlate5 never starves it" : "the link waits on xlate5");
-    std::printf("  sender send->ok latency: p50 %.0f us, p99 %.0f us\n", percentile(sender.latency_us, 0.5), percentile(sender.latency_us, 0.99));
+    std::printf("  sender send->ok latency: p50 %.0f us, p99 %.0f us\n", sender.latency.percentile(0.5), sender.latency.percentile(0.99));
+    rusage ru{};
+    ::getrusage(RUSAGE_SELF, &ru);
+    std::printf("  peak RSS %.1f MB (the whole process: sender, xlate5, virtual printer)\n", double(ru.ru_maxrss) / 1024.0);
 
     // The same sender straight to a virtual printer (no xlate5), for the latency xlate5 adds.
     if (baud == 0) {
@@ -142,13 +154,16 @@ int main(int argc, char** argv) {
         so.axes = "XYZAB";
         auto sim = std::make_shared<VirtualPrinter>(io, pty.release_master(), so);
         sim->start();
-        Sender direct(io, sender_fd, firmware_commands(machine, lines));
+        std::vector<std::string> lines;
+        for (std::size_t i = 0; i < total; ++i) lines.push_back(print_line(i));
+        const auto commands = firmware_commands(machine, lines);
+        Sender direct(io, sender_fd, commands.size(), [&](std::size_t i) { return commands[i]; });
         direct.send();
         run(io, [&] { return direct.done; }, 3600);
-        const double p50 = percentile(direct.latency_us, 0.5), p99 = percentile(direct.latency_us, 0.99);
+        const double p50 = direct.latency.percentile(0.5), p99 = direct.latency.percentile(0.99);
         std::printf("direct to the virtual printer (the translated lines): p50 %.0f us, p99 %.0f us\n", p50, p99);
-        std::printf("latency xlate5 adds per line: p50 %.0f us, p99 %.0f us\n", percentile(sender.latency_us, 0.5) - p50,
-                    percentile(sender.latency_us, 0.99) - p99);
+        std::printf("latency xlate5 adds per line: p50 %.0f us, p99 %.0f us\n", sender.latency.percentile(0.5) - p50,
+                    sender.latency.percentile(0.99) - p99);
     }
     std::string cmd = std::string("rm -rf ") + dir;
     return std::system(cmd.c_str()) == 0 && ok ? 0 : 1;

@@ -1,5 +1,6 @@
 #include "daemon/config.hpp"
 
+#include <cctype>
 #include <cstdlib>
 #include <sstream>
 #include <toml++/toml.h>
@@ -113,12 +114,12 @@ ServeConfig load_serve_config(const std::string& path) {
         throw MachineError(os.str());
     }
     ConfigReader r(root, path);
-    r.check_known(root, "", {"machine", "compensation", "tolerance", "firmware", "sender", "sim", "log"});
+    r.check_known(root, "", {"machine", "compensation", "tolerance", "mode", "extruder_letter", "firmware", "sender", "sim", "log"});
     if (auto* t = root["firmware"].as_table())
         r.check_known(*t, "firmware.", {"firmware.port", "firmware.baud", "firmware.flavor", "firmware.window", "firmware.rx_bytes",
                                         "firmware.max_line", "firmware.reply_timeout", "firmware.boot_wait", "firmware.max_timeouts"});
     if (auto* t = root["sender"].as_table())
-        r.check_known(*t, "sender.", {"sender.pty", "sender.pty_group", "sender.tcp", "sender.allow_remote", "sender.queue_lines", "sender.drain_timeout"});
+        r.check_known(*t, "sender.", {"sender.pty", "sender.pty_group", "sender.tcp", "sender.allow_remote", "sender.queue_lines", "sender.drain_timeout", "sender.busy_interval"});
     if (auto* t = root["sim"].as_table())
         r.check_known(*t, "sim.", {"sim.flavor", "sim.advanced_ok", "sim.buffer", "sim.planner", "sim.baud", "sim.record", "sim.faults"});
     if (auto* t = root["log"].as_table()) r.check_known(*t, "log.", {"log.level"});
@@ -128,6 +129,19 @@ ServeConfig load_serve_config(const std::string& path) {
     r.get("machine", c.machine);
     r.get("compensation", c.compensation);
     r.get("tolerance", c.tolerance, 0, 10);
+    std::string mode;
+    r.get("mode", mode);
+    if (mode == "G43.4") c.mode = OrientationMode::Angles;
+    else if (mode == "G43.5") c.mode = OrientationMode::Vector;
+    else if (mode == "G49") c.mode = OrientationMode::Joints;
+    else if (!mode.empty()) r.fail(r.find("mode"), "mode", "expected \"G43.4\", \"G43.5\" or \"G49\"");
+    std::string letter;
+    r.get("extruder_letter", letter);
+    if (!letter.empty()) {
+        if (letter.size() != 1 || !std::isalpha(static_cast<unsigned char>(letter[0])))
+            r.fail(r.find("extruder_letter"), "extruder_letter", "expected one letter");
+        c.extruder_letter = char(std::toupper(static_cast<unsigned char>(letter[0])));
+    }
     r.get("firmware.port", c.port);
     r.get_int("firmware.baud", c.baud, 300, 4000000);
     std::string flavor = "marlin";
@@ -146,6 +160,7 @@ ServeConfig load_serve_config(const std::string& path) {
     r.get("sender.allow_remote", c.allow_remote);
     r.get_int("sender.queue_lines", c.queue_lines, 1, 1 << 20);
     r.get("sender.drain_timeout", c.drain_timeout, 0, 86400);
+    r.get("sender.busy_interval", c.busy_interval, 0.1, 60);
     std::string sim_flavor = "marlin";
     r.get("sim.flavor", sim_flavor);
     if (sim_flavor != "marlin" && sim_flavor != "reprap") r.fail(r.find("sim.flavor"), "sim.flavor", "expected \"marlin\" or \"reprap\"");

@@ -1,10 +1,12 @@
 // The service's configuration (`config/xlate5.toml`, documented there): which machine, the
 // firmware's port, the sender endpoints, the virtual printer. Command-line flags override it.
 #pragma once
+#include <optional>
 #include <string>
 
 #include "daemon/firmware_link.hpp"
 #include "daemon/virtual_printer.hpp"
+#include "translators/machine.hpp"
 
 namespace xlate5 {
 
@@ -13,6 +15,8 @@ struct ServeConfig {
     std::string machine = "rw2";
     std::string compensation;           // a compensation file replacing the machine's own
     double tolerance = 0;               // 0: the machine's
+    std::optional<OrientationMode> mode;  // the orientation mode senders' files start in (default: the machine's)
+    char extruder_letter = 'E';         // the input letter that carries extrusion
     // Firmware
     std::string port = "sim";           // a serial device, or "sim" for the built-in virtual printer
     int baud = 115200;
@@ -23,6 +27,7 @@ struct ServeConfig {
     std::string tcp;                    // "host:port" ("" for none)
     bool allow_remote = false;          // binding beyond loopback must be asked for
     std::size_t queue_lines = 64;
+    double busy_interval = 2;           // seconds between "busy: processing" to a sender held by a full queue
     double drain_timeout = 60;          // seconds SIGTERM waits for the queue to drain
     // Virtual printer
     SimOptions sim;

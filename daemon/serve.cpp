@@ -58,7 +58,10 @@ int run_ports() {
 void assemble(asio::io_context& io, const ServeConfig& config, const Machine& machine, Assembly& a) {
     ServiceOptions sopt;
     sopt.queue_lines = config.queue_lines;
+    sopt.busy_interval = config.busy_interval;
     sopt.translator.input_name = "sender";
+    sopt.translator.start_mode = config.mode;
+    sopt.translator.extruder_letter = config.extruder_letter;
     a.service = std::make_unique<Service>(io, machine, sopt);
     Service& service = *a.service;
 

@@ -164,7 +164,8 @@ void VirtualPrinter::accept(std::string_view line) {
     const auto code = proto::command_code(command);
     // The emergency parser acts on these as the bytes arrive, ahead of the buffer.
     if (code.is('M', 112)) {
-        executed_.push_back("M112");
+        if (opt_.keep_executed) executed_.push_back("M112");
+        if (record_.is_open()) record_ << "M112\n";
         halted_ = true;
         reply("Error:Printer halted. kill() called!");
         return;
@@ -274,7 +275,7 @@ std::string VirtualPrinter::position_report() const {
 
 void VirtualPrinter::execute(const Command& c) {
     ++stats_.executed;
-    executed_.push_back(c.text);
+    if (opt_.keep_executed) executed_.push_back(c.text);
     if (record_.is_open()) record_ << c.text << '\n';
     const auto code = proto::command_code(c.text);
     std::string ok = "ok";

@@ -39,7 +39,8 @@ struct SimOptions {
     std::string axes = "XYZAB";  // the firmware's axis letters
     int baud = 0;              // 0: unlimited; else lines arrive no faster than baud/10 bytes per second
     SimFaults faults;
-    std::string record_path;   // also write executed commands here, one a line
+    std::string record_path;   // write executed commands here, one a line
+    bool keep_executed = false;  // also keep them in memory (tests); off, memory stays flat however long the print
     std::size_t max_line = 96; // a longer line is cut (MAX_CMD_SIZE)
 };
 
@@ -55,7 +56,7 @@ public:
     ~VirtualPrinter();
     void start();   // boots: sends "start" and the echo lines
     void unplug();  // the port vanishes
-    const std::vector<std::string>& executed() const { return executed_; }
+    const std::vector<std::string>& executed() const { return executed_; }  // with keep_executed
     const SimStats& stats() const { return stats_; }
     bool halted() const { return halted_; }
 

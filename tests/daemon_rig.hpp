@@ -127,6 +127,7 @@ struct Rig {
         config.pty = (dir.path / "printer").string();
         config.firmware.boot_wait = 0.1;
         config.firmware.reply_timeout = 0.5;
+        config.sim.keep_executed = true;
         if (tweak) tweak(config);
         machine = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + config.machine + ".toml");
         assemble(io, config, machine, parts);

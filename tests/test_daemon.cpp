@@ -14,8 +14,9 @@ using namespace xlate5::test;
 
 namespace {
 
-// Streams `lines` and checks the executed sequence against the offline translation.
-void stream_and_compare(Rig& rig, const std::vector<std::string>& lines, double seconds, bool numbered = true) {
+// Streams `lines` and checks the executed sequence against the offline translation; returns
+// what the sender received besides ok and Resend.
+std::vector<std::string> stream_and_compare(Rig& rig, const std::vector<std::string>& lines, double seconds, bool numbered = true) {
     REQUIRE(rig.ready());
     const auto expected = offline(rig.machine, lines);
     TestSender sender(rig.io, rig.config.pty, numbered);
@@ -34,6 +35,7 @@ void stream_and_compare(Rig& rig, const std::vector<std::string>& lines, double 
     }
     CHECK(rig.service().stop_reason().empty());
     for (const auto& r : sender.received) CHECK_MESSAGE(r.rfind("Error", 0) != 0, "sender got: " << r);
+    return sender.received;
 }
 
 }  // namespace
@@ -205,6 +207,19 @@ TEST_CASE("M112 reaches the firmware at once while the queue is full") {
     CHECK(rig.service().firmware()->queued() == 0);  // the rest of the queue is dropped, not sent later
 }
 
+TEST_CASE("a sender held by a full queue gets busy keepalives, as from Marlin, and every line still runs once") {
+    const auto lines = rw2_print(120, 6);
+    Rig rig("rw2", [](ServeConfig& c) {
+        c.sim.faults.move_ms = 20;  // a slow printer: 120 moves take over 2 s, the queue holds 8
+        c.queue_lines = 8;
+        c.busy_interval = 0.2;
+        c.firmware.reply_timeout = 5;
+    });
+    const auto received = stream_and_compare(rig, lines, 60);
+    const auto busy = std::count(received.begin(), received.end(), std::string("echo:busy: processing"));
+    CHECK(busy >= 3);
+}
+
 TEST_CASE("M114 answers in tool space; M105 gets the firmware's report on its ok; M115 adds xlate5") {
     Rig rig("rw2");
     REQUIRE(rig.ready());
@@ -356,4 +371,8 @@ TEST_CASE("the shipped configuration loads with its documented defaults; a broke
                          MachineError);
     CHECK_THROWS_WITH_AS(load_serve_config(write("[sim.faults]\ncorupt = 0.1\n")), doctest::Contains("sim.faults.corupt"), MachineError);
     CHECK_THROWS_WITH_AS(load_serve_config(write("[firmware\n")), doctest::Contains("bad.toml:1:"), MachineError);
+    CHECK_THROWS_WITH_AS(load_serve_config(write("machine = \"rw2\"\nmode = \"G44\"\n")), doctest::Contains("bad.toml:2: mode: expected"), MachineError);
+    const auto v = load_serve_config(write("mode = \"G43.5\"\nextruder_letter = \"a\"\n"));
+    CHECK(v.mode == OrientationMode::Vector);
+    CHECK(v.extruder_letter == 'A');
 }
