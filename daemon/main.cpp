@@ -215,7 +215,7 @@ int calibrate_plate(const std::string& path, const std::string& machine_name, co
 // with -o, writes the calibrated copy. The measurements are absolute (joint space, machine frame),
 // so the values replace the file's rather than adding to them.
 int store_calibration(const char* command, const std::string& machine_name, const std::vector<std::pair<std::string, double>>& values,
-                      const std::string& output) {
+                      const std::string& output, const std::map<std::string, double>& overrides) {
     try {
         if (values.empty()) {
             if (!output.empty())
@@ -224,7 +224,7 @@ int store_calibration(const char* command, const std::string& machine_name, cons
         }
         if (machine_name.empty())
             throw CLI::ValidationError("--machine", std::string("calibrate ") + command + " --param needs --machine (the file to start from)");
-        const auto m = xlate5::load_machine(machine_name);
+        const auto m = xlate5::load_machine(machine_name, overrides);
         std::map<std::string, double> set;
         for (const auto& [name, value] : values) {
             const auto it = m.parameters.find(name);
@@ -385,7 +385,11 @@ int main(int argc, char** argv) {
                 values = {{names[0], f.centre.x()}, {names[1], f.centre.y()}};
             }
         }
-        return store_calibration(offset ? "offset" : "centre", machine_name, values, offset ? offset_out : centre_out);
+        try {
+            return store_calibration(offset ? "offset" : "centre", machine_name, values, offset ? offset_out : centre_out, parse_sets(sets));
+        } catch (...) {
+            return exit_with(std::current_exception());
+        }
     }
 
     std::map<std::string, double> overrides;

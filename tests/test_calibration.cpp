@@ -265,6 +265,10 @@ TEST_CASE("CLI: calibrate offset writes pentarod's a_offset from touches the til
     CHECK(nope.code == 3);
     CHECK(contains(nope.err, "no 'b_offset'"));
     CHECK_FALSE(fs::exists(d.path / "x.toml"));
+    // --set applies here as everywhere: the old value shown is the one set; an unknown name is refused.
+    CHECK(contains(d.run("--machine pentarod --set a_offset=0.3 calibrate offset " + quote(touches.string()) + " --param a_offset").out,
+                   "a_offset: 0.300000 -> "));
+    CHECK(d.run("--machine pentarod --set nope=1 calibrate offset " + quote(touches.string()) + " --param a_offset").code == 3);
 }
 
 TEST_CASE("CLI: calibrate centre writes the C axis position (pentarod cx, cy; koc5 wx, wy) from dots, within the noise") {
