@@ -97,6 +97,7 @@ void set_sim_fault(SimFaults& f, const std::string& k, double d) {
     else if (k == "busy_seconds") f.busy_seconds = d;
     else if (k == "busy_interval") f.busy_interval = d;
     else if (k == "move_ms") f.move_ms = d;
+    else if (k == "slow_seconds") f.slow_seconds = d;
     else if (k == "reset_after") f.reset_after = std::uint64_t(d);
     else if (k == "kill_after") f.kill_after = std::uint64_t(d);
     else if (k == "unplug_after") f.unplug_after = std::uint64_t(d);
@@ -117,7 +118,7 @@ ServeConfig load_serve_config(const std::string& path) {
     r.check_known(root, "", {"machine", "compensation", "tolerance", "mode", "extruder_letter", "firmware", "sender", "sim", "log"});
     if (auto* t = root["firmware"].as_table())
         r.check_known(*t, "firmware.", {"firmware.port", "firmware.baud", "firmware.flavor", "firmware.window", "firmware.rx_bytes",
-                                        "firmware.max_line", "firmware.reply_timeout", "firmware.boot_wait", "firmware.max_timeouts"});
+                                        "firmware.max_line", "firmware.reply_timeout", "firmware.long_timeout", "firmware.boot_wait", "firmware.max_timeouts"});
     if (auto* t = root["sender"].as_table())
         r.check_known(*t, "sender.", {"sender.pty", "sender.pty_group", "sender.tcp", "sender.allow_remote", "sender.queue_lines", "sender.drain_timeout", "sender.busy_interval"});
     if (auto* t = root["sim"].as_table())
@@ -152,6 +153,7 @@ ServeConfig load_serve_config(const std::string& path) {
     r.get_int("firmware.rx_bytes", c.firmware.rx_bytes, 64, 1 << 20);
     r.get_int("firmware.max_line", c.firmware.max_line, 32, 4096);
     r.get("firmware.reply_timeout", c.firmware.reply_timeout, 0.05, 600);
+    r.get("firmware.long_timeout", c.firmware.long_timeout, 1, 86400);
     r.get("firmware.boot_wait", c.firmware.boot_wait, 0, 60);
     r.get_int("firmware.max_timeouts", c.firmware.max_timeouts, 1, 1000);
     r.get("sender.pty", c.pty);

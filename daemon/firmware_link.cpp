@@ -9,6 +9,18 @@
 namespace xlate5 {
 namespace {
 std::chrono::milliseconds seconds(double s) { return std::chrono::milliseconds(std::int64_t(s * 1000)); }
+
+// Commands a firmware may take minutes over without a word (RepRapFirmware sends no busy:
+// keepalives): silence after them is not a lost line.
+bool may_wait_long(std::string_view numbered_line) {
+    const auto c = proto::command_code(proto::parse_received(numbered_line).command);
+    if (c.letter == 'G') return c.code10 == 40 || c.code10 == 280 || c.code10 == 290;                  // G4, G28, G29
+    if (c.letter != 'M' || c.code10 % 10) return false;
+    switch (c.code10 / 10) {
+        case 0: case 1: case 109: case 116: case 190: case 191: case 303: case 400: case 600: return true;
+        default: return false;
+    }
+}
 }  // namespace
 
 FirmwareLink::FirmwareLink(std::shared_ptr<Link> link, FirmwareOptions options, Listener& listener)
@@ -146,8 +158,16 @@ void FirmwareLink::on_timeout() {
         transmit();
         return;
     }
-    spdlog::warn("firmware: no reply for {:.1f} s, resending line {}", opt_.reply_timeout, it->n);
     const Flight f = *it;
+    if (may_wait_long(sent_[std::size_t(f.n - first_n_)].text) && ++long_waits_ * opt_.reply_timeout < opt_.long_timeout) {
+        // Heating, homing, dwelling: wait on (up to long_timeout) before taking silence for a lost line.
+        --stats_.timeouts;
+        --timeouts_in_row_;
+        arm_timer();
+        return;
+    }
+    long_waits_ = 0;
+    spdlog::warn("firmware: no reply for {:.1f} s, resending line {}", opt_.reply_timeout, f.n);
     in_flight_.erase(in_flight_.begin(), it + 1);  // anything before it was unnumbered
     in_flight_.push_front({f.n, epoch_, f.bytes});
     link_->send(sent_[std::size_t(f.n - first_n_)].text);
@@ -159,6 +179,7 @@ void FirmwareLink::on_timeout() {
 void FirmwareLink::on_line(std::string_view line) {
     const auto reply = proto::classify(line);
     timeouts_in_row_ = 0;  // any sign of life
+    long_waits_ = 0;
     if (!in_flight_.empty()) arm_timer();
     if (after_resend_) {
         after_resend_ = false;

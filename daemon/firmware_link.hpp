@@ -20,6 +20,7 @@ struct FirmwareOptions {
     std::size_t rx_bytes = 127;     // bytes in flight at most (the firmware's serial receive buffer)
     std::size_t max_line = 96;      // the firmware's line buffer, terminator included (Marlin MAX_CMD_SIZE)
     double reply_timeout = 5.0;     // seconds without a reply while lines are in flight: resend the oldest
+    double long_timeout = 900;      // the same after homing, heating, dwelling (RRF is silent meanwhile)
     double boot_wait = 2.0;         // seconds to wait for "start" after opening the port
     int max_timeouts = 5;           // consecutive timeouts before the firmware is declared gone
     std::size_t history = 512;      // sent lines kept for Resend
@@ -103,6 +104,7 @@ private:
     asio::steady_timer grace_timer_;
     bool probing_ = false;              // a line was resent after a timeout
     int timeouts_in_row_ = 0;
+    int long_waits_ = 0;              // reply timeouts spent waiting on a long command
     int learned_window_ = 0;
     std::int64_t hello_m115_ = -1;      // line number of the hello's M115
     std::vector<std::string> m115_;

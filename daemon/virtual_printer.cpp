@@ -227,15 +227,23 @@ void VirtualPrinter::run_queue() {
             }
             const auto begin = planner_.empty() ? now : std::max(now, planner_.back());
             planner_.push_back(begin + ms(opt_.faults.move_ms));
-            if (opt_.faults.busy > 0 && uni_(rng_) < opt_.faults.busy) {
-                // A long wait (as G28 or M400 cause): keepalives, then the command completes.
+        }
+        // A long wait: a random busy period on a move, or a slow command (homing, heating,
+        // dwelling). Marlin sends keepalives meanwhile; RepRapFirmware says nothing.
+        double hold = 0;
+        if (is_move(code) && opt_.faults.busy > 0 && uni_(rng_) < opt_.faults.busy) hold = opt_.faults.busy_seconds;
+        if (opt_.faults.slow_seconds > 0 && (code.is('G', 28) || code.is('G', 4) || code.is('M', 109) || code.is('M', 190) || code.is('M', 400)))
+            hold = opt_.faults.slow_seconds;
+        if (hold > 0) {
+            {
                 running_ = true;
-                const auto until = now + ms(opt_.faults.busy_seconds * 1000);
+                const auto until = now + ms(hold * 1000);
+                const bool keepalives = !opt_.reprap;
                 // The keepalive loop holds itself only through the pending timer's handler (a
                 // weak self-reference), so it goes away when the loop ends.
                 auto keepalive = std::make_shared<std::function<void()>>();
                 std::weak_ptr<std::function<void()>> loop = keepalive;
-                *keepalive = [this, self, until, loop]() {
+                *keepalive = [this, self, until, loop, keepalives]() {
                     if (halted_ || unplugged_) { running_ = false; return; }
                     if (Clock::now() >= until) {
                         running_ = false;
@@ -245,7 +253,7 @@ void VirtualPrinter::run_queue() {
                         run_queue();
                         return;
                     }
-                    reply("echo:busy: processing");
+                    if (keepalives) reply("echo:busy: processing");
                     busy_timer_.expires_after(ms(opt_.faults.busy_interval * 1000));
                     busy_timer_.async_wait([again = loop.lock()](boost::system::error_code ec) { if (!ec && again) (*again)(); });
                 };

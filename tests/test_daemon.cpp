@@ -129,6 +129,19 @@ TEST_CASE("RepRapFirmware drops bad lines silently: recovered by timeout") {
     CHECK(rig.service().firmware()->stats().timeouts >= rig.sim().stats().dropped);
 }
 
+TEST_CASE("RepRapFirmware homing and heating in silence: waited for, not resent, not a fault") {
+    const std::vector<std::string> lines = {"G28", "G92 A-168", "M109 S200", "G1 A0 B0 F3000", "G1 X50 Y50 Z5", "M400", "G1 X60"};
+    Rig rig("rw2", [](ServeConfig& c) {
+        c.firmware.reprap = true;
+        c.sim.reprap = true;
+        c.sim.faults.slow_seconds = 1.0;   // five times the reply timeout, without a word
+        c.firmware.reply_timeout = 0.2;
+        c.firmware.long_timeout = 10;
+    });
+    stream_and_compare(rig, lines, 30);
+    CHECK(rig.service().firmware()->stats().resent == 0);
+}
+
 TEST_CASE("a firmware that resets, halts or vanishes stops the print: sender told, nothing replayed") {
     const auto lines = rw2_print(2000, 5);
     struct Case {
