@@ -16,6 +16,21 @@
 
 namespace xlate5::test {
 
+// A whole file as text ("" when it cannot be read).
+inline std::string read(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+// A word for /bin/sh, in single quotes.
+inline std::string quote(const std::string& s) {
+    std::string q = "'";
+    for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return q + "'";
+}
+
 // A fresh directory under the system temp dir, removed with everything in it.
 struct TempDir {
     std::filesystem::path path;

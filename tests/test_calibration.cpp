@@ -28,18 +28,7 @@ Eigen::Matrix3d Ry(double d) { return Eigen::AngleAxisd(rad(d), Eigen::Vector3d:
 
 std::string machine_path(const std::string& name) { return std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml"; }
 
-std::string read(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
 
-std::string quote(const std::string& s) {
-    std::string q = "'";
-    for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return q + "'";
-}
 
 // The calibrate commands as a user runs them: the xlate5 binary in a scratch directory of its own.
 struct Scratch : TempDir {
