@@ -194,7 +194,7 @@ void FirmwareLink::on_line(std::string_view line) {
     }
     switch (reply.kind) {
         case proto::ReplyKind::Ok:
-            on_ok(line);
+            on_ok(reply);
             return;
         case proto::ReplyKind::Resend:
             on_resend(reply.resend_line);
@@ -234,8 +234,7 @@ void FirmwareLink::on_line(std::string_view line) {
     }
 }
 
-void FirmwareLink::on_ok(std::string_view line) {
-    const auto reply = proto::classify(line);
+void FirmwareLink::on_ok(const proto::Reply& reply) {
     if (reply.buffer_free && opt_.window == 0) {
         // ADVANCED_OK: B is the free command-buffer slots; one more is being executed.
         learned_window_ = std::clamp(std::max(learned_window_, *reply.buffer_free + 1), 1, 32);

@@ -10,6 +10,7 @@
 #include <string_view>
 #include <vector>
 
+#include "daemon/line_protocol.hpp"
 #include "daemon/link.hpp"
 
 namespace xlate5 {
@@ -74,7 +75,7 @@ private:
     struct Flight { std::int64_t n; std::uint64_t epoch; std::size_t bytes; };  // n < 0: unnumbered
 
     void on_line(std::string_view line);
-    void on_ok(std::string_view line);
+    void on_ok(const proto::Reply& reply);
     void on_resend(std::int64_t n);
     void hello();
     void transmit();

@@ -40,7 +40,12 @@ std::uint8_t checksum(std::string_view text) {
 }
 
 std::string numbered(std::int64_t n, std::string_view command) {
-    std::string line = "N" + std::to_string(n) + " ";
+    // Appended piece by piece: GCC 12 warns falsely (-Wrestrict) on "N" + std::to_string(n).
+    std::string line;
+    line.reserve(command.size() + 24);
+    line += 'N';
+    line += std::to_string(n);
+    line += ' ';
     line += command;
     const unsigned cs = checksum(line);
     line += '*';
@@ -99,6 +104,13 @@ void append_commands(std::string_view text, std::vector<std::string>& out) {
         if (!cmd.empty()) out.push_back(std::move(cmd));
         begin = end + 1;
     }
+}
+
+std::optional<std::int64_t> m110_line(std::string_view command) {
+    const auto p = command.find_first_of("Nn", 1);
+    if (p == std::string_view::npos) return std::nullopt;
+    std::string_view rest = command.substr(p + 1);
+    return read_int(rest);
 }
 
 Code command_code(std::string_view command) {

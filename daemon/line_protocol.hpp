@@ -33,6 +33,9 @@ std::string strip_comment(std::string_view command);
 // The commands in a block of translator output: one a line, comments stripped, blanks skipped.
 void append_commands(std::string_view text, std::vector<std::string>& out);
 
+// The line number "M110 N<n>" sets, when the command names one.
+std::optional<std::int64_t> m110_line(std::string_view command);
+
 // The G or M code a command starts with, e.g. ('M', 1150) for "M115" (code x10, so G43.4 is 434);
 // letter 0 when the command does not start with one.
 struct Code {

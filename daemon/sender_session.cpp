@@ -45,7 +45,8 @@ void SenderSession::refuse(const char* why) {
 void SenderSession::on_line(std::string_view raw) {
     const auto r = proto::parse_received(raw);
     ++received_;
-    const auto code = proto::command_code(r.command);
+    const std::string bare = proto::strip_comment(r.command);
+    const auto code = proto::command_code(bare);
     if (r.number) {
         if (!r.has_checksum) return refuse("No Checksum with line number");
         if (!r.checksum_ok) return refuse("checksum mismatch");
@@ -54,15 +55,13 @@ void SenderSession::on_line(std::string_view raw) {
     } else if (r.has_checksum) {
         return refuse("No Line Number with checksum");
     }
-    const std::string bare = proto::strip_comment(r.command);
     if (bare.empty()) {
         if (r.number) ok();  // a numbered line that holds only a comment still counts
         return;
     }
     if (code.is('M', 110)) {
         // "M110 N<n>" (or the line's own number) sets the next expected line.
-        const auto p = bare.find_first_of("Nn", 1);
-        if (p != std::string::npos) last_n_ = std::strtoll(bare.c_str() + p + 1, nullptr, 10);
+        if (const auto n = proto::m110_line(bare)) last_n_ = *n;
         ok();
         return;
     }
@@ -76,7 +75,7 @@ void SenderSession::on_line(std::string_view raw) {
         ok();
         return;
     }
-    host_.sender_command(*this, r.command, r.number ? std::uint64_t(*r.number) : received_);
+    host_.sender_command(*this, r.command, code, r.number ? std::uint64_t(*r.number) : received_);
 }
 
 }  // namespace xlate5

@@ -8,6 +8,7 @@
 #include <string>
 #include <string_view>
 
+#include "daemon/line_protocol.hpp"
 #include "daemon/link.hpp"
 
 namespace xlate5 {
@@ -17,8 +18,9 @@ public:
     class Host {
     public:
         virtual ~Host() = default;
-        // A command for the queue (comments kept: the translator reads them as the file would).
-        virtual void sender_command(SenderSession& s, std::string_view command, std::uint64_t line_no) = 0;
+        // A command for the queue (comments kept: the translator reads them as the file would),
+        // with the G/M code it starts with.
+        virtual void sender_command(SenderSession& s, std::string_view command, proto::Code code, std::uint64_t line_no) = 0;
         // M112, M108, M410: to the firmware at once, ahead of the queue.
         virtual void sender_emergency(SenderSession& s, std::string_view command) = 0;
         // M115's answer, without the final ok.

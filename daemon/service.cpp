@@ -150,8 +150,7 @@ void Service::sender_emergency(SenderSession& s, std::string_view command) {
     }
 }
 
-void Service::sender_command(SenderSession& s, std::string_view command, std::uint64_t line_no) {
-    const auto code = proto::command_code(proto::strip_comment(command));
+void Service::sender_command(SenderSession& s, std::string_view command, proto::Code code, std::uint64_t line_no) {
     if (code.is('M', 999)) {
         // Restart after a stop: the queue is empty, the firmware is greeted again, and the
         // translator starts over (the position is unknown until the program homes or places it).
@@ -184,7 +183,7 @@ void Service::sender_command(SenderSession& s, std::string_view command, std::ui
         s.ok();
         return;
     }
-    pending_.push_back({s.weak_from_this(), std::string(command), line_no});
+    pending_.push_back({s.weak_from_this(), std::string(command), code, line_no});
     pump();
 }
 
@@ -223,7 +222,7 @@ void Service::process(const Pending& p) {
         if (session) session->ok();
         return;
     }
-    const bool wait_for_firmware = answered_by_firmware(proto::command_code(proto::strip_comment(p.command)));
+    const bool wait_for_firmware = answered_by_firmware(p.code);
     std::uint64_t tag = 0;
     std::vector<std::string> parts, commands, lines;
     proto::append_commands(out_, commands);

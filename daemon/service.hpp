@@ -65,7 +65,7 @@ public:
     void firmware_fault(const std::string& why, std::size_t lines_not_executed) override;
     void firmware_progress() override;
     // SenderSession::Host
-    void sender_command(SenderSession& s, std::string_view command, std::uint64_t line_no) override;
+    void sender_command(SenderSession& s, std::string_view command, proto::Code code, std::uint64_t line_no) override;
     void sender_emergency(SenderSession& s, std::string_view command) override;
     std::string sender_m115() override;
     void sender_gone(SenderSession& s) override;
@@ -74,6 +74,7 @@ private:
     struct Pending {
         std::weak_ptr<SenderSession> session;
         std::string command;
+        proto::Code code;
         std::uint64_t line_no;
     };
     void pump();

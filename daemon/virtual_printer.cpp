@@ -185,14 +185,9 @@ void VirtualPrinter::accept(std::string_view line) {
                 return refuse("checksum mismatch");
         }
         last_n_ = *r.number;
-        if (code.is('M', 110)) {
-            const auto p = command.find_first_of("Nn", 1);
-            if (p != std::string::npos) last_n_ = std::strtoll(command.c_str() + p + 1, nullptr, 10);
-        }
-    } else if (code.is('M', 110)) {
-        const auto p = command.find_first_of("Nn", 1);
-        if (p != std::string::npos) last_n_ = std::strtoll(command.c_str() + p + 1, nullptr, 10);
     }
+    if (code.is('M', 110))
+        if (const auto n = proto::m110_line(command)) last_n_ = *n;
     if (!r.number && r.has_checksum) {
         if (!r.checksum_ok || !opt_.reprap) {
             // A damaged N: Marlin refuses it, RepRapFirmware drops it (the checksum fails).
