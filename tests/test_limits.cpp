@@ -179,6 +179,20 @@ std::string run(Translator& t, const Program& p) {
 // Printing joints to 3 decimals moves the tip by up to about this much.
 constexpr double kPrintSlack = 0.0035;
 
+// Where and why translating `p` stops (line 0 and no message when it does not).
+struct Failure {
+    std::uint64_t line = 0;
+    std::string message;
+};
+Failure failure_of(Translator& t, const Program& p) {
+    try {
+        run(t, p);
+    } catch (const InputError& e) {
+        return {e.line(), e.message()};
+    }
+    return {};
+}
+
 }  // namespace
 
 TEST_CASE("limits: a layer change before the crossing unwinds A there (other branch, B < 0); the printing stays continuous") {
@@ -217,15 +231,7 @@ TEST_CASE("limits: without a travel move before the crossing, a clear error name
         const Program p = azimuth_loop(k, 300, std::nan(""), vector_form);
         Translator t(k, {});
         t.set_lookback(Translator::kDefaultLookback);
-        std::string out;
-        std::uint64_t failed = 0;
-        std::string message;
-        try {
-            run(t, p);
-        } catch (const InputError& e) {
-            failed = e.line();
-            message = e.message();
-        }
+        const auto [failed, message] = failure_of(t, p);
         MESSAGE(message);
         // The first move whose programmed A passes 168.
         std::uint64_t expected = 0;
@@ -246,14 +252,7 @@ TEST_CASE("limits: the look-back window is bounded: a travel move too far back d
     const Program p = azimuth_loop(k, 300, 50, false, 0);
     Translator t(k, {});
     t.set_lookback(10);
-    std::uint64_t failed = 0;
-    std::string message;
-    try {
-        run(t, p);
-    } catch (const InputError& e) {
-        failed = e.line();
-        message = e.message();
-    }
+    const auto [failed, message] = failure_of(t, p);
     CHECK(failed > 0);
     CHECK(contains(message, "within the 10 lines"));
     // With a window that reaches it, the same program translates, within the limits.
