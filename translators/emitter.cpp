@@ -31,10 +31,10 @@ void finish_move(std::string& out, std::size_t start, std::size_t empty, const s
 }  // namespace
 
 JointEmitter::JointEmitter(const Machine& machine)
-    : machine_(machine), last_(machine.joints.size(), 0), known_(machine.joints.size(), false), believed_(machine.home_joints()) {}
+    : machine_(&machine), last_(machine.joints.size(), 0), known_(machine.joints.size(), false), believed_(machine.home_joints()) {}
 
 int JointEmitter::decimals(std::size_t joint) const {
-    return machine_.joints[joint].rotary ? machine_.dialect.rotary_decimals : machine_.dialect.linear_decimals;
+    return machine_->joints[joint].rotary ? machine_->dialect.rotary_decimals : machine_->dialect.linear_decimals;
 }
 
 void JointEmitter::format(std::string& text, std::size_t joint, double value) const {
@@ -43,23 +43,13 @@ void JointEmitter::format(std::string& text, std::size_t joint, double value) co
 
 void JointEmitter::append_joint(std::string& out, std::size_t joint, double value) const {
     out += ' ';
-    out += machine_.joints[joint].output;
+    out += machine_->joints[joint].output;
     format(out, joint, value);
 }
 
 void JointEmitter::invalidate(const std::vector<double>& q) {
     known_.assign(known_.size(), false);
     believed_ = q;
-}
-
-void JointEmitter::copy_state_from(const JointEmitter& other) {
-    last_ = other.last_;
-    known_ = other.known_;
-    believed_ = other.believed_;
-    sent_ = other.sent_;
-    last_f_ = other.last_f_;
-    f_text_ = other.f_text_;
-    inverse_time_ = other.inverse_time_;
 }
 
 void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<bool>& commanded,
@@ -75,9 +65,9 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
     // Measured errors are taken off here, the last step before text, so every piece of every
     // move is corrected and nothing upstream sees anything but nominal joints.
     const std::vector<double>* sent = &q;
-    if (!machine_.compensation.empty()) {
+    if (!machine_->compensation.empty()) {
         sent_ = q;
-        if (auto why = machine_.compensation.apply(sent_); !why.empty()) throw LineError(1, why);
+        if (auto why = machine_->compensation.apply(sent_); !why.empty()) throw LineError(1, why);
         sent = &sent_;
     }
     for (std::size_t j = 0; j < q.size(); ++j) {
@@ -91,7 +81,7 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
         last_[j] = units;
         known_[j] = true;
         out += ' ';
-        out += machine_.joints[j].output;
+        out += machine_->joints[j].output;
         if (fast) append_units(out, units, d);
         else format(out, j, (*sent)[j]);
     }
@@ -107,9 +97,9 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
 void JointEmitter::set_position(std::string& out, const std::vector<double>& q, const std::vector<bool>& which,
                                 std::optional<PassedNumber> e) {
     const std::vector<double>* sent = &q;
-    if (!machine_.compensation.empty()) {
+    if (!machine_->compensation.empty()) {
         sent_ = q;
-        if (auto why = machine_.compensation.apply(sent_); !why.empty()) throw LineError(1, why);
+        if (auto why = machine_->compensation.apply(sent_); !why.empty()) throw LineError(1, why);
         sent = &sent_;
     }
     const std::size_t start = out.size();
@@ -123,7 +113,7 @@ void JointEmitter::set_position(std::string& out, const std::vector<double>& q, 
         known_[j] = true;
         believed_[j] = q[j];
         out += ' ';
-        out += machine_.joints[j].output;
+        out += machine_->joints[j].output;
         format(out, j, (*sent)[j]);
     }
     if (e) {

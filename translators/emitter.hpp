@@ -42,10 +42,6 @@ public:
     // belief (a machine file's home that differs from the firmware's) never causes a surprise move.
     void invalidate(const std::vector<double>& q);
 
-    // Takes over everything `other` remembers of the firmware (the translator rewinds to a
-    // checkpoint when a limit further on is unwound on an earlier travel move).
-    void copy_state_from(const JointEmitter& other);
-
     // A G93/G94 passed on to the firmware as written (joint space): from now on F is inverse
     // time and written on every move (or feed per minute and written when it changes).
     void feed_mode_sent(bool inverse_time) {
@@ -60,7 +56,7 @@ private:
     int decimals(std::size_t joint) const;
     void format(std::string& text, std::size_t joint, double value) const;
 
-    const Machine& machine_;
+    const Machine* machine_;  // a pointer, so a copy of the emitter is its whole state (the translator's snapshots)
     // What the firmware was last sent per joint, in units of its last printed digit.
     std::vector<long long> last_;
     std::vector<bool> known_;         // false: not sent since start, homing or probing

@@ -275,7 +275,7 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
         checkpoint_.mode = before_line_.mode;
         checkpoint_.modes = before_line_.modes;
         checkpoint_.image = before_line_.image;
-        checkpoint_.emitter.copy_state_from(before_line_.emitter);
+        checkpoint_.emitter = before_line_.emitter;
         have_checkpoint_ = true;
         checkpoint_line_ = line_no;
         chosen_ = -1;
@@ -383,7 +383,7 @@ void Translator::save(Snapshot& s) const {
     s.mode = mode_;
     s.modes = modes_;
     s.image = image_;
-    s.emitter.copy_state_from(emitter_);
+    s.emitter = emitter_;  // everything it remembers of the firmware
 }
 
 void Translator::restore(const Snapshot& s) {
@@ -395,7 +395,7 @@ void Translator::restore(const Snapshot& s) {
     mode_ = s.mode;
     modes_ = s.modes;
     image_ = s.image;
-    emitter_.copy_state_from(s.emitter);
+    emitter_ = s.emitter;
 }
 
 void Translator::map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const {
