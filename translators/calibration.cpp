@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <sstream>
 
+#include "translators/constants.hpp"
 #include "translators/error.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
@@ -23,8 +24,8 @@ PlateFit fit_plate(const std::vector<Eigen::Vector3d>& points) {
     if (n.z() < 0) n = -n;
     PlateFit f;
     f.normal = n;
-    f.rho = std::atan2(n.x(), n.z()) * 180.0 / 3.14159265358979323846;
-    f.psi = std::atan2(-n.y(), std::hypot(n.x(), n.z())) * 180.0 / 3.14159265358979323846;
+    f.rho = std::atan2(n.x(), n.z()) * 180.0 / kPi;
+    f.psi = std::atan2(-n.y(), std::hypot(n.x(), n.z())) * 180.0 / kPi;
     for (const auto& p : points) f.residual = std::max(f.residual, std::abs((p - centroid).dot(n)));
     return f;
 }
@@ -40,7 +41,7 @@ OffsetFit fit_rotary_offset(const std::vector<Eigen::Vector2d>& yz) {
     }
     const Eigen::Vector2d ab = A.colPivHouseholderQr().solve(z);
     OffsetFit f;
-    f.offset_deg = std::atan(ab(0)) * 180.0 / 3.14159265358979323846;
+    f.offset_deg = std::atan(ab(0)) * 180.0 / kPi;
     f.z_error = ab(1);
     f.residual = (A * ab - z).cwiseAbs().maxCoeff();
     return f;

@@ -5,10 +5,12 @@
 #include <cmath>
 #include <cstdio>
 
+#include "translators/constants.hpp"
+
 namespace xlate5 {
 
 namespace {
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
+constexpr double kDeg = kRadPerDeg;
 }
 
 bool CompensationTerm::eval(double x, double& e) const {

@@ -1,5 +1,8 @@
-// Error compensation (seed 001 eq. 4.6): measured deviations of the tip as functions of a
-// rotary angle, subtracted from the joint targets after IK and added back by --inverse.
+// Error compensation (Andersons, seed 001 eq. 4.6): measured deviations of the tip as functions
+// of a rotary angle, subtracted from the joint targets after IK and added back by --inverse.
+// The compensation stage sits between the motion stage (and the planner's joint moves) and the
+// emitter: nominal joints in, the joints the firmware is sent out, or why not. May call: nothing
+// but its own tables. (fit_fourier, the fit `calibrate fit` prints, shares the series' form.)
 #pragma once
 #include <string>
 #include <vector>
@@ -31,6 +34,29 @@ struct Compensation {
     std::string apply(std::vector<double>& q) const;
     // Sent joints -> nominal (exact: no corrected joint is an input of a term).
     void undo(std::vector<double>& q) const;
+};
+
+// The stage: holds its scratch so a move allocates nothing. Copyable (a pointer to the terms).
+class CompensationStage {
+public:
+    explicit CompensationStage(const Compensation& compensation) : compensation_(&compensation) {}
+
+    struct Result {
+        const std::vector<double>& sent;  // q itself when there is nothing to correct
+        std::string why;                  // empty, or why the joints cannot be corrected
+        bool ok() const { return why.empty(); }
+    };
+    // Nominal joints -> what the firmware is sent (valid until the next call).
+    Result apply(const std::vector<double>& q) {
+        if (compensation_->empty()) return {q, {}};
+        sent_ = q;
+        std::string why = compensation_->apply(sent_);
+        return {sent_, std::move(why)};
+    }
+
+private:
+    const Compensation* compensation_;
+    std::vector<double> sent_;
 };
 
 // Least-squares Fourier series of `order` harmonics through (angle, error) points, and the

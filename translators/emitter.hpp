@@ -1,12 +1,12 @@
-// Stage 5: joint values -> firmware G-code text, in the machine's axis letters and decimals.
-// It remembers what the firmware was last told, so a line names only the joints that change.
+// The emitter stage, last before the sink: joint values -> firmware G-code text, in the
+// machine's axis letters and decimals. It only writes text: the joints arrive solved, split and
+// compensated. It remembers what the firmware was last told, so a line names only the joints that
+// change. May call: number formatting.
 #pragma once
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "translators/machine.hpp"
 
@@ -20,6 +20,10 @@ struct PassedNumber {
     int decimals = -1;  // for a computed value: digits after the point (-1: shortest exact form)
 };
 void append_passed(std::string& out, const PassedNumber& n);
+// Ends a move line begun at `start` with E and F; a line that got no word after its command
+// (`out` still `empty` long: nothing changed) is taken back.
+void finish_move(std::string& out, std::size_t start, std::size_t empty, const std::optional<PassedNumber>& e,
+                 const std::optional<PassedNumber>& f);
 
 class JointEmitter {
 public:
@@ -29,13 +33,16 @@ public:
     // whose firmware position is not known is written when the input commands it (`commanded`)
     // or its value changes. Writes nothing when nothing would change.
     // `inverse_time`: F is 1/minutes (G93, written on every move); the emitter switches the
-    // firmware between G93 and G94 as needed.
-    void move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<bool>& commanded,
-              std::optional<PassedNumber> e, std::optional<PassedNumber> f, bool inverse_time = false);
+    // firmware between G93 and G94 as needed. `q` are the nominal joints (what the firmware is
+    // believed to be at), `sent` the values written (after the compensation stage; `q` itself
+    // when there is none).
+    void move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<double>& sent,
+              const std::vector<bool>& commanded, std::optional<PassedNumber> e, std::optional<PassedNumber> f,
+              bool inverse_time = false);
 
     // "G92" for the joints in `which` (the firmware is told where they are) and E when given.
-    void set_position(std::string& out, const std::vector<double>& q, const std::vector<bool>& which,
-                      std::optional<PassedNumber> e);
+    void set_position(std::string& out, const std::vector<double>& q, const std::vector<double>& sent,
+                      const std::vector<bool>& which, std::optional<PassedNumber> e);
 
     // The firmware's position is not exactly known (start, homing, probing): xlate5 believes it
     // is at `q`. Until written again, a joint is sent only when commanded or changed, so a wrong
@@ -61,35 +68,8 @@ private:
     std::vector<long long> last_;
     std::vector<bool> known_;         // false: not sent since start, homing or probing
     std::vector<double> believed_;    // joint values the firmware is believed to be at
-    std::vector<double> sent_;        // this move's joints as sent: after error compensation
     std::string last_f_, f_text_;     // F is modal in the firmware: written only when it changes
     bool inverse_time_ = false;       // the firmware's feed mode as xlate5 last set it
-};
-
-}  // namespace xlate5
-
-namespace xlate5 {
-
-// The inverse direction's stage 5: tip and orientation -> tool-space G-code (G43.4 angle form or
-// G43.5 vector form), for previews and round-trip checks.
-class ToolEmitter {
-public:
-    ToolEmitter(const Machine& machine, OrientationMode form);
-
-    void move(std::string& out, int gcode, const Eigen::Vector3d& tip, const Eigen::Vector3d& axis,
-              const std::vector<double>& q, std::optional<PassedNumber> e, std::optional<PassedNumber> f);
-    void invalidate();
-    OrientationMode form() const { return form_; }
-
-private:
-    void word(std::string& out, char letter, std::string& last, double value, int decimals);
-
-    const Machine& machine_;
-    OrientationMode form_;
-    std::string last_xyz_[3], last_ijk_[3];
-    std::vector<std::string> last_rotary_;
-    std::vector<double> last_q_;   // joints of the previous move: an unchanged pose writes no words
-    std::string scratch_;
 };
 
 }  // namespace xlate5

@@ -5,14 +5,15 @@
 #include <cmath>
 #include <limits>
 
+#include "translators/constants.hpp"
 #include "translators/error.hpp"
+#include "translators/joint_limits.hpp"
 
 namespace xlate5 {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
+constexpr double kDeg = kRadPerDeg;
 // A projected vector shorter than this leaves subproblem 1 without an answer: the joint is on
 // its singular pole and keeps its previous angle.
 constexpr double kFreeEps = 1e-7;
@@ -29,12 +30,6 @@ double subproblem1(const Eigen::Vector3d& w, const Eigen::Vector3d& p, const Eig
     const Eigen::Vector3d qq = q - w * w.dot(q);
     if (pp.norm() < kFreeEps || qq.norm() < kFreeEps) return std::numeric_limits<double>::quiet_NaN();
     return std::atan2(w.dot(pp.cross(qq)), pp.dot(qq));
-}
-
-std::string fmt(double v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.3f", v);
-    return buf;
 }
 
 }  // namespace
@@ -193,93 +188,11 @@ Kinematics::Solutions Kinematics::orientation_solutions(const Eigen::Vector3d& a
     return out;
 }
 
-IkResult Kinematics::check_limits(const std::vector<double>& q) const {
-    for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
-        const Joint& J = machine_.joints[j];
-        if (q[j] < J.min - 1e-9 || q[j] > J.max + 1e-9)
-            return {IkStatus::OutOfLimits, std::string("joint ") + J.name + " would go to " + fmt(q[j]) + ", outside its limits " +
-                                               fmt(J.min) + " .. " + fmt(J.max)};
-    }
-    return {};
-}
-
-IkResult Kinematics::solve_orientation(const Eigen::Vector3d& axis, const std::vector<double>& previous,
-                                       std::vector<double>& q, const std::vector<double>* free_hint, int branch,
-                                       bool limited) const {
-    auto solutions = orientation_solutions(axis);
-    if (branch >= 0 && branch < solutions.count) {
-        solutions.angle[0][0] = solutions.angle[branch][0];
-        solutions.angle[0][1] = solutions.angle[branch][1];
-        solutions.count = 1;
-    } else if (branch >= 0) {
-        return {IkStatus::Unreachable, "no such orientation branch"};
-    }
-    if (solutions.empty()) {
-        char buf[160];
-        std::snprintf(buf, sizeof buf, "tool axis (%.6f, %.6f, %.6f) is out of this machine's reach", axis.x(), axis.y(), axis.z());
-        return {IkStatus::Unreachable, buf};
-    }
-    const std::size_t n = rotary_.size();
-    double best_cost = std::numeric_limits<double>::infinity();
-    double best[2] = {0, 0};
-    bool found = false;
-    int failed_joint = -1;
-    double failed_angle = 0;
-    for (int s = 0; s < solutions.count; ++s) {
-        double cand[2] = {0, 0};
-        double cost = 0;
-        bool ok = true;
-        for (std::size_t k = 0; k < n && ok; ++k) {
-            const int j = rotary_[k];
-            const Joint& J = machine_.joints[std::size_t(j)];
-            const double prev = previous[std::size_t(j)];
-            const double sol = solutions.angle[s][k];
-            if (std::isnan(sol)) {  // on the pole: the joint is free, keep it where it is
-                cand[k] = free_hint ? (*free_hint)[std::size_t(j)] : prev;
-                continue;
-            }
-            // Of sol + 360 k, the turn nearest the previous angle that is inside the limits.
-            const double nearest = prev + wrap180(sol - prev);
-            double chosen = std::numeric_limits<double>::quiet_NaN();
-            for (int turn : {0, 1, -1, 2, -2}) {
-                const double v = nearest + 360.0 * turn;
-                if (!limited) {
-                    chosen = nearest;
-                    break;
-                }
-                if (v >= J.min - 1e-9 && v <= J.max + 1e-9 && (std::isnan(chosen) || std::abs(v - prev) < std::abs(chosen - prev)))
-                    chosen = v;
-            }
-            if (std::isnan(chosen)) {
-                ok = false;
-                failed_joint = j;
-                failed_angle = sol;
-                break;
-            }
-            cand[k] = chosen;
-            cost += (chosen - prev) * (chosen - prev);
-        }
-        if (ok && cost < best_cost) {
-            best_cost = cost;
-            best[0] = cand[0];
-            best[1] = cand[1];
-            found = true;
-        }
-    }
-    if (!found) {
-        const Joint& J = machine_.joints[std::size_t(failed_joint)];
-        return {IkStatus::OutOfLimits, std::string("joint ") + J.name + " would need " + fmt(wrap180(failed_angle)) +
-                                           " degrees, outside its limits " + fmt(J.min) + " .. " + fmt(J.max)};
-    }
-    for (std::size_t k = 0; k < n; ++k) q[std::size_t(rotary_[k])] = best[k];
-    return {};
-}
-
 IkResult Kinematics::inverse(const Pose& pose, const std::vector<double>& previous, std::vector<double>& q) const {
     q = previous;
-    if (auto r = solve_orientation(pose.axis, previous, q); !r.ok()) return r;
+    if (auto r = orient_within_limits(*this, pose.axis, previous, previous, q); !r.ok()) return r;
     if (auto r = solve_position(pose.tip, q); !r.ok()) return r;
-    return check_limits(q);
+    return check_limits(machine_, q);
 }
 
 }  // namespace xlate5

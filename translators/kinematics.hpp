@@ -1,5 +1,11 @@
-// The math: forward kinematics and the closed-form inverse of any machine with up to two
-// rotary joints (Paden-Kahan subproblems 1 and 2). No machine has its own formula here.
+// The math, used by the planner, the motion stage, the report and --inverse: forward kinematics
+// and the closed-form inverse of any machine with up to two rotary joints (Paden-Kahan
+// subproblems 1 and 2). No machine has its own formula here. May call: the machine data, and
+// joint_limits for the choice inverse() makes.
+//
+// The contract is forward(q) and inverse(pose, previous). Below them, plain queries that the
+// planner combines under its own policy: the orientation solutions per branch and the position
+// solve for given rotaries.
 #pragma once
 #include <Eigen/Core>
 #include <string>
@@ -33,28 +39,14 @@ public:
     // Joint values (mm, degrees) -> tip and tool axis in the part frame.
     Pose forward(const std::vector<double>& q) const;
 
+    // Joints reaching `pose`: of its solutions (both orientation branches, every 360-degree
+    // turn), the one inside the joint limits nearest `previous`. A joint whose axis is parallel to
+    // the tool axis keeps its previous value.
+    IkResult inverse(const Pose& pose, const std::vector<double>& previous, std::vector<double>& q) const;
+
     // Sets the linear joints of q so the tip reaches `tip`, rotary joints as they are in q;
     // `axis`, when given, receives the tool axis of that configuration.
     IkResult solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr) const;
-
-    // Sets the rotary joints of q to reach tool axis `axis`: of the (up to two) solutions and
-    // their 360-degree turns, the one inside the limits nearest `previous`. A joint whose axis is
-    // parallel to the tool axis keeps its previous value.
-    // `free_hint`, when given, is the value a free joint takes instead of its previous one (the
-    // motion stage interpolates a free joint across a move).
-    // `branch` 0 or 1 restricts the choice to that orientation solution (the motion stage tries
-    // the other branch where the continuous one would swing a joint round a pole).
-    // `limited` false: the nearest turn of the nearest branch whatever the limits (the continuous
-    // solution, to tell where a path leaves them).
-    IkResult solve_orientation(const Eigen::Vector3d& axis, const std::vector<double>& previous,
-                               std::vector<double>& q, const std::vector<double>* free_hint = nullptr, int branch = -1,
-                               bool limited = true) const;
-
-    // Both: orientation from `pose.axis`, then position.
-    IkResult inverse(const Pose& pose, const std::vector<double>& previous, std::vector<double>& q) const;
-
-    // Checks every joint of q against its limits.
-    IkResult check_limits(const std::vector<double>& q) const;
 
     // The raw orientation solutions, in degrees: each has one value per rotary joint in
     // `rotary_joints()` order (NaN where that joint is free). Fixed size: no allocation per move.

@@ -8,6 +8,7 @@
 #include <sstream>
 #include <toml++/toml.h>
 
+#include "translators/constants.hpp"
 #include "translators/error.hpp"
 #include "translators/expr.hpp"
 #include "translators/machine.hpp"
@@ -23,7 +24,6 @@ namespace xlate5 {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 class Reader {
 public:

@@ -5,13 +5,15 @@
 #include <cmath>
 #include <cstdio>
 
+#include "translators/constants.hpp"
+#include "translators/error.hpp"
+#include "translators/joint_limits.hpp"
 #include "translators/number.hpp"
 
 namespace xlate5 {
 
 namespace {
 
-constexpr double kDegPerRad = 57.29577951308232;
 constexpr int kCheckSamples = 7;     // interior points checked per piece (see piece_error)
 // The error between two of those samples can exceed both by a little (the tests measure it
 // against 400-point sampling: under 1%); a piece passes only with this much room left.
@@ -71,7 +73,7 @@ double firmware_length(const Machine& m, const std::vector<double>& q0, const st
 }
 
 MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
-    : kin_(kinematics), machine_(kinematics.machine()), emitter_(emitter) {}
+    : kin_(kinematics), machine_(kinematics.machine()), compensation_(kinematics.machine().compensation), emitter_(emitter) {}
 
 Pose MotionStage::pose_at(const MoveSpec& mv, double s) const {
     Pose p;
@@ -95,20 +97,22 @@ IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<d
         std::vector<double>& hint = const_cast<std::vector<double>&>(lerp_);
         hint.resize(q.size());
         for (std::size_t j = 0; j < q.size(); ++j) hint[j] = q0[j] + s * (q1[j] - q0[j]);
-        if (auto r = kin_.solve_orientation(target.axis, previous, q, &hint, branch); !r.ok()) return r;
+        const IkResult r = branch < 0 ? orient_within_limits(kin_, target.axis, previous, hint, q)
+                                      : orient_on_branch(kin_, target.axis, branch, previous, hint, q);
+        if (!r.ok()) return r;
     }
     if (auto r = kin_.solve_position(target.tip, q); !r.ok()) return r;
-    return kin_.check_limits(q);
+    return check_limits(machine_, q);
 }
 
 IkResult MotionStage::leaves_limits(const MoveSpec& mv, double s, const std::vector<double>& previous) const {
     if (mv.mode != OrientationMode::Vector) return {};
     std::vector<double>& cont = sample_;
     cont = previous;
-    if (!kin_.solve_orientation(pose_at(mv, s).axis, previous, cont, nullptr, -1, false).ok()) return {};
+    if (!orient_continuous(kin_, pose_at(mv, s).axis, previous, cont).ok()) return {};
     for (std::size_t j = 0; j < cont.size(); ++j) {
         const Joint& J = machine_.joints[j];
-        if (!J.rotary || (cont[j] >= J.min - 1e-9 && cont[j] <= J.max + 1e-9)) continue;
+        if (!J.rotary || inside_limits(J, cont[j])) continue;
         char buf[200];
         std::snprintf(buf, sizeof buf, "joint %c would run past its limit %.3f at %d%% of the move (limits %.3f .. %.3f)",
                       J.name, cont[j] > J.max ? J.max : J.min, int(std::lround(s * 100)), J.min, J.max);
@@ -245,7 +249,7 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
                 for (std::size_t j = 0; j < turned.size(); ++j)
                     if (machine_.joints[j].rotary && std::abs(q_eps[j] - turned[j]) > 1.0) turned[j] = q_eps[j];
                 if (auto rp = kin_.solve_position(mv.p0.tip, turned); !rp.ok()) return rp;
-                if (auto rl = kin_.check_limits(turned); !rl.ok()) return rl;
+                if (auto rl = check_limits(machine_, turned); !rl.ok()) return rl;
                 MoveSpec turn = mv;
                 turn.mode = OrientationMode::Angles;
                 turn.q1 = &turned;
@@ -352,7 +356,11 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
             else if (mv.f && mv.inverse_time == 0) f = mv.f;  // nothing moves (E only): F as written
             else if (mv.feed > 0) f = PassedNumber{mv.feed, {}, 1};
         }
-        emitter_.move(out, mv.gcode, qk, *mv.commanded, e, f, inverse_time_out);
+        // Measured errors are taken off after the split, so every piece of every move is
+        // corrected and nothing upstream sees anything but nominal joints.
+        const auto sent = compensation_.apply(qk);
+        if (!sent.ok()) throw LineError(1, sent.why);
+        emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, inverse_time_out);
         prev_share = share;
         qprev = qk;
     }

@@ -1,12 +1,14 @@
-// The motion stage, between the interpreter and the emitter: splits a tool-space move until
-// the firmware's joint-linear path stays within the tolerance of it, shares E among the pieces
-// by tool-space length, and sets each piece's F so the tip moves at the programmed speed under
-// the firmware's own feed rule.
+// The motion stage, between the planner and the compensation stage: splits a tool-space move
+// (already solved at both ends by the planner) until the firmware's joint-linear path stays within
+// the tolerance of it, shares E among the pieces by tool-space length, and sets each piece's F so
+// the tip moves at the programmed speed under the firmware's own feed rule. May call: kinematics,
+// joint_limits (each split point stays inside the limits), the compensation stage, the emitter.
 #pragma once
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "translators/compensation.hpp"
 #include "translators/emitter.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
@@ -77,6 +79,7 @@ private:
 
     const Kinematics& kin_;
     const Machine& machine_;
+    CompensationStage compensation_;
     JointEmitter& emitter_;
     std::vector<double> s_, qs_;                 // the pieces
     // Scratch space reused move after move (no allocation on the hot path).

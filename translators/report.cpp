@@ -1,5 +1,8 @@
 #include "translators/report.hpp"
 
+#include "translators/machine.hpp"
+#include "translators/motion.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -163,6 +166,29 @@ std::string DeviationReport::svg() const {
     for (const Point& p : series_) o += num(X(0.5 * double(p.first_line + p.last_line))) + "," + num(Y(p.tip)) + " ";
     o += "\"/>\n</svg>\n";
     return o;
+}
+
+void MoveLog::add(std::uint64_t line, const MoveResult& m) {
+    for (std::size_t j = 0; j < m.travel.size(); ++j) {
+        if (!machine_.joints[j].rotary) continue;
+        if (hold_) held_.travel.emplace_back(machine_.joints[j].name, m.travel[j]);
+        else report_.add_rotary_travel(machine_.joints[j].name, m.travel[j]);
+    }
+    if (hold_) held_.moves.push_back({line, m.tip_error, m.angle_error, m.feed_error, m.pieces, held_.travel.size()});
+    else report_.add_move(line, m.tip_error, m.angle_error, m.feed_error, m.pieces);
+}
+
+void MoveLog::release(std::size_t moves) {
+    if (moves == 0) return;
+    const std::size_t travel_end = held_.moves[moves - 1].travel_end;
+    for (std::size_t i = 0, t = 0; i < moves; ++i) {
+        const Pending& m = held_.moves[i];
+        report_.add_move(m.line, m.tip, m.angle, m.feed, m.pieces);
+        for (; t < m.travel_end; ++t) report_.add_rotary_travel(held_.travel[t].first, held_.travel[t].second);
+    }
+    held_.moves.erase(held_.moves.begin(), held_.moves.begin() + std::ptrdiff_t(moves));
+    held_.travel.erase(held_.travel.begin(), held_.travel.begin() + std::ptrdiff_t(travel_end));
+    for (Pending& m : held_.moves) m.travel_end -= travel_end;
 }
 
 }  // namespace xlate5

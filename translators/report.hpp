@@ -1,6 +1,8 @@
 // The kinematic-error report: how far the firmware's joint-linear path leaves the programmed
 // tool-space path, per file, so a user can inspect a file before printing it. Memory is bounded
 // whatever the file size (histograms and a series that halves its resolution as it grows).
+// Beside the stages: the planner logs each measured move into it. May call: nothing of the
+// pipeline.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -51,6 +53,45 @@ private:
     std::vector<Point> series_;  // at most kMaxPoints, each the worst of `bucket_` moves
     std::uint64_t bucket_ = 1, in_bucket_ = 0;
     static constexpr std::size_t kMaxPoints = 2000;
+};
+
+struct Machine;
+struct MoveResult;
+
+// Measured moves on their way to the report: added at once, or, while the look-back holds the
+// output they belong to, held and released with it (dropped when it translates them again).
+class MoveLog {
+public:
+    MoveLog(DeviationReport& report, const Machine& machine) : report_(report), machine_(machine) {}
+
+    void hold(bool on) { hold_ = on; }
+    void add(std::uint64_t line, const MoveResult& m);
+
+    // A held move, and the rotary travel of the held moves (each move's ends at travel_end).
+    struct Pending {
+        std::uint64_t line;
+        double tip, angle, feed;
+        int pieces;
+        std::size_t travel_end;
+    };
+    struct Held {
+        std::vector<Pending> moves;
+        std::vector<std::pair<char, double>> travel;
+    };
+    std::size_t held_count() const { return held_.moves.size(); }
+    void release(std::size_t moves);  // the first `moves` held moves go to the report
+    const Held& held() const { return held_; }
+    void set_held(const Held& h) { held_ = h; }
+    void drop_held() {
+        held_.moves.clear();
+        held_.travel.clear();
+    }
+
+private:
+    DeviationReport& report_;
+    const Machine& machine_;
+    bool hold_ = false;
+    Held held_;
 };
 
 }  // namespace xlate5

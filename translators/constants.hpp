@@ -1,0 +1,19 @@
+// Shared numbers of the library: pi and its degree factors, and the tolerances more than one
+// stage must agree on. No stage; included by any file that needs them, and calls nothing.
+#pragma once
+
+namespace xlate5 {
+
+inline constexpr double kPi = 3.14159265358979323846;
+inline constexpr double kTwoPi = 2.0 * kPi;
+inline constexpr double kRadPerDeg = kPi / 180.0;
+inline constexpr double kDegPerRad = 180.0 / kPi;
+
+// A joint value this far outside its limits still counts as inside: solved values carry
+// rounding of that order, and a limit written in the machine file must be reachable exactly.
+inline constexpr double kLimitSlack = 1e-9;
+
+// Two solutions whose rotaries differ by less than this (degrees) are the same solution.
+inline constexpr double kSameAngle = 1e-6;
+
+}  // namespace xlate5

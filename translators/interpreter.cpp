@@ -1,0 +1,459 @@
+#include "translators/interpreter.hpp"
+
+#include <cmath>
+#include <optional>
+
+#include "translators/arcs.hpp"
+#include "translators/error.hpp"
+
+namespace xlate5 {
+
+Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner& planner, std::string input_name,
+                         char extruder_letter)
+    : machine_(kinematics.machine()),
+      state_(state),
+      planner_(planner),
+      input_name_(std::move(input_name)),
+      extruder_letter_(extruder_letter),
+      saved_(state) {}
+
+void Interpreter::fail(std::uint32_t column, const std::string& message) const { throw LineError(column, message); }
+
+double Interpreter::number(const Param& p) const {
+    if (!p.has_value) fail(p.column, std::string("word ") + p.letter + " has no number");
+    return p.value;
+}
+
+PassedNumber Interpreter::passed(const Param& p, bool inches) const {
+    const double v = number(p);
+    if (inches) return {v * 25.4, {}};
+    return {v, p.text};
+}
+
+bool Interpreter::is_axis_letter(char c) const {
+    return c == 'X' || c == 'Y' || c == 'Z' || c == 'I' || c == 'J' || c == 'K' || machine_.joint_index(c) >= 0;
+}
+
+void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& out) {
+    try {
+        lex_line(line, block_);
+        if (block_.words.empty()) {
+            append_wordless(out, line, block_);
+            return;
+        }
+        read_commands(block_, extruder_letter_, commands_);
+    } catch (const LineError& e) {
+        throw InputError(input_name_, run.line_no, e.column(), e.what());
+    }
+    const Params& words = commands_.params;
+    const Modes& modes = state_.modal.modes;
+    CommandWord implicit{'G', 0, words.empty() ? 1u : words.front().column};
+    if (!commands_.has_owner && !words.empty()) {
+        // Axis words with no command continue the modal motion (RS274; CNC files rely on it).
+        if (modes.motion < 0) throw InputError(input_name_, run.line_no, implicit.column, "axis words without a motion command (G0 or G1)");
+        implicit.code10 = modes.motion * 10;
+    }
+
+    // Nothing is written until the whole line has been understood and solved: an error leaves
+    // neither output nor state changed by this line.
+    const std::size_t out_start = out.size();
+    saved_ = state_;
+    try {
+        for (std::size_t i = 0; i < commands_.count; ++i)
+            if (commands_.commands[i].modal_only()) apply_modal(commands_.commands[i].code10, commands_.commands[i].column, words, out);
+        for (std::size_t i = 0; i < commands_.count; ++i)
+            if (!commands_.commands[i].modal_only()) run_command(commands_.commands[i], block_.body, commands_.alone(), words, run, out);
+        if (!commands_.has_owner && !words.empty()) run_command(implicit, block_.body, false, words, run, out);
+    } catch (...) {
+        // Nothing of a failed line stays: output, joints, pose, modes. What the firmware was
+        // told of it is not known either.
+        out.resize(out_start);
+        state_ = saved_;
+        planner_.position_unknown();
+        try {
+            throw;
+        } catch (const LineError& e) {
+            throw InputError(input_name_, run.line_no, e.column(), e.what());
+        }
+    }
+}
+
+void Interpreter::apply_modal(int code10, std::uint32_t /*column*/, const Params& words, std::string& out) {
+    ModalState& m = state_.modal;
+    switch (code10) {
+        case 200:
+        case 210:
+            // xlate5 converts to millimetres itself; the firmware always works in mm.
+            m.modes.inches = code10 == 200;
+            out += "G21\n";
+            return;
+        case 170:
+        case 180:
+        case 190:
+            // The arc plane: xlate5 linearises arcs under tool-centre-point control itself.
+            m.modes.plane = code10 / 10;
+            if (m.mode == OrientationMode::Joints) {
+                append_passthrough(out, 'G', code10, {}, false, words);
+                planner_.feed_mode_sent(m.modes.inverse_time);
+            }
+            return;
+        case 434:
+        case 435:
+        case 490: {
+            const OrientationMode mode = code10 == 434 ? OrientationMode::Angles : code10 == 435 ? OrientationMode::Vector : OrientationMode::Joints;
+            if (mode != m.mode) planner_.reset_angle_image();  // entering G43.4: its angles mean the joints as they are
+            m.mode = mode;
+            return;
+        }
+        case 900:
+        case 910:
+            // Joint targets are always written absolute; E keeps the input's mode, stated
+            // explicitly because firmwares differ on whether G90/G91 change it.
+            m.modes.absolute = code10 == 900;
+            m.modes.e_relative = code10 == 910;
+            out += m.modes.e_relative ? "G90\nM83\n" : "G90\nM82\n";
+            return;
+        case 930:
+        case 940:
+            // Under tool-centre-point control xlate5 computes every F itself (mm/min), so the
+            // input's feed mode is understood here and not sent; in joint space it is passed on.
+            m.modes.inverse_time = code10 == 930;
+            if (m.mode == OrientationMode::Joints) {
+                append_passthrough(out, 'G', code10, {}, false, words);
+                planner_.feed_mode_sent(m.modes.inverse_time);
+            }
+            return;
+        default:
+            append_passthrough(out, 'G', code10, {}, false, words);
+            return;
+    }
+}
+
+void Interpreter::run_command(const CommandWord& c, std::string_view body, bool alone, const Params& words, LineRun& run,
+                              std::string& out) {
+    ModalState& m = state_.modal;
+    if (c.letter == 'M') {
+        if (c.code10 == 820) m.modes.e_relative = false;
+        if (c.code10 == 830) m.modes.e_relative = true;
+        append_passthrough(out, c.letter, c.code10, body, alone, words);
+        return;
+    }
+    if (c.letter == 'T') {
+        append_passthrough(out, c.letter, c.code10, body, alone, words);
+        return;
+    }
+    switch (c.code10) {
+        case 0:
+        case 10:
+            m.modes.motion = c.code10 / 10;
+            if (m.mode == OrientationMode::Joints) joint_move(c.code10 / 10, words, out);
+            else tool_move(c.code10 / 10, c.column, words, m.modes.absolute, m.modes.inches, run, out);
+            return;
+        case 20:
+        case 30:
+            m.modes.motion = c.code10 / 10;
+            if (m.mode != OrientationMode::Joints) {
+                arc(c.code10 == 20, c.column, words, run, out);
+                return;
+            }
+            if (!m.modes.absolute || m.modes.inches)
+                fail(c.column, "joint-space arcs are passed on only in G90 and G21 (millimetres)");
+            joints_.assign(state_.planner.q.begin(), state_.planner.q.end());
+            for (const auto& p : words) {
+                const int j = machine_.joint_index(p.letter);
+                if (j >= 0) joints_[std::size_t(j)] = number(p);
+            }
+            planner_.moved_to(joints_);
+            append_passthrough(out, 'G', c.code10, body, alone, words);
+            return;
+        case 280:
+            home(words, out);
+            return;
+        case 920:
+            set_position(words, body, out);
+            return;
+        default:
+            for (const auto& p : words) {
+                if (!is_axis_letter(p.letter)) continue;
+                if (m.mode != OrientationMode::Joints) {
+                    std::string code;
+                    append_code(code, 'G', c.code10);
+                    fail(c.column, code + " with axis words is not supported under tool-centre-point control "
+                                          "(switch to G49 to send it as joint values)");
+                }
+                planner_.position_unknown();  // the firmware moves somewhere xlate5 cannot follow
+            }
+            append_passthrough(out, 'G', c.code10, body, alone, words);
+            return;
+    }
+}
+
+void Interpreter::track_extrusion(const std::optional<PassedNumber>& e) {
+    if (!e) return;
+    Modes& modes = state_.modal.modes;
+    modes.e_position = modes.e_relative ? modes.e_position + e->value : e->value;
+}
+
+void Interpreter::tool_move(int gcode, std::uint32_t column, const Params& words, bool absolute, bool inches, LineRun& run,
+                            std::string& out) {
+    ModalState& m = state_.modal;
+    const PlannerState& at = state_.planner;
+    const double unit = inches ? 25.4 : 1.0;
+    Eigen::Vector3d tip = at.pose.tip - m.offset;  // program frame
+    Eigen::Vector3d ijk = Eigen::Vector3d::Zero();
+    bool any_xyz = false, any_ijk = false, any_rotary = false;
+    std::uint32_t ijk_column = column;
+    std::optional<PassedNumber> e, f;
+    commanded_.assign(at.q.size(), false);
+    // Under G43.4 the rotary words are programmed angles; the joints are their image.
+    planner_.programmed_angles(angles_);
+    for (const Param& p : words) {
+        switch (p.letter) {
+            case 'X': case 'Y': case 'Z': {
+                const int i = p.letter - 'X';
+                const double v = number(p) * unit;
+                tip[i] = absolute ? v : tip[i] + v;
+                any_xyz = true;
+                break;
+            }
+            case 'I': case 'J': case 'K':
+                if (m.mode != OrientationMode::Vector)
+                    fail(p.column, "I J K give a tool vector only under G43.5");
+                if (!any_ijk) ijk_column = p.column;
+                ijk[p.letter - 'I'] = number(p);
+                any_ijk = true;
+                break;
+            case 'E': e = passed(p, inches); break;
+            case 'F':
+                f = passed(p, inches);
+                if (!(f->value > 0)) fail(p.column, "feed rate F must be positive");
+                break;
+            default: {
+                const int j = machine_.joint_index(p.letter);
+                if (j < 0 || !machine_.joints[std::size_t(j)].rotary)
+                    fail(p.column, std::string("word ") + p.letter + " is not a tool-space word for machine " + machine_.name +
+                                       " (X Y Z give the tip" + (m.mode == OrientationMode::Vector ? ", I J K the tool axis)" : ", its rotary letters the orientation)"));
+                if (m.mode == OrientationMode::Vector)
+                    fail(p.column, std::string("rotary word ") + p.letter + " under G43.5: give the tool axis as I J K, or switch to G43.4");
+                const double v = number(p);
+                angles_[std::size_t(j)] = absolute ? v : angles_[std::size_t(j)] + v;
+                commanded_[std::size_t(j)] = true;
+                any_rotary = true;
+                break;
+            }
+        }
+    }
+    ToolMove mv;
+    mv.axis = at.pose.axis;
+    if (any_ijk) {
+        if (!(ijk.norm() > 1e-12)) fail(ijk_column, "tool vector I J K has length 0");
+        mv.axis = ijk.normalized();
+    }
+    for (std::size_t j = 0; j < at.q.size(); ++j) {
+        const bool rotary = machine_.joints[j].rotary;
+        if ((!rotary && any_xyz) || (rotary && any_ijk)) commanded_[j] = true;
+    }
+    if (f && !m.modes.inverse_time) m.modes.feed = f->value;
+    if (m.modes.inverse_time && !f && (any_xyz || any_rotary || any_ijk))
+        fail(column, "under G93 every move needs its F (1/minutes)");
+    mv.gcode = gcode;
+    mv.column = column;
+    mv.mode = m.mode;
+    mv.any_xyz = any_xyz;
+    mv.tip = tip + m.offset;
+    mv.any_rotary = any_rotary;
+    mv.angles = &angles_;
+    mv.any_ijk = any_ijk;
+    mv.commanded = &commanded_;
+    mv.e = e;
+    mv.f = f;
+    mv.e_relative = m.modes.e_relative;
+    mv.e_position = m.modes.e_position;
+    mv.feed = m.modes.feed;
+    mv.inverse_time = m.modes.inverse_time;
+    planner_.tool_move(mv, run, out);
+    track_extrusion(e);
+}
+
+// G2/G3 under tool-centre-point control: the arc (I J K centre or R radius, any plane, helical
+// along the plane's normal, P full turns) is cut into chords within half the tolerance in tool
+// space, the other half left for the motion stage's split; each chord is then a move like any
+// other. Under G43.4 rotary words turn linearly along the arc.
+void Interpreter::arc(bool clockwise, std::uint32_t column, const Params& words, LineRun& run, std::string& out) {
+    ModalState& m = state_.modal;
+    const Modes saved = m.modes;
+    const double unit = saved.unit();
+    const ArcPlane plane = arc_plane(saved.plane);
+    Arc a;
+    a.clockwise = clockwise;
+    a.plane = saved.plane;
+    a.start = state_.planner.pose.tip - m.offset;
+    a.end = a.start;
+    bool centre = false;
+    rotary_words_.clear();
+    std::optional<Param> e_word, f_word;
+    for (const Param& p : words) {
+        switch (p.letter) {
+            case 'X': case 'Y': case 'Z': {
+                const int i = p.letter - 'X';
+                const double v = number(p) * unit;
+                a.end[i] = saved.absolute ? v : a.start[i] + v;
+                break;
+            }
+            case 'I': case 'J': case 'K':
+                if (p.letter == plane.ca) a.offset_a = number(p) * unit, centre = true;
+                else if (p.letter == plane.cb) a.offset_b = number(p) * unit, centre = true;
+                else fail(p.column, std::string("word ") + p.letter + " is not a centre offset in this arc plane");
+                break;
+            case 'R': a.radius = number(p) * unit, a.by_radius = true; break;
+            case 'P': {
+                const double v = number(p);
+                if (v < 1 || v != std::floor(v)) fail(p.column, "P (turns) must be a whole number >= 1");
+                a.turns = int(v);
+                break;
+            }
+            case 'E': e_word = p; break;
+            case 'F': f_word = p; break;
+            default: {
+                const int j = machine_.joint_index(p.letter);
+                if (j < 0 || !machine_.joints[std::size_t(j)].rotary || m.mode != OrientationMode::Angles)
+                    fail(p.column, std::string("word ") + p.letter + " is not understood on an arc here");
+                rotary_words_.push_back(p);
+            }
+        }
+    }
+    if (centre == a.by_radius) fail(column, "an arc needs its centre as I J K offsets or its radius as R (one of them)");
+    if (auto why = arc_chords(a, 0.5 * machine_.motion.tolerance, chord_ends_); !why.empty()) fail(column, why);
+    const int chords = int(chord_ends_.size());
+
+    // Each chord runs through tool_move() as an absolute, metric G1 with its own words.
+    planner_.programmed_angles(arc_angles_);  // rotary words are programmed angles
+    const std::vector<double>& q_start = arc_angles_;
+    const double e_total = e_word ? number(*e_word) * unit : 0.0;
+    const double e0 = saved.e_position;
+    for (int k = 1; k <= chords; ++k) {
+        const double f = double(k) / chords;
+        const Eigen::Vector3d& p = chord_ends_[std::size_t(k - 1)];
+        chord_words_.clear();
+        for (int i = 0; i < 3; ++i) chord_words_.push_back({char('X' + i), p[i], column, true, {}});
+        for (const Param& rw : rotary_words_) {
+            const int j = machine_.joint_index(rw.letter);
+            const double target = saved.absolute ? number(rw) : q_start[std::size_t(j)] + number(rw);
+            chord_words_.push_back({rw.letter, q_start[std::size_t(j)] + (target - q_start[std::size_t(j)]) * f, column, true, {}});
+        }
+        if (e_word) {
+            double v;
+            if (saved.e_relative) v = e_total / chords;  // equal chords: equal shares
+            else v = e0 + (e_total - e0) * f;
+            const bool last = k == chords;
+            chord_words_.push_back({'E', last && !saved.e_relative ? number(*e_word) * unit : v, e_word->column, true,
+                                    last && !saved.e_relative && !saved.inches ? e_word->text : std::string_view{}});
+        }
+        if (f_word && k == 1) chord_words_.push_back(*f_word);
+        if (f_word && k == 1 && saved.inches) chord_words_.back().value *= 25.4, chord_words_.back().text = {};
+        tool_move(1, column, chord_words_, true, false, run, out);
+    }
+    m.modes.motion = clockwise ? 2 : 3;
+}
+
+void Interpreter::joint_move(int gcode, const Params& words, std::string& out) {
+    const Modes& modes = state_.modal.modes;
+    const std::vector<double>& q = state_.planner.q;
+    const double unit = modes.unit();
+    std::optional<PassedNumber> e, f;
+    bool any_linear = false;
+    joints_.assign(q.begin(), q.end());
+    commanded_.assign(q.size(), false);
+    for (const Param& p : words) {
+        switch (p.letter) {
+            case 'E': e = passed(p, modes.inches); break;
+            case 'F':
+                f = passed(p, modes.inches);
+                if (!(f->value > 0)) fail(p.column, "feed rate F must be positive");
+                break;
+            case 'I': case 'J': case 'K':
+                fail(p.column, "I J K are tool-vector words (G43.5); under G49 the words are joint values");
+            default: {
+                const int j = machine_.joint_index(p.letter);
+                if (j < 0) fail(p.column, std::string("word ") + p.letter + " is not a joint of machine " + machine_.name);
+                const bool rotary = machine_.joints[std::size_t(j)].rotary;
+                const double v = number(p) * (rotary ? 1.0 : unit);
+                joints_[std::size_t(j)] = modes.absolute ? v : q[std::size_t(j)] + v;
+                commanded_[std::size_t(j)] = true;
+                any_linear = any_linear || !rotary;
+                break;
+            }
+        }
+    }
+    JointMove mv;
+    mv.gcode = gcode;
+    mv.column = words.empty() ? 1 : words.front().column;
+    mv.q = &joints_;
+    mv.commanded = &commanded_;
+    mv.any_linear = any_linear;
+    mv.e = e;
+    mv.f = f;
+    mv.inverse_time = modes.inverse_time;
+    planner_.joint_move(mv, out);
+    track_extrusion(e);
+}
+
+void Interpreter::set_position(const Params& words, std::string_view body, std::string& out) {
+    if (words.empty()) {
+        append_passthrough(out, 'G', 920, body, true, words);
+        return;
+    }
+    ModalState& m = state_.modal;
+    const double unit = m.modes.unit();
+    which_.assign(state_.planner.q.size(), false);
+    joints_.assign(state_.planner.q.begin(), state_.planner.q.end());
+    std::optional<PassedNumber> e;
+    bool any_rotary = false;
+    const bool tcp = m.mode != OrientationMode::Joints;
+    for (const Param& p : words) {
+        if (p.letter == 'E') {
+            e = passed(p, m.modes.inches);
+            m.modes.e_position = e->value;
+            continue;
+        }
+        if (tcp && (p.letter == 'X' || p.letter == 'Y' || p.letter == 'Z')) continue;  // applied below, after the joints
+        const int j = machine_.joint_index(p.letter);
+        if (j < 0 || (tcp && !machine_.joints[std::size_t(j)].rotary))
+            fail(p.column, std::string("G92 word ") + p.letter + " is not a joint of machine " + machine_.name);
+        const bool rotary = machine_.joints[std::size_t(j)].rotary;
+        joints_[std::size_t(j)] = number(p) * (rotary ? 1.0 : unit);
+        which_[std::size_t(j)] = true;
+        any_rotary = any_rotary || rotary;
+    }
+    // The machine did not move: its true pose follows from the joints it now says it is at.
+    planner_.set_joints(which_, joints_, !tcp || any_rotary);
+    if (tcp) {
+        // Under tool-centre-point control G92 X Y Z shifts the program frame, and is not sent.
+        for (const Param& p : words) {
+            if (p.letter != 'X' && p.letter != 'Y' && p.letter != 'Z') continue;
+            const int i = p.letter - 'X';
+            m.offset[i] = state_.planner.pose.tip[i] - number(p) * unit;
+            planner_.tip_placed();
+        }
+    }
+    planner_.send_position(which_, e, out);
+}
+
+void Interpreter::home(const Params& words, std::string& out) {
+    which_.assign(state_.planner.q.size(), words.empty());
+    for (const Param& p : words) {
+        const int j = machine_.joint_index(p.letter);
+        if (j < 0) fail(p.column, std::string("G28 word ") + p.letter + " is not a joint of machine " + machine_.name);
+        which_[std::size_t(j)] = true;
+    }
+    planner_.home(which_);
+    out += "G28";
+    for (const Param& p : words) {
+        out += ' ';
+        out += machine_.joints[std::size_t(machine_.joint_index(p.letter))].output;
+    }
+    out += '\n';
+    state_.modal.offset.setZero();
+}
+
+}  // namespace xlate5

@@ -1,0 +1,90 @@
+// The interpreter stage, between the lexer and the planner: one line's words + the modal state
+// (G43.4/G43.5/G49, G90/G91, G20/G21, G17-G19, G93/G94, M82/M83, F, G92's program frame) ->
+// typed commands: a ToolMove (G0/G1 under tool-centre-point control; each chord of a G2/G3), a
+// JointMove (G49), a position set (G92), homing (G28), or the line passed on as written. Lines it
+// does not need to understand pass through unchanged and in order. A failed line leaves neither
+// output nor state changed.
+// May call: the lexer, line_commands, arcs (G2/G3 -> chords), the planner.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "translators/gcode_lexer.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/line_commands.hpp"
+#include "translators/machine.hpp"
+#include "translators/planner.hpp"
+
+namespace xlate5 {
+
+// The modal state of G-code that both directions keep.
+struct Modes {
+    bool absolute = true;     // G90 / G91
+    bool inches = false;      // G20 / G21
+    bool e_relative = false;  // Marlin 2 rule: the latest of G90/G91/M82/M83 decides
+    int motion = -1;          // modal G0/G1/G2/G3 (-1: none yet)
+    int plane = 17;           // G17 XY, G18 ZX, G19 YZ: the plane of arcs
+    bool inverse_time = false;  // G93: F is 1/duration in minutes, per move
+    double feed = 0;          // programmed feed (G94), mm/min; 0 until the first F
+    double e_position = 0;    // absolute E (for sharing an absolute E among pieces)
+    double unit() const { return inches ? 25.4 : 1.0; }
+};
+
+// The interpreter's own state.
+struct ModalState {
+    OrientationMode mode = OrientationMode::Angles;
+    Modes modes;
+    Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // program frame origin in the part frame (G92)
+};
+
+// The state a line can change above the emitter: rolled back as one when a line fails.
+struct LineState {
+    ModalState modal;
+    PlannerState planner;
+};
+
+class Interpreter {
+public:
+    Interpreter(const Kinematics& kinematics, LineState& state, Planner& planner, std::string input_name, char extruder_letter);
+
+    // Interprets one line (without '\n'), appending its output to `out`. Throws InputError
+    // naming the file, line (run.line_no) and column; the state is then as before the line and
+    // the firmware's position is taken as unknown.
+    void feed_line(std::string_view line, LineRun& run, std::string& out);
+
+private:
+    [[noreturn]] void fail(std::uint32_t column, const std::string& message) const;
+    double number(const Param& p) const;                   // the value, or an error if it is a flag
+    PassedNumber passed(const Param& p, bool inches) const;  // E or F, in mm
+    bool is_axis_letter(char c) const;
+    void apply_modal(int code10, std::uint32_t column, const Params& words, std::string& out);
+    void run_command(const CommandWord& c, std::string_view body, bool alone, const Params& words, LineRun& run, std::string& out);
+    // A tool-space move; `absolute` and `inches` say how to read its words (an arc's chords are
+    // absolute millimetres whatever the modes).
+    void tool_move(int gcode, std::uint32_t column, const Params& words, bool absolute, bool inches, LineRun& run, std::string& out);
+    void arc(bool clockwise, std::uint32_t column, const Params& words, LineRun& run, std::string& out);
+    void joint_move(int gcode, const Params& words, std::string& out);
+    void set_position(const Params& words, std::string_view body, std::string& out);
+    void home(const Params& words, std::string& out);
+    void track_extrusion(const std::optional<PassedNumber>& e);
+
+    const Machine& machine_;
+    LineState& state_;
+    Planner& planner_;
+    std::string input_name_;
+    char extruder_letter_;
+    LineState saved_;          // the state before the current line
+    Block block_;
+    LineCommands commands_;
+    // Scratch reused line after line (no allocation on the hot path).
+    std::vector<double> angles_, joints_, arc_angles_;
+    std::vector<bool> commanded_, which_;
+    Params chord_words_, rotary_words_;
+    std::vector<Eigen::Vector3d> chord_ends_;
+};
+
+}  // namespace xlate5

@@ -1,0 +1,120 @@
+#include "translators/joint_limits.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+
+#include "translators/constants.hpp"
+
+namespace xlate5 {
+
+namespace {
+
+std::string fmt(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.3f", v);
+    return buf;
+}
+
+// Of `solutions`, the turn of each rotary nearest its previous value (inside the limits when
+// `limited`), and of those the solution nearest `previous` overall.
+IkResult choose(const Kinematics& kin, const Eigen::Vector3d& axis, const Kinematics::Solutions& solutions,
+                const std::vector<double>& previous, const std::vector<double>& free_value, bool limited, std::vector<double>& q) {
+    if (solutions.empty()) {
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "tool axis (%.6f, %.6f, %.6f) is out of this machine's reach", axis.x(), axis.y(), axis.z());
+        return {IkStatus::Unreachable, buf};
+    }
+    const Machine& machine = kin.machine();
+    const std::vector<int>& rotary = kin.rotary_joints();
+    const std::size_t n = rotary.size();
+    double best_cost = std::numeric_limits<double>::infinity();
+    double best[2] = {0, 0};
+    bool found = false;
+    int failed_joint = -1;
+    double failed_angle = 0;
+    for (int s = 0; s < solutions.count; ++s) {
+        double cand[2] = {0, 0};
+        double cost = 0;
+        bool ok = true;
+        for (std::size_t k = 0; k < n && ok; ++k) {
+            const int j = rotary[k];
+            const Joint& J = machine.joints[std::size_t(j)];
+            const double prev = previous[std::size_t(j)];
+            const double sol = solutions.angle[s][k];
+            if (std::isnan(sol)) {  // on the pole: the joint is free
+                cand[k] = free_value[std::size_t(j)];
+                continue;
+            }
+            // Of sol + 360 k, the turn nearest the previous angle that is inside the limits.
+            const double nearest = prev + wrap180(sol - prev);
+            double chosen = std::numeric_limits<double>::quiet_NaN();
+            for (int turn : {0, 1, -1, 2, -2}) {
+                const double v = nearest + 360.0 * turn;
+                if (!limited) {
+                    chosen = nearest;
+                    break;
+                }
+                if (inside_limits(J, v) && (std::isnan(chosen) || std::abs(v - prev) < std::abs(chosen - prev))) chosen = v;
+            }
+            if (std::isnan(chosen)) {
+                ok = false;
+                failed_joint = j;
+                failed_angle = sol;
+                break;
+            }
+            cand[k] = chosen;
+            cost += (chosen - prev) * (chosen - prev);
+        }
+        if (ok && cost < best_cost) {
+            best_cost = cost;
+            best[0] = cand[0];
+            best[1] = cand[1];
+            found = true;
+        }
+    }
+    if (!found) {
+        const Joint& J = machine.joints[std::size_t(failed_joint)];
+        return {IkStatus::OutOfLimits, std::string("joint ") + J.name + " would need " + fmt(wrap180(failed_angle)) +
+                                           " degrees, outside its limits " + fmt(J.min) + " .. " + fmt(J.max)};
+    }
+    for (std::size_t k = 0; k < n; ++k) q[std::size_t(rotary[k])] = best[k];
+    return {};
+}
+
+}  // namespace
+
+bool inside_limits(const Joint& J, double v) { return v >= J.min - kLimitSlack && v <= J.max + kLimitSlack; }
+
+IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
+    for (std::size_t j = 0; j < machine.joints.size(); ++j) {
+        const Joint& J = machine.joints[j];
+        if (!inside_limits(J, q[j]))
+            return {IkStatus::OutOfLimits, std::string("joint ") + J.name + " would go to " + fmt(q[j]) + ", outside its limits " +
+                                               fmt(J.min) + " .. " + fmt(J.max)};
+    }
+    return {};
+}
+
+IkResult orient_within_limits(const Kinematics& kin, const Eigen::Vector3d& axis, const std::vector<double>& previous,
+                              const std::vector<double>& free_value, std::vector<double>& q) {
+    return choose(kin, axis, kin.orientation_solutions(axis), previous, free_value, true, q);
+}
+
+IkResult orient_on_branch(const Kinematics& kin, const Eigen::Vector3d& axis, int branch, const std::vector<double>& previous,
+                          const std::vector<double>& free_value, std::vector<double>& q) {
+    auto solutions = kin.orientation_solutions(axis);
+    if (branch < 0 || branch >= solutions.count) return {IkStatus::Unreachable, "no such orientation branch"};
+    solutions.angle[0][0] = solutions.angle[branch][0];
+    solutions.angle[0][1] = solutions.angle[branch][1];
+    solutions.count = 1;
+    return choose(kin, axis, solutions, previous, free_value, true, q);
+}
+
+IkResult orient_continuous(const Kinematics& kin, const Eigen::Vector3d& axis, const std::vector<double>& previous,
+                           std::vector<double>& q) {
+    return choose(kin, axis, kin.orientation_solutions(axis), previous, previous, false, q);
+}
+
+}  // namespace xlate5

@@ -1,0 +1,135 @@
+#include "translators/lookback.hpp"
+
+#include "translators/error.hpp"
+
+namespace xlate5 {
+
+LookBack::LookBack(Interpreter& interpreter, ForwardState& state, MoveLog* log)
+    : interpreter_(interpreter), state_(state), log_(log), before_line_(state), checkpoint_(state) {}
+
+void LookBack::set_lines(std::size_t lines) {
+    lines_ = lines;
+    if (log_) log_->hold(lines > 0);
+}
+
+void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
+    LineRun run;
+    run.line_no = line_no;
+    if (lines_ == 0) {
+        try {
+            interpreter_.feed_line(line, run, out);
+        } catch (const InputError& e) {
+            if (!run.hit_limit) throw;
+            throw InputError(e.file(), e.line(), e.column(),
+                             e.message() + "; turn the joint back on a travel move before this line, or plan the path within the limits");
+        }
+        return;
+    }
+    before_line_ = state_;
+    const std::size_t held_start = held_.size(), moves_start = held_moves();
+    try {
+        interpreter_.feed_line(line, run, held_);
+    } catch (const InputError& e) {
+        if (!run.hit_limit) throw;
+        const bool had_checkpoint = have_checkpoint_;
+        if (!unwind_before(line, line_no, run)) {
+            std::string message = e.message();
+            if (had_checkpoint)
+                message += "; turning it back on the travel move at line " + std::to_string(checkpoint_line_) +
+                           " does not keep the printing from there to here within the limits: add a travel move (G0, or G1 "
+                           "without E) nearer this line, where the joint can turn back, or plan the path within the limits";
+            else
+                message += "; there is no travel move (G0, or G1 without E) within the " + std::to_string(lines_) +
+                           " lines before this one to turn the joint back on: add one before this line, or plan the path "
+                           "within the limits";
+            throw InputError(e.file(), e.line(), e.column(), message);
+        }
+    }
+    if (run.travels) {
+        // A travel move: the next checkpoint. What came before it is final.
+        release(held_start, moves_start, out);
+        checkpoint_ = before_line_;
+        have_checkpoint_ = true;
+        checkpoint_line_ = line_no;
+        chosen_ = -1;
+        window_text_.clear();
+        window_lines_.clear();
+    }
+    if (have_checkpoint_) {
+        window_text_.append(line);
+        window_text_ += '\n';
+        window_lines_.push_back(line_no);
+    }
+    // Memory stays bounded: past the window (or a few MB of output) the held lines are final.
+    constexpr std::size_t kMaxHeldBytes = std::size_t(8) << 20;
+    if (!have_checkpoint_ || window_lines_.size() > lines_ || held_.size() > kMaxHeldBytes) {
+        release(held_.size(), held_moves(), out);
+        have_checkpoint_ = false;
+        window_text_.clear();
+        window_lines_.clear();
+    }
+}
+
+void LookBack::finish(std::string& out) {
+    release(held_.size(), held_moves(), out);
+    have_checkpoint_ = false;
+    window_text_.clear();
+    window_lines_.clear();
+}
+
+// The line at line_no runs a joint past its limit: translate the window again from the
+// checkpoint, its travel move ending on each other solution of its pose in turn (nearest
+// first), until the window and this line fit. On failure everything is as before.
+bool LookBack::unwind_before(std::string_view line, std::uint64_t line_no, LineRun& last) {
+    if (!have_checkpoint_ || window_lines_.empty()) return false;
+    const std::string held_saved = held_;
+    const MoveLog::Held log_saved = log_ ? log_->held() : MoveLog::Held{};
+    const int was = chosen_;
+    for (int k = 0; k < 64; ++k) {
+        if (k == was) continue;
+        state_ = checkpoint_;
+        held_.clear();
+        if (log_) log_->drop_held();
+        bool ok = true, missing = false;
+        try {
+            std::size_t at = 0;
+            bool first = true;
+            for (const std::uint64_t no : window_lines_) {
+                const std::size_t nl = window_text_.find('\n', at);
+                LineRun run;
+                run.line_no = no;
+                if (first) run.end_candidate = k;  // the checkpoint's travel move ends on solution k
+                first = false;
+                try {
+                    interpreter_.feed_line(std::string_view(window_text_).substr(at, nl - at), run, held_);
+                } catch (const InputError&) {
+                    missing = run.candidate_missing;
+                    throw;
+                }
+                at = nl + 1;
+            }
+            last = LineRun{};
+            last.line_no = line_no;
+            interpreter_.feed_line(line, last, held_);
+        } catch (const InputError&) {
+            ok = false;
+        }
+        if (ok) {
+            chosen_ = k;
+            return true;
+        }
+        if (missing) break;
+    }
+    state_ = before_line_;
+    held_ = held_saved;
+    if (log_) log_->set_held(log_saved);
+    return false;
+}
+
+void LookBack::release(std::size_t bytes, std::size_t moves, std::string& out) {
+    out.append(held_, 0, bytes);
+    held_.erase(0, bytes);
+    if (log_) log_->release(moves);
+}
+
+}  // namespace xlate5

@@ -1,0 +1,266 @@
+#include "translators/planner.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "translators/constants.hpp"
+#include "translators/error.hpp"
+#include "translators/joint_limits.hpp"
+#include "translators/report.hpp"
+
+namespace xlate5 {
+
+Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter& emitter, MoveLog* log)
+    : kin_(kinematics),
+      machine_(kinematics.machine()),
+      state_(state),
+      emitter_(emitter),
+      log_(log),
+      compensation_(kinematics.machine().compensation),
+      motion_(kinematics, emitter),
+      q_next_(state.q) {}
+
+void Planner::map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const {
+    const auto& rot = kin_.rotary_joints();
+    for (std::size_t k = 0; k < rot.size(); ++k) {
+        const std::size_t j = std::size_t(rot[k]);
+        q[j] = image.sign[k] * a[j] + image.shift[k];
+    }
+}
+
+void Planner::unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const {
+    const auto& rot = kin_.rotary_joints();
+    for (std::size_t k = 0; k < rot.size(); ++k) {
+        const std::size_t j = std::size_t(rot[k]);
+        a[j] = (q[j] - image.shift[k]) * image.sign[k];
+    }
+}
+
+void Planner::programmed_angles(std::vector<double>& a) const {
+    a.assign(state_.q.begin(), state_.q.end());
+    unmap_angles(state_.image, state_.q, a);
+}
+
+// Where else a travel move to `end` may stop: every solution of that pose inside the limits
+// other than `usual` (the continuous one), nearest the current joints first. Under G43.4 each is
+// an image of the programmed angles (another turn, or the flipped branch), so the moves after it
+// keep their programmed interpolation.
+void Planner::end_candidates(OrientationMode mode, const Pose& end, const std::vector<double>& programmed,
+                             const std::vector<double>& usual) {
+    candidates_.clear();
+    const auto& rot = kin_.rotary_joints();
+    if (rot.empty()) return;
+    const std::vector<double>& q_now = state_.q;
+    auto same = [&](const std::vector<double>& a, const std::vector<double>& b) {
+        for (const int j : rot)
+            if (std::abs(a[std::size_t(j)] - b[std::size_t(j)]) > kSameAngle) return false;
+        return true;
+    };
+    std::vector<double> q;
+    auto consider = [&](const AngleImage& image) {
+        if (!kin_.solve_position(end.tip, q).ok() || !check_limits(machine_, q).ok() || same(q, usual)) return;
+        for (const Candidate& c : candidates_)
+            if (same(c.q, q)) return;
+        candidates_.push_back({q, image});
+    };
+    const int turns1 = rot.size() > 1 ? 2 : 0;
+    if (mode == OrientationMode::Angles) {
+        for (const bool flip : {false, true}) {
+            if (flip && !kin_.has_flip()) continue;
+            AngleImage base;
+            base.sign[1] = flip ? -1 : 1;
+            base.shift[0] = flip ? 180 : 0;
+            // Turns counted from the one nearest the current joints.
+            double centre[2];
+            for (std::size_t k = 0; k < rot.size(); ++k) {
+                const std::size_t j = std::size_t(rot[k]);
+                centre[k] = std::round((q_now[j] - (base.sign[k] * programmed[j] + base.shift[k])) / 360.0);
+            }
+            for (int t0 = -2; t0 <= 2; ++t0)
+                for (int t1 = -turns1; t1 <= turns1; ++t1) {
+                    AngleImage image = base;
+                    image.shift[0] += 360.0 * (centre[0] + t0);
+                    if (rot.size() > 1) image.shift[1] += 360.0 * (centre[1] + t1);
+                    q = usual;
+                    map_angles(image, programmed, q);
+                    consider(image);
+                }
+        }
+    } else {
+        const auto solutions = kin_.orientation_solutions(end.axis);
+        for (int b = 0; b < solutions.count; ++b)
+            for (int t0 = -2; t0 <= 2; ++t0)
+                for (int t1 = -turns1; t1 <= turns1; ++t1) {
+                    q = usual;
+                    for (std::size_t k = 0; k < rot.size(); ++k) {
+                        const std::size_t j = std::size_t(rot[k]);
+                        const double sol = solutions.angle[b][k];
+                        if (std::isnan(sol)) continue;  // free at a pole: it stays
+                        q[j] = q_now[j] + wrap180(sol - q_now[j]) + 360.0 * (k == 0 ? t0 : t1);
+                    }
+                    consider(state_.image);
+                }
+    }
+    auto distance = [&](const Candidate& c) {
+        double d = 0;
+        for (const int j : rot) d += (c.q[std::size_t(j)] - q_now[std::size_t(j)]) * (c.q[std::size_t(j)] - q_now[std::size_t(j)]);
+        return d;
+    };
+    std::stable_sort(candidates_.begin(), candidates_.end(), [&](const Candidate& a, const Candidate& b) { return distance(a) < distance(b); });
+}
+
+void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
+    PlannerState& s = state_;
+    q_next_ = s.q;
+    if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
+    IkResult r;
+    if (mv.any_ijk) r = orient_within_limits(kin_, mv.axis, s.q, s.q, q_next_);
+    Pose next = s.pose;
+    if (r.ok()) {
+        if (!mv.any_xyz && !s.tip_known) {
+            // Before the program has placed the tip (start, after G28) a rotary-only move turns
+            // the rotaries and leaves the linear joints, as the start code of seed 001 expects.
+            next = kin_.forward(q_next_);
+        } else {
+            next.tip = mv.tip;
+            r = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr);
+            if (mv.any_ijk) next.axis = mv.axis;
+        }
+    }
+    if (r.ok()) r = check_limits(machine_, q_next_);
+    // A travel move (tool space, no extrusion) may end on another solution of its pose: when its
+    // usual end is outside a joint's limits, or when the look-back replays it to unwind a joint
+    // for the printing that follows. Printing moves never change solution: their path is printed.
+    const bool tool_space = mv.any_xyz || s.tip_known;
+    const bool prints = mv.e && (mv.e_relative ? mv.e->value != 0 : mv.e->value != mv.e_position);
+    const bool travel = tool_space && !prints && (mv.any_xyz || mv.any_rotary || mv.any_ijk);
+    run.travels = run.travels || travel;
+    bool unwind = false;
+    const int forced = travel ? run.end_candidate : -1;
+    if (travel) run.end_candidate = -1;
+    if (travel && (forced >= 0 || (!r.ok() && r.status == IkStatus::OutOfLimits))) {
+        end_candidates(mv.mode, next, *mv.angles, q_next_);
+        const std::size_t k = forced >= 0 ? std::size_t(forced) : 0;
+        if (k < candidates_.size()) {
+            q_next_ = candidates_[k].q;
+            if (mv.mode == OrientationMode::Angles) s.image = candidates_[k].image;
+            unwind = true;
+            r = {};
+        } else if (forced >= 0) {
+            run.candidate_missing = true;
+            throw LineError(mv.column, "no other solution of this pose inside the limits");
+        }
+    }
+    if (!r.ok()) {
+        run.hit_limit = r.status == IkStatus::OutOfLimits;
+        throw LineError(mv.column, r.message);
+    }
+    MoveSpec spec;
+    spec.gcode = mv.gcode;
+    // Before the program has placed the tip, the move is a joint move (one piece, F as written).
+    spec.mode = (!mv.any_xyz && !s.tip_known) ? OrientationMode::Joints : mv.mode;
+    spec.q0 = &s.q;
+    spec.p0 = s.pose;
+    spec.q1 = &q_next_;
+    spec.p1 = next;
+    spec.commanded = mv.commanded;
+    spec.e = mv.e;
+    spec.e_relative = mv.e_relative;
+    spec.e_start = mv.e_position;
+    spec.feed = mv.feed;
+    spec.f = mv.f;
+    spec.inverse_time = mv.inverse_time && mv.f ? mv.f->value : 0.0;
+    // An unwinding travel move turns the rotaries linearly from their start to the chosen end
+    // (angle form) while the split holds the tip on the straight travel line, rather than
+    // reorienting in place at one end: the tip never leaves the path the slicer planned for it
+    // (usually lifted clear of the part), no end of a printed bead gets a hot nozzle sweeping
+    // round on it, and each rotary moves monotonically between two values inside its limits.
+    // For a branch flip (rw2: A by 180 degrees, B to -B) the tool passes upright (B = 0) on the
+    // way instead of sweeping a full turn at its printing tilt.
+    if (unwind) spec.mode = OrientationMode::Angles;
+    MoveResult* measured = log_ && spec.mode != OrientationMode::Joints ? &move_result_ : nullptr;
+    auto res = motion_.emit(spec, out, measured);
+    if (!res.ok() && res.status == IkStatus::OutOfLimits && travel && !unwind && spec.mode == OrientationMode::Vector) {
+        // The continuous path of this travel move leaves the limits, though its end (the
+        // solution nearest the start inside them) does not: turn there in angle form instead.
+        spec.mode = OrientationMode::Angles;
+        unwind = true;
+        res = motion_.emit(spec, out, measured);
+    }
+    if (!res.ok()) {
+        run.hit_limit = res.status == IkStatus::OutOfLimits;
+        throw LineError(mv.column, res.message);
+    }
+    if (measured) log_->add(run.line_no, *measured);
+    if (spec.mode == OrientationMode::Vector) q_next_ = motion_.final_joints();
+    // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move
+    // (no extrusion), where a G92 cannot disturb a printed line: firmware without wrapping
+    // (Marlin, soft endstops) then never runs out of range.
+    if (!mv.e || mv.e->value == 0) {
+        for (std::size_t j = 0; j < q_next_.size(); ++j) {
+            const Joint& J = machine_.joints[j];
+            if (J.rezero_beyond <= 0 || std::abs(q_next_[j]) <= J.rezero_beyond) continue;
+            const double turns = std::round(q_next_[j] / 360.0);
+            which_.assign(q_next_.size(), false);
+            which_[j] = true;
+            q_next_[j] -= 360.0 * turns;
+            send_joints(which_, std::nullopt, q_next_, out);
+        }
+    }
+    s.q.swap(q_next_);
+    s.pose = next;
+    s.tip_known = s.tip_known || mv.any_xyz;
+}
+
+void Planner::send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
+                          std::string& out) {
+    const auto sent = compensation_.apply(q);
+    if (!sent.ok()) throw LineError(1, sent.why);
+    emitter_.set_position(out, q, sent.sent, which, e);
+}
+
+void Planner::joint_move(const JointMove& mv, std::string& out) {
+    if (auto r = check_limits(machine_, *mv.q); !r.ok()) throw LineError(mv.column, r.message);
+    state_.q.assign(mv.q->begin(), mv.q->end());
+    state_.pose = kin_.forward(state_.q);
+    state_.tip_known = state_.tip_known || mv.any_linear;
+    const auto sent = compensation_.apply(state_.q);
+    if (!sent.ok()) throw LineError(1, sent.why);
+    // Under G93 every move keeps its F.
+    emitter_.move(out, mv.gcode, state_.q, sent.sent, *mv.commanded, mv.e, mv.f, mv.inverse_time);
+}
+
+void Planner::set_joints(const std::vector<bool>& which, const std::vector<double>& values, bool pose_from_joints) {
+    for (std::size_t j = 0; j < which.size(); ++j) {
+        if (!which[j]) continue;
+        state_.q[j] = values[j];
+        state_.image = {};  // the program and the firmware now agree on the joint
+    }
+    // The machine did not move: its true pose follows from the joints it now says it is at.
+    if (pose_from_joints) state_.pose = kin_.forward(state_.q);
+}
+
+void Planner::send_position(const std::vector<bool>& which, const std::optional<PassedNumber>& e, std::string& out) {
+    send_joints(which, e, state_.q, out);
+}
+
+void Planner::home(const std::vector<bool>& which) {
+    for (std::size_t j = 0; j < state_.q.size(); ++j)
+        if (which[j]) state_.q[j] = machine_.joints[j].home;
+    state_.image = {};
+    state_.tip_known = false;
+    state_.pose = kin_.forward(state_.q);
+    emitter_.invalidate(state_.q);
+}
+
+void Planner::moved_to(const std::vector<double>& q) {
+    state_.q.assign(q.begin(), q.end());
+    state_.pose = kin_.forward(state_.q);
+    emitter_.invalidate(state_.q);
+}
+
+void Planner::position_unknown() { emitter_.invalidate(state_.q); }
+
+void Planner::feed_mode_sent(bool inverse_time) { emitter_.feed_mode_sent(inverse_time); }
+
+}  // namespace xlate5

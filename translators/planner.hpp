@@ -1,0 +1,139 @@
+// The planner stage, between the interpreter and the motion stage: turns a typed move into
+// joint moves. It solves the end of each tool-space move (IK), chooses the solution (the
+// continuous one, or for a travel move another solution of its pose inside the limits: the other
+// branch or another turn), is the stage that applies the joint limits, re-zeroes a wound-up
+// turntable, and hands the move to the motion stage to be split. Joint-space moves (G49),
+// position changes (G92) and homing (G28) reach the firmware through it too.
+// May call: kinematics, joint_limits, the motion stage, the compensation stage, the emitter, and
+// the report's move log.
+#pragma once
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "translators/compensation.hpp"
+#include "translators/emitter.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+#include "translators/motion.hpp"
+
+namespace xlate5 {
+
+class MoveLog;
+
+// Under G43.4 the programmed angles are carried onto the joints through q = sign * a + shift
+// per rotary (in rotary_joints() order): identity until a travel move unwinds onto another
+// turn (shift 360 k) or, where the machine has the flip, the other branch (+180, -1).
+struct AngleImage {
+    double sign[2] = {1, 1};
+    double shift[2] = {0, 0};
+    bool operator==(const AngleImage&) const = default;
+};
+
+// What the planner keeps between moves: where the machine is.
+struct PlannerState {
+    std::vector<double> q;   // joint values the firmware will be at
+    Pose pose;               // tip and tool axis in the part frame
+    bool tip_known = false;  // has the program placed the tip since start or G28?
+    AngleImage image;        // G43.4: programmed angles -> joints
+};
+
+// One input line's dealings with the look-back: what it asks of the line's moves, and what they
+// did. An argument of every move, never a member left set for the next call.
+struct LineRun {
+    std::uint64_t line_no = 0;
+    int end_candidate = -1;          // in: the line's first travel move ends on this other solution (a replay)
+    bool travels = false;            // out: the line made a tool-space travel move
+    bool hit_limit = false;          // out: it failed on a joint limit
+    bool candidate_missing = false;  // out: there is no solution end_candidate
+};
+
+// A tool-space move as the interpreter read it (G0/G1 under G43.4/G43.5, or an arc's chord).
+struct ToolMove {
+    int gcode = 1;
+    std::uint32_t column = 1;                    // of the command, for errors
+    OrientationMode mode = OrientationMode::Angles;
+    bool any_xyz = false;
+    Eigen::Vector3d tip = Eigen::Vector3d::Zero();   // part frame (the current tip when no X Y Z)
+    bool any_rotary = false;
+    const std::vector<double>* angles = nullptr;     // G43.4: programmed angle per joint (rotaries)
+    bool any_ijk = false;
+    Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // G43.5: the tool axis, unit (when any_ijk)
+    const std::vector<bool>* commanded = nullptr;    // joints the line names (directly or through the tip)
+    std::optional<PassedNumber> e, f;
+    bool e_relative = false;
+    double e_position = 0;   // absolute E before the move
+    double feed = 0;         // programmed feed, mm/min
+    bool inverse_time = false;
+};
+
+// A joint-space move (G49): every word is a joint value.
+struct JointMove {
+    int gcode = 1;
+    std::uint32_t column = 1;                // of the first word, for errors
+    const std::vector<double>* q = nullptr;  // the target joints
+    const std::vector<bool>* commanded = nullptr;
+    bool any_linear = false;
+    std::optional<PassedNumber> e, f;
+    bool inverse_time = false;
+};
+
+class Planner {
+public:
+    // `log` (may be null) receives every measured tool-space move for the report.
+    Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter& emitter, MoveLog* log);
+
+    // Throws LineError(column, cause); `run` says whether the move travelled or hit a limit.
+    void tool_move(const ToolMove& move, LineRun& run, std::string& out);
+    void joint_move(const JointMove& move, std::string& out);
+
+    // G92 on joints: the firmware is told it is at `values` for the joints in `which`; the pose
+    // follows from the joints when `pose_from_joints`. Then send_position writes the G92.
+    void set_joints(const std::vector<bool>& which, const std::vector<double>& values, bool pose_from_joints);
+    void send_position(const std::vector<bool>& which, const std::optional<PassedNumber>& e, std::string& out);
+    // G28 for the joints in `which`: they are at their home values.
+    void home(const std::vector<bool>& which);
+    // A move passed on as written (joint-space arcs): the joints end at `q`.
+    void moved_to(const std::vector<double>& q);
+    // The firmware's position is no longer exactly known (a code that moves it, a failed line).
+    void position_unknown();
+    // A G93/G94 passed on to the firmware as written.
+    void feed_mode_sent(bool inverse_time);
+    // A mode switch or G92 on a rotary: the programmed angles mean the joints as they are.
+    void reset_angle_image() { state_.image = {}; }
+    // G92 X Y Z under tool-centre-point control: the program has placed the tip.
+    void tip_placed() { state_.tip_known = true; }
+
+    // The programmed angles (G43.4) of the current joints: per joint, rotaries through the image.
+    void programmed_angles(std::vector<double>& a) const;
+
+private:
+    void send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
+                     std::string& out);
+    void map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const;
+    void unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
+    void end_candidates(OrientationMode mode, const Pose& end, const std::vector<double>& programmed,
+                        const std::vector<double>& usual);
+
+    struct Candidate {
+        std::vector<double> q;
+        AngleImage image;
+    };
+
+    const Kinematics& kin_;
+    const Machine& machine_;
+    PlannerState& state_;
+    JointEmitter& emitter_;
+    MoveLog* log_;
+    CompensationStage compensation_;
+    MotionStage motion_;
+    MoveResult move_result_;
+    std::vector<double> q_next_;    // scratch: the move being solved
+    std::vector<bool> which_;       // scratch: joints a re-zero tells the firmware about
+    std::vector<Candidate> candidates_;
+};
+
+}  // namespace xlate5
