@@ -118,6 +118,33 @@ TEST_CASE("cli: bad G-code exits 1 with file:line:column: on standard error") {
     CHECK(contains(s.err, "<stdin>:3:"));
 }
 
+TEST_CASE("cli: X1.5e-05 is refused with file:line:column; declared compact, it is X1.5 and E-05") {
+    TempDir d;
+    // rw2, G49: joint words go to the firmware as they are, so the output shows the reading.
+    const std::string body = "G1 X10 Y10 Z10 A0 B0 F600\nG1 X1.5e-05\n";
+    const fs::path in = d.write("exp.gcode", "G49\n" + body);
+    Result r = run(d, "-m rw2 -i " + quote(in.string()));
+    CHECK(r.code == 1);
+    CHECK(r.out.empty());
+    CHECK(contains(r.err, in.string() + ":3:8: 'X1.5e-05' is ambiguous"));
+    CHECK(contains(r.err, "X1.5 e-05"));
+    // The same file declared compact (a line of its own), or the flag: X1.5 with a 5 mm retract,
+    // E passed on as it was written.
+    const fs::path declared = d.write("declared.gcode", "; xlate5: compact-words\nG49\n" + body);
+    for (const std::string& args : {"-m rw2 -i " + quote(declared.string()), "-m rw2 --compact-words -i " + quote(in.string())}) {
+        CAPTURE(args);
+        r = run(d, args);
+        CHECK(r.code == 0);
+        const auto lines = lines_of(r.out);
+        REQUIRE(!lines.empty());
+        CHECK(lines.back() == "G1 X1.5 E-05");
+    }
+    // Without the declaration, the fix the message names reads the same.
+    r = run(d, "-m rw2", "G49\nG1 X10 Y10 Z10 A0 B0 F600\nG1 X1.5 e-05\n");
+    CHECK(r.code == 0);
+    CHECK(lines_of(r.out).back() == "G1 X1.5 E-05");
+}
+
 TEST_CASE("cli: with -o, bad input leaves no output file and an existing one unchanged") {
     TempDir d;
     const fs::path in = d.write("bad.gcode", "G1 X1 Y1 Z1 A0 B0\nG1 X2\nG1 B-101\n");
