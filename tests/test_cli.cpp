@@ -305,6 +305,27 @@ TEST_CASE("cli: --inverse turns joint-space G-code into tool space") {
     CHECK(std::abs(wv.at('K') - std::cos(rad(10))) < 1e-6);
 }
 
+TEST_CASE("cli: a joint value that cannot be written (1e200, beyond 1e9, not finite) exits 1 naming the line; no garbage output") {
+    TempDir d;
+    // Joint space in, through FK with an absurd link length: X would be about 1e200.
+    Result r = run(d, "-m rw2 --inverse --set la=1e200", "G28\nG1 X100 Y100 Z10 A30 B10 F1200\n");
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, "<stdin>:2:"));
+    CHECK(contains(r.err, "cannot be written"));
+    CHECK(r.out.find("G1") == std::string::npos);  // nothing of the line; only what came before it
+    for (const char c : r.out) CHECK(((c >= 0x20 && c < 0x7F) || c == '\n'));
+    // A huge number in a move: under G20 the lexer's 1e9 becomes 2.54e10 mm of extrusion and feed.
+    r = run(d, "-m rw2 --no-segment", "G1 X100 Y100 Z10 A0 B0 F1200\nG20\nG1 X4 E1000000000\n");
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, "<stdin>:3:"));
+    CHECK(contains(r.err, "word E"));
+    CHECK(contains(r.err, "2.54e+10"));
+    r = run(d, "-m rw2 --no-segment", "G1 X100 Y100 Z10 A0 B0 F1200\nG20\nG1 X4 F1000000000\n");
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, "<stdin>:3:"));
+    CHECK(contains(r.err, "word F"));
+}
+
 TEST_CASE("cli: --version prints a version") {
     TempDir d;
     const Result r = run(d, "--version");
