@@ -4,12 +4,15 @@
 #include <string>
 
 #include "translators/error.hpp"
+#include "translators/expr.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 
 using namespace xlate5;
 
 namespace {
+
+bool contains(const std::string& hay, const std::string& needle) { return hay.find(needle) != std::string::npos; }
 
 // A small valid machine; `extra` is appended, `replace` swaps one line.
 std::string base_text() {
@@ -139,4 +142,21 @@ TEST_CASE("bundled machines all load and name themselves") {
         CHECK_NOTHROW(Kinematics{m});
     }
     CHECK_THROWS_WITH_AS(load_machine("no-such-machine"), doctest::Contains("no machine named 'no-such-machine'"), MachineError);
+}
+
+TEST_CASE("an expression nested deeper than kMaxExpressionDepth is a MachineError naming file, line and key, not a crash") {
+    // 30,000 nested parentheses (60 KB): a recursive parser without a bound overflows the stack.
+    const std::string deep = std::string(30000, '(') + "off" + std::string(30000, ')');
+    const std::string e = error_of(replace(base_text(), "point = [0, 0, \"off * 2\"]", "point = [0, 0, \"" + deep + "\"]"));
+    CAPTURE(e.substr(0, 300));
+    CHECK(e.rfind("mine.toml:36: tool_chain[3].point[2]: expression nests deeper than 64", 0) == 0);
+    CHECK(e.size() < 300);  // the expression is quoted cut short
+    // So do unary signs, the parser's other recursion.
+    CHECK(contains(error_of(replace(base_text(), "\"off * 2\"", "\"" + std::string(30000, '-') + "off\"")), "nests deeper than 64"));
+    // The bound itself: 64 levels load, 65 do not.
+    const auto nested = [](int levels) { return "\"" + std::string(std::size_t(levels), '(') + "off * 2" + std::string(std::size_t(levels), ')') + "\""; };
+    const Machine m = load_machine_text(replace(base_text(), "\"off * 2\"", nested(kMaxExpressionDepth)), "mine.toml");
+    CHECK(m.tool_chain[3].point.z() == 10);
+    CHECK(contains(error_of(replace(base_text(), "\"off * 2\"", nested(kMaxExpressionDepth + 1))), "nests deeper than 64"));
+    CHECK(evaluate_expression("-(-(1 + 2))", {}) == 3);
 }
