@@ -160,3 +160,24 @@ TEST_CASE("an expression nested deeper than kMaxExpressionDepth is a MachineErro
     CHECK(contains(error_of(replace(base_text(), "\"off * 2\"", nested(kMaxExpressionDepth + 1))), "nests deeper than 64"));
     CHECK(evaluate_expression("-(-(1 + 2))", {}) == 3);
 }
+
+TEST_CASE("bundled machines: every joint's home is inside its limits, and the tip is not below the bed there") {
+    for (const auto& [name, path] : bundled_machines()) {
+        CAPTURE(name);
+        const Machine m = load_machine(path);
+        for (const Joint& j : m.joints) {
+            CAPTURE(j.name);
+            CHECK(j.home >= j.min);
+            CHECK(j.home <= j.max);
+        }
+        // Where G28 leaves it, the tip is on or above the plate (z >= 0 in the part frame).
+        CHECK(Kinematics(m).forward(m.home_joints()).tip.z() >= -1e-9);
+    }
+    // The two whose files say where Z homes: rw2 at its max switch, koc5 (a delta) at the top.
+    for (const char* name : {"rw2", "koc5"}) {
+        CAPTURE(name);
+        const Machine m = load_machine(name);
+        const Joint& z = m.joints[std::size_t(m.joint_index('Z'))];
+        CHECK(z.home == z.max);
+    }
+}
