@@ -154,7 +154,13 @@ TEST_CASE("an expression nested deeper than kMaxExpressionDepth is a MachineErro
     // So do unary signs, the parser's other recursion.
     CHECK(contains(error_of(replace(base_text(), "\"off * 2\"", "\"" + std::string(30000, '-') + "off\"")), "nests deeper than 64"));
     // The bound itself: 64 levels load, 65 do not.
-    const auto nested = [](int levels) { return "\"" + std::string(std::size_t(levels), '(') + "off * 2" + std::string(std::size_t(levels), ')') + "\""; };
+    const auto nested = [](int levels) {
+        std::string s = "\"";
+        s.append(std::size_t(levels), '(');
+        s += "off * 2";
+        s.append(std::size_t(levels), ')');
+        return s + '"';
+    };
     const Machine m = load_machine_text(replace(base_text(), "\"off * 2\"", nested(kMaxExpressionDepth)), "mine.toml");
     CHECK(m.tool_chain[3].point.z() == 10);
     CHECK(contains(error_of(replace(base_text(), "\"off * 2\"", nested(kMaxExpressionDepth + 1))), "nests deeper than 64"));
