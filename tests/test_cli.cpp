@@ -462,6 +462,13 @@ TEST_CASE("cli: a joint value that cannot be written (1e200, beyond 1e9, not fin
     CHECK(r.code == 1);
     CHECK(contains(r.err, "<stdin>:3:"));
     CHECK(contains(r.err, "word F"));
+    // A huge compensation term: X corrected by 1e300 mm.
+    const fs::path comp = d.write("huge.toml", "[[compensation]]\njoint = \"X\"\nby = \"A\"\nfourier = { a0 = 1e300 }\n");
+    r = run(d, "-m rw2 --no-segment --compensation " + quote(comp.string()), "G1 X100 Y100 Z10 A0 B0 F1200\n");
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, "<stdin>:1:"));
+    CHECK(contains(r.err, "word X: a value of -1e+300 cannot be written"));
+    CHECK(r.out.empty());
 }
 
 TEST_CASE("cli: --version prints a version") {
