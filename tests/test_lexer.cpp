@@ -338,6 +338,16 @@ TEST_CASE("lexer error: G, M, T (and N) need a number") {
     CHECK(e.column() == 1);
 }
 
+TEST_CASE("lexer error: G, M and T numbers are codes below 100000") {
+    // G429496730.6 is code 4294967306 tenths, which wrapped around a 32-bit int onto G1.
+    lex_error("G429496730.6 X105", 1, 1, "below 100000");
+    lex_error("G1 M1000000", 4, 4, "below 100000");
+    lex_error("T100000", 1, 1, "code");
+    lex_error("G-100000", 1, 1, "code");
+    check_words(lex("G99999.9 M99999 T99999"), {{'G', 99999.9}, {'M', 99999}, {'T', 99999}});
+    check_words(lex("G1 X100000 N100000"), {{'G', 1}, {'X', 100000}, {'N', 100000}});  // values, not codes
+}
+
 TEST_CASE("lexer error: a sign without digits") {
     lex_error("G1 X-", 4, 5, "sign");
     lex_error("G1 X+ Y1", 4, 5, "sign");

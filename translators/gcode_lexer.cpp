@@ -1,6 +1,7 @@
 #include "translators/gcode_lexer.hpp"
 
 #include <charconv>
+#include <cmath>
 #include <limits>
 #include <cstdio>
 #include <string>
@@ -194,6 +195,8 @@ void lex_line(std::string_view line, Block& out) {
             if (has_value && !out.compact_words) check_exponent_like(line, i, letter, letter_index);
             if ((letter == 'G' || letter == 'M' || letter == 'T' || letter == 'N') && !has_value)
                 fail(letter_index, std::string("word ") + letter + " has no number");
+            if ((letter == 'G' || letter == 'M' || letter == 'T') && !(std::abs(value) < kMaxCode))
+                fail(letter_index, std::string("word ") + letter + " is a code, and codes are below 100000");
             if (letter == 'N' && first_word) {
                 // A leading line number belongs to the transport, not to the command.
                 first_word = false;

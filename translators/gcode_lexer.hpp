@@ -30,6 +30,9 @@ struct Block {
 // Largest magnitude accepted for any number: far beyond any machine, small enough that every
 // later computation stays finite.
 inline constexpr double kMaxNumber = 1e9;
+// G, M and T numbers are codes: below this, so a code times ten (its decimal) fits an int with
+// room to spare and no huge number can wrap around onto a real code.
+inline constexpr double kMaxCode = 100000;
 
 // A comment line of its own with this text (after ';' or inside '( )', any case, blanks around
 // it allowed) declares the rest of the file compact: "X1.5E-05" is X1.5 and E-05, as compact
