@@ -256,7 +256,7 @@ int main(int argc, char** argv) {
 
     std::string machine_name, input = "-", output = "-", mode_text, preview = "G43.4", extruder = "E", report_path, plot_path, compensation_path;
     std::vector<std::string> sets;
-    bool inverse = false, no_segment = false;
+    bool inverse = false, no_segment = false, compact_words = false;
     double tolerance = 0, angle_tolerance = 0;
     app.add_option("-m,--machine", machine_name, "bundled machine name (see 'xlate5 machines') or path to a machine .toml");
     app.add_option("-i,--input", input, "input G-code file (default: standard input)");
@@ -272,6 +272,7 @@ int main(int argc, char** argv) {
     app.add_option("--compensation", compensation_path, "measured-error compensation file ([[compensation]] terms), replacing the machine's own");
     app.add_option("--report", report_path, "write the kinematic-error report (JSON) of the translation to this file");
     app.add_option("--plot", plot_path, "write the tip deviation along the file as an SVG plot to this file");
+    app.add_flag("--compact-words", compact_words, "the input is written without blanks: X1.5E-05 is X1.5 and E-05 (as the line '; xlate5: compact-words')");
     app.add_flag("--inverse", inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
     app.add_option("--preview-form", preview, "with --inverse: write orientation as G43.4 angles or G43.5 I J K")->check(CLI::IsMember({"G43.4", "G43.5"}));
     auto* machines_cmd = app.add_subcommand("machines", "list the bundled machines");
@@ -435,6 +436,8 @@ int main(int argc, char** argv) {
             options.report = &*report;
         }
         xlate5::Translator translator(kinematics, options);
+        std::string declared;  // the flag is the file's declaration line, read before the file
+        if (compact_words) translator.feed("; " + std::string(xlate5::kCompactDeclaration), 0, declared);
         xlate5::LineReader reader(in_fd, options.input_name);
         xlate5::OutputSink sink(output);
         const auto stats = xlate5::translate_stream(reader, translator, sink);

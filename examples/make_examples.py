@@ -8,8 +8,14 @@ is an arc of 300 degrees printed back and forth.
 
 pentarod_dome.gcode: a dome shell in seed 002's vector dialect (G1 X Y Z I J K F E), the tool
 axis normal to the surface.
+
+Both start the way seed 001's start code does: after homing, the tip travels to above the first
+point at CLEARANCE mm and only then comes down onto the bed, so no travel crosses the bed low
+(rw2 homes Z at its top; pentarod homes with the nozzle on the plate, so it lifts first).
 """
 import math
+
+CLEARANCE = 10.0   # mm above the bed for the first travel
 
 def rw2():
     out = ["; xlate5 example: flared C-shaped wall for rw2 (tip + head angles, seed 001 dialect)",
@@ -31,6 +37,8 @@ def rw2():
             y = cy + r * math.sin(math.radians(phi))
             a = -phi                            # u_xy = (cos A, -sin A) points along the azimuth
             if n == 0:
+                if layer == 0:  # above the first point first, then straight down
+                    out.append(f"G0 X{x:.3f} Y{y:.3f} Z{CLEARANCE:.3f} A{a:.2f} B{tilt:.2f} F3000")
                 out.append(f"G0 X{x:.3f} Y{y:.3f} Z{z:.3f} A{a:.2f} B{tilt:.2f} F3000")
             else:
                 e = 0.033 * math.dist((x, y, z), prev)
@@ -41,7 +49,7 @@ def rw2():
 
 def pentarod():
     out = ["; xlate5 example: dome shell for pentarod (tip + tool vector, seed 002 dialect)",
-           "G21", "G90", "M82", "G28", "G92 E0"]
+           "G21", "G90", "M82", "G28", f"G0 Z{CLEARANCE:.3f} F3000 ; lift off the plate", "G92 E0"]
     R, e = 25.0, 0.0
     prev = None
     for ring in range(1, 16):
@@ -50,6 +58,8 @@ def pentarod():
             az = math.radians(5.0 * i)
             n = (math.sin(polar) * math.cos(az), math.sin(polar) * math.sin(az), math.cos(polar))
             p = (R * n[0], R * n[1], R * n[2] - R + 0.3)
+            if prev is None:  # above the first point first, then straight down
+                out.append(f"G0 X{p[0]:.3f} Y{p[1]:.3f} Z{CLEARANCE:.3f} I{n[0]:.6f} J{n[1]:.6f} K{n[2]:.6f} F3000")
             if prev is None or i == 0:
                 out.append(f"G0 X{p[0]:.3f} Y{p[1]:.3f} Z{p[2]:.3f} I{n[0]:.6f} J{n[1]:.6f} K{n[2]:.6f} F3000")
             else:

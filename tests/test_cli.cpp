@@ -6,6 +6,11 @@
 
 #include <cctype>
 
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
+#include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -17,6 +22,7 @@
 #include <map>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace fs = std::filesystem;
@@ -118,6 +124,33 @@ TEST_CASE("cli: bad G-code exits 1 with file:line:column: on standard error") {
     CHECK(contains(s.err, "<stdin>:3:"));
 }
 
+TEST_CASE("cli: X1.5e-05 is refused with file:line:column; declared compact, it is X1.5 and E-05") {
+    TempDir d;
+    // rw2, G49: joint words go to the firmware as they are, so the output shows the reading.
+    const std::string body = "G1 X10 Y10 Z10 A0 B0 F600\nG1 X1.5e-05\n";
+    const fs::path in = d.write("exp.gcode", "G49\n" + body);
+    Result r = run(d, "-m rw2 -i " + quote(in.string()));
+    CHECK(r.code == 1);
+    CHECK(r.out.empty());
+    CHECK(contains(r.err, in.string() + ":3:8: 'X1.5e-05' is ambiguous"));
+    CHECK(contains(r.err, "X1.5 e-05"));
+    // The same file declared compact (a line of its own), or the flag: X1.5 with a 5 mm retract,
+    // E passed on as it was written.
+    const fs::path declared = d.write("declared.gcode", "; xlate5: compact-words\nG49\n" + body);
+    for (const std::string& args : {"-m rw2 -i " + quote(declared.string()), "-m rw2 --compact-words -i " + quote(in.string())}) {
+        CAPTURE(args);
+        r = run(d, args);
+        CHECK(r.code == 0);
+        const auto lines = lines_of(r.out);
+        REQUIRE(!lines.empty());
+        CHECK(lines.back() == "G1 X1.5 E-05");
+    }
+    // Without the declaration, the fix the message names reads the same.
+    r = run(d, "-m rw2", "G49\nG1 X10 Y10 Z10 A0 B0 F600\nG1 X1.5 e-05\n");
+    CHECK(r.code == 0);
+    CHECK(lines_of(r.out).back() == "G1 X1.5 E-05");
+}
+
 TEST_CASE("cli: with -o, bad input leaves no output file and an existing one unchanged") {
     TempDir d;
     const fs::path in = d.write("bad.gcode", "G1 X1 Y1 Z1 A0 B0\nG1 X2\nG1 B-101\n");
@@ -142,6 +175,138 @@ TEST_CASE("cli: with -o, bad input leaves no output file and an existing one unc
     CHECK(r.out.empty());
     CHECK(lines_of(read(out)).size() == 7);
     CHECK(d.entries() == std::vector<std::string>{"bad.gcode", "good.gcode", "out.gcode"});
+}
+
+TEST_CASE("cli: -o follows a symlink and keeps it; keeps the mode (and, as root, the owner) of the file it replaces") {
+    TempDir d;
+    const fs::path good = d.write("good.gcode", kGood);
+    const Result expected = run(d, "-m rw2 --no-segment -i " + quote(good.string()));
+    REQUIRE(expected.code == 0);
+
+    const fs::path real = d.write("real.gcode", "old\n");
+    fs::permissions(real, fs::perms(0640));
+    const bool root = ::geteuid() == 0;
+    if (root) REQUIRE(::chown(real.c_str(), 1234, 2345) == 0);
+    fs::create_symlink("real.gcode", d.path / "link.gcode");
+    Result r = run(d, "-m rw2 --no-segment -i " + quote(good.string()) + " -o " + quote((d.path / "link.gcode").string()));
+    CHECK(r.code == 0);
+    CHECK(fs::is_symlink(d.path / "link.gcode"));
+    CHECK(fs::read_symlink(d.path / "link.gcode") == "real.gcode");
+    CHECK(read(real) == expected.out);
+    struct stat st {};
+    REQUIRE(::stat(real.c_str(), &st) == 0);
+    CHECK((st.st_mode & 07777) == 0640);
+    if (root) {
+        CHECK(st.st_uid == 1234u);
+        CHECK(st.st_gid == 2345u);
+    }
+    // A dangling link: the file it names is created, the link kept.
+    fs::create_symlink("later.gcode", d.path / "dangling.gcode");
+    r = run(d, "-m rw2 --no-segment -i " + quote(good.string()) + " -o " + quote((d.path / "dangling.gcode").string()));
+    CHECK(r.code == 0);
+    CHECK(fs::is_symlink(d.path / "dangling.gcode"));
+    CHECK(read(d.path / "later.gcode") == expected.out);
+    CHECK(d.entries() == std::vector<std::string>{"dangling.gcode", "good.gcode", "later.gcode", "link.gcode", "real.gcode"});
+}
+
+TEST_CASE("cli: -o over a read-only file exits 4 and leaves it as it was") {
+    TempDir d;
+    const fs::path good = d.write("good.gcode", kGood);
+    const fs::path ro = d.write("ro.gcode", "keep me\n");
+    fs::permissions(ro, fs::perms(0444));
+    // As root too: a file without any write permission is not replaced.
+    const Result r = run(d, "-m rw2 -i " + quote(good.string()) + " -o " + quote(ro.string()));
+    CHECK(r.code == 4);
+    CHECK(contains(r.err, "read-only (mode 0444)"));
+    CHECK(read(ro) == "keep me\n");
+    CHECK(d.entries() == std::vector<std::string>{"good.gcode", "ro.gcode"});
+}
+
+TEST_CASE("cli: -o to a FIFO or a device node writes into it and never replaces it") {
+    TempDir d;
+    const fs::path good = d.write("good.gcode", kGood);
+    const Result expected = run(d, "-m rw2 --no-segment -i " + quote(good.string()));
+    REQUIRE(expected.code == 0);
+    const fs::path fifo = d.path / "fifo";
+    REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+    std::string received;
+    std::thread reader([&] {
+        const int fd = ::open(fifo.c_str(), O_RDONLY);
+        if (fd < 0) return;
+        char buf[4096];
+        for (ssize_t n; (n = ::read(fd, buf, sizeof buf)) > 0;) received.append(buf, std::size_t(n));
+        ::close(fd);
+    });
+    const Result r = run(d, "-m rw2 --no-segment -i " + quote(good.string()) + " -o " + quote(fifo.string()));
+    // Had the translator never opened the FIFO, this releases the reader (the test fails, not hangs).
+    if (const int unblock = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK); unblock >= 0) ::close(unblock);
+    reader.join();
+    CHECK(r.code == 0);
+    CHECK(received == expected.out);
+    struct stat st {};
+    REQUIRE(::lstat(fifo.c_str(), &st) == 0);
+    CHECK(S_ISFIFO(st.st_mode));
+    CHECK(d.entries() == std::vector<std::string>{"fifo", "good.gcode"});
+
+    // A character device (a copy of /dev/null's node): only root may make one.
+    if (::geteuid() != 0) {
+        MESSAGE("not root: the device-node case is skipped");
+        return;
+    }
+    const fs::path null = d.path / "null";
+    REQUIRE(::mknod(null.c_str(), S_IFCHR | 0666, ::makedev(1, 3)) == 0);
+    const Result n = run(d, "-m rw2 -i " + quote(good.string()) + " -o " + quote(null.string()));
+    CHECK(n.code == 0);
+    REQUIRE(::lstat(null.c_str(), &st) == 0);
+    CHECK(S_ISCHR(st.st_mode));
+    CHECK(st.st_rdev == ::makedev(1, 3));
+    CHECK(d.entries() == std::vector<std::string>{"fifo", "good.gcode", "null"});
+}
+
+TEST_CASE("cli: -i F -o F translates F in place from its original content") {
+    TempDir d;
+    const fs::path good = d.write("good.gcode", kGood);
+    const Result expected = run(d, "-m rw2 --no-segment -i " + quote(good.string()));
+    REQUIRE(expected.code == 0);
+    const Result r = run(d, "-m rw2 --no-segment -i " + quote(good.string()) + " -o " + quote(good.string()));
+    CHECK(r.code == 0);
+    CHECK(read(good) == expected.out);
+    CHECK(d.entries() == std::vector<std::string>{"good.gcode"});
+}
+
+TEST_CASE("cli: SIGINT or SIGTERM while translating into -o leaves no temporary file") {
+    for (const int sig : {SIGINT, SIGTERM}) {
+        CAPTURE(sig);
+        TempDir d;
+        const fs::path fifo = d.path / "in.fifo", out = d.path / "out.gcode";
+        REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+        const pid_t pid = ::fork();
+        REQUIRE(pid >= 0);
+        if (pid == 0) {
+            const int null = ::open("/dev/null", O_WRONLY);
+            ::dup2(null, 2);
+            ::execl(XLATE5_BINARY, XLATE5_BINARY, "-m", "rw2", "-i", fifo.c_str(), "-o", out.c_str(), static_cast<char*>(nullptr));
+            ::_exit(127);
+        }
+        // The translator blocks on its input, which stays open and half-written.
+        const int w = ::open(fifo.c_str(), O_WRONLY);
+        REQUIRE(w >= 0);
+        const std::string start = "G28\nG1 X100 Y100 Z10 F1200\n";
+        REQUIRE(::write(w, start.data(), start.size()) == ssize_t(start.size()));
+        bool temp_seen = false;
+        for (int i = 0; i < 1000 && !temp_seen; ++i) {
+            for (const auto& name : d.entries()) temp_seen = temp_seen || contains(name, "out.gcode.xlate5-");
+            if (!temp_seen) ::usleep(10000);
+        }
+        CHECK(temp_seen);
+        REQUIRE(::kill(pid, sig) == 0);
+        int status = 0;
+        REQUIRE(::waitpid(pid, &status, 0) == pid);
+        ::close(w);
+        CHECK(WIFSIGNALED(status));
+        if (WIFSIGNALED(status)) CHECK(WTERMSIG(status) == sig);
+        CHECK(d.entries() == std::vector<std::string>{"in.fifo"});
+    }
 }
 
 TEST_CASE("cli: an input file that cannot be opened exits 4") {
@@ -276,6 +441,34 @@ TEST_CASE("cli: --inverse turns joint-space G-code into tool space") {
     CHECK(std::abs(wv.at('I') - std::sin(rad(10)) * std::cos(rad(30))) < 1e-6);
     CHECK(std::abs(wv.at('J') + std::sin(rad(10)) * std::sin(rad(30))) < 1e-6);
     CHECK(std::abs(wv.at('K') - std::cos(rad(10))) < 1e-6);
+}
+
+TEST_CASE("cli: a joint value that cannot be written (1e200, beyond 1e9, not finite) exits 1 naming the line; no garbage output") {
+    TempDir d;
+    // Joint space in, through FK with an absurd link length: X would be about 1e200.
+    Result r = run(d, "-m rw2 --inverse --set la=1e200", "G28\nG1 X100 Y100 Z10 A30 B10 F1200\n");
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, "<stdin>:2:"));
+    CHECK(contains(r.err, "cannot be written"));
+    CHECK(r.out.find("G1") == std::string::npos);  // nothing of the line; only what came before it
+    for (const char c : r.out) CHECK(((c >= 0x20 && c < 0x7F) || c == '\n'));
+    // A huge number in a move: under G20 the lexer's 1e9 becomes 2.54e10 mm of extrusion and feed.
+    r = run(d, "-m rw2 --no-segment", "G1 X100 Y100 Z10 A0 B0 F1200\nG20\nG1 X4 E1000000000\n");
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, "<stdin>:3:"));
+    CHECK(contains(r.err, "word E"));
+    CHECK(contains(r.err, "2.54e+10"));
+    r = run(d, "-m rw2 --no-segment", "G1 X100 Y100 Z10 A0 B0 F1200\nG20\nG1 X4 F1000000000\n");
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, "<stdin>:3:"));
+    CHECK(contains(r.err, "word F"));
+    // A huge compensation term: X corrected by 1e300 mm.
+    const fs::path comp = d.write("huge.toml", "[[compensation]]\njoint = \"X\"\nby = \"A\"\nfourier = { a0 = 1e300 }\n");
+    r = run(d, "-m rw2 --no-segment --compensation " + quote(comp.string()), "G1 X100 Y100 Z10 A0 B0 F1200\n");
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, "<stdin>:1:"));
+    CHECK(contains(r.err, "word X: a value of -1e+300 cannot be written"));
+    CHECK(r.out.empty());
 }
 
 TEST_CASE("cli: --version prints a version") {

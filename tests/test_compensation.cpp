@@ -286,10 +286,14 @@ TEST_CASE("compensation over a real file: S4's joint-space R-theta print on koc5
     inverse.inverse = true;
     const std::string preview = translate_text(comp, out_comp, inverse);
 
-    // koc5 homes every joint to 0, where its tip is at the part origin with the tool vertical.
-    const std::map<char, double> home = {{'X', 0}, {'Y', 0}, {'Z', 0}, {'B', 0}, {'C', 0}};
-    for (const auto& j : plain.joints) REQUIRE(j.home == 0);
-    REQUIRE(Kinematics(plain).forward({0, 0, 0, 0, 0}).tip.norm() < 1e-12);
+    // koc5's home (a delta: at the top, centred, B = C = 0) has its tip at the same X Y Z as its
+    // joints, so one map of values after G28 serves the joint-space files and the preview alike.
+    std::map<char, double> home;
+    for (const auto& j : plain.joints) home[j.output] = j.home;
+    REQUIRE(home.size() == 5);
+    REQUIRE(home.at('B') == 0);
+    REQUIRE(home.at('C') == 0);
+    REQUIRE((Kinematics(plain).forward(plain.home_joints()).tip - Eigen::Vector3d(home.at('X'), home.at('Y'), home.at('Z'))).norm() < 1e-12);
     const auto in = moves_of(input, home), p = moves_of(out_plain, home), c = moves_of(out_comp, home), v = moves_of(preview, home);
     REQUIRE(in.size() > 5000);
     REQUIRE(p.size() == in.size());

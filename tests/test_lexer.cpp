@@ -10,6 +10,10 @@
 #include "translators/error.hpp"
 #include "translators/gcode_lexer.hpp"
 
+namespace {
+bool contains(const std::string& hay, const std::string& needle) { return hay.find(needle) != std::string::npos; }
+}  // namespace
+
 using namespace xlate5;
 
 namespace {
@@ -127,11 +131,67 @@ TEST_CASE("lexer: letters in any case are upper-cased") {
 }
 
 TEST_CASE("lexer: words need no spaces between them") {
-    const Block b = lex("G1X10Y2Z-.3E+1F600");
+    // "-.3E+1" also reads as the exponent -3, so this line needs the file's compact declaration
+    // (see the next cases); without it the same words come from an E that cannot be an exponent.
+    Block b;
+    lex_line("; xlate5: compact-words", b);
+    lex_line("G1X10Y2Z-.3E+1F600", b);
     check_words(b, {{'G', 1}, {'X', 10}, {'Y', 2}, {'Z', -0.3}, {'E', 1}, {'F', 600}});
     CHECK(b.words[1].column == 3);
     CHECK(b.words[2].column == 6);
     CHECK(b.words[3].column == 8);
+    const Block c = lex("G1X10Y2Z-.3E+1.0F600");
+    check_words(c, {{'G', 1}, {'X', 10}, {'Y', 2}, {'Z', -0.3}, {'E', 1}, {'F', 600}});
+}
+
+TEST_CASE("lexer: a number directly followed by E and an integer is refused unless the file is declared compact") {
+    // A CAM program printing 1.5e-05 means 0.000015; compact G-code means X1.5 and a 5 mm retract.
+    const LineError e = lex_error("G1 X1.5e-05 Y2", 4, 8, "ambiguous");
+    CHECK(e.column() == 8);  // the 'e'
+    const std::string why = e.what();
+    CHECK(contains(why, "'X1.5e-05'"));
+    CHECK(contains(why, "X1.5 e-05"));  // the fix: a blank before a separate E word
+    CHECK(contains(why, "without one"));  // or the number without an exponent
+    CHECK(contains(why, std::string(kCompactDeclaration)));
+    lex_error("G1 X1e308", 4, 6, "ambiguous");    // would be a 308 mm extrusion
+    lex_error("G1X10Y2Z-.3E+1F600", 8, 12, "ambiguous");
+    lex_error("G1 Y-2.E3", 4, 8, "ambiguous");
+    lex_error("G1 F1E3", 4, 6, "ambiguous");       // a feed of 1000, or F1 and 3 mm of filament
+    lex_error("G1 A30e+2", 4, 7, "ambiguous");
+    // Not ambiguous: an E number with a point (an exponent has none), a blank before E, a
+    // command word (no code has an exponent), E not followed by digits.
+    check_words(lex("G1 X1E0.5"), {{'G', 1}, {'X', 1}, {'E', 0.5}});
+    check_words(lex("G1 X1.5 e-05"), {{'G', 1}, {'X', 1.5}, {'E', -5}});
+    check_words(lex("G1E-1F2400"), {{'G', 1}, {'E', -1}, {'F', 2400}});
+    check_words(lex("M84 X1E"), {{'M', 84}, {'X', 1}, {'E', kFlag}});
+    check_words(lex("G1 X1E-.5"), {{'G', 1}, {'X', 1}, {'E', -0.5}});
+}
+
+TEST_CASE("lexer: the compact declaration reads X1.5E-05 as X1.5 and E-05, from its line on") {
+    for (const char* declaration : {"; xlate5: compact-words", ";xlate5: compact-words  ", "(XLATE5: Compact-Words)",
+                                    "  ( xlate5: compact-words )\r"}) {
+        CAPTURE(declaration);
+        Block b;
+        lex_line("G1 X1 Y2", b);
+        CHECK_FALSE(b.compact_words);
+        lex_line(declaration, b);
+        CHECK(b.compact_words);
+        CHECK(b.words.empty());
+        lex_line("G1 X1.5E-05", b);
+        check_words(b, {{'G', 1}, {'X', 1.5}, {'E', -5}});
+        CHECK(b.words[2].text == "-05");
+        lex_line("G1 X1e308", b);  // kept for every later line
+        check_words(b, {{'G', 1}, {'X', 1}, {'E', 308}});
+    }
+    // Only a comment line of its own, with exactly that text, declares it.
+    for (const char* not_declaration : {"G1 X1 ; xlate5: compact-words", "; xlate5: compact-words please", "; compact-words",
+                                        "(xlate5: compact-words) (more)", "M117 xlate5: compact-words"}) {
+        CAPTURE(not_declaration);
+        Block b;
+        lex_line(not_declaration, b);
+        CHECK_FALSE(b.compact_words);
+        CHECK_THROWS_AS(lex_line("G1 X1.5E-05", b), LineError);
+    }
 }
 
 TEST_CASE("lexer: number forms .5, -.309, +3, 5., 007 and a space after the letter") {
@@ -276,6 +336,16 @@ TEST_CASE("lexer error: G, M, T (and N) need a number") {
     lex_error("T", 1, 1, "T");
     const LineError e = lex_error("G X1", 1, 1, "number");
     CHECK(e.column() == 1);
+}
+
+TEST_CASE("lexer error: G, M and T numbers are codes below 100000") {
+    // G429496730.6 is code 4294967306 tenths, which wrapped around a 32-bit int onto G1.
+    lex_error("G429496730.6 X105", 1, 1, "below 100000");
+    lex_error("G1 M1000000", 4, 4, "below 100000");
+    lex_error("T100000", 1, 1, "code");
+    lex_error("G-100000", 1, 1, "code");
+    check_words(lex("G99999.9 M99999 T99999"), {{'G', 99999.9}, {'M', 99999}, {'T', 99999}});
+    check_words(lex("G1 X100000 N100000"), {{'G', 1}, {'X', 100000}, {'N', 100000}});  // values, not codes
 }
 
 TEST_CASE("lexer error: a sign without digits") {

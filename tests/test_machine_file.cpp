@@ -4,12 +4,15 @@
 #include <string>
 
 #include "translators/error.hpp"
+#include "translators/expr.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 
 using namespace xlate5;
 
 namespace {
+
+bool contains(const std::string& hay, const std::string& needle) { return hay.find(needle) != std::string::npos; }
 
 // A small valid machine; `extra` is appended, `replace` swaps one line.
 std::string base_text() {
@@ -139,4 +142,48 @@ TEST_CASE("bundled machines all load and name themselves") {
         CHECK_NOTHROW(Kinematics{m});
     }
     CHECK_THROWS_WITH_AS(load_machine("no-such-machine"), doctest::Contains("no machine named 'no-such-machine'"), MachineError);
+}
+
+TEST_CASE("an expression nested deeper than kMaxExpressionDepth is a MachineError naming file, line and key, not a crash") {
+    // 30,000 nested parentheses (60 KB): a recursive parser without a bound overflows the stack.
+    const std::string deep = std::string(30000, '(') + "off" + std::string(30000, ')');
+    const std::string e = error_of(replace(base_text(), "point = [0, 0, \"off * 2\"]", "point = [0, 0, \"" + deep + "\"]"));
+    CAPTURE(e.substr(0, 300));
+    CHECK(e.rfind("mine.toml:36: tool_chain[3].point[2]: expression nests deeper than 64", 0) == 0);
+    CHECK(e.size() < 300);  // the expression is quoted cut short
+    // So do unary signs, the parser's other recursion.
+    CHECK(contains(error_of(replace(base_text(), "\"off * 2\"", "\"" + std::string(30000, '-') + "off\"")), "nests deeper than 64"));
+    // The bound itself: 64 levels load, 65 do not.
+    const auto nested = [](int levels) {
+        std::string s = "\"";
+        s.append(std::size_t(levels), '(');
+        s += "off * 2";
+        s.append(std::size_t(levels), ')');
+        return s + '"';
+    };
+    const Machine m = load_machine_text(replace(base_text(), "\"off * 2\"", nested(kMaxExpressionDepth)), "mine.toml");
+    CHECK(m.tool_chain[3].point.z() == 10);
+    CHECK(contains(error_of(replace(base_text(), "\"off * 2\"", nested(kMaxExpressionDepth + 1))), "nests deeper than 64"));
+    CHECK(evaluate_expression("-(-(1 + 2))", {}) == 3);
+}
+
+TEST_CASE("bundled machines: every joint's home is inside its limits, and the tip is not below the bed there") {
+    for (const auto& [name, path] : bundled_machines()) {
+        CAPTURE(name);
+        const Machine m = load_machine(path);
+        for (const Joint& j : m.joints) {
+            CAPTURE(j.name);
+            CHECK(j.home >= j.min);
+            CHECK(j.home <= j.max);
+        }
+        // Where G28 leaves it, the tip is on or above the plate (z >= 0 in the part frame).
+        CHECK(Kinematics(m).forward(m.home_joints()).tip.z() >= -1e-9);
+    }
+    // The two whose files say where Z homes: rw2 at its max switch, koc5 (a delta) at the top.
+    for (const char* name : {"rw2", "koc5"}) {
+        CAPTURE(name);
+        const Machine m = load_machine(name);
+        const Joint& z = m.joints[std::size_t(m.joint_index('Z'))];
+        CHECK(z.home == z.max);
+    }
 }

@@ -2,6 +2,7 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "helpers.hpp"
@@ -89,4 +90,24 @@ TEST_CASE("report memory is bounded: a million moves, a plot of at most 2000 poi
     CHECK(field(json, "tip_deviation_mm", "p50") == doctest::Approx(0.005).epsilon(0.3));
     CHECK(field(json, "tip_deviation_mm", "moves") == 1000000);
     CHECK(json.find("\"moves_split\": 333333") != std::string::npos);
+}
+
+TEST_CASE("an infinite or NaN deviation counts in the top bin and the JSON and SVG hold only numbers") {
+    // Degenerate geometry can make a deviation infinite: its bin index was a cast of infinity.
+    const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+    DeviationReport r("t.gcode", "rw2", 0.01, 0.5);
+    r.add_move(1, 0.001, 0, 0, 1);
+    r.add_move(2, inf, nan, inf, 1);
+    r.add_move(3, 0.002, 0, 0, 1);
+    const std::string json = r.json();
+    CAPTURE(json);
+    CHECK(json.find("inf") == std::string::npos);
+    CHECK(json.find("nan") == std::string::npos);
+    CHECK(contains(json, "\"max\": 1e999, \"max_at_line\": 2"));
+    // Two of three moves are small; the 99th percentile is the infinite one, in the top bin (1e3 mm).
+    CHECK(field(json, "tip_deviation_mm", "p99") == doctest::Approx(1000));
+    CHECK(field(json, "tip_deviation_mm", "p50") < 0.01);
+    const std::string svg = r.svg();
+    CHECK(svg.find("inf") == std::string::npos);
+    CHECK(svg.find("nan") == std::string::npos);
 }

@@ -2,6 +2,8 @@
 #include <doctest/doctest.h>
 
 #include <charconv>
+#include <cmath>
+#include <limits>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -125,4 +127,40 @@ TEST_CASE("append_fixed prints what std::to_chars prints at the same precision")
         }
     }
     CHECK(checked == 1000000);
+}
+
+TEST_CASE("a number that is not finite or beyond 1e9 is never written: UnwritableNumber, and nothing appended") {
+    // std::to_chars fails for |v| >~ 1e61 at 3 decimals in 64 bytes; its buffer must not be written.
+    for (const double v : {1e61, -1e200, 1e300, 1e9 * (1 + 1e-15), -2e9, 1e12, std::numeric_limits<double>::infinity(),
+                           -std::numeric_limits<double>::infinity(), std::numeric_limits<double>::quiet_NaN()}) {
+        CAPTURE(v);
+        for (int d : {0, 3, 5, 12}) {
+            std::string out = "G1 X";
+            CHECK_THROWS_AS(append_fixed(out, v, d), UnwritableNumber);
+            CHECK(out == "G1 X");
+        }
+        std::string out = "G1 E";
+        CHECK_THROWS_AS(append_shortest(out, v), UnwritableNumber);
+        CHECK(out == "G1 E");
+        long long units = 0;
+        CHECK_FALSE(to_units(v, 3, units));
+    }
+    // A LineError, so the translator names the input line.
+    try {
+        std::string out;
+        append_fixed(out, 1e200, 3);
+        FAIL("no error");
+    } catch (const LineError& e) {
+        CHECK(std::string(e.what()).find("1e+200") != std::string::npos);
+    }
+    // The bound itself is written, and so is a tiny value.
+    std::string out;
+    append_fixed(out, 1e9, 3);
+    out += ' ';
+    append_fixed(out, -1e9, 12);
+    out += ' ';
+    append_shortest(out, -1e9);
+    out += ' ';
+    append_shortest(out, 1e-300);
+    CHECK(out == "1000000000 -1000000000 -1000000000 0");
 }

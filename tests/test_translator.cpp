@@ -12,6 +12,7 @@
 #include <map>
 #include <memory>
 #include <sstream>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -457,7 +458,7 @@ TEST_CASE("translator: G28 resets the joints to home and the next move writes ev
     CHECK(r.feed("G28") == "G28\n");
     CHECK(r.q('X') == 0);
     CHECK(r.q('Y') == 0);
-    CHECK(r.q('Z') == 0);
+    CHECK(r.q('Z') == 300);   // rw2: Z homes at its max switch (seed 001 sec. 3.5)
     CHECK(r.q('A') == -168);  // rw2: A homes at its min switch
     CHECK(r.q('B') == 0);
     CHECK(r.tr.program_offset().isZero());
@@ -509,8 +510,9 @@ TEST_CASE("translator: seed 001 start code G28, G92 A-168, G1 A0 B0 leaves X Y Z
     for (char c : {'X', 'Y', 'Z'}) {
         CAPTURE(c);
         CHECK(w.count(c) == 0);
-        CHECK(r.q(c) == 0);
+        CHECK(r.q(c) == r.machine.joints[std::size_t(r.j(c))].home);
     }
+    CHECK(r.q('Z') == 300);
     // The first tip move then follows eq. 4.5.
     r.feed("G1 X100 Y100 Z0.3 E1 F1200");
     check_rw2_joints(r, {100, 100, 0.3}, 0, 0);
@@ -865,5 +867,74 @@ TEST_CASE("translator: the words of one line mean the same in any order (RS274 o
         CAPTURE(line);
         CHECK(r.feed(line) == "G21\nG90\nM82\n");
         CHECK(r.tr.mode() == OrientationMode::Joints);
+    }
+}
+
+// ---- the bundled examples ------------------------------------------------------------------
+
+TEST_CASE("bundled examples: until the first extrusion the tip crosses the bed only above the clearance (FK of the output)") {
+    // The firmware moves each joint linearly from where G28 leaves it (the machine file's home):
+    // the tip may come down to the bed, or rise from it, only straight up and down.
+    constexpr double kClearance = 2.0;  // mm above the plate
+    constexpr double kStill = 1e-4;     // mm across per 1/100 of a move: straight down, but for the printed digits
+    const std::string examples = std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/../examples/";
+    for (const auto& [file, name] : {std::pair<const char*, const char*>{"rw2_flared_wall.gcode", "rw2"}, {"pentarod_dome.gcode", "pentarod"}}) {
+        const std::string example = file;
+        CAPTURE(example);
+        Rig r(name, {}, true);  // split to the tolerance, as shipped
+        r.tr.set_lookback(Translator::kDefaultLookback);
+        std::istringstream in(read(examples + file));
+        REQUIRE(in.str().size() > 1000);
+        std::string line;
+        std::uint64_t n = 0;
+        while (std::getline(in, line)) r.tr.feed(line, ++n, r.out);
+        r.tr.finish(r.out);
+
+        const Machine& m = r.machine;
+        std::vector<double> q = m.home_joints();
+        bool printed = false;
+        int travels = 0;
+        double lowest_crossing = 1e9;
+        for (std::string l : lines_of(r.out)) {
+            if (const auto c = l.find(';'); c != std::string::npos) l.resize(c);
+            while (!l.empty() && l.back() == ' ') l.pop_back();
+            if (l.empty() || l[0] != 'G') continue;
+            const auto w = words_of(l);
+            const double g = w.at('G');
+            if (g == 28) {
+                q = m.home_joints();
+                continue;
+            }
+            if (g != 0 && g != 1 && g != 92) continue;
+            std::vector<double> next = q;
+            for (std::size_t j = 0; j < m.joints.size(); ++j)
+                if (w.count(m.joints[j].output)) next[j] = w.at(m.joints[j].output);
+            if (g == 92) {  // the firmware is told where it is: no motion
+                q = next;
+                continue;
+            }
+            if (w.count('E') && w.at('E') > 0) {
+                printed = true;
+                break;
+            }
+            ++travels;
+            Eigen::Vector3d before = r.kin.forward(q).tip;
+            for (int s = 1; s <= 100; ++s) {
+                std::vector<double> at(q.size());
+                for (std::size_t j = 0; j < q.size(); ++j) at[j] = q[j] + (next[j] - q[j]) * s / 100.0;
+                const Eigen::Vector3d tip = r.kin.forward(at).tip;
+                const double across = std::hypot(tip.x() - before.x(), tip.y() - before.y());
+                if (across > kStill) lowest_crossing = std::min(lowest_crossing, std::min(tip.z(), before.z()));
+                INFO("output '" << l << "': tip (" << tip.x() << ", " << tip.y() << ", " << tip.z() << ")");
+                CHECK(tip.z() >= -1e-6);                                     // never into the bed
+                if (tip.z() < kClearance || before.z() < kClearance) CHECK(across <= kStill);  // low: only vertically
+                before = tip;
+            }
+            q = next;
+        }
+        MESSAGE(example << ": " << travels << " joint moves before the first extrusion, lowest crossing at z " << lowest_crossing);
+        CHECK(printed);
+        CHECK(travels >= 2);
+        CHECK(lowest_crossing >= kClearance);
     }
 }

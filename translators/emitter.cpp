@@ -12,17 +12,23 @@ void append_passed(std::string& out, const PassedNumber& n) {
     else append_shortest(out, n.value);
 }
 
+namespace {
+void append_word(std::string& out, char letter, const PassedNumber& n) {
+    out += ' ';
+    out += letter;
+    try {
+        append_passed(out, n);
+    } catch (const UnwritableNumber& e) {
+        unwritable_word(letter, e);
+    }
+}
+}  // namespace
+
 // E and F end a move line; a line that got no word at all (nothing changed) is taken back.
 void finish_move(std::string& out, std::size_t start, std::size_t empty, const std::optional<PassedNumber>& e,
                  const std::optional<PassedNumber>& f) {
-    if (e) {
-        out += " E";
-        append_passed(out, *e);
-    }
-    if (f) {
-        out += " F";
-        append_passed(out, *f);
-    }
+    if (e) append_word(out, 'E', *e);
+    if (f) append_word(out, 'F', *f);
     if (out.size() == empty) out.resize(start);
     else out += '\n';
 }
@@ -35,7 +41,11 @@ int JointEmitter::decimals(std::size_t joint) const {
 }
 
 void JointEmitter::format(std::string& text, std::size_t joint, double value) const {
-    append_fixed(text, value, decimals(joint));
+    try {
+        append_fixed(text, value, decimals(joint));
+    } catch (const UnwritableNumber& e) {
+        unwritable(machine_->joints[joint].output, e);
+    }
 }
 
 void JointEmitter::append_joint(std::string& out, std::size_t joint, double value) const {
@@ -77,7 +87,11 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
     }
     if (f && !inverse_time_) {  // under G93 every move carries its own F
         f_text_.clear();
-        append_passed(f_text_, *f);
+        try {
+            append_passed(f_text_, *f);
+        } catch (const UnwritableNumber& e) {
+            unwritable('F', e);
+        }
         if (f_text_ == last_f_) f.reset();
         else last_f_ = f_text_;
     }
@@ -100,10 +114,7 @@ void JointEmitter::set_position(std::string& out, const std::vector<double>& q, 
         out += machine_->joints[j].output;
         format(out, j, sent[j]);
     }
-    if (e) {
-        out += " E";
-        append_passed(out, *e);
-    }
+    if (e) append_word(out, 'E', *e);
     if (out.size() == empty) out.resize(start);
     else out += '\n';
 }

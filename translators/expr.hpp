@@ -6,6 +6,10 @@
 
 namespace xlate5 {
 
+// Deepest nesting of parentheses and unary signs an expression may have: machine files need a
+// handful; the bound keeps a hostile file from exhausting the stack of the recursive parser.
+inline constexpr int kMaxExpressionDepth = 64;
+
 // Evaluates + - * / unary minus, parentheses, numbers and parameter names.
 // Throws std::invalid_argument with a message naming the problem.
 double evaluate_expression(const std::string& text, const std::map<std::string, double>& params);

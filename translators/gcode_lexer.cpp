@@ -1,6 +1,7 @@
 #include "translators/gcode_lexer.hpp"
 
 #include <charconv>
+#include <cmath>
 #include <limits>
 #include <cstdio>
 #include <string>
@@ -41,6 +42,29 @@ bool takes_text(char letter, double value) {
     for (int m : {23, 28, 30, 32, 117, 118, 928})
         if (value == m) return true;
     return false;
+}
+
+// After a number ending at `i`: an 'E' or 'e', an optional sign and digits with no '.' after them
+// read as an exponent as well as a separate E word ("X1.5e-05": 0.000015, or X1.5 and a retract
+// E-05). Command words (G M T N) are codes, never written with an exponent, so "G1E-1" is not
+// ambiguous; nor is "X1E0.5" (an exponent has no point). Unless the file is declared compact the
+// ambiguous form is refused, so a CAM program's float never turns into extrusion by accident.
+void check_exponent_like(std::string_view s, std::size_t i, char letter, std::size_t letter_index) {
+    if (letter == 'G' || letter == 'M' || letter == 'T' || letter == 'N') return;
+    if (i >= s.size() || (s[i] != 'E' && s[i] != 'e')) return;
+    std::size_t k = i + 1;
+    if (k < s.size() && (s[k] == '+' || s[k] == '-')) ++k;
+    const std::size_t digits = k;
+    while (k < s.size() && is_digit(s[k])) ++k;
+    if (k == digits || (k < s.size() && s[k] == '.')) return;
+    const std::string written{s.substr(letter_index, std::min<std::size_t>(k - letter_index, 32))};
+    const std::string number{s.substr(letter_index + 1, i - letter_index - 1)};
+    const std::string exponent{s.substr(i, k - i)};
+    fail(i, "'" + written + "' is ambiguous: it reads as a number with an exponent, or as " + letter + number +
+                " followed by the word " + exponent + " (extrusion). G-code has no exponents: write the number without one, or put a "
+                "blank before a separate E word (" + letter + number + " " + exponent +
+                "); a file written without blanks may declare itself with a line '; " + std::string(kCompactDeclaration) +
+                "' at its top (or the command line's --compact-words)");
 }
 
 // Reads "[+-]digits[.digits]" or "[+-].digits" at `i`; G-code has no exponent (E is a word).
@@ -116,6 +140,19 @@ double read_number(std::string_view s, std::size_t& i, char letter, std::size_t 
     return negative ? -value : value;
 }
 
+// The body of a comment-only line: is it the compact declaration?
+bool declares_compact(std::string_view body) {
+    if (body.size() >= 2 && body.front() == '(' && body.back() == ')') body = body.substr(1, body.size() - 2);
+    else if (!body.empty() && body.front() == ';') body.remove_prefix(1);
+    else return false;
+    while (!body.empty() && is_blank(body.front())) body.remove_prefix(1);
+    while (!body.empty() && is_blank(body.back())) body.remove_suffix(1);
+    if (body.size() != kCompactDeclaration.size()) return false;
+    for (std::size_t k = 0; k < body.size(); ++k)
+        if (upper(body[k]) != upper(kCompactDeclaration[k])) return false;
+    return true;
+}
+
 void skip_paren_comment(std::string_view s, std::size_t& i) {
     const std::size_t open = i;
     while (i < s.size() && s[i] != ')') {
@@ -155,8 +192,11 @@ void lex_line(std::string_view line, Block& out) {
             bool has_value = true;
             const std::size_t number_start = i;
             const double value = read_number(line, i, letter, letter_index, has_value);
+            if (has_value && !out.compact_words) check_exponent_like(line, i, letter, letter_index);
             if ((letter == 'G' || letter == 'M' || letter == 'T' || letter == 'N') && !has_value)
                 fail(letter_index, std::string("word ") + letter + " has no number");
+            if ((letter == 'G' || letter == 'M' || letter == 'T') && !(std::abs(value) < kMaxCode))
+                fail(letter_index, std::string("word ") + letter + " is a code, and codes are below 100000");
             if (letter == 'N' && first_word) {
                 // A leading line number belongs to the transport, not to the command.
                 first_word = false;
@@ -241,6 +281,7 @@ void lex_line(std::string_view line, Block& out) {
     std::string_view body = line.substr(body_begin, body_end - body_begin);
     while (!body.empty() && is_blank(body.back())) body.remove_suffix(1);
     out.body = body;
+    if (out.words.empty() && out.has_comment && !out.percent && declares_compact(body)) out.compact_words = true;
 }
 
 }  // namespace xlate5

@@ -20,12 +20,25 @@ struct Block {
     bool has_comment = false;
     bool percent = false;     // a lone '%' (program delimiter of CNC files)
     bool text_argument = false;  // M117-style command whose free text follows (not words)
+    // The file declared itself compact (kCompactDeclaration): a number directly followed by E and
+    // an integer is read as two words. Unlike the flags above it is kept from line to line (a
+    // file's dialect); lex_line only ever sets it.
+    bool compact_words = false;
     bool empty() const { return words.empty(); }
 };
 
 // Largest magnitude accepted for any number: far beyond any machine, small enough that every
 // later computation stays finite.
 inline constexpr double kMaxNumber = 1e9;
+// G, M and T numbers are codes: below this, so a code times ten (its decimal) fits an int with
+// room to spare and no huge number can wrap around onto a real code.
+inline constexpr double kMaxCode = 100000;
+
+// A comment line of its own with this text (after ';' or inside '( )', any case, blanks around
+// it allowed) declares the rest of the file compact: "X1.5E-05" is X1.5 and E-05, as compact
+// G-code without spaces means it. Undeclared, such a number is refused, since it equally reads
+// as the exponent 1.5e-05 (G-code has no exponents, but CAM programs that print floats do).
+inline constexpr std::string_view kCompactDeclaration = "xlate5: compact-words";
 
 // Lexes `line` (no trailing '\n'; a trailing '\r' is accepted) into `out`, reusing its storage.
 // Throws LineError(column, message) for input it cannot accept.

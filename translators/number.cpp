@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <string>
 
 namespace xlate5 {
 
@@ -19,7 +20,7 @@ void trim_zeros(std::string& out, std::size_t start) {
 
 bool to_units(double v, int decimals, long long& units) {
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
-    if (decimals < 0 || decimals > 9) return false;
+    if (decimals < 0 || decimals > 9 || !(std::abs(v) <= kMaxWritten)) return false;  // NaN too
     const double scaled = v * kPow10[decimals];
     if (!(std::abs(scaled) < 1e15)) return false;
     // Half away from zero, as llround, without the library call (|scaled| < 1e15 fits exactly).
@@ -69,6 +70,19 @@ void append_units(std::string& out, long long units, int decimals) {
     out.append(buf, p);
 }
 
+namespace {
+constexpr int kMaxDecimals = 17;  // a double has no more significant decimals than this
+
+void check_writable(double v) {
+    if (std::abs(v) <= kMaxWritten) return;
+    char text[32];
+    auto res = std::to_chars(text, text + sizeof text, v, std::chars_format::general, 6);  // "inf", "nan", "1e+200"
+    throw UnwritableNumber("a value of " + std::string(text, res.ptr) +
+                           " cannot be written: G-code numbers are finite and at most 1e9 in magnitude "
+                           "(check the machine's parameters, its compensation terms and this line's numbers)");
+}
+}  // namespace
+
 void append_fixed(std::string& out, double v, int decimals) {
     // The hot path of every joint word; rounds half away from zero at the last printed digit.
     long long units = 0;
@@ -76,22 +90,33 @@ void append_fixed(std::string& out, double v, int decimals) {
         append_units(out, units, decimals);
         return;
     }
+    check_writable(v);
+    if (decimals < 0 || decimals > kMaxDecimals) throw UnwritableNumber("cannot write " + std::to_string(decimals) + " decimals (0 to 17)");
+    // |v| <= 1e9 with at most 17 decimals: at most 1 + 10 + 1 + 17 characters.
     char buf[64];
     auto res = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, decimals);
+    if (res.ec != std::errc{}) throw UnwritableNumber("a value cannot be written in fixed notation");
     auto start = out.size();
     out.append(buf, res.ptr);
     trim_zeros(out, start);
 }
 
 void append_shortest(std::string& out, double v) {
+    check_writable(v);
     char buf[64];
-    // Fixed notation: G-code has no exponent syntax (E is a word letter).
+    // Fixed notation: G-code has no exponent syntax (E is a word letter). Only a value below
+    // about 1e-40 has no shortest fixed form within 64 characters; it is 0 to 6 decimals.
     auto res = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed);
     if (res.ec != std::errc{}) res = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, 6);
+    if (res.ec != std::errc{}) throw UnwritableNumber("a value cannot be written in fixed notation");
     auto start = out.size();
     out.append(buf, res.ptr);
     trim_zeros(out, start);
 }
 
+
+void unwritable_word(char letter, const UnwritableNumber& e) {
+    throw UnwritableNumber(std::string("word ") + letter + ": " + e.what());
+}
 
 }  // namespace xlate5

@@ -3,17 +3,37 @@
 #include <string>
 #include <string_view>
 
+#include "translators/error.hpp"
+
 namespace xlate5 {
 
+// Largest magnitude ever written into G-code, the same bound the lexer puts on input numbers:
+// far beyond any machine, and small enough that firmware reading it as a float stays sane.
+inline constexpr double kMaxWritten = 1e9;
+
+// A value that must not be written: not finite, or beyond kMaxWritten. A LineError (column 1:
+// the line as a whole), so the translator reports it as an InputError naming the input line
+// that produced it, and nothing of that line is written.
+class UnwritableNumber : public LineError {
+public:
+    explicit UnwritableNumber(const std::string& message) : LineError(1, message) {}
+};
+
+// Rethrows e naming the G-code word it was for.
+[[noreturn]] void unwritable_word(char letter, const UnwritableNumber& e);
+
 // Appends v with at most `decimals` digits after the point, trailing zeros and a bare point
-// removed, and "-0" written as "0" (what firmware parsers and diff tools expect).
+// removed, and "-0" written as "0" (what firmware parsers and diff tools expect). Throws
+// UnwritableNumber for a non-finite v, |v| > kMaxWritten or decimals outside 0..17.
 void append_fixed(std::string& out, double v, int decimals);
 
-// Appends the shortest text that reads back as exactly v (for values passed through, such as E).
+// Appends the shortest text that reads back as exactly v (for values passed through, such as E);
+// values too small for fixed notation's 64 characters are written to 6 decimals. Throws
+// UnwritableNumber as append_fixed.
 void append_shortest(std::string& out, double v);
 
 // v in units of 10^-decimals, rounded half away from zero: what append_fixed prints. False if
-// out of the fast range (then append_fixed falls back to std::to_chars).
+// out of the fast range or not writable (then append_fixed falls back to std::to_chars, or throws).
 bool to_units(double v, int decimals, long long& units);
 // Appends units * 10^-decimals with trailing fraction zeros removed.
 void append_units(std::string& out, long long units, int decimals);

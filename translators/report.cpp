@@ -13,7 +13,11 @@ namespace {
 
 constexpr double kLogMin = -7, kLogMax = 3;
 
+// JSON has no inf or NaN: an infinite value is written as 1e999 (a valid JSON number that
+// parsers read as infinity), NaN as null.
 std::string num(double v) {
+    if (std::isnan(v)) return "null";
+    if (std::isinf(v)) return v > 0 ? "1e999" : "-1e999";
     char b[48];
     std::snprintf(b, sizeof b, "%.6g", v);
     return b;
@@ -47,8 +51,10 @@ void DeviationReport::Distribution::add(double v, std::uint64_t line) {
         ++zeros;
         return;
     }
+    // Range-checked before the cast (an infinite deviation would make it undefined): beyond the
+    // top bin counts in the top bin.
     const double x = (std::log10(v) - kLogMin) / (kLogMax - kLogMin) * kBins;
-    bins[std::size_t(std::clamp(int(x), 0, kBins - 1))]++;
+    bins[x >= kBins - 1 ? std::size_t(kBins - 1) : x > 0 ? std::size_t(x) : 0]++;
 }
 
 double DeviationReport::Distribution::percentile(double p) const {
@@ -137,6 +143,7 @@ std::string DeviationReport::svg() const {
     const double W = 900, H = 300, left = 70, top = 30;
     double ymax = std::max(tolerance_ * 1.25, tip_.max * 1.1);
     if (!(ymax > 0)) ymax = 1;
+    if (!std::isfinite(ymax)) ymax = std::pow(10.0, kLogMax);  // an infinite deviation is drawn at the top
     const double first = series_.empty() ? 0 : double(series_.front().first_line);
     const double last = series_.empty() ? 1 : std::max(double(series_.back().last_line), first + 1);
     auto X = [&](double line) { return left + (line - first) / (last - first) * W; };

@@ -15,7 +15,11 @@ void ToolEmitter::invalidate() {
 
 void ToolEmitter::word(std::string& out, char letter, std::string& last, double value, int decimals) {
     scratch_.clear();
-    append_fixed(scratch_, value, decimals);
+    try {
+        append_fixed(scratch_, value, decimals);
+    } catch (const UnwritableNumber& e) {
+        unwritable_word(letter, e);
+    }
     if (scratch_ == last) return;
     last = scratch_;
     out += ' ';
