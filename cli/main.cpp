@@ -16,7 +16,7 @@
 #include <string>
 #include <unistd.h>
 
-#include "daemon/serve_cli.hpp"
+#include "cli/serve_cmd.hpp"
 #include "translators/calibration.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"

@@ -1,4 +1,4 @@
-#include "daemon/serve_cli.hpp"
+#include "cli/serve_cmd.hpp"
 
 #include <iostream>
 
