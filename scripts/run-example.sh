@@ -10,12 +10,12 @@ cd "$(dirname "$0")/.."
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j"$(nproc 2>/dev/null || echo 2)" --target xlate5
 mkdir -p out
-./build/daemon/xlate5 --machine rw2 -i examples/rw2_flared_wall.gcode -o out/rw2_flared_wall.joints.gcode
-./build/daemon/xlate5 --machine rw2 --inverse -i out/rw2_flared_wall.joints.gcode -o out/rw2_flared_wall.preview.gcode
+./build/cli/xlate5 --machine rw2 -i examples/rw2_flared_wall.gcode -o out/rw2_flared_wall.joints.gcode
+./build/cli/xlate5 --machine rw2 --inverse -i out/rw2_flared_wall.joints.gcode -o out/rw2_flared_wall.preview.gcode
 echo "input  (tool space):  examples/rw2_flared_wall.gcode ($(wc -l < examples/rw2_flared_wall.gcode) lines)"
 echo "output (joint space): out/rw2_flared_wall.joints.gcode ($(wc -l < out/rw2_flared_wall.joints.gcode) lines)"
 echo "preview (inverse):    out/rw2_flared_wall.preview.gcode"
 echo "--- first moves of the translated file:"
 grep -m 12 '^G[01] ' out/rw2_flared_wall.joints.gcode
 echo "--- the service: printcore -> xlate5 serve -> virtual printer"
-/usr/bin/python3 tests/e2e/service_e2e.py ./build/daemon/xlate5 rw2 examples/rw2_flared_wall.gcode printcore
+/usr/bin/python3 tests/e2e/service_e2e.py ./build/cli/xlate5 rw2 examples/rw2_flared_wall.gcode printcore

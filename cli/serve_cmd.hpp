@@ -1,12 +1,12 @@
-// The command line of `xlate5 serve` and `xlate5 ports`: flags that override the service's
-// configuration file.
+// `xlate5 serve` and `xlate5 ports`: flags that override the service's configuration file
+// (stage: command line; may call daemon/serve and daemon/config, the service's front door).
 #pragma once
 #include <CLI/CLI.hpp>
 #include <memory>
 #include <string>
 #include <vector>
 
-namespace xlate5 {
+namespace xlate5::cli {
 
 struct ServeCommands {
     CLI::App* serve = nullptr;
@@ -22,4 +22,4 @@ std::unique_ptr<ServeCommands> add_serve_commands(CLI::App& app);
 // The exit code when one of the two ran, -1 when neither was asked for.
 int run_serve_commands(const ServeCommands& c, const std::string& machine);
 
-}  // namespace xlate5
+}  // namespace xlate5::cli

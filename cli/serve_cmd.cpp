@@ -1,11 +1,14 @@
-#include "daemon/serve_cli.hpp"
+// `xlate5 serve` and `xlate5 ports`: the configuration file, then the flags over it, handed to
+// the service (stage: command line).
+#include "cli/serve_cmd.hpp"
 
 #include <iostream>
 
+#include "cli/errors.hpp"
 #include "daemon/serve.hpp"
 #include "translators/error.hpp"
 
-namespace xlate5 {
+namespace xlate5::cli {
 
 std::unique_ptr<ServeCommands> add_serve_commands(CLI::App& app) {
     auto c = std::make_unique<ServeCommands>();
@@ -70,12 +73,12 @@ int run_serve_commands(const ServeCommands& c, const std::string& machine) {
         if (cfg.pty.empty() && cfg.tcp.empty()) throw CLI::ValidationError("--no-pty", "no sender endpoint left: give --tcp");
     } catch (const MachineError& e) {
         std::cerr << "xlate5: configuration error: " << e.what() << "\n";
-        return 3;
+        return kMachineError;
     } catch (const CLI::Error& e) {
         std::cerr << "xlate5: " << e.what() << "\n";
-        return 2;
+        return kUsage;
     }
     return run_serve(cfg);
 }
 
-}  // namespace xlate5
+}  // namespace xlate5::cli

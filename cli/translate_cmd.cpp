@@ -1,0 +1,119 @@
+// `xlate5 --machine M ...`: loads the machine and runs the translation stages over a stream
+// (stage: command line; the stages themselves live in translators/).
+#include "cli/translate_cmd.hpp"
+
+#include <cctype>
+#include <cerrno>
+#include <cstring>
+#include <fcntl.h>
+#include <map>
+#include <optional>
+#include <unistd.h>
+
+#include "translators/compensation.hpp"
+#include "translators/error.hpp"
+#include "translators/gcode_lexer.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+#include "translators/report.hpp"
+#include "translators/stream.hpp"
+#include "translators/translator.hpp"
+
+namespace xlate5::cli {
+namespace {
+
+std::optional<OrientationMode> parse_mode(const std::string& s) {
+    if (s == "G43.4" || s == "angles") return OrientationMode::Angles;
+    if (s == "G43.5" || s == "vector") return OrientationMode::Vector;
+    if (s == "G49" || s == "joints") return OrientationMode::Joints;
+    return std::nullopt;
+}
+
+}  // namespace
+
+void add_translate_options(CLI::App& app, TranslateOptions& o) {
+    app.add_option("-i,--input", o.input, "input G-code file (default: standard input)");
+    app.add_option("-o,--output", o.output, "output file, written atomically (default: standard output)");
+    app.add_option("--mode", o.mode, "orientation mode at the start of the file: G43.4, G43.5 or G49 (default: the machine's)");
+    app.add_option("--extruder-letter", o.extruder, "input letter that carries extrusion (default E; S3-DeformFDM files use A)");
+    app.add_option("--tolerance", o.tolerance, "largest tip deviation from the programmed line, mm (default: the machine's, 0.01)")
+        ->check(CLI::PositiveNumber);
+    app.add_option("--angle-tolerance", o.angle_tolerance, "largest tool-axis deviation, degrees (default: the machine's)")
+        ->check(CLI::PositiveNumber);
+    app.add_flag("--no-segment", o.no_segment, "one joint move per input move: no splitting (the tip leaves the line while rotaries turn)");
+    app.add_option("--compensation", o.compensation, "measured-error compensation file ([[compensation]] terms), replacing the machine's own");
+    app.add_option("--report", o.report, "write the kinematic-error report (JSON) of the translation to this file");
+    app.add_option("--plot", o.plot, "write the tip deviation along the file as an SVG plot to this file");
+    app.add_flag("--compact-words", o.compact_words, "the input is written without blanks: X1.5E-05 is X1.5 and E-05 (as the line '; xlate5: compact-words')");
+    app.add_flag("--inverse", o.inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
+    app.add_option("--preview-form", o.preview, "with --inverse: write orientation as G43.4 angles or G43.5 I J K")
+        ->check(CLI::IsMember({"G43.4", "G43.5"}));
+}
+
+int run_translate(const Common& common, const TranslateOptions& o) {
+    std::map<std::string, double> overrides;
+    TranslatorOptions options;
+    try {
+        if (common.machine.empty()) throw CLI::ValidationError("--machine", "is required (see 'xlate5 machines')");
+        overrides = parse_sets(common.sets);
+        if (!o.mode.empty()) {
+            options.start_mode = parse_mode(o.mode);
+            if (!options.start_mode) throw CLI::ValidationError("--mode", "expected G43.4, G43.5 or G49");
+        }
+        if (o.extruder.size() != 1 || !std::isalpha(static_cast<unsigned char>(o.extruder[0])))
+            throw CLI::ValidationError("--extruder-letter", "expected one letter");
+        options.extruder_letter = char(std::toupper(static_cast<unsigned char>(o.extruder[0])));
+    } catch (...) {
+        return exit_with(std::current_exception());
+    }
+    options.inverse = o.inverse;
+    options.preview_form = o.preview == "G43.5" ? OrientationMode::Vector : OrientationMode::Angles;
+    options.input_name = o.input == "-" ? "<stdin>" : o.input;
+
+    std::optional<Machine> machine;
+    try {
+        machine = load_machine(common.machine, overrides);
+        if (o.tolerance > 0) machine->motion.tolerance = o.tolerance;
+        if (o.angle_tolerance > 0) machine->motion.angle_tolerance = o.angle_tolerance;
+        if (o.no_segment) machine->motion.segment = false;
+        if (!o.compensation.empty()) load_compensation_file(o.compensation, *machine);
+    } catch (...) {
+        return exit_with(std::current_exception());
+    }
+
+    int in_fd = 0;
+    try {
+        const Kinematics kinematics(*machine);  // a layout outside the family: MachineError
+        if (o.input != "-") {
+            in_fd = ::open(o.input.c_str(), O_RDONLY | O_CLOEXEC);
+            if (in_fd < 0) throw IoError(o.input + ": cannot open: " + std::strerror(errno));
+        }
+        std::optional<DeviationReport> report;
+        if (!o.report.empty() || !o.plot.empty()) {
+            report.emplace(options.input_name, machine->name, machine->motion.tolerance, machine->motion.angle_tolerance);
+            options.report = &*report;
+        }
+        Translator translator(kinematics, options);
+        std::string declared;  // the flag is the file's declaration line, read before the file
+        if (o.compact_words) translator.feed("; " + std::string(kCompactDeclaration), 0, declared);
+        LineReader reader(in_fd, options.input_name);
+        OutputSink sink(o.output);
+        const auto stats = translate_stream(reader, translator, sink);
+        // The report files are written like the output: whole, or not at all.
+        std::optional<OutputSink> report_sink, plot_sink;
+        if (report) {
+            report->set_lines(stats.lines_in, stats.lines_out);
+            if (!o.report.empty()) report_sink.emplace(o.report), report_sink->write(report->json());
+            if (!o.plot.empty()) plot_sink.emplace(o.plot), plot_sink->write(report->svg());
+        }
+        sink.commit();
+        if (report_sink) report_sink->commit();
+        if (plot_sink) plot_sink->commit();
+    } catch (...) {
+        return exit_with(std::current_exception());
+    }
+    if (in_fd > 0) ::close(in_fd);
+    return kOk;
+}
+
+}  // namespace xlate5::cli
