@@ -44,7 +44,7 @@ void JointEmitter::format(std::string& text, std::size_t joint, double value) co
     try {
         append_fixed(text, value, decimals(joint));
     } catch (const UnwritableNumber& e) {
-        unwritable(machine_->joints[joint].output, e);
+        unwritable_word(machine_->joints[joint].output, e);
     }
 }
 
@@ -90,7 +90,7 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
         try {
             append_passed(f_text_, *f);
         } catch (const UnwritableNumber& e) {
-            unwritable('F', e);
+            unwritable_word('F', e);
         }
         if (f_text_ == last_f_) f.reset();
         else last_f_ = f_text_;

@@ -67,6 +67,10 @@ void InverseTranslator::feed(std::string_view line, std::uint64_t line_no, std::
         for (std::size_t i = 0; i < commands_.count; ++i)
             if (!commands_.commands[i].modal_only()) run_command(commands_.commands[i], block_.body, commands_.alone(), words, out);
         if (!commands_.has_owner && !words.empty()) run_command(implicit, block_.body, false, words, out);
+    } catch (const LineError& e) {  // a value that cannot be written, from the tool emitter
+        out.resize(out_start);
+        state_ = saved_;
+        throw InputError(input_name_, line_no, e.column(), e.what());
     } catch (...) {
         out.resize(out_start);
         state_ = saved_;
