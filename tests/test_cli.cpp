@@ -263,6 +263,19 @@ TEST_CASE("cli: -o to a FIFO or a device node writes into it and never replaces 
     CHECK(d.entries() == std::vector<std::string>{"fifo", "good.gcode", "null"});
 }
 
+TEST_CASE("cli: -o /dev/stdout writes to standard output and leaves /dev alone") {
+    TempDir d;
+    const fs::path good = d.write("good.gcode", kGood);
+    const Result expected = run(d, "-m rw2 --no-segment -i " + quote(good.string()));
+    REQUIRE(expected.code == 0);
+    const bool was_link = fs::is_symlink("/dev/stdout");
+    const Result r = run(d, "-m rw2 --no-segment -i " + quote(good.string()) + " -o /dev/stdout");
+    CHECK(r.code == 0);
+    CHECK(r.out == expected.out);
+    CHECK(fs::is_symlink("/dev/stdout") == was_link);
+    for (const auto& e : fs::directory_iterator("/dev")) CHECK_FALSE(contains(e.path().filename().string(), ".xlate5-"));
+}
+
 TEST_CASE("cli: -i F -o F translates F in place from its original content") {
     TempDir d;
     const fs::path good = d.write("good.gcode", kGood);

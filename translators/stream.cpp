@@ -179,19 +179,22 @@ std::string octal_mode(mode_t mode) {
 
 OutputSink::OutputSink(const std::string& path) : path_(path) {
     if (path.empty() || path == "-") return;
-    target_ = follow_links(path);
+    // Standard output by name: the descriptor itself (its link names a pipe or terminal, or a file
+    // the shell opened, perhaps for appending).
+    if (path == "/dev/stdout" || path == "/dev/fd/1" || path == "/proc/self/fd/1") return;
     struct stat st {};
-    const bool exists = ::stat(target_.c_str(), &st) == 0;
+    const bool exists = ::stat(path.c_str(), &st) == 0;  // through every link, as the kernel follows them
     if (!exists && errno != ENOENT) throw IoError(path + ": cannot write output file: " + std::strerror(errno));
     if (exists && S_ISDIR(st.st_mode)) throw IoError(path + ": is a directory");
     if (exists && !S_ISREG(st.st_mode)) {
         // A device, FIFO or socket: written in place. Replacing it would destroy it (a device
         // node turned into a plain file) and cut off whoever reads it.
-        fd_ = ::open(target_.c_str(), O_WRONLY | O_CLOEXEC | O_NOCTTY);
+        fd_ = ::open(path.c_str(), O_WRONLY | O_CLOEXEC | O_NOCTTY);
         if (fd_ < 0) throw IoError(path + ": cannot open for writing: " + std::strerror(errno));
         owned_ = true;
         return;
     }
+    target_ = follow_links(path);  // a regular file, or none yet: where the temporary goes
     if (exists && !may_replace(target_, st))
         throw IoError(path + ": the file is read-only (mode " + octal_mode(st.st_mode) +
                       "): not replaced; make it writable, or write the output elsewhere");

@@ -43,6 +43,7 @@ private:
 //   with no write permission bit at all counts as not writable.
 // - anything else that exists (/dev/null, a FIFO, a terminal) is opened and written in place,
 //   never replaced; like standard output, what was written before an error stays written.
+//   /dev/stdout (and /dev/fd/1, /proc/self/fd/1) is standard output itself.
 class OutputSink {
 public:
     // path "-" or empty: standard output.
