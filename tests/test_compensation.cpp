@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "helpers.hpp"
+#include "translators/calibration.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
 #include "translators/kinematics.hpp"

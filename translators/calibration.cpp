@@ -1,3 +1,5 @@
+// Calibration, beside the pipeline: measurements -> machine-file values.
+// What it may call: see calibration.hpp.
 #include "translators/calibration.hpp"
 
 #include <Eigen/Dense>
@@ -140,6 +142,31 @@ std::string set_parameters(const std::string& text, const std::string& source, c
     for (const auto& [k, v] : values)
         if (!done.count(k)) throw MachineError(source + ": [parameters] has no '" + k + "' to set");
     return out;
+}
+
+CompensationTerm fit_fourier(const std::vector<double>& angle, const std::vector<double>& error, int order, double& max_residual) {
+    const std::size_t n = angle.size();
+    const int cols = 1 + 2 * order;
+    Eigen::MatrixXd A(static_cast<Eigen::Index>(n), cols);
+    Eigen::VectorXd b(static_cast<Eigen::Index>(n));
+    for (std::size_t i = 0; i < n; ++i) {
+        A(long(i), 0) = 1;
+        for (int k = 1; k <= order; ++k) {
+            A(long(i), 2 * k - 1) = std::cos(k * angle[i] * kRadPerDeg);
+            A(long(i), 2 * k) = std::sin(k * angle[i] * kRadPerDeg);
+        }
+        b(long(i)) = error[i];
+    }
+    const Eigen::VectorXd c = A.colPivHouseholderQr().solve(b);
+    CompensationTerm t;
+    t.kind = CompensationTerm::Kind::Fourier;
+    t.a0 = c(0);
+    for (int k = 1; k <= order; ++k) {
+        t.cosines.push_back(c(2 * k - 1));
+        t.sines.push_back(c(2 * k));
+    }
+    max_residual = (A * c - b).cwiseAbs().maxCoeff();
+    return t;
 }
 
 }  // namespace xlate5

@@ -1,16 +1,18 @@
-// Calibration math: measurements -> machine-file values. (The compensation fit is in
-// compensation.hpp.)
+// Calibration, beside the pipeline (`xlate5 calibrate`): measurements -> machine-file values.
+// May call: kinematics, the machine data, the compensation tables' form.
 #pragma once
 #include <Eigen/Core>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "translators/compensation.hpp"
+
 namespace xlate5 {
 
 // Plate tilt from probed points of the plate surface (three or more, least squares): the plane
 // through them, its upward normal n, and rho = atan2(n_x, n_z), psi = atan2(-n_y, hypot(n_x, n_z))
-// (degrees) for the tilt R_y(rho) R_x(psi) of seed 000 eq. 3.13, whose normal is
+// (degrees) for the tilt R_y(rho) R_x(psi) of WPI (MQP 2017) eq. 3.13, whose normal is
 // (cos psi sin rho, -sin psi, cos psi cos rho). `residual` is the largest point-plane distance.
 struct PlateFit {
     double rho = 0, psi = 0;
@@ -19,7 +21,7 @@ struct PlateFit {
 };
 PlateFit fit_plate(const std::vector<Eigen::Vector3d>& points);
 
-// Rotary zero offset (seed 002 eq. 5.5, A_offset = atan(Z / Y)) from plate touches at two or
+// Rotary zero offset (Grutle, Oslo 2015, eq. 5.5, A_offset = atan(Z / Y)) from plate touches at two or
 // more points along Y: the slope of Z over Y gives the offset, the intercept the Z-origin error,
 // which a single touch (eq. 5.5 as printed) cannot tell apart from a tilt.
 struct OffsetFit {
@@ -38,7 +40,7 @@ struct CircleFit {
 };
 CircleFit fit_circle(const std::vector<Eigen::Vector2d>& points);
 
-// Machine parameters (pivots, link lengths: seed 001's la, lb; seed 000's z_offset) from tip
+// Machine parameters (pivots, link lengths: la, lb of Andersons (Twente 2023); z_offset of WPI (MQP 2017)) from tip
 // positions measured at known joint values, by Gauss-Newton least squares on the machine's own
 // FK: any parameters of any machine file. Returns the fitted values and the largest residual.
 struct ParameterFit {
@@ -53,5 +55,9 @@ ParameterFit fit_parameters(const std::string& machine_text, const std::string& 
 // Rewrites `name = value` lines of the [parameters] table in a machine file's text, keeping
 // everything else (comments, order). Throws MachineError if a name is not there.
 std::string set_parameters(const std::string& toml_text, const std::string& source, const std::map<std::string, double>& values);
+
+// Least-squares Fourier series of `order` harmonics through (angle, error) points, and the
+// largest residual: what `xlate5 calibrate fit` prints.
+CompensationTerm fit_fourier(const std::vector<double>& angle, const std::vector<double>& error, int order, double& max_residual);
 
 }  // namespace xlate5

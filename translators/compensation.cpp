@@ -1,6 +1,7 @@
+// The compensation stage's tables: measured errors by rotary angle.
+// What it may call: see compensation.hpp.
 #include "translators/compensation.hpp"
 
-#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -9,15 +10,11 @@
 
 namespace xlate5 {
 
-namespace {
-constexpr double kDeg = kRadPerDeg;
-}
-
 bool CompensationTerm::eval(double x, double& e) const {
     if (kind == Kind::Fourier) {
         e = a0;
-        for (std::size_t k = 0; k < cosines.size(); ++k) e += cosines[k] * std::cos(double(k + 1) * x * kDeg);
-        for (std::size_t k = 0; k < sines.size(); ++k) e += sines[k] * std::sin(double(k + 1) * x * kDeg);
+        for (std::size_t k = 0; k < cosines.size(); ++k) e += cosines[k] * std::cos(double(k + 1) * x * kRadPerDeg);
+        for (std::size_t k = 0; k < sines.size(); ++k) e += sines[k] * std::sin(double(k + 1) * x * kRadPerDeg);
         return true;
     }
     const std::size_t n = angle.size();
@@ -68,31 +65,6 @@ void Compensation::undo(std::vector<double>& q) const {
         double e = 0;
         if (t.eval(q[std::size_t(t.by)], e)) q[std::size_t(t.joint)] += e;
     }
-}
-
-CompensationTerm fit_fourier(const std::vector<double>& angle, const std::vector<double>& error, int order, double& max_residual) {
-    const std::size_t n = angle.size();
-    const int cols = 1 + 2 * order;
-    Eigen::MatrixXd A(static_cast<Eigen::Index>(n), cols);
-    Eigen::VectorXd b(static_cast<Eigen::Index>(n));
-    for (std::size_t i = 0; i < n; ++i) {
-        A(long(i), 0) = 1;
-        for (int k = 1; k <= order; ++k) {
-            A(long(i), 2 * k - 1) = std::cos(k * angle[i] * kDeg);
-            A(long(i), 2 * k) = std::sin(k * angle[i] * kDeg);
-        }
-        b(long(i)) = error[i];
-    }
-    const Eigen::VectorXd c = A.colPivHouseholderQr().solve(b);
-    CompensationTerm t;
-    t.kind = CompensationTerm::Kind::Fourier;
-    t.a0 = c(0);
-    for (int k = 1; k <= order; ++k) {
-        t.cosines.push_back(c(2 * k - 1));
-        t.sines.push_back(c(2 * k));
-    }
-    max_residual = (A * c - b).cwiseAbs().maxCoeff();
-    return t;
 }
 
 }  // namespace xlate5

@@ -1,8 +1,8 @@
-// Error compensation (Andersons, seed 001 eq. 4.6): measured deviations of the tip as functions
+// Error compensation (Andersons, Twente 2023, eq. 4.6): measured deviations of the tip as functions
 // of a rotary angle, subtracted from the joint targets after IK and added back by --inverse.
 // The compensation stage sits between the motion stage (and the planner's joint moves) and the
 // emitter: nominal joints in, the joints the firmware is sent out, or why not. May call: nothing
-// but its own tables. (fit_fourier, the fit `calibrate fit` prints, shares the series' form.)
+// but its own tables. (The series `calibrate fit` prints is fitted in calibration.hpp.)
 #pragma once
 #include <string>
 #include <vector>
@@ -58,9 +58,5 @@ private:
     const Compensation* compensation_;
     std::vector<double> sent_;
 };
-
-// Least-squares Fourier series of `order` harmonics through (angle, error) points, and the
-// largest residual: what `xlate5 calibrate fit` prints.
-CompensationTerm fit_fourier(const std::vector<double>& angle, const std::vector<double>& error, int order, double& max_residual);
 
 }  // namespace xlate5

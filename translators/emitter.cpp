@@ -1,3 +1,4 @@
+// The emitter stage: joint values -> firmware text. What it may call: see emitter.hpp.
 #include "translators/emitter.hpp"
 
 #include <limits>

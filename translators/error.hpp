@@ -1,4 +1,5 @@
 // Errors that carry the place they come from, so every message names file, line and cause.
+// No stage: thrown by every stage, caught by the front door's caller. Calls nothing.
 #pragma once
 #include <cstdint>
 #include <stdexcept>

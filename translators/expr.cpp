@@ -1,3 +1,4 @@
+// Machine parameter expressions, for reading machine files. What it may call: see expr.hpp.
 #include "translators/expr.hpp"
 
 #include <cctype>

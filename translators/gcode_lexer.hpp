@@ -1,4 +1,5 @@
-// Stage 2: one line of text -> a Block of words. Knows G-code syntax, nothing of its meaning.
+// The lexer stage, after the line reader: one line of text -> a Block of words. Knows G-code
+// syntax, nothing of its meaning. May call: number parsing.
 #pragma once
 #include <cstdint>
 #include <string_view>

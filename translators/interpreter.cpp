@@ -1,3 +1,5 @@
+// The interpreter stage: words + modal state -> typed moves for the planner.
+// What it may call: see interpreter.hpp.
 #include "translators/interpreter.hpp"
 
 #include <cmath>

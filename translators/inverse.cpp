@@ -1,3 +1,5 @@
+// The inverse direction's pipeline: joint-space lines -> FK -> tool emitter.
+// What it may call: see inverse.hpp.
 #include "translators/inverse.hpp"
 
 #include "translators/error.hpp"

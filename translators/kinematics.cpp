@@ -1,3 +1,4 @@
+// The math: forward kinematics and the closed-form inverse. What it may call: see kinematics.hpp.
 #include "translators/kinematics.hpp"
 
 #include <Eigen/Geometry>

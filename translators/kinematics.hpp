@@ -1,4 +1,4 @@
-// The math, used by the planner, the motion stage, the report and --inverse: forward kinematics
+// The math, used by the planner, the motion stage, calibration and --inverse: forward kinematics
 // and the closed-form inverse of any machine with up to two rotary joints (Paden-Kahan
 // subproblems 1 and 2). No machine has its own formula here. May call: the machine data, and
 // joint_limits for the choice inverse() makes.

@@ -1,3 +1,5 @@
+// The look-back over the interpreter and planner: held output, checkpoint, replay.
+// What it may call: see lookback.hpp.
 #include "translators/lookback.hpp"
 
 #include "translators/error.hpp"

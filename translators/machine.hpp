@@ -1,5 +1,6 @@
 // A machine is data: two kinematic chains, joints with limits, and the firmware dialect.
 // Loaded from a TOML file (machine_file.cpp); all the math on it lives in kinematics.cpp.
+// No stage: every stage reads it. machine_file.cpp may call: expr, the compensation tables.
 #pragma once
 #include <Eigen/Geometry>
 
@@ -38,7 +39,7 @@ struct ChainElement {
     Eigen::Isometry3d fixed = Eigen::Isometry3d::Identity();  // Fixed
 };
 
-// How the firmware measures a move's length for F (the motion issue uses it) and how it is fed.
+// How the firmware measures a move's length for F (the motion stage uses it) and how it is fed.
 enum class FirmwareDialect { Marlin, MarlinArticulated, RepRap, Klipper, Generic };
 
 struct Dialect {

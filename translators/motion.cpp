@@ -1,3 +1,4 @@
+// The motion stage: split, E and F of one solved move. What it may call: see motion.hpp.
 #include "translators/motion.hpp"
 
 #include <Eigen/Geometry>

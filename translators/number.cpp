@@ -1,3 +1,4 @@
+// Number text <-> double (no stage). What it may call: see number.hpp.
 #include "translators/number.hpp"
 
 #include <charconv>

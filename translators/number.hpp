@@ -1,4 +1,5 @@
 // Number text <-> double, without locale and without allocation (the hot path of every line).
+// No stage: the lexer and the emitters call it. Calls nothing.
 #pragma once
 #include <string>
 #include <string_view>

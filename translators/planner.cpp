@@ -1,3 +1,5 @@
+// The planner stage: typed moves -> joint moves (IK, solution choice, limits, re-zero).
+// What it may call: see planner.hpp.
 #include "translators/planner.hpp"
 
 #include <algorithm>
@@ -119,7 +121,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     if (r.ok()) {
         if (!mv.any_xyz && !s.tip_known) {
             // Before the program has placed the tip (start, after G28) a rotary-only move turns
-            // the rotaries and leaves the linear joints, as the start code of seed 001 expects.
+            // the rotaries and leaves the linear joints, as Andersons' start code (Twente 2023) expects.
             next = kin_.forward(q_next_);
         } else {
             next.tip = mv.tip;

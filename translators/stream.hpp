@@ -1,75 +1,16 @@
-// Stage 1 and the sink: lines in from a file descriptor, text out to one, in large chunks so
-// memory stays flat whatever the file size; an output file is replaced atomically on success.
+// A whole stream through the library: the line reader (first stage) -> the front door ->
+// the sink. May call: line_reader, the front door (translator.hpp), output_sink.
 #pragma once
 #include <cstdint>
 #include <string>
 #include <string_view>
 
+#include "translators/line_reader.hpp"
+#include "translators/output_sink.hpp"
+
 namespace xlate5 {
 
 class Translator;
-
-// Reads '\n'-terminated lines (the last may lack it) from `fd`, which it does not own.
-class LineReader {
-public:
-    explicit LineReader(int fd, std::string name, std::size_t max_line = 64u << 20);
-    // The next line without its '\n'; false at end of input. Throws InputError for a line longer
-    // than max_line, IoError for a read error.
-    bool next(std::string_view& line);
-    std::uint64_t line_number() const { return line_no_; }
-    std::uint64_t bytes_read() const { return total_; }
-
-private:
-    bool fill();
-
-    int fd_;
-    std::string name_;
-    std::size_t max_line_;
-    std::string buf_;
-    std::size_t begin_ = 0, end_ = 0;
-    bool eof_ = false;
-    std::uint64_t line_no_ = 0;
-    std::uint64_t total_ = 0;
-};
-
-// Where translated text goes: standard output, or a file that appears only when complete.
-// `-o PATH` never harms what PATH names:
-// - a regular file (or a symlink to one, which stays a link: its target is replaced) is written
-//   to a temporary file next to it and renamed over it on commit(), keeping its mode (and, as
-//   root, its owner and group); without commit() the temporary is removed, also when the process
-//   is stopped by SIGINT, SIGTERM or SIGHUP. The input may be the same file: it is read from the
-//   original, which is replaced only at the end.
-// - an existing file that the user may not write is not replaced (IoError); as root, a file
-//   with no write permission bit at all counts as not writable.
-// - anything else that exists (/dev/null, a FIFO, a terminal) is opened and written in place,
-//   never replaced; like standard output, what was written before an error stays written.
-//   /dev/stdout (and /dev/fd/1, /proc/self/fd/1) is standard output itself.
-class OutputSink {
-public:
-    // path "-" or empty: standard output.
-    explicit OutputSink(const std::string& path);
-    // An already open descriptor (not owned), e.g. a pipe or /dev/null.
-    explicit OutputSink(int fd) : fd_(fd) {}
-    ~OutputSink();  // without commit(), the temporary file is removed
-    OutputSink(const OutputSink&) = delete;
-    OutputSink& operator=(const OutputSink&) = delete;
-
-    void write(std::string_view text);
-    void commit();  // flush, fsync, and rename over the target (in place: close)
-
-    // Temporary files at most registered at once for removal on a signal (a process writes its
-    // output, a report and a plot); a further sink throws IoError.
-    static constexpr int kMaxPending = 8;
-
-private:
-    int fd_ = 1;
-    bool owned_ = false;       // fd_ is ours to close
-    std::string path_;         // as given, for messages
-    std::string target_;       // the file replaced on commit (a symlink's target)
-    std::string temp_;         // the temporary next to it ("" when writing in place or to stdout)
-    int slot_ = -1;            // its registration for removal on a signal
-    bool committed_ = false;
-};
 
 struct StreamStats {
     std::uint64_t lines_in = 0;

@@ -1,3 +1,4 @@
+// The inverse direction's emitter: pose -> tool-space text. What it may call: see tool_emitter.hpp.
 #include "translators/tool_emitter.hpp"
 
 #include "translators/number.hpp"

@@ -1,3 +1,5 @@
+// The front door: wires the forward stages (or the inverse pipeline) together.
+// What it may call: see translator.hpp.
 #include "translators/translator.hpp"
 
 #include "translators/inverse.hpp"
