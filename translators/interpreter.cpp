@@ -62,7 +62,7 @@ void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& ou
     saved_ = state_;
     try {
         for (std::size_t i = 0; i < commands_.count; ++i)
-            if (commands_.commands[i].modal_only()) apply_modal(commands_.commands[i].code10, commands_.commands[i].column, words, out);
+            if (commands_.commands[i].modal_only()) apply_modal(commands_.commands[i].code10, words, out);
         for (std::size_t i = 0; i < commands_.count; ++i)
             if (!commands_.commands[i].modal_only()) run_command(commands_.commands[i], block_.body, commands_.alone(), words, run, out);
         if (!commands_.has_owner && !words.empty()) run_command(implicit, block_.body, false, words, run, out);
@@ -80,7 +80,7 @@ void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& ou
     }
 }
 
-void Interpreter::apply_modal(int code10, std::uint32_t /*column*/, const Params& words, std::string& out) {
+void Interpreter::apply_modal(int code10, const Params& words, std::string& out) {
     ModalState& m = state_.modal;
     switch (code10) {
         case 200:

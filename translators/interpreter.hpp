@@ -17,22 +17,10 @@
 #include "translators/kinematics.hpp"
 #include "translators/line_commands.hpp"
 #include "translators/machine.hpp"
+#include "translators/modes.hpp"
 #include "translators/planner.hpp"
 
 namespace xlate5 {
-
-// The modal state of G-code that both directions keep.
-struct Modes {
-    bool absolute = true;     // G90 / G91
-    bool inches = false;      // G20 / G21
-    bool e_relative = false;  // Marlin 2 rule: the latest of G90/G91/M82/M83 decides
-    int motion = -1;          // modal G0/G1/G2/G3 (-1: none yet)
-    int plane = 17;           // G17 XY, G18 ZX, G19 YZ: the plane of arcs
-    bool inverse_time = false;  // G93: F is 1/duration in minutes, per move
-    double feed = 0;          // programmed feed (G94), mm/min; 0 until the first F
-    double e_position = 0;    // absolute E (for sharing an absolute E among pieces)
-    double unit() const { return inches ? 25.4 : 1.0; }
-};
 
 // The interpreter's own state.
 struct ModalState {
@@ -61,7 +49,7 @@ private:
     double number(const Param& p) const;                   // the value, or an error if it is a flag
     PassedNumber passed(const Param& p, bool inches) const;  // E or F, in mm
     bool is_axis_letter(char c) const;
-    void apply_modal(int code10, std::uint32_t column, const Params& words, std::string& out);
+    void apply_modal(int code10, const Params& words, std::string& out);
     void run_command(const CommandWord& c, std::string_view body, bool alone, const Params& words, LineRun& run, std::string& out);
     // A tool-space move; `absolute` and `inches` say how to read its words (an arc's chords are
     // absolute millimetres whatever the modes).

@@ -12,10 +12,10 @@
 #include <vector>
 
 #include "translators/gcode_lexer.hpp"
-#include "translators/interpreter.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/line_commands.hpp"
 #include "translators/machine.hpp"
+#include "translators/modes.hpp"
 #include "translators/tool_emitter.hpp"
 
 namespace xlate5 {

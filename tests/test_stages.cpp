@@ -1,0 +1,204 @@
+// The stages the front door wires together, each driven on its own: arcs -> chords (against the
+// circle through RS274's centre rules), the compensation stage (against interpolation done here),
+// and the limit policy (every answer checked through FK and the machine's limits).
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "helpers.hpp"
+#include "translators/arcs.hpp"
+#include "translators/compensation.hpp"
+#include "translators/joint_limits.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+
+using namespace xlate5;
+using namespace xlate5::test;
+
+namespace {
+
+Machine load(const std::string& name) { return load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml"); }
+
+// Signed angle (radians) from u to v in the plane, counter-clockwise positive.
+double turn(const Eigen::Vector2d& u, const Eigen::Vector2d& v) { return std::atan2(u.x() * v.y() - u.y() * v.x(), u.dot(v)); }
+
+}  // namespace
+
+TEST_CASE("arcs: every chord end on the circle, within the tolerance, turning the right way, ending exactly at the end") {
+    std::mt19937 rng(17);
+    std::uniform_real_distribution<double> U(-1, 1);
+    int checked = 0;
+    for (int plane : {17, 18, 19}) {
+        const ArcPlane pl = arc_plane(plane);
+        for (int i = 0; i < 200; ++i) {
+            Arc a;
+            a.plane = plane;
+            a.clockwise = i % 2 == 0;
+            a.turns = i % 7 == 0 ? 2 : 1;
+            a.start = Eigen::Vector3d(50 * U(rng), 50 * U(rng), 50 * U(rng));
+            const double r = 1 + 30 * std::abs(U(rng));
+            // The centre from the start (I J K form); the end on the circle, helical along the normal.
+            const Eigen::Vector2d c(a.start[pl.a] + r * std::cos(3 * U(rng)), a.start[pl.b] + r * std::sin(3 * U(rng)));
+            a.offset_a = c.x() - a.start[pl.a];
+            a.offset_b = c.y() - a.start[pl.b];
+            const double r0 = std::hypot(a.offset_a, a.offset_b);
+            const double phi = 3.1 * U(rng);
+            a.end = a.start;
+            a.end[pl.a] = c.x() + r0 * std::cos(std::atan2(-a.offset_b, -a.offset_a) + phi);
+            a.end[pl.b] = c.y() + r0 * std::sin(std::atan2(-a.offset_b, -a.offset_a) + phi);
+            a.end[pl.n] += 5 * U(rng);
+            const double tol = 0.005;
+            std::vector<Eigen::Vector3d> ends;
+            REQUIRE(arc_chords(a, tol, ends).empty());
+            REQUIRE(!ends.empty());
+            CHECK(ends.back() == a.end);
+            // The whole sweep: the short way round in the arc's sense, plus the extra turns.
+            const Eigen::Vector2d s(a.start[pl.a] - c.x(), a.start[pl.b] - c.y()), e(a.end[pl.a] - c.x(), a.end[pl.b] - c.y());
+            double expect = turn(s, e) * (a.clockwise ? -1 : 1);
+            if (expect <= 1e-12) expect += 2 * kPi;
+            expect += 2 * kPi * (a.turns - 1);
+            // From the start round the centre in the arc's sense, through every chord end.
+            Eigen::Vector2d prev = s;
+            double swept = 0, worst_sagitta = 0;
+            for (std::size_t k = 0; k < ends.size(); ++k) {
+                const Eigen::Vector2d p(ends[k][pl.a] - c.x(), ends[k][pl.b] - c.y());
+                CHECK(std::abs(p.norm() - r0) < 1e-9);
+                const double step = turn(prev, p) * (a.clockwise ? -1 : 1);
+                CHECK(step > 0);
+                swept += step;
+                worst_sagitta = std::max(worst_sagitta, r0 * (1 - std::cos(step / 2)));
+                // Helical: the normal coordinate moves in proportion to the angle.
+                CHECK(std::abs(ends[k][pl.n] - (a.start[pl.n] + (a.end[pl.n] - a.start[pl.n]) * swept / expect)) < 1e-9);
+                prev = p;
+            }
+            CHECK(worst_sagitta <= tol * (1 + 1e-9));
+            CHECK(std::abs(swept - expect) < 1e-9);
+            // No more chords than the tolerance needs: one fewer would leave it.
+            if (ends.size() > 1) CHECK(r0 * (1 - std::cos(expect / double(ends.size() - 1) / 2)) > tol * (1 - 1e-9));
+            ++checked;
+        }
+    }
+    CHECK(checked == 600);
+}
+
+TEST_CASE("arcs: R gives the centre RS274 puts it at, the shorter arc for R > 0 and the longer for R < 0") {
+    for (const bool clockwise : {true, false}) {
+        for (const double R : {10.0, -10.0}) {
+            CAPTURE(clockwise);
+            CAPTURE(R);
+            Arc a;
+            a.clockwise = clockwise;
+            a.by_radius = true;
+            a.radius = R;
+            a.start = Eigen::Vector3d(0, 0, 0);
+            a.end = Eigen::Vector3d(12, 0, 0);
+            std::vector<Eigen::Vector3d> ends;
+            REQUIRE(arc_chords(a, 0.01, ends).empty());
+            // The centre lies on the chord's bisector x = 6, 8 from it (a 6-8-10 triangle), on
+            // one side or the other; every chord end is on that circle, and going round it the
+            // arc turns clockwise for G2 and counter-clockwise for G3.
+            const Eigen::Vector2d first(ends.front().x(), ends.front().y());
+            const Eigen::Vector2d c = std::abs((first - Eigen::Vector2d(6, 8)).norm() - 10) < 1e-9 ? Eigen::Vector2d(6, 8) : Eigen::Vector2d(6, -8);
+            Eigen::Vector2d prev2 = Eigen::Vector2d(0, 0) - c;
+            for (const auto& p : ends) {
+                const Eigen::Vector2d v = Eigen::Vector2d(p.x(), p.y()) - c;
+                CHECK(std::abs(v.norm() - 10) < 1e-9);
+                CHECK(turn(prev2, v) * (clockwise ? -1 : 1) > 0);
+                prev2 = v;
+            }
+            // Shorter arc: 2 asin(6/10) of the circle; longer: the rest.
+            const double short_arc = 2 * std::asin(0.6), long_arc = 2 * kPi - 2 * std::asin(0.6);
+            double swept = 0;
+            Eigen::Vector2d from = Eigen::Vector2d(0, 0) - c;
+            for (const auto& p : ends) {
+                const Eigen::Vector2d v = Eigen::Vector2d(p.x(), p.y()) - c;
+                swept += std::abs(turn(from, v));
+                from = v;
+            }
+            CHECK(std::abs(swept - (R > 0 ? short_arc : long_arc)) < 1e-9);
+        }
+    }
+    Arc bad;
+    bad.by_radius = true;
+    bad.radius = 5;
+    bad.end = Eigen::Vector3d(12, 0, 0);
+    std::vector<Eigen::Vector3d> ends;
+    CHECK(contains(arc_chords(bad, 0.01, ends), "too small"));
+    Arc off;
+    off.offset_a = 5;
+    off.end = Eigen::Vector3d(20, 0, 0);
+    CHECK(contains(arc_chords(off, 0.01, ends), "not on its circle"));
+}
+
+TEST_CASE("compensation stage: nominal joints in, the table's error taken off, or why not") {
+    Compensation comp;
+    comp.source = "test table";
+    CompensationTerm t;
+    t.joint = 0;
+    t.by = 3;
+    t.angle = {-90, 0, 90};
+    t.error = {1.0, 2.0, 4.0};
+    comp.terms.push_back(t);
+    CompensationStage stage(comp);
+    for (const double a : {-90.0, -45.0, 0.0, 30.0, 90.0}) {
+        const std::vector<double> q = {10, 20, 30, a, 0};
+        const auto r = stage.apply(q);
+        REQUIRE(r.ok());
+        // Linear between the points, as the table is read.
+        const double e = a <= 0 ? 1.0 + (a + 90) / 90 : 2.0 + 2.0 * a / 90;
+        CHECK(r.sent[0] == doctest::Approx(10 - e).epsilon(1e-12));
+        CHECK(r.sent[1] == 20);
+        CHECK(r.sent[3] == a);
+        CHECK(q[0] == 10);  // the nominal joints are not touched
+    }
+    const auto out = stage.apply({10, 20, 30, 100, 0});
+    CHECK_FALSE(out.ok());
+    CHECK(contains(out.why, "test table"));
+    CHECK(contains(out.why, "-90.000 .. 90.000"));
+    // Nothing to correct: the joints go on as they are.
+    const Compensation none;
+    CompensationStage pass(none);
+    const std::vector<double> q = {1, 2, 3, 4, 5};
+    const auto r = pass.apply(q);
+    CHECK(r.ok());
+    CHECK(&r.sent == &q);
+}
+
+TEST_CASE("limit policy: within the limits, on a branch, or continuous whatever the limits, each reaching the axis") {
+    const Machine m = load("rw2");  // A within +-168: the continuous solution can leave it
+    const Kinematics k(m);
+    const int A = m.joint_index('A'), B = m.joint_index('B');
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> U(-1, 1);
+    int outside_continuous = 0;
+    for (int i = 0; i < 300; ++i) {
+        std::vector<double> prev = m.home_joints();
+        prev[std::size_t(A)] = 168 * U(rng);
+        prev[std::size_t(B)] = 60 * U(rng);
+        std::vector<double> q = prev;
+        q[std::size_t(A)] = prev[std::size_t(A)] + 40 * U(rng);
+        q[std::size_t(B)] = 5 + 55 * std::abs(U(rng));
+        const Eigen::Vector3d axis = k.forward(q).axis;
+        std::vector<double> within = prev, cont = prev, b0 = prev, b1 = prev;
+        const auto rw = orient_within_limits(k, axis, prev, prev, within);
+        REQUIRE(orient_continuous(k, axis, prev, cont).ok());
+        CHECK((k.forward(cont).axis - axis).norm() < 1e-9);
+        if (!inside_limits(m.joints[std::size_t(A)], cont[std::size_t(A)])) ++outside_continuous;
+        if (rw.ok()) {
+            CHECK((k.forward(within).axis - axis).norm() < 1e-9);
+            CHECK(check_limits(m, within).ok());
+        } else {
+            CHECK(rw.status == IkStatus::OutOfLimits);
+        }
+        // The two branches: (A, B) and (A + 180, -B), both reaching the axis where inside the limits.
+        const bool ok0 = orient_on_branch(k, axis, 0, prev, prev, b0).ok(), ok1 = orient_on_branch(k, axis, 1, prev, prev, b1).ok();
+        if (ok0) CHECK((k.forward(b0).axis - axis).norm() < 1e-9);
+        if (ok1) CHECK((k.forward(b1).axis - axis).norm() < 1e-9);
+        if (ok0 && ok1) CHECK(std::abs(b0[std::size_t(B)] + b1[std::size_t(B)]) < 1e-9);
+        CHECK(orient_on_branch(k, axis, 2, prev, prev, b0).status == IkStatus::Unreachable);
+    }
+    CHECK(outside_continuous > 0);  // the case the planner's policy is for did occur
+}
