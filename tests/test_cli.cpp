@@ -33,11 +33,12 @@ struct Result {
     std::string out, err;
 };
 
-// Runs the xlate5 binary with `args` (already quoted), standard input from `stdin_text`.
-Result run(const TempDir& dir, const std::string& args, const std::string& stdin_text = "") {
+// Runs the xlate5 binary with `args` (already quoted), standard input from `stdin_text`, under
+// `env` (an env(1) prefix, e.g. "env -u XLATE5_MACHINES ").
+Result run(const TempDir& dir, const std::string& args, const std::string& stdin_text = "", const std::string& env = "") {
     const fs::path in = dir.path / ".stdin", out = dir.path / ".stdout", err = dir.path / ".stderr";
     std::ofstream(in, std::ios::binary) << stdin_text;
-    const std::string cmd = quote(XLATE5_BINARY) + " " + args + " <" + quote(in.string()) + " >" + quote(out.string()) + " 2>" +
+    const std::string cmd = env + quote(XLATE5_BINARY) + " " + args + " <" + quote(in.string()) + " >" + quote(out.string()) + " 2>" +
                             quote(err.string());
     const int status = std::system(cmd.c_str());
     Result r;
@@ -366,4 +367,45 @@ TEST_CASE("cli: calibrate pivots fits rw2's la from tips measured per eq. 4.5 an
     CHECK(contains(read(out), "la = 29.000000"));
     // Never over the original.
     CHECK(run(d, "--machine rw2 calibrate pivots " + quote((d.path / "m.csv").string()) + " --fit la -o " + quote(machine_path("rw2"))).code == 2);
+}
+
+TEST_CASE("cli: machine names are found in the user's directory before the shipped ones, and the shipped ones beside the program") {
+    TempDir d;
+    const std::string in = "G1 X100 Y100 Z10 A90 B0\nG1 A45 B30\n";
+    std::string rw2 = read(machine_path("rw2"));
+    const std::size_t at = rw2.find("\nla = 26.5");
+    REQUIRE(at != std::string::npos);
+    rw2.replace(at, 10, "\nla = 29");
+    fs::create_directories(d.path / "config/xlate5/machines");
+    std::ofstream(d.path / "config/xlate5/machines/mine.toml") << rw2;
+    fs::create_directories(d.path / "home/.config/xlate5/machines");
+    std::ofstream(d.path / "home/.config/xlate5/machines/rw2.toml") << rw2;
+    // No override directory: what a user's shell has.
+    const std::string user = "env -u XLATE5_MACHINES HOME=" + quote((d.path / "nohome").string()) + " XDG_CONFIG_HOME=" +
+                             quote((d.path / "config").string()) + " ";
+    const std::string home = "env -u XLATE5_MACHINES -u XDG_CONFIG_HOME HOME=" + quote((d.path / "home").string()) + " ";
+
+    const Result shipped = run(d, "-m rw2 --no-segment", in), la29 = run(d, "-m rw2 --no-segment --set la=29", in);
+    REQUIRE(shipped.code == 0);
+    REQUIRE(la29.code == 0);
+    REQUIRE(shipped.out != la29.out);
+    // $XDG_CONFIG_HOME/xlate5/machines: a new name, and the shipped names still there.
+    const Result mine = run(d, "-m mine --no-segment", in, user);
+    CHECK(mine.code == 0);
+    CHECK(mine.out == la29.out);
+    const Result still = run(d, "-m rw2 --no-segment", in, user);
+    CHECK(still.code == 0);
+    CHECK(still.out == shipped.out);  // found beside the program: build/share/xlate5/machines
+    const Result list = run(d, "machines", "", user);
+    CHECK(list.code == 0);
+    const auto listed = [&list](const std::string& name) {
+        const auto lines = lines_of(list.out);
+        return std::any_of(lines.begin(), lines.end(), [&name](const std::string& l) { return l.rfind(name + " ", 0) == 0; });
+    };
+    CHECK(listed("mine"));
+    CHECK(listed("rw2"));
+    // ~/.config/xlate5/machines without XDG_CONFIG_HOME; a file there replaces the shipped one.
+    const Result replaced = run(d, "-m rw2 --no-segment", in, home);
+    CHECK(replaced.code == 0);
+    CHECK(replaced.out == la29.out);
 }
