@@ -10,6 +10,7 @@
 #include "cli/errors.hpp"
 #include "cli/machines_cmd.hpp"
 #include "cli/man_page.hpp"
+#include "cli/options.hpp"
 #include "cli/serve_cmd.hpp"
 #include "cli/translate_cmd.hpp"
 
@@ -28,11 +29,11 @@ int main(int argc, char** argv) {
     app.fallthrough();  // --machine may come after a subcommand too
 
     Common common;
-    app.add_option("-m,--machine", common.machine, "bundled machine name (see 'xlate5 machines') or path to a machine .toml");
-    app.add_option("--set", common.sets, "override a machine parameter, e.g. --set la=29 (repeatable)");
+    app.add_option("-m,--machine", common.machine, "machine name (see 'xlate5 machines') or path to a machine .toml")->option_text("NAME|PATH");
+    app.add_option("--set", common.sets, "override a machine parameter, e.g. --set la=29 (repeatable)")->option_text("NAME=VALUE");
     TranslateOptions translate;
     add_translate_options(app, translate);
-    auto* machines_cmd = app.add_subcommand("machines", "list the bundled machines");
+    auto* machines_cmd = app.add_subcommand("machines", "list the machines found (your own, the system's, the shipped ones)");
     const auto serve_cmds = add_serve_commands(app);
     const auto calibrate_cmds = add_calibrate_commands(app);
     bool man_page = false;
@@ -43,7 +44,7 @@ int main(int argc, char** argv) {
     } catch (const CLI::Success& e) {
         return app.exit(e);
     } catch (const CLI::ParseError& e) {
-        app.exit(e);
+        std::cerr << usage_error(app, e) << "\n";
         return kUsage;
     }
 

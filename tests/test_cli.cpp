@@ -409,3 +409,103 @@ TEST_CASE("cli: machine names are found in the user's directory before the shipp
     CHECK(replaced.code == 0);
     CHECK(replaced.out == la29.out);
 }
+
+TEST_CASE("cli: the argument parser's errors start with xlate5: and name the nearest option or command") {
+    TempDir d;
+    struct Case {
+        std::string args, want;
+    };
+    for (const Case& c : std::vector<Case>{{"-m rw2 --tolerence 0.1", "did you mean '--tolerance'?"},
+                                           {"--tolerence=0.1 -m rw2", "did you mean '--tolerance'?"},
+                                           {"-m rw2 --machnie rw2", "did you mean '--machine'?"},
+                                           {"machnes", "unknown command 'machnes'; did you mean 'machines'?"},
+                                           {"serv --printer sim", "did you mean 'serve'?"},
+                                           {"serve --prot /dev/ttyUSB0", "did you mean '--port'?"},
+                                           {"serve --printer sim --sim-fualt drop=0.1", "did you mean '--sim-fault'?"},
+                                           {"calibrate fti t.csv", "did you mean 'fit'?"},
+                                           {"calibrate fit t.csv --ordre 2", "did you mean '--order'?"}}) {
+        CAPTURE(c.args);
+        const Result r = run(d, c.args);
+        CHECK(r.code == 2);
+        CHECK(r.err.rfind("xlate5: ", 0) == 0);
+        CHECK(contains(r.err, c.want));
+        CHECK(r.out.empty());
+    }
+    // Nothing near: no guess.
+    const Result far = run(d, "-m rw2 --zqxwv 1");
+    CHECK(far.code == 2);
+    CHECK(contains(far.err, "unknown option '--zqxwv'"));
+    CHECK_FALSE(contains(far.err, "did you mean"));
+    // A command's own options are suggested only after it.
+    const Result top = run(d, "-m rw2 --prot x");
+    CHECK(top.code == 2);
+    CHECK_FALSE(contains(top.err, "--port"));
+    // Every refusal of the parser, not only unknown names.
+    for (const std::string args : {"-m rw2 --tolerance", "-m rw2 --preview-form G99", "calibrate", "calibrate fit", "-m rw2 --tolerance -1",
+                                   "serve --baud 12"}) {
+        CAPTURE(args);
+        const Result r = run(d, args);
+        CHECK(r.code == 2);
+        CHECK(r.err.rfind("xlate5: ", 0) == 0);
+    }
+}
+
+TEST_CASE("cli: numbers out of range are refused with their bounds written plainly") {
+    TempDir d;
+    for (const std::string value : {"-1", "0", "10.5", "nan", "inf", "1e999", "abc"}) {
+        CAPTURE(value);
+        const Result r = run(d, "-m rw2 --tolerance " + value, "G1 X1\n");
+        CHECK(r.code == 2);
+        CHECK(contains(r.err, "--tolerance"));
+        CHECK(contains(r.err, "above 0 and at most 10 (mm)"));
+        CHECK_FALSE(contains(r.err, "000000"));  // no %f of the double range
+    }
+    CHECK(run(d, "-m rw2 --no-segment --tolerance 10", "G1 X100 Y100 Z10 A0 B0\n").code == 0);
+    const Result order = run(d, "calibrate fit t.csv --order 13");
+    CHECK(order.code == 2);
+    CHECK(contains(order.err, "from 1 to 12"));
+    const Result baud = run(d, "serve --printer sim --baud 9999999999999");
+    CHECK(baud.code == 2);
+    CHECK(contains(baud.err, "from 300 to 4000000"));
+    // The help says the same.
+    const Result help = run(d, "--help");
+    CHECK(contains(help.out, "above 0 and at most 10 mm"));
+    CHECK_FALSE(contains(help.out, "179769"));
+}
+
+TEST_CASE("cli: serve --help gives every option's default") {
+    TempDir d;
+    const Result r = run(d, "serve --help");
+    REQUIRE(r.code == 0);
+    int options = 0;
+    // An option's line, and its description when CLI11 puts that on the next line.
+    const auto lines = lines_of(r.out);
+    for (std::size_t i = 0; i < lines.size(); ++i) {
+        const std::string& l = lines[i];
+        if (l.rfind("  -", 0) != 0 || contains(l, "--help")) continue;
+        ++options;
+        CAPTURE(l);
+        const std::string next = i + 1 < lines.size() && lines[i + 1].rfind("      ", 0) == 0 ? lines[i + 1] : "";
+        CHECK((contains(l, "(default: ") || contains(next, "(default: ")));
+    }
+    CHECK(options >= 20);
+    // The documented ones (config/xlate5.toml, docs/service.md).
+    CHECK(contains(r.out, "(default: 115200)"));
+    CHECK(contains(r.out, "(default: /run/xlate5/printer)"));
+    CHECK(contains(r.out, "(default: rw2)"));
+}
+
+TEST_CASE("cli: serve without a port or --printer sim is an error, not a silent simulator") {
+    TempDir d;
+    const std::string pty = (d.path / "printer").string();
+    for (const std::string& args :
+         std::vector<std::string>{"serve --no-pty --tcp 127.0.0.1:0", "serve --pty " + quote(pty), "serve --printer serial --pty " + quote(pty)}) {
+        CAPTURE(args);
+        const Result r = run(d, args);
+        CHECK(r.code == 2);
+        CHECK(r.err.rfind("xlate5: ", 0) == 0);
+        CHECK(contains(r.err, "--port DEVICE"));
+        CHECK(contains(r.err, "--printer sim"));
+        CHECK_FALSE(fs::exists(fs::symlink_status(pty)));
+    }
+}
