@@ -256,7 +256,7 @@ std::unique_ptr<CalibrateCommands> add_calibrate_commands(CLI::App& app) {
     c->plate->add_option("points", c->plate_points, "CSV file of probed points, machine frame, mm")->required();
     c->plate->add_option("-o,--output", c->plate_out, "write the machine file with rho and psi set here (never over the original)")
         ->option_text("FILE");
-    c->offset = c->calibrate->add_subcommand("offset", "rotary zero offset from plate touches along Y (CSV: y,z per line; seed 002 eq. 5.5)");
+    c->offset = c->calibrate->add_subcommand("offset", "rotary zero offset from plate touches along Y (CSV: y,z per line; Grutle, Oslo 2015, eq. 5.5)");
     c->offset->add_option("points", c->offset_points, "CSV file of touches: Y, Z (mm), two or more, both sides of the axis")->required();
     c->offset->add_option("--param", c->offset_param, "machine parameter that holds the offset, e.g. a_offset (pentarod)")->option_text("NAME");
     c->offset->add_option("-o,--output", c->offset_out, "write the machine file with the offset set here (never over the original)")

@@ -509,3 +509,32 @@ TEST_CASE("cli: serve without a port or --printer sim is an error, not a silent 
         CHECK_FALSE(fs::exists(fs::symlink_status(pty)));
     }
 }
+
+TEST_CASE("cli: what a user reads names its sources by author, place and year, never by a corpus number") {
+    TempDir d;
+    // "seed 001" and the like: a number that means something only to whoever collected the sources.
+    const auto numbered = [](const std::string& text) {
+        for (std::size_t at = text.find("seed "); at != std::string::npos; at = text.find("seed ", at + 1))
+            if (at + 5 < text.size() && std::isdigit(static_cast<unsigned char>(text[at + 5]))) return text.substr(at, 40);
+        return std::string();
+    };
+    std::vector<std::pair<std::string, std::string>> texts;
+    for (const std::string args : {"--help", "machines", "serve --help", "ports --help", "calibrate --help", "calibrate fit --help",
+                                   "calibrate plate --help", "calibrate offset --help", "calibrate pivots --help", "calibrate centre --help",
+                                   "--man-page"}) {
+        const Result r = run(d, args);
+        REQUIRE(r.code == 0);
+        texts.emplace_back("xlate5 " + args, r.out);
+    }
+    const fs::path source = fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path();
+    for (const fs::path& dir : std::vector<fs::path>{source, source / "docs", source / "machines", source / "machines/compensation", source / "config"})
+        for (const auto& e : fs::directory_iterator(dir))
+            if (e.is_regular_file() && (e.path().extension() == ".md" || e.path().extension() == ".toml"))
+                texts.emplace_back(e.path().string(), read(e.path()));
+    CHECK(texts.size() > 20);
+    for (const auto& [where, text] : texts) {
+        CAPTURE(where);
+        CHECK(numbered(text).empty());
+    }
+    CHECK(contains(run(d, "machines").out, "Andersons, Twente 2023"));
+}

@@ -26,7 +26,7 @@ const std::string kDir = XLATE5_MACHINE_DIR_FOR_TESTS;
 
 Machine rw2_measured() {
     Machine m = load_machine(kDir + "/rw2.toml", {{"la", 29.0}});
-    load_compensation_file(kDir + "/compensation/rw2-seed001.toml", m);
+    load_compensation_file(kDir + "/compensation/rw2-andersons2023.toml", m);
     return m;
 }
 
