@@ -25,9 +25,10 @@ std::string flag(const std::string& s) {
     return out;
 }
 
-void options_of(const CLI::App& app, std::ostream& out) {
+void options_of(const CLI::App& app, std::ostream& out, bool with_help) {
     for (const CLI::Option* o : app.get_options()) {
         if (o->get_group().empty()) continue;  // hidden
+        if (!with_help && o->get_lnames() == std::vector<std::string>{"help"}) continue;  // said once, under OPTIONS
         std::string names;
         if (o->get_positional() && o->get_lnames().empty() && o->get_snames().empty()) {
             names = "\\fI" + esc(o->get_name(true)) + "\\fR";
@@ -45,7 +46,7 @@ void commands_of(const CLI::App& app, const std::string& prefix, std::ostream& o
     for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; })) {
         const std::string name = prefix + " " + sub->get_name();
         out << ".SS \"" << esc(name) << "\"\n" << line(sub->get_description()) << ".\n";
-        options_of(*sub, out);
+        options_of(*sub, out, false);
         commands_of(*sub, name, out);
     }
 }
@@ -117,7 +118,7 @@ line as it comes.
 .SH OPTIONS
 These translate; the machine options also apply to the commands below, before or after them.
 )";
-    options_of(app, out);
+    options_of(app, out, true);
     out << ".SH COMMANDS\n";
     commands_of(app, "xlate5", out);
     out << R"(.SH EXIT STATUS
@@ -151,15 +152,16 @@ its \fIxlate5/machines\fR.
 A machine name given to \-\-machine is looked up, first match first, in:
 .TP
 .I $XLATE5_MACHINES
-.TQ
+when set
+.TP
 .I $XDG_CONFIG_HOME/xlate5/machines
-(\fI~/.config/xlate5/machines\fR): the user's own machines
-.TQ
+the user's own machines (\fI~/.config/xlate5/machines\fR when XDG_CONFIG_HOME is not set)
+.TP
 .I /etc/xlate5/machines
-the system's machines
-.TQ
+the system's machines (and the service's)
+.TP
 .I /usr/share/xlate5/machines
-the machines shipped with xlate5 (found next to the executable's prefix)
+the machines shipped with xlate5: \fIPREFIX/share/xlate5/machines\fR beside \fIPREFIX/bin/xlate5\fR
 .PP
 A name containing a slash or ending in \fI.toml\fR is a path.
 .TP
@@ -174,8 +176,8 @@ xlate5 \-\-machine rw2 \-\-inverse \-i joints.gcode \-o preview.gcode
 xlate5 serve \-\-machine rw2 \-\-printer sim \-\-pty /tmp/xlate5/printer
 .EE
 .SH SEE ALSO
-The documentation in \fI/usr/share/doc/xlate5\fR: README.md, machines.md, calibration.md,
-service.md.
+The documentation in \fI/usr/share/doc/xlate5\fR: \%README.md, \%machines.md, \%calibration.md,
+\%service.md.
 )";
 }
 
