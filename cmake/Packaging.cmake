@@ -12,13 +12,18 @@ install(CODE "
   file(INSTALL \"${PROJECT_BINARY_DIR}/install/xlate5@.service\" DESTINATION \"\${CMAKE_INSTALL_PREFIX}/lib/systemd/system\")
 ")
 
+# The examples the README's first steps translate and print.
+install(FILES ${PROJECT_SOURCE_DIR}/examples/rw2_flared_wall.gcode ${PROJECT_SOURCE_DIR}/examples/pentarod_dome.gcode
+        DESTINATION ${CMAKE_INSTALL_DOCDIR}/examples)
+
 set(CPACK_GENERATOR DEB)
 set(CPACK_PACKAGE_NAME xlate5)
 set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
 set(CPACK_PACKAGE_DESCRIPTION_SUMMARY "5-axis G-code translator for stock Marlin and RepRapFirmware")
-set(CPACK_PACKAGE_DESCRIPTION "xlate5 translates vendor-neutral 5-axis G-code (tip and tool orientation) into
-joint-space G-code for stock Marlin or RepRapFirmware with closed-form inverse kinematics, offline,
-as a filter, or as a service between a sender (OctoPrint, Printrun) and the printer.")
+set(CPACK_PACKAGE_DESCRIPTION "xlate5 translates vendor-neutral 5-axis G-code (tip and tool orientation)
+into joint-space G-code for stock Marlin or RepRapFirmware with closed-form
+inverse kinematics: offline, as a filter, or as a service between a sender
+(OctoPrint, Printrun) and the printer.")
 set(CPACK_PACKAGE_CONTACT "xlate5 developers <xlate5@invalid>" CACHE STRING "the package's Maintainer field")
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)

@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # The Debian package as a user gets it: cpack builds it from this build tree, dpkg -x unpacks it
-# into an empty directory, and the unpacked program runs: --version, and the bundled example
+# into an empty directory, and the unpacked program runs: --version, and the packaged example
 # translated with a machine file from the unpacked share directory, found by name next to the
 # program, exactly as the build tree's program translates it.
 # Usage: debian_package.sh BUILD_DIR XLATE5 EXAMPLE.gcode
 set -euo pipefail
-build=$1 built=$2 example=$3
+build=$1 built=$2 source_example=$3
 fail() { echo "FAIL: $*" >&2; exit 1; }
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
@@ -23,9 +23,12 @@ mkdir "$root"
 dpkg -x "$deb" "$root"
 for f in usr/bin/xlate5 usr/share/xlate5/machines/rw2.toml usr/share/xlate5/xlate5.toml.example \
          usr/lib/systemd/system/xlate5@.service usr/lib/sysusers.d/xlate5.conf usr/share/man/man1/xlate5.1.gz \
-         usr/share/bash-completion/completions/xlate5 usr/share/doc/xlate5/README.md usr/share/doc/xlate5/machines.md; do
+         usr/share/bash-completion/completions/xlate5 usr/share/doc/xlate5/README.md usr/share/doc/xlate5/machines.md \
+         usr/share/doc/xlate5/examples/rw2_flared_wall.gcode; do
   [ -e "$root/$f" ] || fail "$f not in the package"
 done
+example="$root/usr/share/doc/xlate5/examples/$(basename "$source_example")"
+cmp -s "$source_example" "$example" || fail "the packaged example differs from $source_example"
 grep -q '^ExecStart=/usr/bin/xlate5 serve ' "$root/usr/lib/systemd/system/xlate5@.service" || fail "the unit does not run /usr/bin/xlate5"
 grep -q 'file:///usr/share/doc/xlate5/' "$root/usr/lib/systemd/system/xlate5@.service" || fail "the unit's documentation path"
 if strings "$root/usr/bin/xlate5" | grep -qF "$build"; then fail "the packaged program names the build directory"; fi
