@@ -12,6 +12,7 @@
 #include <sstream>
 #include <vector>
 
+#include "cli/options.hpp"
 #include "translators/calibration.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
@@ -247,26 +248,32 @@ std::unique_ptr<CalibrateCommands> add_calibrate_commands(CLI::App& app) {
     c->calibrate->require_subcommand(1);
     c->fit = c->calibrate->add_subcommand("fit", "fit a Fourier series to a measured error table (CSV: angle,error per line)");
     c->fit->add_option("table", c->fit_table, "CSV file: angle (degrees), error (mm) per line; '#' starts a comment")->required();
-    c->fit->add_option("--order", c->fit_order, "harmonics (default 1)")->check(CLI::Range(1, 12));
-    c->fit->add_option("--joint", c->fit_joint, "joint the error is taken off (for the printed [[compensation]] term)");
-    c->fit->add_option("--by", c->fit_by, "rotary joint the error depends on");
+    c->fit->add_option("--order", c->fit_order, with_default("harmonics, 1 to 12", "1"))->check(whole_in(1, 12, ""))->option_text("N");
+    c->fit->add_option("--joint", c->fit_joint, with_default("joint the error is taken off (for the printed [[compensation]] term)", "X"))
+        ->option_text("LETTER");
+    c->fit->add_option("--by", c->fit_by, with_default("rotary joint the error depends on", "A"))->option_text("LETTER");
     c->plate = c->calibrate->add_subcommand("plate", "plate tilt rho, psi from probed plate points (CSV: x,y,z per line, 3 or more)");
     c->plate->add_option("points", c->plate_points, "CSV file of probed points, machine frame, mm")->required();
-    c->plate->add_option("-o,--output", c->plate_out, "write the machine file with rho and psi set here (never over the original)");
-    c->offset = c->calibrate->add_subcommand("offset", "rotary zero offset from plate touches along Y (CSV: y,z per line; seed 002 eq. 5.5)");
+    c->plate->add_option("-o,--output", c->plate_out, "write the machine file with rho and psi set here (never over the original)")
+        ->option_text("FILE");
+    c->offset = c->calibrate->add_subcommand("offset", "rotary zero offset from plate touches along Y (CSV: y,z per line; Grutle, Oslo 2015, eq. 5.5)");
     c->offset->add_option("points", c->offset_points, "CSV file of touches: Y, Z (mm), two or more, both sides of the axis")->required();
-    c->offset->add_option("--param", c->offset_param, "machine parameter that holds the offset, e.g. a_offset (pentarod)");
-    c->offset->add_option("-o,--output", c->offset_out, "write the machine file with the offset set here (never over the original)");
+    c->offset->add_option("--param", c->offset_param, "machine parameter that holds the offset, e.g. a_offset (pentarod)")->option_text("NAME");
+    c->offset->add_option("-o,--output", c->offset_out, "write the machine file with the offset set here (never over the original)")
+        ->option_text("FILE");
     c->pivots = c->calibrate->add_subcommand("pivots", "machine parameters (link lengths, pivots) from tips measured at known joints");
     c->pivots->add_option("points", c->pivots_points, "CSV: the joints in the machine file's order, then the measured tip x,y,z (part frame, mm)")
         ->required();
-    c->pivots->add_option("--fit", c->pivots_fit, "parameters to fit, comma-separated, e.g. la,lb")->required();
-    c->pivots->add_option("-o,--output", c->pivots_out, "write the machine file with the fitted values here (never over the original)");
+    c->pivots->add_option("--fit", c->pivots_fit, "parameters to fit, comma-separated, e.g. la,lb")->required()->option_text("NAME,...");
+    c->pivots->add_option("-o,--output", c->pivots_out, "write the machine file with the fitted values here (never over the original)")
+        ->option_text("FILE");
     c->centre = c->calibrate->add_subcommand("centre", "rotation centre from dots at several rotary angles (CSV: x,y per line)");
     c->centre->add_option("points", c->centre_points, "CSV file of measured dot positions (mm), three or more")->required();
     c->centre->add_option("--param", c->centre_param,
-                          "the two machine parameters that hold the centre, X then Y, e.g. cx,cy (pentarod) or wx,wy (koc5)");
-    c->centre->add_option("-o,--output", c->centre_out, "write the machine file with the centre set here (never over the original)");
+                          "the two machine parameters that hold the centre, X then Y, e.g. cx,cy (pentarod) or wx,wy (koc5)")
+        ->option_text("X,Y");
+    c->centre->add_option("-o,--output", c->centre_out, "write the machine file with the centre set here (never over the original)")
+        ->option_text("FILE");
     return c;
 }
 

@@ -11,7 +11,7 @@ namespace xlate5::cli {
 struct ServeCommands {
     CLI::App* serve = nullptr;
     CLI::App* ports = nullptr;
-    std::string config, port, printer, flavor, pty, pty_group, tcp, record, sim_flavor, log_level;
+    std::string config, machine, port, printer, flavor, pty, pty_group, tcp, record, sim_flavor, log_level;
     int baud = 0, sim_baud = -1;
     bool allow_remote = false, advanced_ok = false, no_pty = false;
     double drain_timeout = -1, reply_timeout = 0, boot_wait = -1;

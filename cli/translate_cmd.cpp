@@ -10,6 +10,7 @@
 #include <optional>
 #include <unistd.h>
 
+#include "cli/options.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
 #include "translators/gcode_lexer.hpp"
@@ -32,22 +33,33 @@ std::optional<OrientationMode> parse_mode(const std::string& s) {
 }  // namespace
 
 void add_translate_options(CLI::App& app, TranslateOptions& o) {
-    app.add_option("-i,--input", o.input, "input G-code file (default: standard input)");
-    app.add_option("-o,--output", o.output, "output file, written atomically (default: standard output)");
-    app.add_option("--mode", o.mode, "orientation mode at the start of the file: G43.4, G43.5 or G49 (default: the machine's)");
-    app.add_option("--extruder-letter", o.extruder, "input letter that carries extrusion (default E; S3-DeformFDM files use A)");
-    app.add_option("--tolerance", o.tolerance, "largest tip deviation from the programmed line, mm (default: the machine's, 0.01)")
-        ->check(CLI::PositiveNumber);
-    app.add_option("--angle-tolerance", o.angle_tolerance, "largest tool-axis deviation, degrees (default: the machine's)")
-        ->check(CLI::PositiveNumber);
+    app.add_option("-i,--input", o.input, with_default("input G-code file", "standard input"))->option_text("FILE");
+    app.add_option("-o,--output", o.output, with_default("output file, written atomically", "standard output"))->option_text("FILE");
+    app.add_option("--mode", o.mode, with_default("orientation mode at the start of the file", "the machine file's [input] mode"))
+        ->option_text("G43.4|G43.5|G49");
+    app.add_option("--extruder-letter", o.extruder, with_default("input letter that carries extrusion (S3-DeformFDM files use A)", "E"))
+        ->option_text("LETTER");
+    app.add_option("--tolerance", o.tolerance, with_default("largest tip deviation from the programmed line, above 0 and at most 10 mm",
+                                                            "the machine file's [motion] tolerance, else " +
+                                                                number_text(MotionSettings{}.tolerance)))
+        ->check(number_in(0, 10, "mm", true))
+        ->option_text("MM");
+    app.add_option("--angle-tolerance", o.angle_tolerance,
+                   with_default("largest tool-axis deviation, above 0 and at most 90 degrees",
+                                "the machine file's [motion] angle_tolerance, else " + number_text(MotionSettings{}.angle_tolerance)))
+        ->check(number_in(0, 90, "degrees", true))
+        ->option_text("DEG");
     app.add_flag("--no-segment", o.no_segment, "one joint move per input move: no splitting (the tip leaves the line while rotaries turn)");
-    app.add_option("--compensation", o.compensation, "measured-error compensation file ([[compensation]] terms), replacing the machine's own");
-    app.add_option("--report", o.report, "write the kinematic-error report (JSON) of the translation to this file");
-    app.add_option("--plot", o.plot, "write the tip deviation along the file as an SVG plot to this file");
+    app.add_option("--compensation", o.compensation,
+                   with_default("measured-error compensation file ([[compensation]] terms), replacing the machine's own", "the machine's own"))
+        ->option_text("FILE");
+    app.add_option("--report", o.report, "write the kinematic-error report (JSON) of the translation to this file")->option_text("FILE");
+    app.add_option("--plot", o.plot, "write the tip deviation along the file as an SVG plot to this file")->option_text("FILE");
     app.add_flag("--compact-words", o.compact_words, "the input is written without blanks: X1.5E-05 is X1.5 and E-05 (as the line '; xlate5: compact-words')");
     app.add_flag("--inverse", o.inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
-    app.add_option("--preview-form", o.preview, "with --inverse: write orientation as G43.4 angles or G43.5 I J K")
-        ->check(CLI::IsMember({"G43.4", "G43.5"}));
+    app.add_option("--preview-form", o.preview, with_default("with --inverse: write orientation as G43.4 angles or G43.5 I J K", "G43.4"))
+        ->check(CLI::IsMember({"G43.4", "G43.5"}))
+        ->option_text("G43.4|G43.5");
 }
 
 int run_translate(const Common& common, const TranslateOptions& o) {

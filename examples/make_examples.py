@@ -1,15 +1,15 @@
 #!/usr/bin/env python3
 """Writes the bundled examples (run it again after changing it; the outputs are committed).
 
-rw2_flared_wall.gcode: a C-shaped wall that flares outward as it grows, in seed 001's dialect
+rw2_flared_wall.gcode: a C-shaped wall that flares outward as it grows, in Andersons 2023's dialect
 (G1 X Y Z A B E: tip plus head angles, G43.4 being rw2's start mode). The nozzle leans
 radially outward by B; A follows the azimuth within rw2's +-168 degree cable limit, so each layer
 is an arc of 300 degrees printed back and forth.
 
-pentarod_dome.gcode: a dome shell in seed 002's vector dialect (G1 X Y Z I J K F E), the tool
+pentarod_dome.gcode: a dome shell in Grutle 2015's vector dialect (G1 X Y Z I J K F E), the tool
 axis normal to the surface.
 
-Both start the way seed 001's start code does: after homing, the tip travels to above the first
+Both start the way Andersons 2023's start code does: after homing, the tip travels to above the first
 point at CLEARANCE mm and only then comes down onto the bed, so no travel crosses the bed low
 (rw2 homes Z at its top; pentarod homes with the nozzle on the plate, so it lifts first).
 """
@@ -18,7 +18,7 @@ import math
 CLEARANCE = 10.0   # mm above the bed for the first travel
 
 def rw2():
-    out = ["; xlate5 example: flared C-shaped wall for rw2 (tip + head angles, seed 001 dialect)",
+    out = ["; xlate5 example: flared C-shaped wall for rw2 (tip + head angles, Andersons 2023 dialect)",
            "G21", "G90", "M83", "M104 S215", "M140 S60",
            "G28 ; home all axes", "G92 A-168 ; A homes at its min switch", "G1 A0 B0 F1200",
            "M190 S60", "M109 S215", "G92 E0"]
@@ -48,7 +48,7 @@ def rw2():
     return out
 
 def pentarod():
-    out = ["; xlate5 example: dome shell for pentarod (tip + tool vector, seed 002 dialect)",
+    out = ["; xlate5 example: dome shell for pentarod (tip + tool vector, Grutle 2015 dialect)",
            "G21", "G90", "M82", "G28", f"G0 Z{CLEARANCE:.3f} F3000 ; lift off the plate", "G92 E0"]
     R, e = 25.0, 0.0
     prev = None

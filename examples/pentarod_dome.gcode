@@ -1,4 +1,4 @@
-; xlate5 example: dome shell for pentarod (tip + tool vector, seed 002 dialect)
+; xlate5 example: dome shell for pentarod (tip + tool vector, Grutle 2015 dialect)
 G21
 G90
 M82

@@ -1,4 +1,4 @@
-; xlate5 example: flared C-shaped wall for rw2 (tip + head angles, seed 001 dialect)
+; xlate5 example: flared C-shaped wall for rw2 (tip + head angles, Andersons 2023 dialect)
 G21
 G90
 M83

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs the dependencies, builds xlate5, and translates the bundled rw2 example
-# (tool space, seed 001's dialect) into joint space for stock Marlin; then turns the result
+# (tool space, Andersons 2023's dialect) into joint space for stock Marlin; then turns the result
 # back into tool space to show the round trip. Then the service: `xlate5 serve` with its virtual
 # printer, Printrun's printcore streaming the same file into it as into a printer, and the
 # commands the virtual printer executed compared with the offline translation.

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -57,6 +59,22 @@ struct TempDir {
         return names;
     }
 };
+
+// The third-party corpus (XLATE5_CORPUS_DIR, ../shared/corpus next to the checkout; the variable
+// of that name in the environment wins): read at test time, never copied into the repository. A
+// checkout without it skips the tests that read it, and says so once on standard error.
+inline std::string corpus_dir() {
+    const char* env = std::getenv("XLATE5_CORPUS_DIR");
+    return env && *env ? env : XLATE5_CORPUS_DIR;
+}
+inline bool corpus_absent() {
+    static const bool absent = [] {
+        const bool a = !std::filesystem::is_directory(corpus_dir());
+        if (a) std::fprintf(stderr, "skipping the tests that read the corpus: %s is absent\n", corpus_dir().c_str());
+        return a;
+    }();
+    return absent;
+}
 
 constexpr double kPi = 3.14159265358979323846;
 inline double rad(double deg) { return deg * kPi / 180.0; }

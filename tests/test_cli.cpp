@@ -39,11 +39,12 @@ struct Result {
     std::string out, err;
 };
 
-// Runs the xlate5 binary with `args` (already quoted), standard input from `stdin_text`.
-Result run(const TempDir& dir, const std::string& args, const std::string& stdin_text = "") {
+// Runs the xlate5 binary with `args` (already quoted), standard input from `stdin_text`, under
+// `env` (an env(1) prefix, e.g. "env -u XLATE5_MACHINES ").
+Result run(const TempDir& dir, const std::string& args, const std::string& stdin_text = "", const std::string& env = "") {
     const fs::path in = dir.path / ".stdin", out = dir.path / ".stdout", err = dir.path / ".stderr";
     std::ofstream(in, std::ios::binary) << stdin_text;
-    const std::string cmd = quote(XLATE5_BINARY) + " " + args + " <" + quote(in.string()) + " >" + quote(out.string()) + " 2>" +
+    const std::string cmd = env + quote(XLATE5_BINARY) + " " + args + " <" + quote(in.string()) + " >" + quote(out.string()) + " 2>" +
                             quote(err.string());
     const int status = std::system(cmd.c_str());
     Result r;
@@ -572,4 +573,174 @@ TEST_CASE("cli: calibrate pivots fits rw2's la from tips measured per eq. 4.5 an
     CHECK(contains(read(out), "la = 29.000000"));
     // Never over the original.
     CHECK(run(d, "--machine rw2 calibrate pivots " + quote((d.path / "m.csv").string()) + " --fit la -o " + quote(machine_path("rw2"))).code == 2);
+}
+
+TEST_CASE("cli: machine names are found in the user's directory before the shipped ones, and the shipped ones beside the program") {
+    TempDir d;
+    const std::string in = "G1 X100 Y100 Z10 A90 B0\nG1 A45 B30\n";
+    std::string rw2 = read(machine_path("rw2"));
+    const std::size_t at = rw2.find("\nla = 26.5");
+    REQUIRE(at != std::string::npos);
+    rw2.replace(at, 10, "\nla = 29");
+    fs::create_directories(d.path / "config/xlate5/machines");
+    std::ofstream(d.path / "config/xlate5/machines/mine.toml") << rw2;
+    fs::create_directories(d.path / "home/.config/xlate5/machines");
+    std::ofstream(d.path / "home/.config/xlate5/machines/rw2.toml") << rw2;
+    // No override directory: what a user's shell has.
+    const std::string user = "env -u XLATE5_MACHINES HOME=" + quote((d.path / "nohome").string()) + " XDG_CONFIG_HOME=" +
+                             quote((d.path / "config").string()) + " ";
+    const std::string home = "env -u XLATE5_MACHINES -u XDG_CONFIG_HOME HOME=" + quote((d.path / "home").string()) + " ";
+
+    const Result shipped = run(d, "-m rw2 --no-segment", in), la29 = run(d, "-m rw2 --no-segment --set la=29", in);
+    REQUIRE(shipped.code == 0);
+    REQUIRE(la29.code == 0);
+    REQUIRE(shipped.out != la29.out);
+    // $XDG_CONFIG_HOME/xlate5/machines: a new name, and the shipped names still there.
+    const Result mine = run(d, "-m mine --no-segment", in, user);
+    CHECK(mine.code == 0);
+    CHECK(mine.out == la29.out);
+    const Result still = run(d, "-m rw2 --no-segment", in, user);
+    CHECK(still.code == 0);
+    CHECK(still.out == shipped.out);  // found beside the program: build/share/xlate5/machines
+    const Result list = run(d, "machines", "", user);
+    CHECK(list.code == 0);
+    const auto listed = [&list](const std::string& name) {
+        const auto lines = lines_of(list.out);
+        return std::any_of(lines.begin(), lines.end(), [&name](const std::string& l) { return l.rfind(name + " ", 0) == 0; });
+    };
+    CHECK(listed("mine"));
+    CHECK(listed("rw2"));
+    // ~/.config/xlate5/machines without XDG_CONFIG_HOME; a file there replaces the shipped one.
+    const Result replaced = run(d, "-m rw2 --no-segment", in, home);
+    CHECK(replaced.code == 0);
+    CHECK(replaced.out == la29.out);
+}
+
+TEST_CASE("cli: the argument parser's errors start with xlate5: and name the nearest option or command") {
+    TempDir d;
+    struct Case {
+        std::string args, want;
+    };
+    for (const Case& c : std::vector<Case>{{"-m rw2 --tolerence 0.1", "did you mean '--tolerance'?"},
+                                           {"--tolerence=0.1 -m rw2", "did you mean '--tolerance'?"},
+                                           {"-m rw2 --machnie rw2", "did you mean '--machine'?"},
+                                           {"machnes", "unknown command 'machnes'; did you mean 'machines'?"},
+                                           {"serv --printer sim", "did you mean 'serve'?"},
+                                           {"serve --prot /dev/ttyUSB0", "did you mean '--port'?"},
+                                           {"serve --printer sim --sim-fualt drop=0.1", "did you mean '--sim-fault'?"},
+                                           {"calibrate fti t.csv", "did you mean 'fit'?"},
+                                           {"calibrate fit t.csv --ordre 2", "did you mean '--order'?"}}) {
+        CAPTURE(c.args);
+        const Result r = run(d, c.args);
+        CHECK(r.code == 2);
+        CHECK(r.err.rfind("xlate5: ", 0) == 0);
+        CHECK(contains(r.err, c.want));
+        CHECK(r.out.empty());
+    }
+    // Nothing near: no guess.
+    const Result far = run(d, "-m rw2 --zqxwv 1");
+    CHECK(far.code == 2);
+    CHECK(contains(far.err, "unknown option '--zqxwv'"));
+    CHECK_FALSE(contains(far.err, "did you mean"));
+    // A command's own options are suggested only after it.
+    const Result top = run(d, "-m rw2 --prot x");
+    CHECK(top.code == 2);
+    CHECK_FALSE(contains(top.err, "--port"));
+    // Every refusal of the parser, not only unknown names.
+    for (const std::string args : {"-m rw2 --tolerance", "-m rw2 --preview-form G99", "calibrate", "calibrate fit", "-m rw2 --tolerance -1",
+                                   "serve --baud 12"}) {
+        CAPTURE(args);
+        const Result r = run(d, args);
+        CHECK(r.code == 2);
+        CHECK(r.err.rfind("xlate5: ", 0) == 0);
+    }
+}
+
+TEST_CASE("cli: numbers out of range are refused with their bounds written plainly") {
+    TempDir d;
+    for (const std::string value : {"-1", "0", "10.5", "nan", "inf", "1e999", "abc"}) {
+        CAPTURE(value);
+        const Result r = run(d, "-m rw2 --tolerance " + value, "G1 X1\n");
+        CHECK(r.code == 2);
+        CHECK(contains(r.err, "--tolerance"));
+        CHECK(contains(r.err, "above 0 and at most 10 (mm)"));
+        CHECK_FALSE(contains(r.err, "000000"));  // no %f of the double range
+    }
+    CHECK(run(d, "-m rw2 --no-segment --tolerance 10", "G1 X100 Y100 Z10 A0 B0\n").code == 0);
+    const Result order = run(d, "calibrate fit t.csv --order 13");
+    CHECK(order.code == 2);
+    CHECK(contains(order.err, "from 1 to 12"));
+    const Result baud = run(d, "serve --printer sim --baud 9999999999999");
+    CHECK(baud.code == 2);
+    CHECK(contains(baud.err, "from 300 to 4000000"));
+    // The help says the same.
+    const Result help = run(d, "--help");
+    CHECK(contains(help.out, "above 0 and at most 10 mm"));
+    CHECK_FALSE(contains(help.out, "179769"));
+}
+
+TEST_CASE("cli: serve --help gives every option's default") {
+    TempDir d;
+    const Result r = run(d, "serve --help");
+    REQUIRE(r.code == 0);
+    int options = 0;
+    // An option's line, and its description when CLI11 puts that on the next line.
+    const auto lines = lines_of(r.out);
+    for (std::size_t i = 0; i < lines.size(); ++i) {
+        const std::string& l = lines[i];
+        if (l.rfind("  -", 0) != 0 || contains(l, "--help")) continue;
+        ++options;
+        CAPTURE(l);
+        const std::string next = i + 1 < lines.size() && lines[i + 1].rfind("      ", 0) == 0 ? lines[i + 1] : "";
+        CHECK((contains(l, "(default: ") || contains(next, "(default: ")));
+    }
+    CHECK(options >= 20);
+    // The documented ones (config/xlate5.toml, docs/service.md).
+    CHECK(contains(r.out, "(default: 115200)"));
+    CHECK(contains(r.out, "(default: /run/xlate5/printer)"));
+    CHECK(contains(r.out, "(default: rw2)"));
+}
+
+TEST_CASE("cli: serve without a port or --printer sim is an error, not a silent simulator") {
+    TempDir d;
+    const std::string pty = (d.path / "printer").string();
+    for (const std::string& args :
+         std::vector<std::string>{"serve --no-pty --tcp 127.0.0.1:0", "serve --pty " + quote(pty), "serve --printer serial --pty " + quote(pty)}) {
+        CAPTURE(args);
+        const Result r = run(d, args);
+        CHECK(r.code == 2);
+        CHECK(r.err.rfind("xlate5: ", 0) == 0);
+        CHECK(contains(r.err, "--port DEVICE"));
+        CHECK(contains(r.err, "--printer sim"));
+        CHECK_FALSE(fs::exists(fs::symlink_status(pty)));
+    }
+}
+
+TEST_CASE("cli: what a user reads names its sources by author, place and year, never by a corpus number") {
+    TempDir d;
+    // "seed 001" and the like: a number that means something only to whoever collected the sources.
+    const auto numbered = [](const std::string& text) {
+        for (std::size_t at = text.find("seed "); at != std::string::npos; at = text.find("seed ", at + 1))
+            if (at + 5 < text.size() && std::isdigit(static_cast<unsigned char>(text[at + 5]))) return text.substr(at, 40);
+        return std::string();
+    };
+    std::vector<std::pair<std::string, std::string>> texts;
+    for (const std::string args : {"--help", "machines", "serve --help", "ports --help", "calibrate --help", "calibrate fit --help",
+                                   "calibrate plate --help", "calibrate offset --help", "calibrate pivots --help", "calibrate centre --help",
+                                   "--man-page"}) {
+        const Result r = run(d, args);
+        REQUIRE(r.code == 0);
+        texts.emplace_back("xlate5 " + args, r.out);
+    }
+    const fs::path source = fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path();
+    for (const fs::path& dir : std::vector<fs::path>{source, source / "docs", source / "machines", source / "machines/compensation", source / "config"})
+        for (const auto& e : fs::directory_iterator(dir))
+            if (e.is_regular_file() && (e.path().extension() == ".md" || e.path().extension() == ".toml"))
+                texts.emplace_back(e.path().string(), read(e.path()));
+    CHECK(texts.size() > 20);
+    for (const auto& [where, text] : texts) {
+        CAPTURE(where);
+        CHECK(numbered(text).empty());
+    }
+    CHECK(contains(run(d, "machines").out, "Andersons, Twente 2023"));
 }

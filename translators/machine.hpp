@@ -94,7 +94,9 @@ Machine load_machine_text(const std::string& toml_text, const std::string& sourc
 // replacing the machine's own. Throws MachineError naming the file, line and key.
 void load_compensation_file(const std::string& path, Machine& machine);
 
-// Where bundled machines are looked up: $XLATE5_MACHINES, the source tree, the install prefix.
+// Where machine names are looked up, first match first: $XLATE5_MACHINES, $XDG_CONFIG_HOME/xlate5/machines
+// (~/.config/xlate5/machines), /etc/xlate5/machines, then the shipped ones (../share/xlate5/machines
+// from the executable's directory, then the install prefix's).
 std::vector<std::string> machine_search_path();
 // Every bundled machine file found on the search path, by name.
 std::map<std::string, std::string> bundled_machines();

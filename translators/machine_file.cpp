@@ -1,4 +1,5 @@
 // Machine TOML file -> Machine. Every error names the file, the line and the key at fault.
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -13,9 +14,6 @@
 #include "translators/expr.hpp"
 #include "translators/machine.hpp"
 
-#ifndef XLATE5_SOURCE_MACHINE_DIR
-#define XLATE5_SOURCE_MACHINE_DIR ""
-#endif
 #ifndef XLATE5_INSTALLED_MACHINE_DIR
 #define XLATE5_INSTALLED_MACHINE_DIR ""
 #endif
@@ -391,11 +389,28 @@ void load_compensation_file(const std::string& path, Machine& m) {
     m.compensation.source = path;
 }
 
+// First match wins (docs/machines.md, "Where machine files are found"): the user's and the
+// system's own files come before the shipped ones, so a copy edited there replaces a bundled one.
 std::vector<std::string> machine_search_path() {
+    namespace fs = std::filesystem;
     std::vector<std::string> dirs;
-    if (const char* env = std::getenv("XLATE5_MACHINES"); env && *env) dirs.emplace_back(env);
-    if (*XLATE5_SOURCE_MACHINE_DIR) dirs.emplace_back(XLATE5_SOURCE_MACHINE_DIR);
-    if (*XLATE5_INSTALLED_MACHINE_DIR) dirs.emplace_back(XLATE5_INSTALLED_MACHINE_DIR);
+    const auto add = [&dirs](const fs::path& dir) {
+        const std::string d = dir.lexically_normal().string();
+        if (!d.empty() && std::find(dirs.begin(), dirs.end(), d) == dirs.end()) dirs.push_back(d);
+    };
+    if (const char* env = std::getenv("XLATE5_MACHINES"); env && *env) add(env);
+    // XDG base directories: a relative XDG_CONFIG_HOME is invalid and ignored.
+    if (const char* xdg = std::getenv("XDG_CONFIG_HOME"); xdg && *xdg == '/')
+        add(fs::path(xdg) / "xlate5/machines");
+    else if (const char* home = std::getenv("HOME"); home && *home == '/')
+        add(fs::path(home) / ".config/xlate5/machines");
+    add("/etc/xlate5/machines");
+    // The shipped files, found from the executable: PREFIX/bin/xlate5 -> PREFIX/share/xlate5/machines
+    // wherever the tree was installed or unpacked (the build tree links that path to machines/).
+    std::error_code ec;
+    if (const fs::path exe = fs::read_symlink("/proc/self/exe", ec); !ec)
+        add(exe.parent_path().parent_path() / "share/xlate5/machines");
+    if (*XLATE5_INSTALLED_MACHINE_DIR) add(XLATE5_INSTALLED_MACHINE_DIR);
     return dirs;
 }
 
