@@ -16,6 +16,10 @@ install(CODE "
 install(FILES ${PROJECT_SOURCE_DIR}/examples/rw2_flared_wall.gcode ${PROJECT_SOURCE_DIR}/examples/pentarod_dome.gcode
         DESTINATION ${CMAKE_INSTALL_DOCDIR}/examples)
 
+# cpack packages what is built; it does not build everything else first (the package test runs
+# cpack under ctest, in a tree where only some targets may be built).
+set(CMAKE_SKIP_INSTALL_ALL_DEPENDENCY ON)
+
 set(CPACK_GENERATOR DEB)
 set(CPACK_PACKAGE_NAME xlate5)
 set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
