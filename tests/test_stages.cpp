@@ -183,8 +183,10 @@ TEST_CASE("limit policy: within the limits, on a branch, or continuous whatever 
         q[std::size_t(B)] = 5 + 55 * std::abs(U(rng));
         const Eigen::Vector3d axis = k.forward(q).axis;
         std::vector<double> within = prev, cont = prev, b0 = prev, b1 = prev;
-        const auto rw = orient_within_limits(k, axis, prev, prev, within);
-        REQUIRE(orient_continuous(k, axis, prev, cont).ok());
+        const auto sols = k.orientation_solutions(axis);
+        const auto& rot = k.rotary_joints();
+        const auto rw = orient_within_limits(m, rot, sols, prev, prev, within);
+        REQUIRE(orient_continuous(m, rot, sols, prev, cont).ok());
         CHECK((k.forward(cont).axis - axis).norm() < 1e-9);
         if (!inside_limits(m.joints[std::size_t(A)], cont[std::size_t(A)])) ++outside_continuous;
         if (rw.ok()) {
@@ -194,11 +196,11 @@ TEST_CASE("limit policy: within the limits, on a branch, or continuous whatever 
             CHECK(rw.status == IkStatus::OutOfLimits);
         }
         // The two branches: (A, B) and (A + 180, -B), both reaching the axis where inside the limits.
-        const bool ok0 = orient_on_branch(k, axis, 0, prev, prev, b0).ok(), ok1 = orient_on_branch(k, axis, 1, prev, prev, b1).ok();
+        const bool ok0 = orient_on_branch(m, rot, sols, 0, prev, prev, b0).ok(), ok1 = orient_on_branch(m, rot, sols, 1, prev, prev, b1).ok();
         if (ok0) CHECK((k.forward(b0).axis - axis).norm() < 1e-9);
         if (ok1) CHECK((k.forward(b1).axis - axis).norm() < 1e-9);
         if (ok0 && ok1) CHECK(std::abs(b0[std::size_t(B)] + b1[std::size_t(B)]) < 1e-9);
-        CHECK(orient_on_branch(k, axis, 2, prev, prev, b0).status == IkStatus::Unreachable);
+        CHECK(orient_on_branch(m, rot, sols, 2, prev, prev, b0).status == IkStatus::Unreachable);
     }
     CHECK(outside_continuous > 0);  // the case the planner's policy is for did occur
 }

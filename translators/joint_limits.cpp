@@ -21,15 +21,14 @@ std::string fmt(double v) {
 
 // Of `solutions`, the turn of each rotary nearest its previous value (inside the limits when
 // `limited`), and of those the solution nearest `previous` overall.
-IkResult choose(const Kinematics& kin, const Eigen::Vector3d& axis, const Kinematics::Solutions& solutions,
+IkResult choose(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
                 const std::vector<double>& previous, const std::vector<double>& free_value, bool limited, std::vector<double>& q) {
+    const Eigen::Vector3d& axis = solutions.axis;
     if (solutions.empty()) {
         char buf[160];
         std::snprintf(buf, sizeof buf, "tool axis (%.6f, %.6f, %.6f) is out of this machine's reach", axis.x(), axis.y(), axis.z());
         return {IkStatus::Unreachable, buf};
     }
-    const Machine& machine = kin.machine();
-    const std::vector<int>& rotary = kin.rotary_joints();
     const std::size_t n = rotary.size();
     double best_cost = std::numeric_limits<double>::infinity();
     double best[2] = {0, 0};
@@ -99,24 +98,24 @@ IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
     return {};
 }
 
-IkResult orient_within_limits(const Kinematics& kin, const Eigen::Vector3d& axis, const std::vector<double>& previous,
-                              const std::vector<double>& free_value, std::vector<double>& q) {
-    return choose(kin, axis, kin.orientation_solutions(axis), previous, free_value, true, q);
+IkResult orient_within_limits(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
+                              const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q) {
+    return choose(machine, rotary, solutions, previous, free_value, true, q);
 }
 
-IkResult orient_on_branch(const Kinematics& kin, const Eigen::Vector3d& axis, int branch, const std::vector<double>& previous,
-                          const std::vector<double>& free_value, std::vector<double>& q) {
-    auto solutions = kin.orientation_solutions(axis);
+IkResult orient_on_branch(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions, int branch,
+                          const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q) {
     if (branch < 0 || branch >= solutions.count) return {IkStatus::Unreachable, "no such orientation branch"};
-    solutions.angle[0][0] = solutions.angle[branch][0];
-    solutions.angle[0][1] = solutions.angle[branch][1];
-    solutions.count = 1;
-    return choose(kin, axis, solutions, previous, free_value, true, q);
+    OrientationSolutions one = solutions;
+    one.angle[0][0] = solutions.angle[branch][0];
+    one.angle[0][1] = solutions.angle[branch][1];
+    one.count = 1;
+    return choose(machine, rotary, one, previous, free_value, true, q);
 }
 
-IkResult orient_continuous(const Kinematics& kin, const Eigen::Vector3d& axis, const std::vector<double>& previous,
-                           std::vector<double>& q) {
-    return choose(kin, axis, kin.orientation_solutions(axis), previous, previous, false, q);
+IkResult orient_continuous(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
+                           const std::vector<double>& previous, std::vector<double>& q) {
+    return choose(machine, rotary, solutions, previous, previous, false, q);
 }
 
 }  // namespace xlate5

@@ -35,13 +35,6 @@ double subproblem1(const Eigen::Vector3d& w, const Eigen::Vector3d& p, const Eig
 
 }  // namespace
 
-double wrap180(double degrees) {
-    double r = std::fmod(degrees, 360.0);
-    if (r <= -180.0) r += 360.0;
-    if (r > 180.0) r -= 360.0;
-    return r;
-}
-
 Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
     // Orientation: u = R_part^T R_tool u0. Write it as one product of fixed rotations and joint
     // rotations, then fold the fixed ones into the axes: u' = G0^T u = R(w1,s1 q1) R(w2,s2 q2) p.
@@ -155,6 +148,7 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
 Kinematics::Solutions Kinematics::orientation_solutions(const Eigen::Vector3d& axis) const {
     const double nan = std::numeric_limits<double>::quiet_NaN();
     Solutions out;
+    out.axis = axis;
     const Eigen::Vector3d u = g0_.transpose() * axis.normalized();
     if (rotary_.empty()) {
         if ((u - p_).norm() < kReachEps) out.count = 1;
@@ -191,7 +185,7 @@ Kinematics::Solutions Kinematics::orientation_solutions(const Eigen::Vector3d& a
 
 IkResult Kinematics::inverse(const Pose& pose, const std::vector<double>& previous, std::vector<double>& q) const {
     q = previous;
-    if (auto r = orient_within_limits(*this, pose.axis, previous, previous, q); !r.ok()) return r;
+    if (auto r = orient_within_limits(machine_, rotary_, orientation_solutions(pose.axis), previous, previous, q); !r.ok()) return r;
     if (auto r = solve_position(pose.tip, q); !r.ok()) return r;
     return check_limits(machine_, q);
 }

@@ -1,7 +1,7 @@
 // The math, used by the planner, the motion stage, calibration and --inverse: forward kinematics
 // and the closed-form inverse of any machine with up to two rotary joints (Paden-Kahan
 // subproblems 1 and 2). No machine has its own formula here. May call: the machine data, and
-// joint_limits for the choice inverse() makes.
+// joint_limits (the one definition of the limits) for the choice inverse() makes.
 //
 // The contract is forward(q) and inverse(pose, previous). Below them, plain queries that the
 // planner combines under its own policy: the orientation solutions per branch and the position
@@ -11,23 +11,10 @@
 #include <string>
 #include <vector>
 
+#include "translators/kinematics_types.hpp"
 #include "translators/machine.hpp"
 
 namespace xlate5 {
-
-// Tip position and tool axis (unit, tip -> holder), both in the part frame.
-struct Pose {
-    Eigen::Vector3d tip = Eigen::Vector3d::Zero();
-    Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
-};
-
-enum class IkStatus { Ok, Unreachable, OutOfLimits, Singular };
-
-struct IkResult {
-    IkStatus status = IkStatus::Ok;
-    std::string message;  // what went wrong, for the error that names the input line
-    bool ok() const { return status == IkStatus::Ok; }
-};
 
 class Kinematics {
 public:
@@ -39,8 +26,8 @@ public:
     // Joint values (mm, degrees) -> tip and tool axis in the part frame.
     Pose forward(const std::vector<double>& q) const;
 
-    // Joints reaching `pose`: of its solutions (both orientation branches, every 360-degree
-    // turn), the one inside the joint limits nearest `previous`. A joint whose axis is parallel to
+    // Joints reaching `pose`: of its solutions (both orientation branches, their 360-degree
+    // turns), the one inside the joint limits nearest `previous`. A joint whose axis is parallel to
     // the tool axis keeps its previous value.
     IkResult inverse(const Pose& pose, const std::vector<double>& previous, std::vector<double>& q) const;
 
@@ -48,14 +35,8 @@ public:
     // `axis`, when given, receives the tool axis of that configuration.
     IkResult solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr) const;
 
-    // The raw orientation solutions, in degrees: each has one value per rotary joint in
-    // `rotary_joints()` order (NaN where that joint is free). Fixed size: no allocation per move.
-    struct Solutions {
-        int count = 0;
-        double angle[2][2] = {};
-        std::size_t size() const { return std::size_t(count); }
-        bool empty() const { return count == 0; }
-    };
+    // The raw orientation solutions of a tool axis (see OrientationSolutions).
+    using Solutions = OrientationSolutions;
     Solutions orientation_solutions(const Eigen::Vector3d& axis) const;
     const std::vector<int>& rotary_joints() const { return rotary_; }
 
@@ -78,8 +59,5 @@ private:
     Eigen::Vector3d p_ = Eigen::Vector3d::UnitZ();
     bool flip_ = false;
 };
-
-// Wraps an angle in degrees to (-180, 180].
-double wrap180(double degrees);
 
 }  // namespace xlate5

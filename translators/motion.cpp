@@ -98,8 +98,9 @@ IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<d
         std::vector<double>& hint = const_cast<std::vector<double>&>(lerp_);
         hint.resize(q.size());
         for (std::size_t j = 0; j < q.size(); ++j) hint[j] = q0[j] + s * (q1[j] - q0[j]);
-        const IkResult r = branch < 0 ? orient_within_limits(kin_, target.axis, previous, hint, q)
-                                      : orient_on_branch(kin_, target.axis, branch, previous, hint, q);
+        const auto solutions = kin_.orientation_solutions(target.axis);
+        const IkResult r = branch < 0 ? orient_within_limits(machine_, kin_.rotary_joints(), solutions, previous, hint, q)
+                                      : orient_on_branch(machine_, kin_.rotary_joints(), solutions, branch, previous, hint, q);
         if (!r.ok()) return r;
     }
     if (auto r = kin_.solve_position(target.tip, q); !r.ok()) return r;
@@ -110,7 +111,7 @@ IkResult MotionStage::leaves_limits(const MoveSpec& mv, double s, const std::vec
     if (mv.mode != OrientationMode::Vector) return {};
     std::vector<double>& cont = sample_;
     cont = previous;
-    if (!orient_continuous(kin_, pose_at(mv, s).axis, previous, cont).ok()) return {};
+    if (!orient_continuous(machine_, kin_.rotary_joints(), kin_.orientation_solutions(pose_at(mv, s).axis), previous, cont).ok()) return {};
     for (std::size_t j = 0; j < cont.size(); ++j) {
         const Joint& J = machine_.joints[j];
         if (!J.rotary || inside_limits(J, cont[j])) continue;

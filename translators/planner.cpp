@@ -116,7 +116,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     q_next_ = s.q;
     if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
     IkResult r;
-    if (mv.any_ijk) r = orient_within_limits(kin_, mv.axis, s.q, s.q, q_next_);
+    if (mv.any_ijk) r = orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(mv.axis), s.q, s.q, q_next_);
     Pose next = s.pose;
     if (r.ok()) {
         if (!mv.any_xyz && !s.tip_known) {
