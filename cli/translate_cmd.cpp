@@ -13,6 +13,7 @@
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
 #include "translators/gcode_lexer.hpp"
+#include "translators/input_front.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/report.hpp"
@@ -48,6 +49,12 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
     app.add_flag("--inverse", o.inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
     app.add_option("--preview-form", o.preview, "with --inverse: write orientation as G43.4 angles or G43.5 I J K")
         ->check(CLI::IsMember({"G43.4", "G43.5"}));
+    app.add_option("--input-format", o.input_format, "auto (CL data or G-code, by content), gcode, apt (APT / NX CLSF) or waypoints (x y z nx ny nz)")
+        ->check(CLI::IsMember({"auto", "gcode", "apt", "waypoints"}));
+    app.add_option("--extrusion-per-mm", o.extrusion_per_mm, "apt and waypoints: E (mm of filament) per mm of tip path on printing moves (default 0)")
+        ->check(CLI::Range(0.0, 100.0));
+    app.add_option("--waypoint-feed", o.waypoint_feed, "waypoints: feed of the printing moves, mm/min (default 1200)")
+        ->check(CLI::Range(1.0, 1e6));
 }
 
 int run_translate(const Common& common, const TranslateOptions& o) {
@@ -63,6 +70,8 @@ int run_translate(const Common& common, const TranslateOptions& o) {
         if (o.extruder.size() != 1 || !std::isalpha(static_cast<unsigned char>(o.extruder[0])))
             throw CLI::ValidationError("--extruder-letter", "expected one letter");
         options.extruder_letter = char(std::toupper(static_cast<unsigned char>(o.extruder[0])));
+        if (o.inverse && o.input_format != "auto" && o.input_format != "gcode")
+            throw CLI::ValidationError("--input-format", "--inverse reads joint-space G-code only");
     } catch (...) {
         return exit_with(std::current_exception());
     }
@@ -96,9 +105,16 @@ int run_translate(const Common& common, const TranslateOptions& o) {
         Translator translator(kinematics, options);
         std::string declared;  // the flag is the file's declaration line, read before the file
         if (o.compact_words) translator.feed("; " + std::string(kCompactDeclaration), 0, declared);
+        FrontOptions front_options;
+        front_options.format = o.inverse ? InputFormat::GCode : *parse_input_format(o.input_format);
+        front_options.input_name = options.input_name;
+        front_options.extrusion_per_mm = o.extrusion_per_mm;
+        front_options.waypoint_feed = o.waypoint_feed;
+        front_options.chord_tolerance = 0.5 * machine->motion.tolerance;  // the other half for the split
+        InputFront front(translator, front_options);
         LineReader reader(in_fd, options.input_name);
         OutputSink sink(o.output);
-        const auto stats = translate_stream(reader, translator, sink);
+        const auto stats = translate_stream(reader, front, sink);
         // The report files are written like the output: whole, or not at all.
         std::optional<OutputSink> report_sink, plot_sink;
         if (report) {
