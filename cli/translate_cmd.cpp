@@ -14,6 +14,7 @@
 #include "translators/error.hpp"
 #include "translators/gcode_lexer.hpp"
 #include "translators/input_front.hpp"
+#include "translators/keep_out.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/report.hpp"
@@ -55,6 +56,8 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
         ->check(CLI::Range(0.0, 100.0));
     app.add_option("--waypoint-feed", o.waypoint_feed, "waypoints: feed of the printing moves, mm/min (default 1200)")
         ->check(CLI::Range(1.0, 1e6));
+    app.add_option("--keep-out", o.keep_out, "ITEMS.csv (x, y, height per line): R of a nozzle turning about its own axis (addin4) "
+                                            "is set normal to the path, toward the nearest item at or below the current Z");
 }
 
 int run_translate(const Common& common, const TranslateOptions& o) {
@@ -96,6 +99,12 @@ int run_translate(const Common& common, const TranslateOptions& o) {
         if (o.input != "-") {
             in_fd = ::open(o.input.c_str(), O_RDONLY | O_CLOEXEC);
             if (in_fd < 0) throw IoError(o.input + ": cannot open: " + std::strerror(errno));
+        }
+        std::optional<KeepOutItems> keep_out;
+        if (!o.keep_out.empty()) {
+            if (o.inverse) throw CLI::ValidationError("--keep-out", "translates tool space to joints (not with --inverse)");
+            keep_out = load_keep_out(o.keep_out);
+            options.keep_out = &*keep_out;
         }
         std::optional<DeviationReport> report;
         if (!o.report.empty() || !o.plot.empty()) {
