@@ -1,5 +1,5 @@
 // Keep-out throughput: a sliced tube (layers of short G1 moves around an item at its centre,
-// the ADD_IN team's figure-1 part, Pittsburgh 2015; their MATLAB took about 45 s for 30,000
+// the ADD_IN team's figure-1 part, 2015; their MATLAB took about 45 s for 30,000
 // moves) through the whole forward pipeline with R computed by the keep-out stage.
 //   bench_keep_out [MOVES] [PER_LAYER]     (default 30000 moves, 300 per layer)
 #include <chrono>

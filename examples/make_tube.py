@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A sliced tube for the keep-out workflow (ADD_IN team, Pittsburgh 2015, figure 1): layers of
+"""A sliced tube for the keep-out workflow (ADD_IN team, 2015, figure 1): layers of
 short G1 moves around a centre, with a keep-out item at the centre.
 
     python3 examples/make_tube.py [LAYERS] [STEPS_PER_LAYER] > examples/addin4_tube.gcode
