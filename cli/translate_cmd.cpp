@@ -73,6 +73,8 @@ int run_translate(const Common& common, const TranslateOptions& o) {
         if (o.extruder.size() != 1 || !std::isalpha(static_cast<unsigned char>(o.extruder[0])))
             throw CLI::ValidationError("--extruder-letter", "expected one letter");
         options.extruder_letter = char(std::toupper(static_cast<unsigned char>(o.extruder[0])));
+        if (o.input_format == "gcode" && o.extrusion_per_mm > 0)
+            throw CLI::ValidationError("--extrusion-per-mm", "is for apt and waypoints input (G-code has its own E)");
         if (o.inverse && o.input_format != "auto" && o.input_format != "gcode")
             throw CLI::ValidationError("--input-format", "--inverse reads joint-space G-code only");
     } catch (...) {

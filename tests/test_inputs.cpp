@@ -6,6 +6,7 @@
 #include <cmath>
 #include <fstream>
 #include <regex>
+#include <sys/wait.h>
 #include <sstream>
 
 #include "helpers.hpp"
@@ -382,4 +383,47 @@ TEST_CASE("waypoint table: every point's tip and normalised vector by FK; E per 
         const InputError d = error_of("xyzac-trt", "1 2 3 0 0 1 7\n", fo);
         CHECK(d.column() == 13);
     }
+}
+
+namespace {
+
+struct CliResult {
+    int code = -1;
+    std::string out, err;
+};
+
+CliResult run_cli(const TempDir& dir, const std::string& args, const std::string& stdin_text) {
+    const auto in = dir.write(".in", stdin_text);
+    const auto out = dir.path / ".out", err = dir.path / ".err";
+    const std::string cmd = quote(XLATE5_BINARY) + " " + args + " <" + quote(in.string()) + " >" + quote(out.string()) + " 2>" + quote(err.string());
+    const int status = std::system(cmd.c_str());
+    REQUIRE(WIFEXITED(status));
+    return {WEXITSTATUS(status), read(out), read(err)};
+}
+
+}  // namespace
+
+TEST_CASE("command line: --input-format, --extrusion-per-mm, --keep-out") {
+    TempDir dir;
+    const auto w = run_cli(dir, "--machine xyzac-trt --input-format waypoints --extrusion-per-mm 0.05", "0 0 5 0 0 1\n10 0 5 0 0.1 1\n");
+    CHECK(w.code == 0);
+    CHECK(contains(w.out, " E0.5"));
+    const auto cl = run_cli(dir, "--machine xyzac-trt", "UNITS/MM\nRAPID\nGOTO/1,2,3\n");
+    CHECK(cl.code == 0);
+    const auto bad = run_cli(dir, "--machine xyzac-trt", "UNITS/MM\nSPINDL/ON\n");
+    CHECK(bad.code == 1);
+    CHECK(contains(bad.err, "<stdin>:2:1: CL record 'SPINDL'"));
+    CHECK(run_cli(dir, "--machine xyzac-trt --input-format gcode --extrusion-per-mm 0.1", "G1 X1\n").code == 2);
+    const auto g = run_cli(dir, "--machine xyzac-trt --extrusion-per-mm 0.1", "G1 X1 Y1 Z1\n");
+    CHECK(g.code == 1);
+    CHECK(contains(g.err, "<stdin>:1:1:"));
+    const auto items = dir.write("items.csv", "100, 100, 0\n");
+    CHECK(run_cli(dir, "--machine rw2 --keep-out " + quote(items.string()), "G1 X1\n").code == 3);
+    const auto tube = run_cli(dir, "--machine addin4 --keep-out " + quote(items.string()), read(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/../examples/addin4_tube.gcode"));
+    CHECK(tube.code == 0);
+    CHECK(contains(tube.out, " A"));
+    const auto broken = dir.write("broken.csv", "100, 100\n");
+    const auto b = run_cli(dir, "--machine addin4 --keep-out " + quote(broken.string()), "G1 X1\n");
+    CHECK(b.code == 1);
+    CHECK(contains(b.err, "broken.csv:1:"));
 }

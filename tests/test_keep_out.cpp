@@ -1,4 +1,4 @@
-// The keep-out stage (ADD_IN team, Pittsburgh 2015): R normal to the path toward the nearest
+// The keep-out stage (ADD_IN team, 2015): R normal to the path toward the nearest
 // item, checked on the joints written (R is the firmware's A on addin4, the tip by FK) against
 // the geometry computed here from the input: the source's figure-1 tube, long moves past several
 // items sampled along their length, turns never pointing away, unwinding only on travel moves.
@@ -210,4 +210,17 @@ TEST_CASE("keep-out: an item on the line of a move is an error naming the input 
     } catch (const InputError& e) {
         CHECK(e.column() == 5);
     }
+}
+
+TEST_CASE("keep-out: a split move's relative E pieces add up to its E as written") {
+    const Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/addin4.toml");
+    const Kinematics k(m);
+    const KeepOutItems items = parse_keep_out("40,60,0\n100,45,0\n160,63,0\n", "items.csv");
+    const std::string out = translate(k, items, "G90\nM83\nG28\nG0 X10 Y50 Z0.2 F3000\nG1 X190 Y52 E7.33333 F1200\n");
+    double e = 0;
+    int pieces = 0;
+    for (const auto& line : lines_of(out))
+        if (const auto w = words_of(line.substr(0, line.find(';'))); w.count('E') && w.count('G') && w.at('G') == 1) e += w.at('E'), ++pieces;
+    CHECK(pieces == 3);  // split twice: item 1 -> 2 -> 3
+    CHECK(std::abs(e - 7.33333) < 1e-9);
 }

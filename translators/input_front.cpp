@@ -46,6 +46,8 @@ void InputFront::feed(std::string_view line, std::uint64_t line_no, std::string&
             return;
         }
         format_ = looks_like_apt(line) ? InputFormat::Apt : InputFormat::GCode;
+        if (format_ == InputFormat::GCode && o_.extrusion_per_mm > 0)
+            throw InputError(o_.input_name, line_no, 1, "this is G-code, which has its own E: the extrusion rate per mm is for CL data and waypoint tables");
         if (format_ == InputFormat::Apt) apt_ = std::make_unique<AptReader>(AptOptions{o_.input_name, o_.extrusion_per_mm, o_.chord_tolerance});
     }
     switch (format_) {

@@ -1,4 +1,4 @@
-// The keep-out stage: R from the path and the keep-out items (ADD_IN team, Pittsburgh 2015).
+// The keep-out stage: R from the path and the keep-out items (ADD_IN team, 2015).
 // What it may call: see keep_out.hpp.
 #include "translators/keep_out.hpp"
 
@@ -263,7 +263,8 @@ void KeepOutStage::tool_move(const ToolMove& mv, LineRun& run, std::string& out)
         piece.e_position = e_at;
         if (i > 0) piece.f.reset();
         if (!last) {
-            const double share = mv.e_relative ? mv.e->value * (t1 - t0) : (mv.e->value - mv.e_position) * (t1 - t0);
+            // Rounded as written (5 decimals), so that relative pieces add up to the move's E exactly.
+            const double share = std::round((mv.e->value - (mv.e_relative ? 0.0 : mv.e_position)) * (t1 - t0) * 1e5) / 1e5;
             piece.e = PassedNumber{mv.e_relative ? share : e_at + share, {}, 5};
             e_sent += share;
         } else {

@@ -1,4 +1,4 @@
-// The keep-out stage, between the interpreter and the planner (ADD_IN team, Pittsburgh 2015:
+// The keep-out stage, between the interpreter and the planner (ADD_IN team, 2015:
 // a 4-axis printer whose nozzle turns about its own vertical axis R to keep clear of parts placed
 // inside the print). For each printing move R is set normal to the path, toward the nearest
 // keep-out item whose height is at or below the current Z, the side chosen by the source's
