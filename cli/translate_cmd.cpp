@@ -14,6 +14,8 @@
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
 #include "translators/gcode_lexer.hpp"
+#include "translators/input_front.hpp"
+#include "translators/keep_out.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/report.hpp"
@@ -60,6 +62,14 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
     app.add_option("--preview-form", o.preview, with_default("with --inverse: write orientation as G43.4 angles or G43.5 I J K", "G43.4"))
         ->check(CLI::IsMember({"G43.4", "G43.5"}))
         ->option_text("G43.4|G43.5");
+    app.add_option("--input-format", o.input_format, with_default("gcode, apt (APT / NX CLSF) or waypoints (x y z nx ny nz)", "auto: CL data or G-code, by content"))
+        ->check(CLI::IsMember({"auto", "gcode", "apt", "waypoints"}));
+    app.add_option("--extrusion-per-mm", o.extrusion_per_mm, with_default("apt and waypoints: E (mm of filament) per mm of tip path on printing moves", "0"))
+        ->check(number_in(0, 100, "mm of filament per mm", false));
+    app.add_option("--waypoint-feed", o.waypoint_feed, with_default("waypoints: feed of the printing moves, mm/min", "1200"))
+        ->check(number_in(1, 1e6, "mm/min", false));
+    app.add_option("--keep-out", o.keep_out, "ITEMS.csv (x, y, height per line): R of a nozzle turning about its own axis (addin4) "
+                                            "is set normal to the path, toward the nearest item at or below the current Z");
 }
 
 int run_translate(const Common& common, const TranslateOptions& o) {
@@ -75,6 +85,10 @@ int run_translate(const Common& common, const TranslateOptions& o) {
         if (o.extruder.size() != 1 || !std::isalpha(static_cast<unsigned char>(o.extruder[0])))
             throw CLI::ValidationError("--extruder-letter", "expected one letter");
         options.extruder_letter = char(std::toupper(static_cast<unsigned char>(o.extruder[0])));
+        if (o.input_format == "gcode" && o.extrusion_per_mm > 0)
+            throw CLI::ValidationError("--extrusion-per-mm", "is for apt and waypoints input (G-code has its own E)");
+        if (o.inverse && o.input_format != "auto" && o.input_format != "gcode")
+            throw CLI::ValidationError("--input-format", "--inverse reads joint-space G-code only");
     } catch (...) {
         return exit_with(std::current_exception());
     }
@@ -100,6 +114,12 @@ int run_translate(const Common& common, const TranslateOptions& o) {
             in_fd = ::open(o.input.c_str(), O_RDONLY | O_CLOEXEC);
             if (in_fd < 0) throw IoError(o.input + ": cannot open: " + std::strerror(errno));
         }
+        std::optional<KeepOutItems> keep_out;
+        if (!o.keep_out.empty()) {
+            if (o.inverse) throw CLI::ValidationError("--keep-out", "translates tool space to joints (not with --inverse)");
+            keep_out = load_keep_out(o.keep_out);
+            options.keep_out = &*keep_out;
+        }
         std::optional<DeviationReport> report;
         if (!o.report.empty() || !o.plot.empty()) {
             report.emplace(options.input_name, machine->name, machine->motion.tolerance, machine->motion.angle_tolerance);
@@ -108,9 +128,16 @@ int run_translate(const Common& common, const TranslateOptions& o) {
         Translator translator(kinematics, options);
         std::string declared;  // the flag is the file's declaration line, read before the file
         if (o.compact_words) translator.feed("; " + std::string(kCompactDeclaration), 0, declared);
+        FrontOptions front_options;
+        front_options.format = o.inverse ? InputFormat::GCode : *parse_input_format(o.input_format);
+        front_options.input_name = options.input_name;
+        front_options.extrusion_per_mm = o.extrusion_per_mm;
+        front_options.waypoint_feed = o.waypoint_feed;
+        front_options.chord_tolerance = 0.5 * machine->motion.tolerance;  // the other half for the split
+        InputFront front(translator, front_options);
         LineReader reader(in_fd, options.input_name);
         OutputSink sink(o.output);
-        const auto stats = translate_stream(reader, translator, sink);
+        const auto stats = translate_stream(reader, front, sink);
         // The report files are written like the output: whole, or not at all.
         std::optional<OutputSink> report_sink, plot_sink;
         if (report) {

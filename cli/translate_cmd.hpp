@@ -12,6 +12,9 @@ struct TranslateOptions {
     std::string input = "-", output = "-", mode, preview = "G43.4", extruder = "E", report, plot, compensation;
     bool inverse = false, no_segment = false, compact_words = false;
     double tolerance = 0, angle_tolerance = 0;
+    // Other inputs: CL data and waypoint tables (input_front), keep-out items (keep_out).
+    std::string input_format = "auto", keep_out;
+    double extrusion_per_mm = 0, waypoint_feed = 1200;
 };
 
 // The translation's options live on the top-level command: translating is what xlate5 does

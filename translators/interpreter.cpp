@@ -7,6 +7,7 @@
 
 #include "translators/arcs.hpp"
 #include "translators/error.hpp"
+#include "translators/keep_out.hpp"
 
 namespace xlate5 {
 
@@ -273,7 +274,8 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, const Params& words
     mv.e_position = m.modes.e_position;
     mv.feed = m.modes.feed;
     mv.inverse_time = m.modes.inverse_time;
-    planner_.tool_move(mv, run, out);
+    if (keep_out_) keep_out_->tool_move(mv, run, out);
+    else planner_.tool_move(mv, run, out);
     track_extrusion(e);
 }
 

@@ -4,7 +4,7 @@
 // JointMove (G49), a position set (G92), homing (G28), or the line passed on as written. Lines it
 // does not need to understand pass through unchanged and in order. A failed line leaves neither
 // output nor state changed.
-// May call: the lexer, line_commands, arcs (G2/G3 -> chords), the planner.
+// May call: the lexer, line_commands, arcs (G2/G3 -> chords), the keep-out stage, the planner.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -35,6 +35,8 @@ struct LineState {
     PlannerState planner;
 };
 
+class KeepOutStage;
+
 class Interpreter {
 public:
     Interpreter(const Kinematics& kinematics, LineState& state, Planner& planner, std::string input_name, char extruder_letter);
@@ -43,6 +45,8 @@ public:
     // naming the file, line (run.line_no) and column; the state is then as before the line and
     // the firmware's position is taken as unknown.
     void feed_line(std::string_view line, LineRun& run, std::string& out);
+    // Tool moves go through the keep-out stage (which sets R) before the planner, when set.
+    void set_keep_out(KeepOutStage* stage) { keep_out_ = stage; }
 
 private:
     [[noreturn]] void fail(std::uint32_t column, const std::string& message) const;
@@ -63,6 +67,7 @@ private:
     const Machine& machine_;
     LineState& state_;
     Planner& planner_;
+    KeepOutStage* keep_out_ = nullptr;
     std::string input_name_;
     char extruder_letter_;
     LineState saved_;          // the state before the current line

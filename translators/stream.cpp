@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "translators/input_front.hpp"
 #include "translators/translator.hpp"
 
 namespace xlate5 {
@@ -13,13 +14,21 @@ constexpr std::size_t kFlushAt = 1u << 18;
 }  // namespace
 
 StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink) {
+    FrontOptions o;
+    o.format = InputFormat::GCode;
+    InputFront front(translator, o);
+    return translate_stream(reader, front, sink);
+}
+
+StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& sink) {
+    Translator& translator = front.translator();
     StreamStats stats;
     std::string out;
     out.reserve(kFlushAt + 4096);
     std::string_view line;
     translator.set_lookback(Translator::kDefaultLookback);  // a limit further on can be unwound on an earlier travel move
     while (reader.next(line)) {
-        translator.feed(line, reader.line_number(), out);
+        front.feed(line, reader.line_number(), out);
         if (out.size() >= kFlushAt) {
             sink.write(out);
             stats.bytes_out += out.size();
@@ -27,7 +36,7 @@ StreamStats translate_stream(LineReader& reader, Translator& translator, OutputS
             out.clear();
         }
     }
-    translator.finish(out);
+    front.finish(reader.line_number(), out);
     sink.write(out);
     stats.bytes_out += out.size();
     stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));

@@ -3,6 +3,7 @@
 #include "translators/translator.hpp"
 
 #include "translators/inverse.hpp"
+#include "translators/keep_out.hpp"
 #include "translators/lookback.hpp"
 #include "translators/planner.hpp"
 
@@ -15,7 +16,12 @@ struct Translator::Forward {
           log(o.report ? std::make_optional<MoveLog>(*o.report, kin.machine()) : std::nullopt),
           planner(kin, state.line.planner, state.emitter, log ? &*log : nullptr),
           interpreter(kin, state.line, planner, o.input_name, o.extruder_letter),
-          lookback(interpreter, state, log ? &*log : nullptr) {}
+          lookback(interpreter, state, log ? &*log : nullptr) {
+        if (o.keep_out) {
+            keep_out.emplace(kin, *o.keep_out, state.line.planner, planner);
+            interpreter.set_keep_out(&*keep_out);
+        }
+    }
 
     static ForwardState start(const Kinematics& kin, const TranslatorOptions& o) {
         ForwardState s(kin.machine());
@@ -28,6 +34,7 @@ struct Translator::Forward {
     ForwardState state;
     std::optional<MoveLog> log;
     Planner planner;
+    std::optional<KeepOutStage> keep_out;
     Interpreter interpreter;
     LookBack lookback;
 };

@@ -2,7 +2,7 @@
 // Forward (tool space -> joints): interpreter -> planner -> motion -> compensation -> emitter,
 // under the look-back. Inverse (options.inverse: joints -> tool space): its own pipeline in
 // inverse.cpp. It wires the stages together and holds no logic of its own.
-// May call: the look-back, the interpreter's and planner's state (for the accessors), inverse.
+// May call: the look-back, the keep-out stage, the interpreter's and planner's state (for the accessors), inverse.
 #pragma once
 #include <cstdint>
 #include <memory>
@@ -18,6 +18,8 @@
 
 namespace xlate5 {
 
+struct KeepOutItems;
+
 struct TranslatorOptions {
     std::string input_name = "<stdin>";            // for error messages
     std::optional<OrientationMode> start_mode;      // overrides the machine file's [input] mode
@@ -27,6 +29,7 @@ struct TranslatorOptions {
     bool inverse = false;
     OrientationMode preview_form = OrientationMode::Angles;
     DeviationReport* report = nullptr;  // when set, every tool-space move is measured into it
+    const KeepOutItems* keep_out = nullptr;  // when set, R comes from the path and these items (keep_out.hpp)
 };
 
 class InverseTranslator;
