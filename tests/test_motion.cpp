@@ -560,6 +560,8 @@ TEST_CASE("an unbounded turntable is re-zeroed with G92 on travel moves, never o
     std::string out;
     const int C = m.joint_index('C');
     // A tilted tool circling the part: C winds up turn after turn; every 8th move is a travel.
+    // Relative E: each E0.01 extrudes (under absolute E a repeated E0.01 would not).
+    t.feed("M83", 1000, out);
     double fw_c = 0, worst_abs = 0;
     int rezeros = 0;
     for (int i = 0; i < 800; ++i) {
@@ -590,4 +592,77 @@ TEST_CASE("an unbounded turntable is re-zeroed with G92 on travel moves, never o
     MESSAGE("re-zeroed " << rezeros << " times; largest |C| sent " << worst_abs);
     CHECK(rezeros >= 3);
     CHECK(worst_abs <= 1800 + 8 * 15 + 1);
+}
+
+TEST_CASE("re-zero: under absolute E a move to E0 after E5 extrudes (backwards) and is not re-zeroed; a travel is") {
+    const Machine m = load("koc5");  // C: rezero_beyond = 1800
+    const Kinematics k(m);
+    Translator t(k, {});
+    std::string out;
+    t.feed("G43.4", 1, out);
+    t.feed("M82", 2, out);
+    t.feed("G1 X0 Y0 Z10 B20 C0 F600", 3, out);
+    t.feed("G1 X1 C1900 E5", 4, out);  // printed: wound up, not re-zeroed
+    CHECK_FALSE(contains(out, "G92"));
+    out.clear();
+    t.feed("G1 X5 E0", 5, out);  // E moves from 5 to 0: the nozzle is working on the part
+    CHECK_FALSE(contains(out, "G92"));
+    out.clear();
+    t.feed("G1 X6 E0", 6, out);  // E unchanged: a travel, re-zeroed after it
+    CHECK(contains(out, "G92 C"));
+}
+
+TEST_CASE("a move refused for a rotary limit names that rotary, not a linear joint it throws out") {
+    Machine m = load("rw2");  // B: -100 .. 100; B = 120 also throws Z below its -60
+    const Kinematics k(m);
+    Translator t(k, {});
+    std::string out;
+    t.feed("G1 X100 Y100 Z10 A0 B0 F1200", 1, out);
+    try {
+        t.feed("G1 X60 Y50 Z10 B120 E1", 2, out);
+        FAIL("expected a limit error");
+    } catch (const InputError& e) {
+        CAPTURE(e.message());
+        CHECK(contains(e.message(), "joint B would go to 120.000"));
+        CHECK_FALSE(contains(e.message(), "joint Z"));
+    }
+}
+
+TEST_CASE("the report counts the rotary travel of a turn about the pole made before a move leaves it") {
+    const Machine m = load("koc5");
+    const Kinematics k(m);
+    DeviationReport report("t.gcode", "koc5", m.motion.tolerance, m.motion.angle_tolerance);
+    TranslatorOptions o;
+    o.report = &report;
+    Translator t(k, o);
+    std::string out;
+    t.feed("G43.5", 1, out);
+    t.feed("G1 X0 Y0 Z10 I0 J0 K1 F600", 2, out);  // on the pole: C free, stays 0
+    std::vector<double> q = t.joints();
+    out.clear();
+    t.feed("G1 X10 Y0 Z10 I0 J0.5 K0.866", 3, out);  // leaves toward azimuth 90: C turns first
+    const std::size_t C = std::size_t(m.joint_index('C')), B = std::size_t(m.joint_index('B'));
+    double travel_c = 0, travel_b = 0;
+    int lines = 0;
+    for (const auto& l : lines_of(out)) {
+        std::vector<double> cur = q;
+        if (!apply_line(m, l, cur, nullptr, nullptr)) continue;
+        ++lines;
+        travel_c += std::abs(cur[C] - q[C]);
+        travel_b += std::abs(cur[B] - q[B]);
+        q = cur;
+    }
+    t.finish(out);
+    REQUIRE(lines >= 2);
+    REQUIRE(travel_c > 45);  // the turn
+    const std::string json = report.json();
+    const auto at = json.find("\"rotary_travel_deg\"");
+    REQUIRE(at != std::string::npos);
+    auto value = [&](char joint) {
+        const auto p = json.find(std::string("\"") + joint + "\": ", at);
+        REQUIRE(p != std::string::npos);
+        return std::stod(json.substr(p + 5));
+    };
+    CHECK(std::abs(value('C') - travel_c) < 0.01);
+    CHECK(std::abs(value('B') - travel_b) < 0.01);
 }

@@ -270,6 +270,9 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
                     result->pieces += first.pieces;
                     result->tip_error = std::max(result->tip_error, first.tip_error);
                     result->angle_error = std::max(result->angle_error, first.angle_error);
+                    // The turn about the pole is rotary travel of this move too.
+                    result->travel.resize(first.travel.size(), 0.0);
+                    for (std::size_t j = 0; j < first.travel.size(); ++j) result->travel[j] += first.travel[j];
                 }
                 return {};
             }
