@@ -38,6 +38,12 @@ double printed(const Machine& m, std::size_t j, double v) {
     return double(units) / kPow10[d];
 }
 
+// The joints as the firmware will be given them (each rounded to its printed decimals): the
+// split and the report measure the path the firmware will really take.
+void round_printed(const Machine& m, std::vector<double>& q) {
+    for (std::size_t j = 0; j < q.size(); ++j) q[j] = printed(m, j, q[j]);
+}
+
 // Distance from p to the segment ab.
 double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
     const Eigen::Vector3d ab = b - a;
@@ -142,8 +148,13 @@ void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const do
 
 IkResult MotionStage::split(const MoveSpec& mv) {
     const std::size_t n = machine_.joints.size();
-    const auto& q0 = *mv.q0;
-    const auto& q1 = *mv.q1;
+    q0_printed_ = *mv.q0;
+    round_printed(machine_, q0_printed_);
+    q1_printed_ = *mv.q1;
+    round_printed(machine_, q1_printed_);
+    final_exact_ = *mv.q1;
+    const auto& q0 = q0_printed_;
+    const auto& q1 = q1_printed_;
     s_.assign(1, 1.0);
     qs_.assign(q1.begin(), q1.end());
     bool rotates = false;
@@ -184,6 +195,8 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                 r.message += " (at " + std::to_string(int(std::lround(std::min(sb, 1.0) * 100))) + "% of the move)";
                 return r;
             }
+            exact_b_ = qb;
+            round_printed(machine_, qb);
             piece_error(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), kCheckSamples, tip, ang);
             bool pass = tip <= tol && ang <= atol;
             if (!pass && mv.mode == OrientationMode::Vector) {
@@ -191,18 +204,23 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                 // cut across within the tolerance (a tilt through zero instead of a half turn).
                 std::vector<double>& alt = scratch_b_;
                 for (int b = 0; b < 2 && !pass; ++b) {
-                    if (!solve_at(mv, std::min(sb, 1.0), qa, alt, b).ok() || alt == qb) continue;
+                    if (!solve_at(mv, std::min(sb, 1.0), qa, alt, b).ok()) continue;
+                    std::vector<double> alt_exact = alt;
+                    round_printed(machine_, alt);
+                    if (alt == qb) continue;
                     double t2 = 0, a2 = 0;
                     piece_error(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), kCheckSamples, t2, a2);
                     if (t2 <= tol && a2 <= atol) {
                         pass = true;
                         qb = alt;
+                        exact_b_ = alt_exact;
                     }
                 }
             }
             if (pass) {
                 ok_len = len;
                 qok = qb;
+                ok_exact_ = exact_b_;
             } else {
                 bad_len = len;
                 if (len < 1e-9) {
@@ -217,6 +235,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
         }
         const double sb = std::min(1.0, sa + ok_len);
         qb = qok;
+        if (sb >= 1.0) final_exact_ = ok_exact_;
         step = std::max(sb - sa, 1e-9) * 1.25;  // the next piece is likely about as long: start a bit farther
         s_.push_back(sb);
         qs_.insert(qs_.end(), qb.begin(), qb.end());
@@ -286,6 +305,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     const std::size_t n = machine_.joints.size();
     const int pieces = int(s_.size());
     const double length = (mv.p1.tip - mv.p0.tip).norm();
+    const std::vector<double>& q0 = q0_printed_;  // where the firmware starts
 
     // Duration of the whole move in minutes: tip length at the programmed feed (G94), or given (G93).
     double total_time = 0;
@@ -293,7 +313,6 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     else if (mv.feed > 0 && mv.mode != OrientationMode::Joints) total_time = length / mv.feed;
 
     // Cumulative share of the move at each piece end: by tip length, or by s for a pure turn.
-    const std::vector<double>& q0 = *mv.q0;
     double prev_share = 0;
     long long e_units_done = 0;
     const int ed = machine_.dialect.extrusion_decimals;

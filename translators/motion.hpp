@@ -59,9 +59,8 @@ public:
 
     // Where the last move ended: its end joints can differ from the ones asked for when a tool
     // vector's continuous solution arrives on the other branch or another turn.
-    std::vector<double> final_joints() const {
-        return std::vector<double>(qs_.end() - std::ptrdiff_t(machine_.joints.size()), qs_.end());
-    }
+    // (As solved: the printed ones are rounded to the dialect's decimals.)
+    const std::vector<double>& final_joints() const { return final_exact_; }
 
     // The split of the last move: parameter s at each piece's end and its joints.
     const std::vector<double>& split_params() const { return s_; }
@@ -81,7 +80,9 @@ private:
     const Machine& machine_;
     CompensationStage compensation_;
     JointEmitter& emitter_;
-    std::vector<double> s_, qs_;                 // the pieces
+    std::vector<double> s_, qs_;                 // the pieces, joints as printed
+    std::vector<double> q0_printed_, q1_printed_;  // the move's ends as printed
+    std::vector<double> final_exact_, exact_b_, ok_exact_;  // the last piece's end as solved (unrounded)
     // Scratch space reused move after move (no allocation on the hot path).
     std::vector<double> scratch_a_, scratch_b_, lerp_, march_a_, march_b_, piece_prev_, piece_q_;
     mutable std::vector<double> sample_;
