@@ -297,7 +297,84 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
             }
         }
     }
+    if (cross_pole(mv, cross_end_)) {
+        // Across the pole (Isa, Koc 2018, sec. 4.6: C patched linearly through the singular
+        // cone): the rotaries turn linearly to the other branch while the split holds the tip
+        // on the line; the tool axis stays within the angle tolerance (checked in cross_pole).
+        MoveSpec across = mv;
+        across.mode = OrientationMode::Angles;
+        across.q1 = &cross_end_;
+        const std::vector<double> end = cross_end_;
+        if (auto r = emit_one(across, out, result); !r.ok()) return r;
+        final_exact_ = end;
+        if (result) {
+            result->pole_crossings = 1;
+            result->angle_error = std::max(result->angle_error, cross_angle_);
+        }
+        return {};
+    }
     return emit_one(mv, out, result);
+}
+
+bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
+    const auto& rot = kin_.rotary_joints();
+    if (mv.mode != OrientationMode::Vector || !machine_.motion.segment || rot.size() != 2) return false;
+    const auto& q0 = *mv.q0;
+    auto rotary_distance = [&](const std::vector<double>& a, const std::vector<double>& b) {
+        double d = 0;
+        for (const int j : rot) d += std::abs(a[std::size_t(j)] - b[std::size_t(j)]);
+        return d;
+    };
+    // How far the continuous branch turns the rotaries, estimated on a few points of the path
+    // (cheap; it is measured exactly below only when another way looks shorter).
+    constexpr int kEstimate = 16;
+    std::vector<double>& q = scratch_a_;
+    std::vector<double>& qq = lerp_;
+    std::vector<double> prev = q0, cur = q0;
+    double stay = 0;
+    for (int i = 1; i <= kEstimate; ++i) {
+        if (!orient_within_limits(kin_, pose_at(mv, double(i) / kEstimate).axis, prev, prev, cur).ok()) break;
+        stay += rotary_distance(prev, cur);
+        prev = cur;
+    }
+    constexpr double kClearlyLess = 1.0;  // degrees: another way only when it turns clearly less
+    const auto solutions = kin_.orientation_solutions(mv.p1.axis);
+    bool found = false;
+    double best = stay - kClearlyLess;
+    for (int b = 0; b < solutions.count; ++b) {
+        q = q0;
+        if (!orient_on_branch(kin_, mv.p1.axis, b, q0, q0, q).ok()) continue;
+        const double travel = rotary_distance(q, q0);
+        if (travel >= best) continue;
+        if (!kin_.solve_position(mv.p1.tip, q).ok() || !check_limits(machine_, q).ok()) continue;
+        // The tool axis along the linear turn against its great-circle path, densely.
+        constexpr int kAxisSamples = 64;
+        double worst = 0;
+        qq.resize(q.size());
+        for (int i = 1; i < kAxisSamples; ++i) {
+            const double t = double(i) / kAxisSamples;
+            for (std::size_t j = 0; j < q.size(); ++j) qq[j] = q0[j] + t * (q[j] - q0[j]);
+            const Eigen::Vector3d axis = kin_.forward(qq).axis;
+            worst = std::max(worst, std::acos(std::clamp(axis.dot(slerp(mv.p0.axis, mv.p1.axis, t)), -1.0, 1.0)) * kDegPerRad);
+        }
+        if (worst > kSampleMargin * machine_.motion.angle_tolerance) continue;
+        best = travel;
+        end = q;
+        cross_angle_ = worst;
+        found = true;
+    }
+    if (!found) return false;
+    // Measured: the continuous branch's split, joint by joint.
+    if (!split(mv).ok()) return true;
+    const std::size_t n = machine_.joints.size();
+    double measured = 0;
+    const double* qa = q0_printed_.data();
+    for (std::size_t k = 0; k < s_.size(); ++k) {
+        const double* qb = &qs_[k * n];
+        for (const int j : rot) measured += std::abs(qb[std::size_t(j)] - qa[std::size_t(j)]);
+        qa = qb;
+    }
+    return best < measured - kClearlyLess;
 }
 
 IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult* result) {
