@@ -157,6 +157,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     const auto& q1 = q1_printed_;
     s_.assign(1, 1.0);
     qs_.assign(q1.begin(), q1.end());
+    qs_exact_.assign(mv.q1->begin(), mv.q1->end());
     bool rotates = false;
     for (std::size_t j = 0; j < n; ++j) rotates = rotates || (machine_.joints[j].rotary && q1[j] != q0[j]);
     // With the rotaries still the tip is affine in the linear joints: the firmware's line is exact.
@@ -175,6 +176,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     // first guess of the step.
     s_.clear();
     qs_.clear();
+    qs_exact_.clear();
     double step = 1.0 / std::ceil(std::sqrt(ratio));
     double sa = 0;
     std::vector<double>& qa = march_a_;
@@ -195,7 +197,8 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                 r.message += " (at " + std::to_string(int(std::lround(std::min(sb, 1.0) * 100))) + "% of the move)";
                 return r;
             }
-            exact_b_ = qb;
+            if (sb >= 1.0 && mv.mode == OrientationMode::Angles) exact_b_ = *mv.q1;
+            else exact_b_ = qb;
             round_printed(machine_, qb);
             piece_error(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), kCheckSamples, tip, ang);
             bool pass = tip <= tol && ang <= atol;
@@ -239,6 +242,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
         step = std::max(sb - sa, 1e-9) * 1.25;  // the next piece is likely about as long: start a bit farther
         s_.push_back(sb);
         qs_.insert(qs_.end(), qb.begin(), qb.end());
+        qs_exact_.insert(qs_exact_.end(), ok_exact_.begin(), ok_exact_.end());
         if (int(s_.size()) > kMaxPieces) return {IkStatus::Singular, "the move needs more than 100000 pieces to stay within the tolerance"};
         sa = sb;
         qa.swap(qb);
@@ -398,6 +402,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     const bool inverse_time_out = machine_.dialect.inverse_time && mv.mode != OrientationMode::Joints && (total_time > 0 || mv.feed > 0);
     std::vector<double>& qprev = piece_prev_;
     std::vector<double>& qk = piece_q_;
+    exact_b_.resize(n);
     piece_time_.assign(std::size_t(pieces), 0.0);
     qprev = q0;
     qk.resize(n);
@@ -458,7 +463,11 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         }
         // Measured errors are taken off after the split, so every piece of every move is
         // corrected and nothing upstream sees anything but nominal joints.
-        const auto sent = compensation_.apply(qk);
+        // Compensated from the joints as solved: the emitter rounds once (without compensation
+        // that gives exactly the rounded joints checked above).
+        std::copy(qs_exact_.begin() + std::ptrdiff_t(std::size_t(k) * n), qs_exact_.begin() + std::ptrdiff_t(std::size_t(k + 1) * n),
+                  exact_b_.begin());
+        const auto sent = compensation_.apply(exact_b_);
         if (!sent.ok()) throw LineError(1, sent.why);
         emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, inverse_time_out);
         prev_share = share;

@@ -86,6 +86,7 @@ private:
     CompensationStage compensation_;
     JointEmitter& emitter_;
     std::vector<double> s_, qs_;                 // the pieces, joints as printed
+    std::vector<double> qs_exact_;               // the pieces' ends as solved
     std::vector<double> q0_printed_, q1_printed_;  // the move's ends as printed
     std::vector<double> final_exact_, exact_b_, ok_exact_, cross_end_;
     double cross_angle_ = 0;  // the axis deviation of the last crossing found  // the last piece's end as solved (unrounded)
