@@ -1085,3 +1085,20 @@ TEST_CASE("translator: legal RS274 is not refused: G0 under G93 needs no F; a lo
         CHECK(r.feed("S0 ; laser off") == "S0 ; laser off\n");
     }
 }
+
+TEST_CASE("translator: inverse splits a joint move that carries M codes too, and its joints go through FK") {
+    TranslatorOptions o;
+    o.inverse = true;
+    Rig inv("rw2", o);
+    inv.feed("G1 X100 Y100 Z10 A0 B0 F1200");
+    const std::string out = inv.feed("X90 Y95 Z12 A-5 B10 M106 S128");
+    const auto lines = lines_of(out);
+    REQUIRE(lines.size() == 2);
+    CHECK(lines[0] == "M106 S128");
+    // The preview's tip is FK of the joints (eq. 4.5 solved for the tip), not the joint values.
+    const auto w = words_of(lines[1]);
+    const Eigen::Vector3d tip = eq45_tip(90, 95, 12, -5, 10);
+    CHECK(std::abs(w.at('X') - tip.x()) <= kPrinted);
+    CHECK(std::abs(w.at('Y') - tip.y()) <= kPrinted);
+    CHECK(std::abs(w.at('Z') - tip.z()) <= kPrinted);
+}
