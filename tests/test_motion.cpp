@@ -12,6 +12,8 @@
 #include "translators/error.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
+#include "translators/report.hpp"
+#include "translators/motion.hpp"
 #include "translators/translator.hpp"
 
 using namespace xlate5;
@@ -560,6 +562,8 @@ TEST_CASE("an unbounded turntable is re-zeroed with G92 on travel moves, never o
     std::string out;
     const int C = m.joint_index('C');
     // A tilted tool circling the part: C winds up turn after turn; every 8th move is a travel.
+    // Relative E: each E0.01 extrudes (under absolute E a repeated E0.01 would not).
+    t.feed("M83", 1000, out);
     double fw_c = 0, worst_abs = 0;
     int rezeros = 0;
     for (int i = 0; i < 800; ++i) {
@@ -590,4 +594,247 @@ TEST_CASE("an unbounded turntable is re-zeroed with G92 on travel moves, never o
     MESSAGE("re-zeroed " << rezeros << " times; largest |C| sent " << worst_abs);
     CHECK(rezeros >= 3);
     CHECK(worst_abs <= 1800 + 8 * 15 + 1);
+}
+
+TEST_CASE("re-zero: under absolute E a move to E0 after E5 extrudes (backwards) and is not re-zeroed; a travel is") {
+    const Machine m = load("koc5");  // C: rezero_beyond = 1800
+    const Kinematics k(m);
+    Translator t(k, {});
+    std::string out;
+    t.feed("G43.4", 1, out);
+    t.feed("M82", 2, out);
+    t.feed("G1 X0 Y0 Z10 B20 C0 F600", 3, out);
+    t.feed("G1 X1 C1900 E5", 4, out);  // printed: wound up, not re-zeroed
+    CHECK_FALSE(contains(out, "G92"));
+    out.clear();
+    t.feed("G1 X5 E0", 5, out);  // E moves from 5 to 0: the nozzle is working on the part
+    CHECK_FALSE(contains(out, "G92"));
+    out.clear();
+    t.feed("G1 X6 E0", 6, out);  // E unchanged: a travel, re-zeroed after it
+    CHECK(contains(out, "G92 C"));
+}
+
+TEST_CASE("a move refused for a rotary limit names that rotary, not a linear joint it throws out") {
+    Machine m = load("rw2");  // B: -100 .. 100; B = 120 also throws Z below its -60
+    const Kinematics k(m);
+    Translator t(k, {});
+    std::string out;
+    t.feed("G1 X100 Y100 Z10 A0 B0 F1200", 1, out);
+    try {
+        t.feed("G1 X60 Y50 Z10 B120 E1", 2, out);
+        FAIL("expected a limit error");
+    } catch (const InputError& e) {
+        CAPTURE(e.message());
+        CHECK(contains(e.message(), "joint B would go to 120.000"));
+        CHECK_FALSE(contains(e.message(), "joint Z"));
+    }
+}
+
+TEST_CASE("the report counts the rotary travel of a turn about the pole made before a move leaves it") {
+    const Machine m = load("koc5");
+    const Kinematics k(m);
+    DeviationReport report("t.gcode", "koc5", m.motion.tolerance, m.motion.angle_tolerance);
+    TranslatorOptions o;
+    o.report = &report;
+    Translator t(k, o);
+    std::string out;
+    t.feed("G43.5", 1, out);
+    t.feed("G1 X0 Y0 Z10 I0 J0 K1 F600", 2, out);  // on the pole: C free, stays 0
+    std::vector<double> q = t.joints();
+    out.clear();
+    t.feed("G1 X10 Y0 Z10 I0 J0.5 K0.866", 3, out);  // leaves toward azimuth 90: C turns first
+    const std::size_t C = std::size_t(m.joint_index('C')), B = std::size_t(m.joint_index('B'));
+    double travel_c = 0, travel_b = 0;
+    int lines = 0;
+    for (const auto& l : lines_of(out)) {
+        std::vector<double> cur = q;
+        if (!apply_line(m, l, cur, nullptr, nullptr)) continue;
+        ++lines;
+        travel_c += std::abs(cur[C] - q[C]);
+        travel_b += std::abs(cur[B] - q[B]);
+        q = cur;
+    }
+    t.finish(out);
+    REQUIRE(lines >= 2);
+    REQUIRE(travel_c > 45);  // the turn
+    const std::string json = report.json();
+    const auto at = json.find("\"rotary_travel_deg\"");
+    REQUIRE(at != std::string::npos);
+    auto value = [&](char joint) {
+        const auto p = json.find(std::string("\"") + joint + "\": ", at);
+        REQUIRE(p != std::string::npos);
+        return std::stod(json.substr(p + 5));
+    };
+    CHECK(std::abs(value('C') - travel_c) < 0.01);
+    CHECK(std::abs(value('B') - travel_b) < 0.01);
+}
+
+namespace {
+
+// A translated move's joint lines from `fw`: rotary travel, time under the firmware's feed rule
+// (minutes), and the worst tip and axis deviation of the printed path, densely, against the
+// programmed move a -> b (axis on its great circle).
+struct Walked {
+    double travel = 0, minutes = 0, tip = 0, angle = 0;
+};
+Walked walk(const Machine& m, const Kinematics& k, const std::string& out, std::vector<double>& fw, const Pose& a, const Pose& b, double& f) {
+    Walked w;
+    const double turn = std::acos(std::clamp(a.axis.dot(b.axis), -1.0, 1.0));
+    for (const auto& l : lines_of(out)) {
+        std::vector<double> cur = fw;
+        double e = 0;
+        if (!apply_line(m, l, cur, &e, &f)) continue;
+        for (std::size_t j = 0; j < cur.size(); ++j)
+            if (m.joints[j].rotary) w.travel += std::abs(cur[j] - fw[j]);
+        w.minutes += firmware_length(m, fw, cur) / f;
+        for (int s = 1; s < 200; ++s) {
+            std::vector<double> qq(cur.size());
+            for (std::size_t j = 0; j < qq.size(); ++j) qq[j] = fw[j] + (cur[j] - fw[j]) * s / 200.0;
+            const Pose p = k.forward(qq);
+            w.tip = std::max(w.tip, seg_dist(p.tip, a.tip, b.tip));
+            // The nearest point of the great circle a -> b to the printed axis.
+            double best = 1e9;
+            for (int t = 0; t <= 400; ++t) {
+                const double u = t / 400.0;
+                Eigen::Vector3d ideal = turn < 1e-12 ? a.axis
+                                                     : ((std::sin((1 - u) * turn) * a.axis + std::sin(u * turn) * b.axis) / std::sin(turn)).normalized();
+                best = std::min(best, std::acos(std::clamp(p.axis.dot(ideal), -1.0, 1.0)) * 180 / kPi);
+            }
+            w.angle = std::max(w.angle, best);
+        }
+        fw = cur;
+    }
+    return w;
+}
+
+// The least rotary travel any way can have (brute force): the nearest of every solution of the
+// end pose, each branch on every turn within two, to the start joints.
+double least_travel(const Machine& m, const Kinematics& k, const std::vector<double>& q0, const Eigen::Vector3d& axis) {
+    const auto sol = k.orientation_solutions(axis);
+    const auto& rot = k.rotary_joints();
+    double best = 1e300;
+    for (int b = 0; b < sol.count; ++b)
+        for (int t0 = -2; t0 <= 2; ++t0)
+            for (int t1 = -2; t1 <= 2; ++t1) {
+                double d = 0;
+                bool ok = true;
+                for (std::size_t n = 0; n < rot.size(); ++n) {
+                    const Joint& J = m.joints[std::size_t(rot[n])];
+                    const double v = sol.angle[b][n] + 360.0 * (n == 0 ? t0 : t1);
+                    if (std::isnan(v)) continue;
+                    if (v < J.min || v > J.max) ok = false;
+                    d += std::abs(v - q0[std::size_t(rot[n])]);
+                }
+                if (ok) best = std::min(best, d);
+            }
+    return best;
+}
+
+}  // namespace
+
+TEST_CASE("across the pole: a printed move passing 0.11 degrees from vertical turns B through zero, not the table round") {
+    const Machine m = load("koc5");
+    const Kinematics k(m);
+    DeviationReport report("t.gcode", "koc5", m.motion.tolerance, m.motion.angle_tolerance);
+    TranslatorOptions o;
+    o.report = &report;
+    Translator t(k, o);
+    std::string out;
+    for (const char* l : {"G43.5", "M83", "G1 X10 Y0 Z0 I0.03 J0.002 K1 F1500"}) t.feed(l, 1, out);
+    std::vector<double> fw = t.joints();
+    const std::vector<double> q0 = fw;
+    const Pose a = t.pose();
+    out.clear();
+    t.feed("G1 X10.85 Y0 Z0 I-0.03 J0.002 K1 E0.04", 4, out);
+    const Pose b = t.pose();
+    double f = 1500;
+    const Walked w = walk(m, k, out, fw, a, b, f);
+    const double least = least_travel(m, k, q0, b.axis);
+    const std::size_t B = std::size_t(m.joint_index('B'));
+    MESSAGE("pole move: rotary travel " << w.travel << " deg (least possible " << least << "), " << w.minutes * 60 << " s, tip "
+                                        << w.tip << " mm, axis " << w.angle << " deg");
+    CHECK(q0[B] * fw[B] < 0);                  // B changed sign: the other branch
+    CHECK(w.travel <= least + 0.01);           // the least turning there is
+    // As long as the programmed feed or the rotary axes' own speed limits make it (0.85 mm at
+    // 1500 mm/min is 0.034 s; C 7.6 degrees at 3600 deg/min 0.127 s), not the 2.9 s of a half turn.
+    double need = 0.85 / 1500;
+    for (std::size_t j = 0; j < fw.size(); ++j)
+        if (m.joints[j].max_feed > 0) need = std::max(need, std::abs(fw[j] - q0[j]) / m.joints[j].max_feed);
+    CHECK(w.minutes <= need * 1.01);
+    CHECK(w.tip <= m.motion.tolerance + 1e-3); // printed joints: rounding included
+    CHECK(w.angle <= m.motion.angle_tolerance);
+    const std::string json = report.json();
+    CHECK(contains(json, "\"pole_crossings\": 1"));
+    CHECK(contains(json, "\"half_turns\": 0"));
+}
+
+TEST_CASE("across the pole: a helix and random near-pole moves turn the rotaries no more than the least possible") {
+    const Machine m = load("koc5");
+    const Kinematics k(m);
+    for (const bool helix : {true, false}) {
+        CAPTURE(helix);
+        Translator t(k, {});
+        std::string out;
+        t.feed("G43.5", 1, out);
+        t.feed("M83", 2, out);
+        std::mt19937 rng(7);
+        std::uniform_real_distribution<double> U(-1, 1);
+        std::vector<double> fw = t.joints();
+        double f = 1500;
+        double travel = 0, least_sum = 0, minutes = 0, worst_tip = 0, worst_angle = 0;
+        int near_pole = 0;
+        Eigen::Vector3d prev_axis(0, 0, 1);
+        for (int i = 0; i < 400; ++i) {
+            Eigen::Vector3d tip, axis;
+            if (helix) {
+                // A helix whose tool tilt passes through zero and back (a wobbling spiral vase).
+                const double s = i * 0.02;
+                const double tilt = rad(3 * std::sin(s * 1.5)), az = s * 0.7;
+                tip = {20 * std::cos(s), 20 * std::sin(s), 1 + 0.01 * i};
+                axis = {std::sin(tilt) * std::cos(az), std::sin(tilt) * std::sin(az), std::cos(tilt)};
+            } else {
+                // From the current axis to the far side of vertical, a little off the azimuth
+                // opposite: the great circle passes close by the pole (or the move leaves the pole).
+                const Eigen::Vector3d now = t.pose().axis;
+                const double az = std::atan2(now.y(), now.x()) + kPi + 0.3 * U(rng), tilt = rad(0.5 + 2 * std::abs(U(rng)));
+                tip = {20 * U(rng), 20 * U(rng), 1 + std::abs(U(rng))};
+                axis = {std::sin(tilt) * std::cos(az), std::sin(tilt) * std::sin(az), std::cos(tilt)};
+            }
+            const std::string line = "G1 X" + num(tip.x()) + " Y" + num(tip.y()) + " Z" + num(tip.z()) + " I" + num(axis.x(), 9) +
+                                     " J" + num(axis.y(), 9) + " K" + num(axis.z(), 9) + (i == 0 ? " F1500" : " E0.01");
+            const Pose a = t.pose();
+            const std::vector<double> q0 = fw;
+            out.clear();
+            REQUIRE_NOTHROW(t.feed(line, std::uint64_t(i + 3), out));
+            const Walked w = walk(m, k, out, fw, a, t.pose(), f);
+            if (i == 0) continue;
+            worst_tip = std::max(worst_tip, w.tip);
+            worst_angle = std::max(worst_angle, w.angle);
+            // Near the pole: the axis's great circle passes within 1 degree of vertical.
+            const Eigen::Vector3d n = a.axis.cross(t.pose().axis);
+            bool passes = false;
+            if (n.norm() > 1e-9) {
+                const Eigen::Vector3d nn = n.normalized(), z = Eigen::Vector3d::UnitZ();
+                const Eigen::Vector3d p = (z - z.dot(nn) * nn).normalized();  // the circle's point nearest vertical
+                passes = std::asin(std::min(1.0, std::abs(nn.z()))) < rad(0.25) && a.axis.cross(p).dot(nn) >= 0 &&
+                         p.cross(t.pose().axis).dot(nn) >= 0;
+            }
+            const double least = least_travel(m, k, q0, t.pose().axis);
+            if (passes) {
+                ++near_pole;
+                CAPTURE(line);
+                CHECK(w.travel <= least + 1.0);
+            }
+            travel += w.travel;
+            least_sum += least;
+            minutes += w.minutes;
+            prev_axis = axis;
+        }
+        MESSAGE(std::string(helix ? "helix" : "random near-pole moves") << ": rotary travel " << travel << " deg (least possible " << least_sum << "), "
+                                                              << minutes * 60 << " s, " << near_pole << " moves near the pole, worst tip "
+                                                              << worst_tip << " mm, axis " << worst_angle << " deg");
+        CHECK(near_pole >= (helix ? 2 : 200));
+        CHECK(worst_tip <= m.motion.tolerance + 1e-3);
+        CHECK(worst_angle <= m.motion.angle_tolerance);
+    }
 }

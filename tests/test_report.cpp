@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <limits>
+#include <sstream>
+#include <utility>
 #include <string>
 
 #include "helpers.hpp"
@@ -110,4 +112,69 @@ TEST_CASE("an infinite or NaN deviation counts in the top bin and the JSON and S
     const std::string svg = r.svg();
     CHECK(svg.find("inf") == std::string::npos);
     CHECK(svg.find("nan") == std::string::npos);
+}
+
+TEST_CASE("the tolerance holds for the joints as printed, and the report measures those (bundled examples)") {
+    // The output is rounded to the dialect's decimals; the firmware follows the rounded joints.
+    // Independent: parse the output text, run each printed joint line through FK densely, and
+    // measure it against the input move's programmed segment (the pose before and after it).
+    const std::string examples = std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/../examples/";
+    for (const auto& [file_name, name] : {std::pair<const char*, const char*>{"rw2_flared_wall.gcode", "rw2"}, {"pentarod_dome.gcode", "pentarod"}}) {
+        const std::string file = file_name;
+        CAPTURE(file);
+        const Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml");
+        const Kinematics k(m);
+        DeviationReport report(file, name, m.motion.tolerance, m.motion.angle_tolerance);
+        TranslatorOptions o;
+        o.report = &report;
+        Translator t(k, o);
+        std::istringstream in(read(examples + file));
+        std::string line;
+        std::uint64_t n = 0;
+        std::vector<double> fw = m.home_joints();
+        double worst_dense = 0, at_reported_line = -1;
+        bool placed = false;
+        while (std::getline(in, line)) {
+            const Pose a = t.pose();
+            std::string out;
+            t.feed(line, ++n, out);
+            const Pose b = t.pose();
+            double dense = 0, sampled = 0;  // 400 points per piece; the report's 14 interior points
+            for (const auto& l : lines_of(out)) {
+                const auto w = words_of(l.substr(0, l.find(';')));
+                if (!w.count('G')) continue;
+                const double g = w.at('G');
+                if (g == 28) fw = m.home_joints();
+                if (g != 0 && g != 1 && g != 92) continue;
+                std::vector<double> q = fw;
+                for (std::size_t j = 0; j < q.size(); ++j)
+                    if (w.count(m.joints[j].output)) q[j] = w.at(m.joints[j].output);
+                if (g == 92) {
+                    fw = q;
+                    continue;
+                }
+                auto deviation = [&](double s) {
+                    std::vector<double> qq(q.size());
+                    for (std::size_t j = 0; j < q.size(); ++j) qq[j] = fw[j] + (q[j] - fw[j]) * s;
+                    const Eigen::Vector3d p = k.forward(qq).tip, ab = b.tip - a.tip;
+                    const double tt = ab.squaredNorm() > 0 ? std::clamp((p - a.tip).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+                    return (a.tip + tt * ab - p).norm();
+                };
+                for (int s = 1; s < 400; ++s) dense = std::max(dense, deviation(s / 400.0));
+                for (int s = 1; s <= 14; ++s) sampled = std::max(sampled, deviation(s / 15.0));
+                fw = q;
+            }
+            // Before the program places the tip, moves are joint moves (no tool-space path).
+            if (placed) worst_dense = std::max(worst_dense, dense);
+            placed = placed || t.pose().tip != a.tip;
+            if (n == report.worst_tip_line()) at_reported_line = sampled;
+        }
+        MESSAGE(file << ": report max " << report.max_tip() << " mm at line " << report.worst_tip_line() << ", printed path (dense) "
+                     << worst_dense << " mm, tolerance " << m.motion.tolerance);
+        CHECK(worst_dense <= m.motion.tolerance);
+        CHECK(report.max_tip() <= m.motion.tolerance);
+        CHECK(report.max_tip() > 0.5 * m.motion.tolerance);  // the split works near the tolerance
+        // The report's figure is the printed path's, at its own sample points.
+        CHECK(std::abs(report.max_tip() - at_reported_line) <= 1e-9);
+    }
 }

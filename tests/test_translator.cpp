@@ -683,7 +683,9 @@ TEST_CASE("translator: a failing line leaves output and state unchanged") {
                             "G20 G1 X1000",           // same with G20
                             "G49 G1 X5 A400",         // the mode switch must be undone too
                             "G1 X1 X2", "G1 A170 E2", "G1 Q5", "G2 X1 Y1 I1 J0", "G1 Xnan", "G1 X1 F0",
-                            "G92 Q1", "M5 G1 X1", "G1 X(", "G28 Q"}) {
+                            "G92 Q1", "G1 X(", "G28 Q",
+                            "M5 G1 X1000",            // M5 would be written before the move fails
+                            "X1 M1234", "G1 X1 M106 M8 P1"}) {
         CAPTURE(std::string(bad));
         expect_error(r, bad, 9);
         CHECK(r.out == out);
@@ -937,4 +939,166 @@ TEST_CASE("bundled examples: until the first extrusion the tip crosses the bed o
         CHECK(travels >= 2);
         CHECK(lowest_crossing >= kClearance);
     }
+}
+
+// ---- no move leaves untranslated ------------------------------------------------------------
+
+namespace {
+
+// The joints a G0/G1 output line commands, the others kept from `q`.
+std::vector<double> joints_of(const Machine& m, const std::map<char, double>& w, std::vector<double> q) {
+    for (std::size_t j = 0; j < m.joints.size(); ++j)
+        if (w.count(m.joints[j].output)) q[j] = w.at(m.joints[j].output);
+    return q;
+}
+
+bool is_move_line(const std::string& l) {
+    return l.rfind("G0 ", 0) == 0 || l.rfind("G1 ", 0) == 0;
+}
+
+}  // namespace
+
+TEST_CASE("translator: a move line carrying M, S or T codes is translated; the codes go on their own lines in RS274 order") {
+    struct Codes {
+        const char* words;
+        std::vector<std::string> before, after;  // the code lines before and after the move
+    };
+    const std::vector<Codes> codes = {
+        {"M08", {"M8"}, {}},
+        {"M106", {"M106"}, {}},
+        {"M106 S128", {"M106 S128"}, {}},
+        {"S600 M03", {"M3 S600"}, {}},
+        {"M3 S600", {"M3 S600"}, {}},
+        {"S600", {"S600"}, {}},
+        {"T1", {"T1"}, {}},
+        {"M6 T1", {"T1", "M6"}, {}},
+        {"M9 M5", {"M5", "M9"}, {}},
+        {"M8 M3 S600", {"M3 S600", "M8"}, {}},
+        {"M104 S200 T0", {"M104 S200 T0"}, {}},
+        {"M30", {}, {"M30"}},
+        {"M2 M9", {"M9"}, {"M2"}},
+        {"M0", {}, {"M0"}},
+    };
+    struct Form {
+        const char* prefix;
+        int gcode;  // the move's G (the modal one is G1)
+        std::vector<std::string> modal;  // lines the prefix writes
+    };
+    const std::vector<Form> forms = {{"", 1, {}}, {"G0 ", 0, {}}, {"G1 ", 1, {}}, {"G54 ", 1, {"G54"}}, {"G54 G0 ", 0, {"G54"}}};
+    struct Case {
+        const char* machine;
+        const char* start;   // places the tip, ends in modal G1
+        const char* rotary;  // the move's rotary words
+        char letters[2];
+        double angles[2];    // their values
+        Eigen::Vector3d tip;
+    };
+    const std::vector<Case> cases = {
+        {"xyzac-trt", "G43.4 G0 X0 Y0 Z10 A0 C0", "A-30 C60", {'A', 'C'}, {-30, 60}, {1, 2, 10}},
+        {"rw2", "G43.4 G0 X100 Y100 Z10 A0 B0", "A-5 B10", {'A', 'B'}, {-5, 10}, {1, 2, 10}},
+        {"koc5", "G43.4 G0 X0 Y0 Z10 B0 C0", "B20 C-45", {'B', 'C'}, {20, -45}, {1, 2, 10}},
+    };
+    for (const Case& c : cases)
+        for (const Form& f : forms)
+            for (const Codes& k : codes) {
+                Rig r(c.machine);
+                r.feed(c.start);
+                r.feed("G1 X0 F600");
+                const std::string line = std::string(f.prefix) + "X1 Y2 Z10 " + c.rotary + " " + k.words;
+                CAPTURE(c.machine);
+                CAPTURE(line);
+                const std::vector<double> q_before = r.tr.joints();
+                const std::string o = r.feed(line, 7);
+                const auto lines = lines_of(o);
+                std::size_t moves = 0, first_move = lines.size();
+                std::vector<std::string> before, after;
+                for (std::size_t i = 0; i < lines.size(); ++i) {
+                    if (is_move_line(lines[i])) {
+                        ++moves;
+                        first_move = std::min(first_move, i);
+                        const auto w = words_of(lines[i]);
+                        CHECK(w.at('G') == f.gcode);
+                        CHECK(w.count('S') == 0);
+                        CHECK(w.count('T') == 0);
+                        CHECK(w.count('M') == 0);
+                        // FK of the joints as written: the programmed tip and angles.
+                        const auto q = joints_of(r.machine, w, q_before);
+                        CHECK(near(r.kin.forward(q).tip, c.tip, 0.005));
+                        for (int n = 0; n < 2; ++n) CHECK(std::abs(q[std::size_t(r.j(c.letters[n]))] - c.angles[n]) <= kPrinted);
+                    } else {
+                        (moves == 0 ? before : after).push_back(lines[i]);
+                    }
+                }
+                CHECK(moves == 1);
+                // Codes in RS274's order: M/S/T first, then the modal G codes, the move, the stops.
+                std::vector<std::string> want = k.before;
+                want.insert(want.end(), f.modal.begin(), f.modal.end());
+                CHECK(before == want);
+                CHECK(after == k.after);
+                // The next move starts from where the firmware really is.
+                const std::string next = r.feed("G1 X5 F100");
+                const auto w = words_of(lines_of(next).back());
+                CHECK(near(r.kin.forward(joints_of(r.machine, w, r.tr.joints())).tip, {5, 2, 10}, 0.005));
+                CHECK(near(r.tr.pose().tip, {5, 2, 10}, 1e-9));
+            }
+}
+
+TEST_CASE("translator: a code that does not say what the axis words of its line are is refused at the word") {
+    Rig r("rw2");
+    place_rw2(r);
+    // An unknown M code with axis words: a move or the code's parameters? Neither is guessed.
+    InputError e = expect_error(r, "X1 Y2 M1234", 9);
+    CHECK(e.line() == 9);
+    CHECK(e.column() == 1);
+    CHECK(contains(e.message(), "M1234"));
+    // Two M codes, one word that only an M code takes.
+    e = expect_error(r, "G1 X1 M106 M8 P1", 10);
+    CHECK(e.column() == 15);
+    CHECK(r.out.find("M1234") == std::string::npos);
+    // Firmware settings that take axis letters pass as written.
+    CHECK(r.feed("M92 X80 Y80 Z400") == "M92 X80 Y80 Z400\n");
+    CHECK(r.feed("M203 A100 B100") == "M203 A100 B100\n");
+    // Lines of codes alone pass as written, as before.
+    CHECK(r.feed("M106 S255 ; fan") == "M106 S255 ; fan\n");
+    CHECK(r.feed("M3 M8 S600") == "M3 S600\nM8\n");
+}
+
+TEST_CASE("translator: legal RS274 is not refused: G0 under G93 needs no F; a lone S passes under G43.4 and G43.5") {
+    // G93 gives the duration of feed moves; a rapid has none (RS274/NGC 3.5.19, LinuxCNC).
+    for (const char* name : {"rw2", "xyzac-trt"}) {
+        Rig r(name);
+        CAPTURE(name);
+        r.feed("G1 X1 Y2 Z10 F600");
+        r.feed("G93");
+        std::string o;
+        REQUIRE_NOTHROW(o = r.feed("G0 X20 Y10 Z12"));
+        CHECK(near(r.tr.pose().tip, {20, 10, 12}, 1e-9));
+        const auto w = words_of(lines_of(o).back());
+        CHECK(near(r.kin.forward(joints_of(r.machine, w, r.tr.joints())).tip, {20, 10, 12}, 0.005));
+        // A feed move still needs its F.
+        CHECK(contains(expect_error(r, "G1 X21").message(), "G93"));
+    }
+    for (const char* mode : {"G43.4", "G43.5"}) {
+        Rig r("koc5");
+        r.feed(mode);
+        CHECK(r.feed("S600") == "S600\n");
+        CHECK(r.feed("S0 ; laser off") == "S0 ; laser off\n");
+    }
+}
+
+TEST_CASE("translator: inverse splits a joint move that carries M codes too, and its joints go through FK") {
+    TranslatorOptions o;
+    o.inverse = true;
+    Rig inv("rw2", o);
+    inv.feed("G1 X100 Y100 Z10 A0 B0 F1200");
+    const std::string out = inv.feed("X90 Y95 Z12 A-5 B10 M106 S128");
+    const auto lines = lines_of(out);
+    REQUIRE(lines.size() == 2);
+    CHECK(lines[0] == "M106 S128");
+    // The preview's tip is FK of the joints (eq. 4.5 solved for the tip), not the joint values.
+    const auto w = words_of(lines[1]);
+    const Eigen::Vector3d tip = eq45_tip(90, 95, 12, -5, 10);
+    CHECK(std::abs(w.at('X') - tip.x()) <= kPrinted);
+    CHECK(std::abs(w.at('Y') - tip.y()) <= kPrinted);
+    CHECK(std::abs(w.at('Z') - tip.z()) <= kPrinted);
 }

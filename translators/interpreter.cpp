@@ -18,7 +18,14 @@ Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner
       planner_(planner),
       input_name_(std::move(input_name)),
       extruder_letter_(extruder_letter),
-      saved_(state) {}
+      saved_(state) {
+    move_letters_ = "XYZIJKEF";
+    for (const Joint& j : machine_.joints) {
+        move_letters_ += j.name;
+        position_letters_ += j.name;
+    }
+    position_letters_ += "XYZ";
+}
 
 void Interpreter::fail(std::uint32_t column, const std::string& message) const { throw LineError(column, message); }
 
@@ -45,16 +52,9 @@ void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& ou
             return;
         }
         read_commands(block_, extruder_letter_, commands_);
+        plan_line(commands_, state_.modal.modes.motion, move_letters_, position_letters_, plan_);
     } catch (const LineError& e) {
         throw InputError(input_name_, run.line_no, e.column(), e.what());
-    }
-    const Params& words = commands_.params;
-    const Modes& modes = state_.modal.modes;
-    CommandWord implicit{'G', 0, words.empty() ? 1u : words.front().column};
-    if (!commands_.has_owner && !words.empty()) {
-        // Axis words with no command continue the modal motion (RS274; CNC files rely on it).
-        if (modes.motion < 0) throw InputError(input_name_, run.line_no, implicit.column, "axis words without a motion command (G0 or G1)");
-        implicit.code10 = modes.motion * 10;
     }
 
     // Nothing is written until the whole line has been understood and solved: an error leaves
@@ -62,11 +62,11 @@ void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& ou
     const std::size_t out_start = out.size();
     saved_ = state_;
     try {
-        for (std::size_t i = 0; i < commands_.count; ++i)
-            if (commands_.commands[i].modal_only()) apply_modal(commands_.commands[i].code10, words, out);
-        for (std::size_t i = 0; i < commands_.count; ++i)
-            if (!commands_.commands[i].modal_only()) run_command(commands_.commands[i], block_.body, commands_.alone(), words, run, out);
-        if (!commands_.has_owner && !words.empty()) run_command(implicit, block_.body, false, words, run, out);
+        for (std::size_t i = 0; i < plan_.count; ++i) {
+            const LineStep& step = plan_.steps[i];
+            if (step.command.modal_only()) apply_modal(step.command.code10, *step.words, out);
+            else run_command(step.command, block_.body, step.verbatim, *step.words, run, out);
+        }
     } catch (...) {
         // Nothing of a failed line stays: output, joints, pose, modes. What the firmware was
         // told of it is not known either.
@@ -135,6 +135,10 @@ void Interpreter::apply_modal(int code10, const Params& words, std::string& out)
 void Interpreter::run_command(const CommandWord& c, std::string_view body, bool alone, const Params& words, LineRun& run,
                               std::string& out) {
     ModalState& m = state_.modal;
+    if (c.letter == 'S') {  // a spindle speed (laser power) on its own: passed on
+        append_passthrough(out, 'S', 0, body, alone, words);
+        return;
+    }
     if (c.letter == 'M') {
         if (c.code10 == 820) m.modes.e_relative = false;
         if (c.code10 == 830) m.modes.e_relative = true;
@@ -257,8 +261,9 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, const Params& words
         if ((!rotary && any_xyz) || (rotary && any_ijk)) commanded_[j] = true;
     }
     if (f && !m.modes.inverse_time) m.modes.feed = f->value;
-    if (m.modes.inverse_time && !f && (any_xyz || any_rotary || any_ijk))
-        fail(column, "under G93 every move needs its F (1/minutes)");
+    // G93 gives feed moves their duration; a rapid has none (RS274/NGC), so G0 needs no F.
+    if (m.modes.inverse_time && !f && gcode != 0 && (any_xyz || any_rotary || any_ijk))
+        fail(column, "under G93 every feed move (G1, G2, G3) needs its F (1/minutes)");
     mv.gcode = gcode;
     mv.column = column;
     mv.mode = m.mode;

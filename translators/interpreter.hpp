@@ -73,6 +73,8 @@ private:
     LineState saved_;          // the state before the current line
     Block block_;
     LineCommands commands_;
+    LinePlan plan_;
+    std::string move_letters_, position_letters_;  // see plan_line
     // Scratch reused line after line (no allocation on the hot path).
     std::vector<double> angles_, joints_, arc_angles_;
     std::vector<bool> commanded_, which_;

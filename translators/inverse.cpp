@@ -20,6 +20,12 @@ InverseTranslator::InverseTranslator(const Kinematics& kinematics, std::string i
     state_.q = machine_.home_joints();
     state_.pose = kin_.forward(state_.q);
     saved_ = state_;
+    move_letters_ = "XYZIJKEF";
+    for (const Joint& j : machine_.joints) {
+        move_letters_ += j.output;
+        position_letters_ += j.output;
+    }
+    position_letters_ += "XYZ";
 }
 
 int InverseTranslator::joint_of(char letter) const {
@@ -52,23 +58,18 @@ void InverseTranslator::feed(std::string_view line, std::uint64_t line_no, std::
             return;
         }
         read_commands(block_, extruder_letter_, commands_);
+        plan_line(commands_, state_.modes.motion, move_letters_, position_letters_, plan_);
     } catch (const LineError& e) {
         throw InputError(input_name_, line_no, e.column(), e.what());
-    }
-    const Params& words = commands_.params;
-    CommandWord implicit{'G', 0, words.empty() ? 1u : words.front().column};
-    if (!commands_.has_owner && !words.empty()) {
-        if (state_.modes.motion < 0) fail(implicit.column, "axis words without a motion command (G0 or G1)");
-        implicit.code10 = state_.modes.motion * 10;
     }
     const std::size_t out_start = out.size();
     saved_ = state_;
     try {
-        for (std::size_t i = 0; i < commands_.count; ++i)
-            if (commands_.commands[i].modal_only()) apply_modal(commands_.commands[i].code10, commands_.commands[i].column, words, out);
-        for (std::size_t i = 0; i < commands_.count; ++i)
-            if (!commands_.commands[i].modal_only()) run_command(commands_.commands[i], block_.body, commands_.alone(), words, out);
-        if (!commands_.has_owner && !words.empty()) run_command(implicit, block_.body, false, words, out);
+        for (std::size_t i = 0; i < plan_.count; ++i) {
+            const LineStep& step = plan_.steps[i];
+            if (step.command.modal_only()) apply_modal(step.command.code10, step.command.column, *step.words, out);
+            else run_command(step.command, block_.body, step.verbatim, *step.words, out);
+        }
     } catch (const LineError& e) {  // a value that cannot be written, from the tool emitter
         out.resize(out_start);
         state_ = saved_;
@@ -117,6 +118,10 @@ void InverseTranslator::apply_modal(int code10, std::uint32_t column, const Para
 
 void InverseTranslator::run_command(const CommandWord& c, std::string_view body, bool alone, const Params& words, std::string& out) {
     Modes& modes = state_.modes;
+    if (c.letter == 'S') {  // a spindle speed (laser power) on its own: passed on
+        append_passthrough(out, 'S', 0, body, alone, words);
+        return;
+    }
     if (c.letter == 'M') {
         if (c.code10 == 820) modes.e_relative = false;
         if (c.code10 == 830) modes.e_relative = true;

@@ -61,6 +61,8 @@ private:
     std::vector<double> q_next_;
     Block block_;
     LineCommands commands_;
+    LinePlan plan_;
+    std::string move_letters_, position_letters_;  // see plan_line
 };
 
 }  // namespace xlate5

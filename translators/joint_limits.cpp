@@ -89,11 +89,16 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
 bool inside_limits(const Joint& J, double v) { return v >= J.min - kLimitSlack && v <= J.max + kLimitSlack; }
 
 IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
-    for (std::size_t j = 0; j < machine.joints.size(); ++j) {
-        const Joint& J = machine.joints[j];
-        if (!inside_limits(J, q[j]))
-            return {IkStatus::OutOfLimits, std::string("joint ") + J.name + " would go to " + fmt(q[j]) + ", outside its limits " +
-                                               fmt(J.min) + " .. " + fmt(J.max)};
+    // The rotaries first: the linear joints follow from the angles (a tilt past its limit also
+    // throws X Y Z far out), so a rotary out of range is the cause to name.
+    for (int pass = 0; pass < 2; ++pass) {
+        for (std::size_t j = 0; j < machine.joints.size(); ++j) {
+            const Joint& J = machine.joints[j];
+            if (J.rotary != (pass == 0)) continue;
+            if (!inside_limits(J, q[j]))
+                return {IkStatus::OutOfLimits, std::string("joint ") + J.name + " would go to " + fmt(q[j]) + ", outside its limits " +
+                                                   fmt(J.min) + " .. " + fmt(J.max)};
+        }
     }
     return {};
 }

@@ -12,21 +12,39 @@ namespace xlate5 {
 
 namespace {
 
-// RS274's order of execution within a line for the mode-only codes (feed mode, plane, units,
-// cutter compensation, tool length / TCP, coordinate system, path control, distance mode), so a
-// line means the same whatever order its words are written in.
-int modal_rank(int code10) {
-    switch (code10) {
-        case 930: case 940: return 0;
-        case 170: case 180: case 190: return 1;
-        case 200: case 210: return 2;
-        case 400: case 410: case 420: return 3;
-        case 434: case 435: case 490: return 4;
-        case 610: case 611: case 640: return 6;
-        case 900: case 910: case 901: case 911: return 7;
-        case 800: return 8;
-        default: return 5;  // G54..G59.3
+// M and T codes after which the line's position words are a move (RS274: the modal motion),
+// not the code's own parameters: tool change, spindle, coolant, stops, fan, heaters, E mode.
+bool leaves_axis_words(const CommandWord& c) {
+    if (c.letter == 'T') return true;
+    if (c.letter != 'M') return false;
+    switch (c.code10) {
+        case 0: case 10: case 20: case 30: case 40: case 50: case 60: case 70: case 80: case 90:
+        case 300: case 600: case 610: case 700: case 710: case 720: case 730: case 820: case 830:
+        case 1040: case 1060: case 1070: case 1090: case 1400: case 1410: case 1900: case 1910:
+        case 2040: case 2200: case 2210: case 2800: case 4000: case 420:
+            return true;
+        default:
+            return false;
     }
+}
+
+// Firmware codes that take axis letters as their own settings (Marlin's reading: M92 X80 sets
+// steps per mm, M203 B limits B's feed): the line is sent as written and holds no move.
+bool axis_letters_are_settings(const CommandWord& c) {
+    if (c.letter != 'M') return false;
+    switch (c.code10) {
+        case 170: case 180: case 840: case 920: case 1250: case 1500: case 2010: case 2030: case 2050: case 2060:
+        case 2070: case 2080: case 2110: case 2180: case 2600: case 2610: case 2900: case 3500: case 3510: case 4220:
+        case 4250: case 5690: case 5740: case 5840: case 6000: case 6650: case 6660: case 7010: case 7020: case 8510:
+        case 9000: case 9060: case 9070: case 9130: case 9140: case 9150:
+            return true;
+        default:
+            return false;
+    }
+}
+
+bool is_motion_code(const CommandWord& c) {
+    return c.letter == 'G' && (c.code10 == 0 || c.code10 == 10 || c.code10 == 20 || c.code10 == 30);
 }
 
 // M-codes whose T word names a tool (M104 T1 S200), rather than T being a tool change.
@@ -65,6 +83,38 @@ bool is_modal_only(int code10) {
     }
 }
 
+int execution_rank(const CommandWord& c) {
+    if (c.letter == 'S') return 5;
+    if (c.letter == 'T') return 6;
+    if (c.letter == 'M') {
+        const int m = c.code10 / 10;
+        if (c.code10 % 10 != 0) return 13;
+        if (m >= 62 && m <= 68) return 7;
+        if (m == 6 || m == 61) return 8;
+        if (m >= 3 && m <= 5) return 9;
+        if (m >= 70 && m <= 73) return 10;
+        if (m >= 7 && m <= 9) return 11;
+        if (m >= 48 && m <= 53) return 12;
+        if (m == 82 || m == 83) return 21;  // the E mode, with the distance mode (latest written wins)
+        if (m == 0 || m == 1 || m == 2 || m == 30 || m == 60) return 25;
+        return 13;
+    }
+    switch (c.code10) {
+        case 930: case 940: return 3;
+        case 40: return 14;
+        case 170: case 180: case 190: return 15;
+        case 200: case 210: return 16;
+        case 400: case 410: case 420: return 17;
+        case 434: case 435: case 490: return 18;
+        case 540: case 550: case 560: case 570: case 580: case 590: case 591: case 592: case 593: return 19;
+        case 610: case 611: case 640: return 20;
+        case 900: case 910: case 901: case 911: return 21;
+        case 800: return 22;
+        case 280: case 300: case 100: case 920: return 23;
+        default: return 24;
+    }
+}
+
 bool CommandWord::modal_only() const { return letter == 'G' && is_modal_only(code10); }
 
 void append_code(std::string& out, char letter, int code10) {
@@ -87,10 +137,10 @@ void append_passthrough(std::string& out, char letter, int code10, std::string_v
         out += '\n';
         return;
     }
-    append_code(out, letter, code10);
+    if (letter != 'S') append_code(out, letter, code10);  // 'S': the words alone (a spindle speed)
     if (!(letter == 'G' && is_modal_only(code10))) {
         for (const auto& p : params) {
-            out += ' ';
+            if (letter != 'S' || &p != &params.front()) out += ' ';
             out += p.letter;
             if (p.has_value) append_shortest(out, p.value);
         }
@@ -136,25 +186,129 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
             }
     }
 
-    // Mode-only codes run first, in RS274's order; then the line's command. (Insertion sort:
-    // a line has a handful of commands, and std::stable_sort would allocate.)
-    auto before = [](const CommandWord& a, const CommandWord& b) {
-        const bool ma = a.modal_only(), mb = b.modal_only();
-        if (ma != mb) return ma;
-        return ma && modal_rank(a.code10) < modal_rank(b.code10);
-    };
+    // RS274's order of execution. (Insertion sort, stable: a line has a handful of commands,
+    // and std::stable_sort would allocate.)
     for (std::size_t i = 1; i < out.count; ++i)
-        for (std::size_t k = i; k > 0 && before(out.commands[k], out.commands[k - 1]); --k)
+        for (std::size_t k = i; k > 0 && execution_rank(out.commands[k]) < execution_rank(out.commands[k - 1]); --k)
             std::swap(out.commands[k], out.commands[k - 1]);
+    for (std::size_t i = 0; i < out.count; ++i)
+        if (!out.commands[i].modal_only()) out.has_owner = true;
+}
 
-    // At most one command on a line may own the words.
-    std::size_t owners = 0;
-    for (std::size_t i = 0; i < out.count; ++i) {
-        const CommandWord& c = out.commands[i];
+namespace {
+
+bool has_letter(std::string_view letters, char c) { return letters.find(c) != std::string_view::npos; }
+
+void add_step(LinePlan& out, const CommandWord& c, const Params& words, bool verbatim) {
+    // In order of execution; stable among equals (the commands arrive sorted).
+    std::size_t k = out.count++;
+    for (; k > 0 && execution_rank(out.steps[k - 1].command) > execution_rank(c); --k) out.steps[k] = out.steps[k - 1];
+    out.steps[k] = {c, &words, verbatim};
+}
+
+}  // namespace
+
+void plan_line(const LineCommands& line, int motion, std::string_view move_letters, std::string_view position_letters, LinePlan& out) {
+    out.count = 0;
+    out.move_words.clear();
+    out.speed.clear();
+    const Params& words = line.params;
+
+    // A lone S (spindle speed, laser power) is passed on as written.
+    bool all_speed = line.count == 0 && !words.empty();
+    for (const auto& p : words) all_speed = all_speed && p.letter == 'S';
+    if (all_speed) {
+        add_step(out, {'S', 0, words.front().column}, words, true);
+        return;
+    }
+
+    int motion_cmd = -1, codes = 0, m_codes = 0;
+    bool other_owner = false, all_leave = true;
+    for (std::size_t i = 0; i < line.count; ++i) {
+        const CommandWord& c = line.commands[i];
         if (c.modal_only()) continue;
-        if (++owners == 2 && !out.params.empty())
-            throw LineError(c.column, "two commands on this line take words: put them on separate lines");
-        out.has_owner = true;
+        if (c.letter == 'G') {
+            if (is_motion_code(c) && motion_cmd < 0) motion_cmd = int(i);
+            else other_owner = true;
+            continue;
+        }
+        ++codes;
+        if (c.letter == 'M') ++m_codes;
+        all_leave = all_leave && leaves_axis_words(c);
+    }
+    const int arc_motion = motion_cmd >= 0 ? line.commands[motion_cmd].code10 / 10 : motion;
+    const bool arc = arc_motion == 2 || arc_motion == 3;
+    auto is_move_word = [&](char c) { return has_letter(move_letters, c) || (arc && (c == 'R' || c == 'P')); };
+    bool any_move_word = false, any_speed = false;
+    for (const auto& p : words) {
+        any_move_word = any_move_word || is_move_word(p.letter);
+        any_speed = any_speed || p.letter == 'S';
+    }
+    const bool moves = motion_cmd >= 0 || any_move_word;
+    const bool split = all_leave && !other_owner && ((codes >= 1 && moves) || codes >= 2 || (codes == 0 && any_speed && moves));
+
+    if (!split) {
+        // One command takes all the words (or none does: the modal motion).
+        std::size_t owners = 0;
+        for (std::size_t i = 0; i < line.count; ++i) {
+            const CommandWord& c = line.commands[i];
+            if (c.modal_only()) continue;
+            if (++owners == 2 && !words.empty())
+                throw LineError(c.column, "two commands on this line take words: put them on separate lines");
+            if (c.letter == 'M' && !leaves_axis_words(c) && !axis_letters_are_settings(c))
+                for (const auto& p : words)
+                    if (has_letter(position_letters, p.letter)) {
+                        std::string code;
+                        append_code(code, c.letter, c.code10);
+                        throw LineError(p.column, "word " + std::string(1, p.letter) + " on a line with " + code +
+                                                      ", a code not known to take axis words: a move goes on a line of its own");
+                    }
+        }
+        for (std::size_t i = 0; i < line.count; ++i)
+            add_step(out, line.commands[i], line.commands[i].modal_only() ? out.none : words, line.alone());
+        if (!line.has_owner && !words.empty()) {
+            if (motion < 0) throw LineError(words.front().column, "axis words without a motion command (G0 or G1)");
+            add_step(out, {'G', motion * 10, words.front().column}, words, false);
+        }
+        return;
+    }
+
+    // The move takes its words; S goes to M3/M4 (else to the line's one M code, else on its own
+    // line); the other words go to the line's one M code.
+    int speed_taker = -1, word_taker = -1;
+    for (std::size_t i = 0; i < line.count; ++i) {
+        const CommandWord& c = line.commands[i];
+        if (c.letter != 'M') continue;
+        if (speed_taker < 0 && (c.code10 == 30 || c.code10 == 40)) speed_taker = int(i);
+        if (m_codes == 1) word_taker = int(i);
+        out.code_words[i].clear();
+    }
+    if (speed_taker < 0) speed_taker = word_taker;
+    for (const auto& p : words) {
+        if (is_move_word(p.letter)) {
+            out.move_words.push_back(p);
+        } else if (p.letter == 'S' && speed_taker >= 0) {
+            out.code_words[speed_taker].push_back(p);
+        } else if (p.letter == 'S' && m_codes == 0) {
+            out.speed.push_back(p);
+        } else if (word_taker >= 0) {
+            out.code_words[word_taker].push_back(p);
+        } else if (m_codes == 0) {
+            out.move_words.push_back(p);  // the move names the word it cannot take
+        } else {
+            throw LineError(p.column, "word " + std::string(1, p.letter) + " on a line with several M codes: put the code it belongs to on a line of its own");
+        }
+    }
+    for (std::size_t i = 0; i < line.count; ++i) {
+        const CommandWord& c = line.commands[i];
+        if (c.modal_only()) add_step(out, c, out.none, false);
+        else if (c.letter == 'G') add_step(out, c, out.move_words, false);
+        else add_step(out, c, c.letter == 'M' ? out.code_words[i] : out.none, false);
+    }
+    if (!out.speed.empty()) add_step(out, {'S', 0, out.speed.front().column}, out.speed, false);
+    if (motion_cmd < 0 && !out.move_words.empty()) {
+        if (motion < 0) throw LineError(out.move_words.front().column, "axis words without a motion command (G0 or G1)");
+        add_step(out, {'G', motion * 10, out.move_words.front().column}, out.move_words, false);
     }
 }
 

@@ -34,7 +34,7 @@ struct CommandWord {
 struct LineCommands {
     static constexpr std::size_t kMax = 16;
     CommandWord commands[kMax];
-    std::size_t count = 0;     // mode-only codes first, in RS274's order, then the rest
+    std::size_t count = 0;     // in RS274's order of execution (execution_rank), stable
     Params params;
     bool has_owner = false;    // a command that takes the words (not mode-only)
     bool alone() const { return count == 1; }
@@ -44,6 +44,35 @@ struct LineCommands {
 // carries extrusion. Throws LineError(column, cause).
 void read_commands(const Block& block, char extruder_letter, LineCommands& out);
 
+// A command's step in RS274's order of execution within a line (LinuxCNC's list): feed mode,
+// S, T, M6, M3-M5, M7-M9, other M codes, G4, plane, units, cutter and length compensation,
+// coordinate system, path control, distance mode (and M82/M83 with it), G28/G92, motion, and
+// the stops M0 M1 M2 M30 M60 last. Letter 'S' is a spindle speed with no code to take it.
+int execution_rank(const CommandWord& c);
+
+// One step of a line: a command and the words it takes.
+struct LineStep {
+    CommandWord command;             // 'S': a spindle speed word on its own; the implicit motion is G0..G3
+    const Params* words = nullptr;   // never null
+    bool verbatim = false;           // the line's only command: passed on as written
+};
+
+// A line's steps in order of execution. A line that has a move and M/T codes (or S) is split:
+// the move takes its words, the M code its own, each on its own line; a move never leaves
+// with a code's words or a code with the move's.
+struct LinePlan {
+    static constexpr std::size_t kMax = LineCommands::kMax + 2;
+    LineStep steps[kMax];
+    std::size_t count = 0;
+    Params move_words, speed, none;
+    Params code_words[LineCommands::kMax];
+};
+
+// Plans `line` given the modal motion (`motion`: 0..3, -1 none). `move_letters`: the letters of
+// a move (X Y Z I J K E F and the machine's joints); `position_letters` those that place a
+// joint. Throws LineError(column, cause) for words no command can take.
+void plan_line(const LineCommands& line, int motion, std::string_view move_letters, std::string_view position_letters, LinePlan& out);
+
 // G codes that only set a mode and take no words.
 bool is_modal_only(int code10);
 
@@ -51,7 +80,7 @@ bool is_modal_only(int code10);
 void append_code(std::string& out, char letter, int code10);
 
 // A command passed on to the firmware: the line as written when it is the line's only command,
-// else the command and (unless mode-only) the line's words.
+// else the command and (unless mode-only) the line's words. Letter 'S': the words alone.
 void append_passthrough(std::string& out, char letter, int code10, std::string_view body, bool alone, const Params& params);
 
 // A line with no words: its text (a comment), or an empty line for a blank one, or nothing.

@@ -38,6 +38,12 @@ double printed(const Machine& m, std::size_t j, double v) {
     return double(units) / kPow10[d];
 }
 
+// The joints as the firmware will be given them (each rounded to its printed decimals): the
+// split and the report measure the path the firmware will really take.
+void round_printed(const Machine& m, std::vector<double>& q) {
+    for (std::size_t j = 0; j < q.size(); ++j) q[j] = printed(m, j, q[j]);
+}
+
 // Distance from p to the segment ab.
 double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
     const Eigen::Vector3d ab = b - a;
@@ -143,10 +149,16 @@ void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const do
 
 IkResult MotionStage::split(const MoveSpec& mv) {
     const std::size_t n = machine_.joints.size();
-    const auto& q0 = *mv.q0;
-    const auto& q1 = *mv.q1;
+    q0_printed_ = *mv.q0;
+    round_printed(machine_, q0_printed_);
+    q1_printed_ = *mv.q1;
+    round_printed(machine_, q1_printed_);
+    final_exact_ = *mv.q1;
+    const auto& q0 = q0_printed_;
+    const auto& q1 = q1_printed_;
     s_.assign(1, 1.0);
     qs_.assign(q1.begin(), q1.end());
+    qs_exact_.assign(mv.q1->begin(), mv.q1->end());
     bool rotates = false;
     for (std::size_t j = 0; j < n; ++j) rotates = rotates || (machine_.joints[j].rotary && q1[j] != q0[j]);
     // With the rotaries still the tip is affine in the linear joints: the firmware's line is exact.
@@ -165,6 +177,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     // first guess of the step.
     s_.clear();
     qs_.clear();
+    qs_exact_.clear();
     double step = 1.0 / std::ceil(std::sqrt(ratio));
     double sa = 0;
     std::vector<double>& qa = march_a_;
@@ -185,6 +198,9 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                 r.message += " (at " + std::to_string(int(std::lround(std::min(sb, 1.0) * 100))) + "% of the move)";
                 return r;
             }
+            if (sb >= 1.0 && mv.mode == OrientationMode::Angles) exact_b_ = *mv.q1;
+            else exact_b_ = qb;
+            round_printed(machine_, qb);
             piece_error(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), kCheckSamples, tip, ang);
             bool pass = tip <= tol && ang <= atol;
             if (!pass && mv.mode == OrientationMode::Vector) {
@@ -192,18 +208,23 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                 // cut across within the tolerance (a tilt through zero instead of a half turn).
                 std::vector<double>& alt = scratch_b_;
                 for (int b = 0; b < 2 && !pass; ++b) {
-                    if (!solve_at(mv, std::min(sb, 1.0), qa, alt, b).ok() || alt == qb) continue;
+                    if (!solve_at(mv, std::min(sb, 1.0), qa, alt, b).ok()) continue;
+                    std::vector<double> alt_exact = alt;
+                    round_printed(machine_, alt);
+                    if (alt == qb) continue;
                     double t2 = 0, a2 = 0;
                     piece_error(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), kCheckSamples, t2, a2);
                     if (t2 <= tol && a2 <= atol) {
                         pass = true;
                         qb = alt;
+                        exact_b_ = alt_exact;
                     }
                 }
             }
             if (pass) {
                 ok_len = len;
                 qok = qb;
+                ok_exact_ = exact_b_;
             } else {
                 bad_len = len;
                 if (len < 1e-9) {
@@ -218,9 +239,11 @@ IkResult MotionStage::split(const MoveSpec& mv) {
         }
         const double sb = std::min(1.0, sa + ok_len);
         qb = qok;
+        if (sb >= 1.0) final_exact_ = ok_exact_;
         step = std::max(sb - sa, 1e-9) * 1.25;  // the next piece is likely about as long: start a bit farther
         s_.push_back(sb);
         qs_.insert(qs_.end(), qb.begin(), qb.end());
+        qs_exact_.insert(qs_exact_.end(), ok_exact_.begin(), ok_exact_.end());
         if (int(s_.size()) > kMaxPieces) return {IkStatus::Singular, "the move needs more than 100000 pieces to stay within the tolerance"};
         sa = sb;
         qa.swap(qb);
@@ -271,12 +294,92 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
                     result->pieces += first.pieces;
                     result->tip_error = std::max(result->tip_error, first.tip_error);
                     result->angle_error = std::max(result->angle_error, first.angle_error);
+                    // The turn about the pole is rotary travel of this move too.
+                    result->travel.resize(first.travel.size(), 0.0);
+                    for (std::size_t j = 0; j < first.travel.size(); ++j) result->travel[j] += first.travel[j];
                 }
                 return {};
             }
         }
     }
+    if (cross_pole(mv, cross_end_)) {
+        // Across the pole (Isa, Koc 2018, sec. 4.6: C patched linearly through the singular
+        // cone): the rotaries turn linearly to the other branch while the split holds the tip
+        // on the line; the tool axis stays within the angle tolerance (checked in cross_pole).
+        MoveSpec across = mv;
+        across.mode = OrientationMode::Angles;
+        across.q1 = &cross_end_;
+        const std::vector<double> end = cross_end_;
+        if (auto r = emit_one(across, out, result); !r.ok()) return r;
+        final_exact_ = end;
+        if (result) {
+            result->pole_crossings = 1;
+            result->angle_error = std::max(result->angle_error, cross_angle_);
+        }
+        return {};
+    }
     return emit_one(mv, out, result);
+}
+
+bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
+    const auto& rot = kin_.rotary_joints();
+    if (mv.mode != OrientationMode::Vector || !machine_.motion.segment || rot.size() != 2) return false;
+    const auto& q0 = *mv.q0;
+    auto rotary_distance = [&](const std::vector<double>& a, const std::vector<double>& b) {
+        double d = 0;
+        for (const int j : rot) d += std::abs(a[std::size_t(j)] - b[std::size_t(j)]);
+        return d;
+    };
+    // How far the continuous branch turns the rotaries, estimated on a few points of the path
+    // (cheap; it is measured exactly below only when another way looks shorter).
+    constexpr int kEstimate = 16;
+    std::vector<double>& q = scratch_a_;
+    std::vector<double>& qq = lerp_;
+    std::vector<double> prev = q0, cur = q0;
+    double stay = 0;
+    for (int i = 1; i <= kEstimate; ++i) {
+        if (!orient_within_limits(kin_, pose_at(mv, double(i) / kEstimate).axis, prev, prev, cur).ok()) break;
+        stay += rotary_distance(prev, cur);
+        prev = cur;
+    }
+    constexpr double kClearlyLess = 1.0;  // degrees: another way only when it turns clearly less
+    const auto solutions = kin_.orientation_solutions(mv.p1.axis);
+    bool found = false;
+    double best = stay - kClearlyLess;
+    for (int b = 0; b < solutions.count; ++b) {
+        q = q0;
+        if (!orient_on_branch(kin_, mv.p1.axis, b, q0, q0, q).ok()) continue;
+        const double travel = rotary_distance(q, q0);
+        if (travel >= best) continue;
+        if (!kin_.solve_position(mv.p1.tip, q).ok() || !check_limits(machine_, q).ok()) continue;
+        // The tool axis along the linear turn against its great-circle path, densely.
+        constexpr int kAxisSamples = 64;
+        double worst = 0;
+        qq.resize(q.size());
+        for (int i = 1; i < kAxisSamples; ++i) {
+            const double t = double(i) / kAxisSamples;
+            for (std::size_t j = 0; j < q.size(); ++j) qq[j] = q0[j] + t * (q[j] - q0[j]);
+            const Eigen::Vector3d axis = kin_.forward(qq).axis;
+            worst = std::max(worst, std::acos(std::clamp(axis.dot(slerp(mv.p0.axis, mv.p1.axis, t)), -1.0, 1.0)) * kDegPerRad);
+        }
+        if (worst > kSampleMargin * machine_.motion.angle_tolerance) continue;
+        best = travel;
+        end = q;
+        cross_angle_ = worst;
+        found = true;
+    }
+    if (!found) return false;
+    // Measured: the continuous branch's split, joint by joint.
+    if (!split(mv).ok()) return true;
+    const std::size_t n = machine_.joints.size();
+    double measured = 0;
+    const double* qa = q0_printed_.data();
+    for (std::size_t k = 0; k < s_.size(); ++k) {
+        const double* qb = &qs_[k * n];
+        for (const int j : rot) measured += std::abs(qb[std::size_t(j)] - qa[std::size_t(j)]);
+        qa = qb;
+    }
+    return best < measured - kClearlyLess;
 }
 
 IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult* result) {
@@ -284,6 +387,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     const std::size_t n = machine_.joints.size();
     const int pieces = int(s_.size());
     const double length = (mv.p1.tip - mv.p0.tip).norm();
+    const std::vector<double>& q0 = q0_printed_;  // where the firmware starts
 
     // Duration of the whole move in minutes: tip length at the programmed feed (G94), or given (G93).
     double total_time = 0;
@@ -291,7 +395,6 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     else if (mv.feed > 0 && mv.mode != OrientationMode::Joints) total_time = length / mv.feed;
 
     // Cumulative share of the move at each piece end: by tip length, or by s for a pure turn.
-    const std::vector<double>& q0 = *mv.q0;
     double prev_share = 0;
     long long e_units_done = 0;
     const int ed = machine_.dialect.extrusion_decimals;
@@ -300,6 +403,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     const bool inverse_time_out = machine_.dialect.inverse_time && mv.mode != OrientationMode::Joints && (total_time > 0 || mv.feed > 0);
     std::vector<double>& qprev = piece_prev_;
     std::vector<double>& qk = piece_q_;
+    exact_b_.resize(n);
     piece_time_.assign(std::size_t(pieces), 0.0);
     qprev = q0;
     qk.resize(n);
@@ -360,7 +464,11 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         }
         // Measured errors are taken off after the split, so every piece of every move is
         // corrected and nothing upstream sees anything but nominal joints.
-        const auto sent = compensation_.apply(qk);
+        // Compensated from the joints as solved: the emitter rounds once (without compensation
+        // that gives exactly the rounded joints checked above).
+        std::copy(qs_exact_.begin() + std::ptrdiff_t(std::size_t(k) * n), qs_exact_.begin() + std::ptrdiff_t(std::size_t(k + 1) * n),
+                  exact_b_.begin());
+        const auto sent = compensation_.apply(exact_b_);
         if (!sent.ok()) throw LineError(1, sent.why);
         emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, inverse_time_out);
         prev_share = share;

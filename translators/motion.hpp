@@ -42,6 +42,7 @@ struct MoveResult {
     double angle_error = 0;  // degrees
     double feed_error = 0;   // relative: the tip's speed under the firmware over the programmed, - 1 (worst piece)
     std::vector<double> travel;  // degrees (or mm) each joint moves, summed over the pieces
+    int pole_crossings = 0;      // the move changed branch across a pole
 };
 
 class MotionStage {
@@ -59,9 +60,8 @@ public:
 
     // Where the last move ended: its end joints can differ from the ones asked for when a tool
     // vector's continuous solution arrives on the other branch or another turn.
-    std::vector<double> final_joints() const {
-        return std::vector<double>(qs_.end() - std::ptrdiff_t(machine_.joints.size()), qs_.end());
-    }
+    // (As solved: the printed ones are rounded to the dialect's decimals.)
+    const std::vector<double>& final_joints() const { return final_exact_; }
 
     // The split of the last move: parameter s at each piece's end and its joints.
     const std::vector<double>& split_params() const { return s_; }
@@ -69,6 +69,10 @@ public:
 
 private:
     IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
+    // Across a pole: the end on the other branch, reached with the rotaries turning linearly,
+    // when that stays within the angle tolerance and turns the rotaries less than the
+    // continuous branch. Fills `end` and returns true when that way is the better one.
+    bool cross_pole(const MoveSpec& move, std::vector<double>& end);
     IkResult solve_at(const MoveSpec& move, double s, const std::vector<double>& previous, std::vector<double>& q,
                       int branch = -1) const;
     IkResult split(const MoveSpec& move);
@@ -81,7 +85,11 @@ private:
     const Machine& machine_;
     CompensationStage compensation_;
     JointEmitter& emitter_;
-    std::vector<double> s_, qs_;                 // the pieces
+    std::vector<double> s_, qs_;                 // the pieces, joints as printed
+    std::vector<double> qs_exact_;               // the pieces' ends as solved
+    std::vector<double> q0_printed_, q1_printed_;  // the move's ends as printed
+    std::vector<double> final_exact_, exact_b_, ok_exact_, cross_end_;
+    double cross_angle_ = 0;  // the axis deviation of the last crossing found  // the last piece's end as solved (unrounded)
     // Scratch space reused move after move (no allocation on the hot path).
     std::vector<double> scratch_a_, scratch_b_, lerp_, march_a_, march_b_, piece_prev_, piece_q_;
     mutable std::vector<double> sample_;

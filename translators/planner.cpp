@@ -198,7 +198,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move
     // (no extrusion), where a G92 cannot disturb a printed line: firmware without wrapping
     // (Marlin, soft endstops) then never runs out of range.
-    if (!mv.e || mv.e->value == 0) {
+    if (!prints) {  // under absolute E, E0 after E5 extrudes (backwards): only an unchanged E does not
         for (std::size_t j = 0; j < q_next_.size(); ++j) {
             const Joint& J = machine_.joints[j];
             if (J.rezero_beyond <= 0 || std::abs(q_next_[j]) <= J.rezero_beyond) continue;

@@ -129,6 +129,8 @@ std::string DeviationReport::json() const {
     o += "  \"moves\": " + std::to_string(moves_) + ",\n";
     o += "  \"moves_split\": " + std::to_string(split_moves_) + ",\n";
     o += "  \"output_moves\": " + std::to_string(pieces_) + ",\n";
+    o += "  \"pole_crossings\": " + std::to_string(pole_crossings_) + ",\n";
+    o += "  \"half_turns\": " + std::to_string(half_turns_) + ",\n";
     o += "  \"tip_deviation_mm\": " + tip_.json() + ",\n";
     o += "  \"orientation_deviation_deg\": " + angle_.json() + ",\n";
     o += "  \"feed_error_relative\": " + feed_.json() + ",\n";
@@ -177,13 +179,19 @@ std::string DeviationReport::svg() const {
 }
 
 void MoveLog::add(std::uint64_t line, const MoveResult& m) {
+    bool half_turn = false;
     for (std::size_t j = 0; j < m.travel.size(); ++j) {
         if (!machine_.joints[j].rotary) continue;
+        half_turn = half_turn || m.travel[j] >= DeviationReport::kHalfTurnDeg;
         if (hold_) held_.travel.emplace_back(machine_.joints[j].name, m.travel[j]);
         else report_.add_rotary_travel(machine_.joints[j].name, m.travel[j]);
     }
-    if (hold_) held_.moves.push_back({line, m.tip_error, m.angle_error, m.feed_error, m.pieces, held_.travel.size()});
-    else report_.add_move(line, m.tip_error, m.angle_error, m.feed_error, m.pieces);
+    if (hold_) {
+        held_.moves.push_back({line, m.tip_error, m.angle_error, m.feed_error, m.pieces, held_.travel.size(), m.pole_crossings, half_turn});
+    } else {
+        report_.add_move(line, m.tip_error, m.angle_error, m.feed_error, m.pieces);
+        report_.add_route(m.pole_crossings, half_turn);
+    }
 }
 
 void MoveLog::release(std::size_t moves) {
@@ -192,6 +200,7 @@ void MoveLog::release(std::size_t moves) {
     for (std::size_t i = 0, t = 0; i < moves; ++i) {
         const Pending& m = held_.moves[i];
         report_.add_move(m.line, m.tip, m.angle, m.feed, m.pieces);
+        report_.add_route(m.pole_crossings, m.half_turn);
         for (; t < m.travel_end; ++t) report_.add_rotary_travel(held_.travel[t].first, held_.travel[t].second);
     }
     held_.moves.erase(held_.moves.begin(), held_.moves.begin() + std::ptrdiff_t(moves));

@@ -20,6 +20,10 @@ public:
     // how many output moves it became.
     void add_move(std::uint64_t line, double tip, double angle, double feed_error, int pieces);
     void add_rotary_travel(char joint, double degrees);
+    // How a move went near a pole: it changed branch across it (a pole crossing), and whether
+    // a rotary turned by kHalfTurnDeg or more within it (a half turn of the table or head).
+    void add_route(int pole_crossings, bool half_turn) { pole_crossings_ += std::uint64_t(pole_crossings), half_turns_ += half_turn; }
+    static constexpr double kHalfTurnDeg = 150;
     void set_lines(std::uint64_t in, std::uint64_t out) { lines_in_ = in, lines_out_ = out; }
 
     std::string json() const;
@@ -47,7 +51,7 @@ private:
 
     std::string file_, machine_;
     double tolerance_, angle_tolerance_;
-    std::uint64_t lines_in_ = 0, lines_out_ = 0, moves_ = 0, split_moves_ = 0, pieces_ = 0;
+    std::uint64_t lines_in_ = 0, lines_out_ = 0, moves_ = 0, split_moves_ = 0, pieces_ = 0, pole_crossings_ = 0, half_turns_ = 0;
     Distribution tip_, angle_, feed_;
     std::vector<std::pair<char, double>> travel_;
     std::vector<Point> series_;  // at most kMaxPoints, each the worst of `bucket_` moves
@@ -73,6 +77,8 @@ public:
         double tip, angle, feed;
         int pieces;
         std::size_t travel_end;
+        int pole_crossings;
+        bool half_turn;
     };
     struct Held {
         std::vector<Pending> moves;
