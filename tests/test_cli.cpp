@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -726,7 +727,7 @@ TEST_CASE("cli: what a user reads names its sources by author, place and year, n
     };
     std::vector<std::pair<std::string, std::string>> texts;
     for (const std::string args : {"--help", "machines", "serve --help", "ports --help", "calibrate --help", "calibrate fit --help",
-                                   "calibrate plate --help", "calibrate offset --help", "calibrate pivots --help", "calibrate centre --help",
+                                   "calibrate plate --help", "calibrate offset --help", "calibrate pivots --help", "calibrate centre --help", "pose --help",
                                    "--man-page"}) {
         const Result r = run(d, args);
         REQUIRE(r.code == 0);
@@ -744,3 +745,115 @@ TEST_CASE("cli: what a user reads names its sources by author, place and year, n
     }
     CHECK(contains(run(d, "machines").out, "Andersons, Twente 2023"));
 }
+
+namespace {
+
+// "label K=v K=v ..." lines of `xlate5 pose` as label -> (key -> value).
+std::map<std::string, std::map<std::string, double>> pose_lines(const std::string& out) {
+    std::map<std::string, std::map<std::string, double>> r;
+    for (const auto& line : lines_of(out)) {
+        std::istringstream words(line);
+        std::string label, w;
+        words >> label;
+        while (words >> w)
+            if (const auto eq = w.find('='); eq != std::string::npos && eq > 0) r[label][w.substr(0, eq)] = std::stod(w.substr(eq + 1));
+    }
+    return r;
+}
+
+std::string triple(double a, double b, double c) {
+    char s[120];
+    std::snprintf(s, sizeof s, "%.9g,%.9g,%.9g", a, b, c);
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("cli: pose gives pentarod's tip and tool axis per Grutle's pseudo code 4.1") {
+    TempDir d;
+    for (const auto& [x, y, z, a, c] : std::vector<std::array<double, 5>>{{0, 0, 0, 30, 20}, {12.5, -7, 3, -45, 170}, {40, 30, 20, 80, -95}}) {
+        CAPTURE(a);
+        CAPTURE(c);
+        char args[200];
+        std::snprintf(args, sizeof args, "-m pentarod pose X=%g Y=%g Z=%g A=%g C=%g", x, y, z, a, c);
+        const Result r = run(d, args);
+        REQUIRE(r.code == 0);
+        const auto p = pose_lines(r.out);
+        // u = R_z(-C) R_x(-A) z = (sin A sin C, sin A cos C, cos A); the tip at machine XYZ is
+        // p = R_z(-C) R_x(-A) (X, Y, Z) (machine XYZ = R_x(A) R_z(C) p).
+        const double A = rad(a), C = rad(c);
+        CHECK(std::abs(p.at("axis").at("I") - std::sin(A) * std::sin(C)) <= 1e-6);
+        CHECK(std::abs(p.at("axis").at("J") - std::sin(A) * std::cos(C)) <= 1e-6);
+        CHECK(std::abs(p.at("axis").at("K") - std::cos(A)) <= 1e-6);
+        const double y1 = std::cos(A) * y + std::sin(A) * z, z1 = -std::sin(A) * y + std::cos(A) * z;  // R_x(-A)
+        const double x2 = std::cos(C) * x + std::sin(C) * y1, y2 = -std::sin(C) * x + std::cos(C) * y1;  // R_z(-C)
+        CHECK(std::abs(p.at("tip").at("X") - x2) <= 1e-4);
+        CHECK(std::abs(p.at("tip").at("Y") - y2) <= 1e-4);
+        CHECK(std::abs(p.at("tip").at("Z") - z1) <= 1e-4);
+    }
+    // Joints not named stay at home (all 0 on pentarod): the tip is the origin, the axis vertical.
+    const auto home = pose_lines(run(d, "-m pentarod pose").out);
+    CHECK(std::abs(home.at("tip").at("Z")) <= 1e-9);
+    CHECK(home.at("axis").at("K") == 1);
+}
+
+TEST_CASE("cli: pose round trips: joints -> tip and axis -> joints -> the same tip and axis, on every shipped machine") {
+    TempDir d;
+    struct Case {
+        const char* machine;
+        const char* joints;
+    };
+    for (const Case& k : {Case{"pentarod", "X=10 Y=-20 Z=15 A=35 C=-60"}, Case{"rw2", "X=100 Y=90 Z=20 A=30 B=25"},
+                          Case{"koc5", "B=20 C=40"}, Case{"wpi5", ""}, Case{"xyzac-trt", "X=5 Y=5 Z=30 A=20 C=130"}}) {
+        CAPTURE(k.machine);
+        const Result f = run(d, std::string("-m ") + k.machine + " pose " + k.joints);
+        REQUIRE(f.code == 0);
+        const auto p = pose_lines(f.out);
+        const auto& tip = p.at("tip");
+        const auto& axis = p.at("axis");
+        const Result i = run(d, std::string("-m ") + k.machine + " pose --tip " + triple(tip.at("X"), tip.at("Y"), tip.at("Z")) + " --axis " +
+                                    triple(axis.at("I"), axis.at("J"), axis.at("K")));
+        REQUIRE(i.code == 0);
+        const auto q = pose_lines(i.out);
+        // The joints it found reach the pose asked for (FK of the printed joints, independently run).
+        std::string joints;
+        for (const auto& [name, v] : q.at("joints")) joints += " " + name + "=" + std::to_string(v);
+        const auto back = pose_lines(run(d, std::string("-m ") + k.machine + " pose" + joints).out);
+        for (const char* c : {"X", "Y", "Z"}) CHECK(std::abs(back.at("tip").at(c) - tip.at(c)) <= 2e-3);
+        for (const char* c : {"I", "J", "K"}) CHECK(std::abs(back.at("axis").at(c) - axis.at(c)) <= 1e-4);
+        // Started from the original joints, the nearest solution is those joints.
+        const auto same = pose_lines(run(d, std::string("-m ") + k.machine + " pose " + k.joints + " --tip " +
+                                                triple(tip.at("X"), tip.at("Y"), tip.at("Z")) + " --axis " +
+                                                triple(axis.at("I"), axis.at("J"), axis.at("K")))
+                                         .out);
+        for (const auto& [name, v] : p.at("joints")) {
+            CAPTURE(name);
+            CHECK(std::abs(same.at("joints").at(name) - v) <= 2e-3);
+        }
+    }
+}
+
+TEST_CASE("cli: pose refuses an unknown joint, a zero axis and an unreachable pose, saying why") {
+    TempDir d;
+    Result r = run(d, "-m pentarod pose Q=3");
+    CHECK(r.code == 2);
+    CHECK(contains(r.err, "xlate5: "));
+    CHECK(contains(r.err, "no joint Q (it has X, Y, Z, A, C)"));
+    r = run(d, "-m pentarod pose A=abc");
+    CHECK(r.code == 2);
+    r = run(d, "-m pentarod pose --tip 0,0,0 --axis 0,0,0");
+    CHECK(r.code == 2);
+    CHECK(contains(r.err, "0,0,0"));
+    r = run(d, "-m pentarod pose --tip 0,0 --axis 0,0,1");
+    CHECK(r.code == 2);
+    // Pentarod's A stops at 90 degrees: an axis pointing down cannot be reached.
+    r = run(d, "-m pentarod pose --tip 0,0,10 --axis 0,0,-1");
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, "pose"));
+    CHECK(r.out.empty());
+    // Joints outside their limits are shown, with a note.
+    r = run(d, "-m pentarod pose A=120");
+    CHECK(r.code == 0);
+    CHECK(contains(r.out, "A=120.0000 is outside its limits -90 to 90"));
+}
+
