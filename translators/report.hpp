@@ -20,6 +20,11 @@ public:
     // how many output moves it became.
     void add_move(std::uint64_t line, double tip, double angle, double feed_error, int pieces);
     void add_rotary_travel(char joint, double degrees);
+    // The rest of what a move did: where each joint went (its extremes over the move), how long
+    // the firmware takes for it, and whether it ended on another solution of its pose.
+    void add_joint_range(char joint, double low, double high);
+    void add_time(double minutes) { minutes_ += minutes; }
+    void add_solution_change(int turns, int branch) { turns_ += std::uint64_t(turns), branches_ += std::uint64_t(branch); }
     void set_lines(std::uint64_t in, std::uint64_t out) { lines_in_ = in, lines_out_ = out; }
 
     std::string json() const;
@@ -50,6 +55,13 @@ private:
     std::uint64_t lines_in_ = 0, lines_out_ = 0, moves_ = 0, split_moves_ = 0, pieces_ = 0;
     Distribution tip_, angle_, feed_;
     std::vector<std::pair<char, double>> travel_;
+    struct Range {
+        char joint;
+        double low, high;
+    };
+    std::vector<Range> ranges_;  // one per joint
+    double minutes_ = 0;
+    std::uint64_t turns_ = 0, branches_ = 0;
     std::vector<Point> series_;  // at most kMaxPoints, each the worst of `bucket_` moves
     std::uint64_t bucket_ = 1, in_bucket_ = 0;
     static constexpr std::size_t kMaxPoints = 2000;
@@ -73,10 +85,13 @@ public:
         double tip, angle, feed;
         int pieces;
         std::size_t travel_end;
+        double minutes;
+        int change;  // SolutionChange
     };
     struct Held {
         std::vector<Pending> moves;
         std::vector<std::pair<char, double>> travel;
+        std::vector<double> ranges;  // per held move, low and high of every joint
     };
     std::size_t held_count() const { return held_.moves.size(); }
     void release(std::size_t moves);  // the first `moves` held moves go to the report
@@ -85,13 +100,16 @@ public:
     void drop_held() {
         held_.moves.clear();
         held_.travel.clear();
+        held_.ranges.clear();
     }
 
 private:
+    void add_rest(const double* ranges, double minutes, int change);  // ranges: low, high of every joint
     DeviationReport& report_;
     const Machine& machine_;
     bool hold_ = false;
     Held held_;
+    std::vector<double> ranges_;  // scratch: one move's low and high of every joint
 };
 
 }  // namespace xlate5
