@@ -8,9 +8,11 @@
 #include <fcntl.h>
 #include <map>
 #include <optional>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "cli/options.hpp"
+#include "cli/progress.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
 #include "translators/gcode_lexer.hpp"
@@ -56,6 +58,7 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
     app.add_option("--report", o.report, "write the kinematic-error report (JSON) of the translation to this file")->option_text("FILE");
     app.add_option("--plot", o.plot, "write the tip deviation along the file as an SVG plot to this file")->option_text("FILE");
     app.add_flag("--compact-words", o.compact_words, "the input is written without blanks: X1.5E-05 is X1.5 and E-05 (as the line '; xlate5: compact-words')");
+    app.add_flag("--no-progress", o.no_progress, "no progress bar on standard error (there is one only when it is a terminal)");
     app.add_flag("--inverse", o.inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
     app.add_option("--preview-form", o.preview, with_default("with --inverse: write orientation as G43.4 angles or G43.5 I J K", "G43.4"))
         ->check(CLI::IsMember({"G43.4", "G43.5"}))
@@ -110,7 +113,13 @@ int run_translate(const Common& common, const TranslateOptions& o) {
         if (o.compact_words) translator.feed("; " + std::string(kCompactDeclaration), 0, declared);
         LineReader reader(in_fd, options.input_name);
         OutputSink sink(o.output);
-        const auto stats = translate_stream(reader, translator, sink);
+        // A pipe or a terminal in: write what is decided before waiting for more (a filter).
+        // A regular file in: a progress bar on a terminal, sized by the file.
+        struct stat in_stat{};
+        const bool regular = ::fstat(in_fd, &in_stat) == 0 && S_ISREG(in_stat.st_mode);
+        Progress progress(regular ? std::uint64_t(in_stat.st_size) : 0, !o.no_progress && ::isatty(2));
+        const auto stats = translate_stream(reader, translator, sink, !regular,
+                                            [&](const StreamStats& s) { progress.update(s.bytes_in, s.lines_in); });
         // The report files are written like the output: whole, or not at all.
         std::optional<OutputSink> report_sink, plot_sink;
         if (report) {

@@ -7,6 +7,7 @@
 #include <cctype>
 
 #include <fcntl.h>
+#include <poll.h>
 #include <signal.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
@@ -15,6 +16,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <array>
 #include <cmath>
 #include <cstdlib>
@@ -857,3 +859,93 @@ TEST_CASE("cli: pose refuses an unknown joint, a zero axis and an unreachable po
     CHECK(contains(r.out, "A=120.0000 is outside its limits -90 to 90"));
 }
 
+namespace {
+
+// Everything readable on `fd` within `ms` milliseconds of quiet.
+std::string drain(int fd, int ms) {
+    std::string got;
+    char b[4096];
+    for (;;) {
+        pollfd p{fd, POLLIN, 0};
+        if (::poll(&p, 1, ms) <= 0) return got;
+        const ssize_t n = ::read(fd, b, sizeof b);
+        if (n <= 0) return got;
+        got.append(b, std::size_t(n));
+    }
+}
+
+void put_all(int fd, const std::string& s) {
+    for (std::size_t done = 0; done < s.size();) {
+        const ssize_t n = ::write(fd, s.data() + done, s.size() - done);
+        REQUIRE(n > 0);
+        done += std::size_t(n);
+    }
+}
+
+// A travel move and printing moves after it, `count` times: the look-back releases each group's
+// output when the next travel move arrives.
+std::string groups(int count, int& e) {
+    std::string s;
+    for (int g = 0; g < count; ++g) {
+        s += "G1 X" + std::to_string(100 + g % 20) + " Y100 Z10 A0 B0 F1200\n";
+        for (int i = 0; i < 5; ++i) s += "G1 X" + std::to_string(101 + g % 20) + "." + std::to_string(i) + " Y101 E" + std::to_string(++e) + "\n";
+    }
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("cli: as a filter, output is written before the input ends; the progress bar shows only on a terminal") {
+    int in[2], out[2];
+    REQUIRE(::pipe(in) == 0);
+    REQUIRE(::pipe(out) == 0);
+    const int master = ::posix_openpt(O_RDWR | O_NOCTTY);
+    REQUIRE(master >= 0);
+    REQUIRE(::grantpt(master) == 0);
+    REQUIRE(::unlockpt(master) == 0);
+    const std::string slave = ::ptsname(master);
+    const pid_t pid = ::fork();
+    REQUIRE(pid >= 0);
+    if (pid == 0) {
+        const int tty = ::open(slave.c_str(), O_RDWR | O_NOCTTY);
+        ::dup2(in[0], 0), ::dup2(out[1], 1), ::dup2(tty, 2);
+        ::close(in[0]), ::close(in[1]), ::close(out[0]), ::close(out[1]), ::close(tty), ::close(master);
+        ::execl(XLATE5_BINARY, "xlate5", "-m", "rw2", static_cast<char*>(nullptr));
+        ::_exit(127);
+    }
+    ::close(in[0]);
+    ::close(out[1]);
+    int e = 0;
+    put_all(in[1], groups(3, e));
+    // The input is still open: the first groups' joints must arrive anyway.
+    const std::string early = drain(out[0], 3000);
+    CHECK(lines_of(early).size() >= 6);
+    // After the first second, each block read draws the bar on the terminal.
+    for (int k = 0; k < 4; ++k) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(400));
+        put_all(in[1], groups(2, e));
+        CHECK(!drain(out[0], 800).empty());
+    }
+    ::close(in[1]);
+    const std::string rest = drain(out[0], 5000);
+    int status = 0;
+    REQUIRE(::waitpid(pid, &status, 0) == pid);
+    CHECK(WIFEXITED(status));
+    CHECK(WEXITSTATUS(status) == 0);
+    const std::string tty = drain(master, 500);
+    ::close(out[0]);
+    ::close(master);
+    CAPTURE(tty);
+    CHECK(contains(tty, "xlate5: "));
+    CHECK(contains(tty, " lines, "));
+    // Cleared at the end: the prompt (or an error) starts on a clean line.
+    CHECK(tty.size() >= 4);
+    CHECK(tty.substr(tty.size() - 4) == "\r\033[K");
+
+    // The same translation with standard error in a file: nothing but the output.
+    TempDir d;
+    e = 0;
+    const Result r = run(d, "-m rw2", groups(12, e));
+    CHECK(r.code == 0);
+    CHECK(r.err.empty());
+}

@@ -12,25 +12,32 @@ namespace {
 constexpr std::size_t kFlushAt = 1u << 18;
 }  // namespace
 
-StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink) {
+StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink, bool streaming,
+                             const std::function<void(const StreamStats&)>& on_read) {
     StreamStats stats;
     std::string out;
     out.reserve(kFlushAt + 4096);
     std::string_view line;
+    std::uint64_t seen = 0;  // bytes read when on_read was last called
+    auto flush = [&] {
+        sink.write(out);
+        stats.bytes_out += out.size();
+        stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));
+        out.clear();
+    };
     translator.set_lookback(Translator::kDefaultLookback);  // a limit further on can be unwound on an earlier travel move
     while (reader.next(line)) {
         translator.feed(line, reader.line_number(), out);
-        if (out.size() >= kFlushAt) {
-            sink.write(out);
-            stats.bytes_out += out.size();
-            stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));
-            out.clear();
+        if (out.size() >= kFlushAt || (streaming && !out.empty() && !reader.has_line())) flush();
+        if (on_read && reader.bytes_read() != seen) {
+            seen = reader.bytes_read();
+            stats.lines_in = reader.line_number();
+            stats.bytes_in = seen;
+            on_read(stats);
         }
     }
     translator.finish(out);
-    sink.write(out);
-    stats.bytes_out += out.size();
-    stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));
+    flush();
     stats.lines_in = reader.line_number();
     stats.bytes_in = reader.bytes_read();
     return stats;

@@ -2,6 +2,7 @@
 // the sink. May call: line_reader, the front door (translator.hpp), output_sink.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <string_view>
 
@@ -19,7 +20,12 @@ struct StreamStats {
     std::uint64_t lines_out = 0;
 };
 
-// Runs every line of `reader` through `translator` into `sink`.
-StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink);
+// Runs every line of `reader` through `translator` into `sink`. Output is written in large
+// blocks; with `streaming` (the input is a pipe or a terminal) also whenever the input has no
+// further line at hand, so a filter between a sender and a printer never holds decided output
+// while it waits for input (the look-back still holds what it may translate again).
+// `on_read`, when given, is called with the counts so far once per block of input read, never per line.
+StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink, bool streaming = false,
+                             const std::function<void(const StreamStats&)>& on_read = {});
 
 }  // namespace xlate5
