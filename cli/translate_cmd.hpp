@@ -9,7 +9,7 @@
 namespace xlate5::cli {
 
 struct TranslateOptions {
-    std::string input = "-", output = "-", mode, preview = "G43.4", extruder = "E", report, plot, compensation;
+    std::string input = "-", output = "-", mode, preview = "G43.4", extruder = "E", report, plot, compensation, preview_html;
     bool inverse = false, no_segment = false, compact_words = false, no_progress = false;
     double tolerance = 0, angle_tolerance = 0;
 };

@@ -861,13 +861,14 @@ TEST_CASE("cli: pose refuses an unknown joint, a zero axis and an unreachable po
 
 namespace {
 
-// Everything readable on `fd` within `ms` milliseconds of quiet.
-std::string drain(int fd, int ms) {
+// Everything readable on `fd`: waits up to `first_ms` for the first bytes (a loaded machine, a
+// sanitizer build), then reads until `quiet_ms` pass without more, or the end.
+std::string drain(int fd, int first_ms, int quiet_ms = 300) {
     std::string got;
     char b[4096];
     for (;;) {
         pollfd p{fd, POLLIN, 0};
-        if (::poll(&p, 1, ms) <= 0) return got;
+        if (::poll(&p, 1, got.empty() ? first_ms : quiet_ms) <= 0) return got;
         const ssize_t n = ::read(fd, b, sizeof b);
         if (n <= 0) return got;
         got.append(b, std::size_t(n));
@@ -918,21 +919,21 @@ TEST_CASE("cli: as a filter, output is written before the input ends; the progre
     int e = 0;
     put_all(in[1], groups(3, e));
     // The input is still open: the first groups' joints must arrive anyway.
-    const std::string early = drain(out[0], 3000);
+    const std::string early = drain(out[0], 10000);
     CHECK(lines_of(early).size() >= 6);
     // After the first second, each block read draws the bar on the terminal.
     for (int k = 0; k < 4; ++k) {
         std::this_thread::sleep_for(std::chrono::milliseconds(400));
         put_all(in[1], groups(2, e));
-        CHECK(!drain(out[0], 800).empty());
+        CHECK(!drain(out[0], 10000).empty());
     }
     ::close(in[1]);
-    const std::string rest = drain(out[0], 5000);
+    const std::string rest = drain(out[0], 10000, 10000);
     int status = 0;
     REQUIRE(::waitpid(pid, &status, 0) == pid);
     CHECK(WIFEXITED(status));
     CHECK(WEXITSTATUS(status) == 0);
-    const std::string tty = drain(master, 500);
+    const std::string tty = drain(master, 2000);
     ::close(out[0]);
     ::close(master);
     CAPTURE(tty);
@@ -948,4 +949,91 @@ TEST_CASE("cli: as a filter, output is written before the input ends; the progre
     const Result r = run(d, "-m rw2", groups(12, e));
     CHECK(r.code == 0);
     CHECK(r.err.empty());
+}
+
+namespace {
+
+// The first `chromium` on PATH, or "".
+std::string find_chromium() {
+    const char* path = std::getenv("PATH");
+    std::stringstream dirs(path ? path : "");
+    for (std::string dir; std::getline(dirs, dir, ':');)
+        if (!dir.empty() && ::access((dir + "/chromium").c_str(), X_OK) == 0) return dir + "/chromium";
+    return "";
+}
+
+}  // namespace
+
+TEST_CASE("cli: --preview writes one self-contained page, bounded in size, that headless Chromium loads and draws") {
+    TempDir d;
+    const fs::path source = fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path();
+    const std::string example = (source / "examples/rw2_flared_wall.gcode").string();
+    const fs::path page = d.path / "wall.html";
+    const Result r = run(d, "-m rw2 -i " + quote(example) + " -o " + quote((d.path / "out.gcode").string()) + " --preview " + quote(page.string()));
+    REQUIRE(r.code == 0);
+    const std::string html = read(page);
+    REQUIRE(!html.empty());
+    // Nothing from the network: no external script, style, image or font.
+    CHECK(!contains(html, "http://"));
+    CHECK(!contains(html, "https://"));
+    CHECK(!contains(html, " src="));
+    // Every written joint line is counted.
+    std::size_t moves = 0;
+    for (const auto& l : lines_of(read(d.path / "out.gcode")))
+        if (l.rfind("G1 ", 0) == 0 || l.rfind("G0 ", 0) == 0) ++moves;
+    CHECK(contains(html, std::to_string(moves) + " moves written"));
+
+    // Bounded: a long file is thinned to at most 4000 points, evenly.
+    int e = 0;
+    const Result big = run(d, "-m rw2 -o /dev/null --preview " + quote((d.path / "big.html").string()), groups(8000, e));
+    REQUIRE(big.code == 0);
+    const std::string bightml = read(d.path / "big.html");
+    const auto shown_at = bightml.find(" shown");
+    REQUIRE(shown_at != std::string::npos);
+    const auto comma = bightml.rfind(", ", shown_at);
+    const long shown = std::stol(bightml.substr(comma + 2));
+    CHECK(shown <= 4000);
+    CHECK(shown >= 2000);
+    CHECK(bightml.size() < 1500000);
+
+    const std::string chromium = find_chromium();
+    if (chromium.empty()) {
+        MESSAGE("chromium not installed: the page is not rendered (Debian package chromium)");
+        return;
+    }
+    const std::string flags = " --headless --no-sandbox --disable-gpu --disable-background-networking --disable-component-update "
+                              "--disable-sync --no-first-run --window-size=1000,1400 --enable-logging=stderr --v=0 ";
+    auto shot = [&](const fs::path& html_file, const std::string& png, const std::string& profile, std::string& log) {
+        const std::string cmd = quote(chromium) + flags + "--user-data-dir=" + quote((d.path / profile).string()) + " --screenshot=" +
+                                quote((d.path / png).string()) + " " + quote("file://" + html_file.string()) + " >" +
+                                quote((d.path / (png + ".log")).string()) + " 2>&1";
+        const int status = std::system(cmd.c_str());
+        log = read(d.path / (png + ".log"));
+        return status;
+    };
+    std::string log;
+    REQUIRE(shot(page, "page.png", "profile1", log) == 0);
+    CAPTURE(log);
+    // Whatever reaches the console (errors, uncaught exceptions) is logged as a CONSOLE line; the
+    // page writes nothing there.
+    CHECK(!contains(log, "Uncaught"));
+    CHECK(!contains(log, ":CONSOLE"));
+    CHECK(contains(log, "bytes written to file"));
+    // The script ran to its end (it marks the title last).
+    const std::string dom_cmd = quote(chromium) + flags + "--user-data-dir=" + quote((d.path / "profile2").string()) + " --dump-dom " +
+                                quote("file://" + page.string()) + " 2>/dev/null";
+    std::string dom;
+    if (FILE* p = ::popen(dom_cmd.c_str(), "r")) {
+        char b[4096];
+        for (std::size_t n; (n = std::fread(b, 1, sizeof b, p)) > 0;) dom.append(b, n);
+        ::pclose(p);
+    }
+    CHECK(contains(dom, "(drawn)</title>"));
+    // Not blank: a page of the same size with nothing drawn compresses to far fewer bytes.
+    const fs::path blank = d.write("blank.html", "<!DOCTYPE html><html><body style=\"margin:0;background:#fff\"></body></html>\n");
+    std::string blank_log;
+    REQUIRE(shot(blank, "blank.png", "profile3", blank_log) == 0);
+    const auto drawn = fs::file_size(d.path / "page.png"), empty = fs::file_size(d.path / "blank.png");
+    MESSAGE("screenshot " << drawn << " bytes, blank page " << empty << " bytes");
+    CHECK(drawn > 4 * empty);
 }

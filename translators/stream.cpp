@@ -13,13 +13,15 @@ constexpr std::size_t kFlushAt = 1u << 18;
 }  // namespace
 
 StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink, bool streaming,
-                             const std::function<void(const StreamStats&)>& on_read) {
+                             const std::function<void(const StreamStats&)>& on_read,
+                             const std::function<void(std::string_view)>& on_write) {
     StreamStats stats;
     std::string out;
     out.reserve(kFlushAt + 4096);
     std::string_view line;
     std::uint64_t seen = 0;  // bytes read when on_read was last called
     auto flush = [&] {
+        if (on_write) on_write(out);
         sink.write(out);
         stats.bytes_out += out.size();
         stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));

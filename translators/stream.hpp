@@ -24,8 +24,10 @@ struct StreamStats {
 // blocks; with `streaming` (the input is a pipe or a terminal) also whenever the input has no
 // further line at hand, so a filter between a sender and a printer never holds decided output
 // while it waits for input (the look-back still holds what it may translate again).
-// `on_read`, when given, is called with the counts so far once per block of input read, never per line.
+// `on_read`, when given, is called with the counts so far once per block of input read, never per
+// line; `on_write` with each block of output as it goes to the sink (whole lines).
 StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink, bool streaming = false,
-                             const std::function<void(const StreamStats&)>& on_read = {});
+                             const std::function<void(const StreamStats&)>& on_read = {},
+                             const std::function<void(std::string_view)>& on_write = {});
 
 }  // namespace xlate5
