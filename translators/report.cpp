@@ -188,7 +188,8 @@ std::string DeviationReport::svg() const {
         if (p.tip > 0) vmin = std::min(vmin, p.tip);
     if (!(vmax > 0) || !std::isfinite(vmax)) vmax = std::pow(10.0, kLogMax);  // an infinite deviation is drawn at the top
     if (!(vmin > 0)) vmin = vmax / 1e3;
-    const double lo = std::max(kLogMin, std::floor(std::log10(vmin))), hi = std::max(lo + 1, std::ceil(std::log10(vmax) + 1e-9));
+    // At most four decades under the tolerance: below that a deviation is nothing to look at.
+    const double lo = std::max({kLogMin, std::floor(std::log10(vmin)), std::floor(std::log10(tolerance_)) - 4}), hi = std::max(lo + 1, std::ceil(std::log10(vmax) + 1e-9));
     const double first = series_.empty() ? 0 : double(series_.front().first_line);
     const double last = series_.empty() ? 1 : std::max(double(series_.back().last_line), first + 1);
     auto X = [&](double line) { return left + (line - first) / (last - first) * W; };
