@@ -34,8 +34,10 @@ const D = JSON.parse(document.getElementById('data').textContent);
 const n = D.q.length, J = D.joints.length;
 const tips = [], axes = [];
 for (const p of D.pose) { tips.push([p[0], p[1], p[2]]); axes.push([p[3], p[4], p[5]]); }
+// Framed on the printed moves when there are any (a travel from home would shrink the part).
+const framed = D.pose.some(p => p[7]) ? tips.filter((t, i) => D.pose[i][7]) : tips;
 let lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
-for (const t of tips) for (let k = 0; k < 3; k++) { lo[k] = Math.min(lo[k], t[k]); hi[k] = Math.max(hi[k], t[k]); }
+for (const t of framed) for (let k = 0; k < 3; k++) { lo[k] = Math.min(lo[k], t[k]); hi[k] = Math.max(hi[k], t[k]); }
 const centre = lo.map((v, k) => (v + hi[k]) / 2);
 const size = Math.max(1e-6, ...hi.map((v, k) => v - lo[k]));
 let yaw = -0.6, pitch = 0.9;
@@ -56,16 +58,17 @@ function draw() {
   const whisker = 0.06 * size, step = Math.max(1, Math.floor(n / 150));
   g.lineWidth = 1;
   for (let i = 0; i < n; i += step) {
+    if (!D.pose[i][7] && framed !== tips) continue;
     const a = project(tips[i]), b = project(tips[i].map((v, k) => v + whisker * axes[i][k]));
     g.strokeStyle = 'rgba(0,0,0,0.25)'; g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke();
   }
   g.lineWidth = 1.5;
   for (let i = 1; i < n; i++) {
     const a = project(tips[i - 1]), b = project(tips[i]);
-    g.strokeStyle = colour(D.pose[i][6]); g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke();
+    g.strokeStyle = D.pose[i][7] || framed === tips ? colour(D.pose[i][6]) : 'rgba(0,0,0,0.15)'; g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke();
   }
   g.fillStyle = '#000'; g.font = '12px sans-serif';
-  g.fillText('tilt: blue 0\u00b0 \u2026 red ' + D.max_tilt.toFixed(1) + '\u00b0; grey: tool axis. Drag to turn.', 8, 16);
+  g.fillText('tilt: blue 0\u00b0 \u2026 red ' + D.max_tilt.toFixed(1) + '\u00b0; grey: tool axis; faint: travel. Drag to turn.', 8, 16);
 }
 let drag = null;
 view.addEventListener('mousedown', e => { drag = [e.clientX, e.clientY]; });
@@ -135,6 +138,7 @@ void Preview::line(std::string_view l) {
     const bool set = l.size() > 3 && l.substr(0, 4) == "G92 ";
     if (!move && !set) return;
     const auto& joints = kin_.machine().joints;
+    printing_ = false;
     // Words "L<number>" separated by blanks, up to a comment.
     for (std::size_t i = 3; i < l.size();) {
         if (l[i] == ';' || l[i] == '(') break;
@@ -150,6 +154,7 @@ void Preview::line(std::string_view l) {
         char* stop = nullptr;
         const double v = std::strtod(word.c_str(), &stop);
         if (stop == word.c_str() || !std::isfinite(v)) continue;
+        if (letter == 'E' && move) printing_ = true;
         for (std::size_t j = 0; j < joints_; ++j)
             if (joints[j].output == letter) q_now_[j] = v;
     }
@@ -160,12 +165,16 @@ void Preview::line(std::string_view l) {
 
 void Preview::keep() {
     q_.insert(q_.end(), q_now_.begin(), q_now_.end());
+    prints_.push_back(printing_ ? 1 : 0);
     if (q_.size() / joints_ < kMaxPoints) return;
     // Full: keep every other kept move, and keep every 2 * every_ -th from now on.
     std::size_t w = 0;
-    for (std::size_t r = 0; r < q_.size() / joints_; r += 2, ++w)
+    for (std::size_t r = 0; r < q_.size() / joints_; r += 2, ++w) {
         std::copy_n(q_.begin() + std::ptrdiff_t(r * joints_), joints_, q_.begin() + std::ptrdiff_t(w * joints_));
+        prints_[w] = prints_[r];
+    }
     q_.resize(w * joints_);
+    prints_.resize(w);
     every_ *= 2;
 }
 
@@ -188,7 +197,7 @@ std::string Preview::html(const std::string& title) const {
         const double tilt = std::acos(std::clamp(p.axis.z(), -1.0, 1.0)) * 180.0 / M_PI;
         max_tilt = std::max(max_tilt, tilt);
         pose += std::string(i ? "," : "") + "[" + num(p.tip.x()) + "," + num(p.tip.y()) + "," + num(p.tip.z()) + "," + num(p.axis.x()) + "," +
-                num(p.axis.y()) + "," + num(p.axis.z()) + "," + num(tilt) + "]";
+                num(p.axis.y()) + "," + num(p.axis.z()) + "," + num(tilt) + "," + (prints_[i] ? "1" : "0") + "]";
     }
     data += "], " + pose + "], \"max_tilt\": " + num(max_tilt) + ", \"joints\": [";
     for (std::size_t j = 0; j < joints_; ++j) {

@@ -35,6 +35,8 @@ private:
     std::size_t joints_;
     std::vector<double> q_now_;
     std::vector<double> q_;        // kept moves: joints, row by row
+    std::vector<char> prints_;     // kept moves: 1 when the move extrudes (it has an E word)
+    bool printing_ = false;        // the line being read extrudes
     std::vector<double> low_, high_;  // every move's joints, not only the kept ones
     std::uint64_t moves_ = 0, every_ = 1;
     std::string pending_;          // a line cut by the block boundary
