@@ -1,6 +1,6 @@
 // xlate5: the command line's front door (stage: command line). Declares the commands, parses,
 // and hands over to the one that was asked for: translate (no subcommand), machines, calibrate,
-// serve and ports. It may call cli/*_cmd and cli/man_page only; the commands call translators/
+// pose, serve and ports. It may call cli/*_cmd and cli/man_page only; the commands call translators/
 // and daemon/.
 #include <CLI/CLI.hpp>
 #include <iostream>
@@ -11,6 +11,7 @@
 #include "cli/machines_cmd.hpp"
 #include "cli/man_page.hpp"
 #include "cli/options.hpp"
+#include "cli/pose_cmd.hpp"
 #include "cli/serve_cmd.hpp"
 #include "cli/translate_cmd.hpp"
 
@@ -36,6 +37,7 @@ int main(int argc, char** argv) {
     auto* machines_cmd = app.add_subcommand("machines", "list the machines found (your own, the system's, the shipped ones)");
     const auto serve_cmds = add_serve_commands(app);
     const auto calibrate_cmds = add_calibrate_commands(app);
+    const auto pose_cmd = add_pose_command(app);
     bool man_page = false;
     app.add_flag("--man-page", man_page, "print the manual page xlate5(1) (troff)")->group("");  // for the build
 
@@ -55,5 +57,6 @@ int main(int argc, char** argv) {
     if (machines_cmd->parsed()) return run_machines();
     if (const int code = run_serve_commands(*serve_cmds, common.machine); code >= 0) return code;
     if (const int code = run_calibrate_commands(*calibrate_cmds, common); code >= 0) return code;
+    if (const int code = run_pose_command(*pose_cmd, common); code >= 0) return code;
     return run_translate(common, translate);
 }

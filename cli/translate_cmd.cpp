@@ -8,9 +8,12 @@
 #include <fcntl.h>
 #include <map>
 #include <optional>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "cli/options.hpp"
+#include "cli/preview.hpp"
+#include "cli/progress.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
 #include "translators/gcode_lexer.hpp"
@@ -58,6 +61,10 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
     app.add_option("--report", o.report, "write the kinematic-error report (JSON) of the translation to this file")->option_text("FILE");
     app.add_option("--plot", o.plot, "write the tip deviation along the file as an SVG plot to this file")->option_text("FILE");
     app.add_flag("--compact-words", o.compact_words, "the input is written without blanks: X1.5E-05 is X1.5 and E-05 (as the line '; xlate5: compact-words')");
+    app.add_option("--preview", o.preview_html,
+                   "write a page to look at before printing: the tip path in 3D coloured by tilt, the tool axis, each joint against its limits")
+        ->option_text("FILE.html");
+    app.add_flag("--no-progress", o.no_progress, "no progress bar on standard error (there is one only when it is a terminal)");
     app.add_flag("--inverse", o.inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
     app.add_option("--preview-form", o.preview, with_default("with --inverse: write orientation as G43.4 angles or G43.5 I J K", "G43.4"))
         ->check(CLI::IsMember({"G43.4", "G43.5"}))
@@ -137,9 +144,20 @@ int run_translate(const Common& common, const TranslateOptions& o) {
         InputFront front(translator, front_options);
         LineReader reader(in_fd, options.input_name);
         OutputSink sink(o.output);
-        const auto stats = translate_stream(reader, front, sink);
+        // A pipe or a terminal in: write what is decided before waiting for more (a filter).
+        // A regular file in: a progress bar on a terminal, sized by the file.
+        struct stat in_stat{};
+        const bool regular = ::fstat(in_fd, &in_stat) == 0 && S_ISREG(in_stat.st_mode);
+        Progress progress(regular ? std::uint64_t(in_stat.st_size) : 0, !o.no_progress && ::isatty(2));
+        std::optional<Preview> preview;
+        if (!o.preview_html.empty()) preview.emplace(kinematics);
+        const auto stats = translate_stream(
+            reader, front, sink, !regular, [&](const StreamStats& s) { progress.update(s.bytes_in, s.lines_in); },
+            preview ? std::function<void(std::string_view)>([&](std::string_view block) { preview->scan(block); })
+                    : std::function<void(std::string_view)>());
         // The report files are written like the output: whole, or not at all.
-        std::optional<OutputSink> report_sink, plot_sink;
+        std::optional<OutputSink> report_sink, plot_sink, preview_sink;
+        if (preview) preview_sink.emplace(o.preview_html), preview_sink->write(preview->html(options.input_name + " on " + machine->name));
         if (report) {
             report->set_lines(stats.lines_in, stats.lines_out);
             if (!o.report.empty()) report_sink.emplace(o.report), report_sink->write(report->json());
@@ -148,6 +166,7 @@ int run_translate(const Common& common, const TranslateOptions& o) {
         sink.commit();
         if (report_sink) report_sink->commit();
         if (plot_sink) plot_sink->commit();
+        if (preview_sink) preview_sink->commit();
     } catch (...) {
         return exit_with(std::current_exception());
     }

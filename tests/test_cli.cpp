@@ -7,6 +7,7 @@
 #include <cctype>
 
 #include <fcntl.h>
+#include <poll.h>
 #include <signal.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
@@ -15,6 +16,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -726,7 +729,7 @@ TEST_CASE("cli: what a user reads names its sources by author, place and year, n
     };
     std::vector<std::pair<std::string, std::string>> texts;
     for (const std::string args : {"--help", "machines", "serve --help", "ports --help", "calibrate --help", "calibrate fit --help",
-                                   "calibrate plate --help", "calibrate offset --help", "calibrate pivots --help", "calibrate centre --help",
+                                   "calibrate plate --help", "calibrate offset --help", "calibrate pivots --help", "calibrate centre --help", "pose --help",
                                    "--man-page"}) {
         const Result r = run(d, args);
         REQUIRE(r.code == 0);
@@ -743,4 +746,294 @@ TEST_CASE("cli: what a user reads names its sources by author, place and year, n
         CHECK(numbered(text).empty());
     }
     CHECK(contains(run(d, "machines").out, "Andersons, Twente 2023"));
+}
+
+namespace {
+
+// "label K=v K=v ..." lines of `xlate5 pose` as label -> (key -> value).
+std::map<std::string, std::map<std::string, double>> pose_lines(const std::string& out) {
+    std::map<std::string, std::map<std::string, double>> r;
+    for (const auto& line : lines_of(out)) {
+        std::istringstream words(line);
+        std::string label, w;
+        words >> label;
+        while (words >> w)
+            if (const auto eq = w.find('='); eq != std::string::npos && eq > 0) r[label][w.substr(0, eq)] = std::stod(w.substr(eq + 1));
+    }
+    return r;
+}
+
+std::string triple(double a, double b, double c) {
+    char s[120];
+    std::snprintf(s, sizeof s, "%.9g,%.9g,%.9g", a, b, c);
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("cli: pose gives pentarod's tip and tool axis per Grutle's pseudo code 4.1") {
+    TempDir d;
+    for (const auto& [x, y, z, a, c] : std::vector<std::array<double, 5>>{{0, 0, 0, 30, 20}, {12.5, -7, 3, -45, 170}, {40, 30, 20, 80, -95}}) {
+        CAPTURE(a);
+        CAPTURE(c);
+        char args[200];
+        std::snprintf(args, sizeof args, "-m pentarod pose X=%g Y=%g Z=%g A=%g C=%g", x, y, z, a, c);
+        const Result r = run(d, args);
+        REQUIRE(r.code == 0);
+        const auto p = pose_lines(r.out);
+        // u = R_z(-C) R_x(-A) z = (sin A sin C, sin A cos C, cos A); the tip at machine XYZ is
+        // p = R_z(-C) R_x(-A) (X, Y, Z) (machine XYZ = R_x(A) R_z(C) p).
+        const double A = rad(a), C = rad(c);
+        CHECK(std::abs(p.at("axis").at("I") - std::sin(A) * std::sin(C)) <= 1e-6);
+        CHECK(std::abs(p.at("axis").at("J") - std::sin(A) * std::cos(C)) <= 1e-6);
+        CHECK(std::abs(p.at("axis").at("K") - std::cos(A)) <= 1e-6);
+        const double y1 = std::cos(A) * y + std::sin(A) * z, z1 = -std::sin(A) * y + std::cos(A) * z;  // R_x(-A)
+        const double x2 = std::cos(C) * x + std::sin(C) * y1, y2 = -std::sin(C) * x + std::cos(C) * y1;  // R_z(-C)
+        CHECK(std::abs(p.at("tip").at("X") - x2) <= 1e-4);
+        CHECK(std::abs(p.at("tip").at("Y") - y2) <= 1e-4);
+        CHECK(std::abs(p.at("tip").at("Z") - z1) <= 1e-4);
+    }
+    // Joints not named stay at home (all 0 on pentarod): the tip is the origin, the axis vertical.
+    const auto home = pose_lines(run(d, "-m pentarod pose").out);
+    CHECK(std::abs(home.at("tip").at("Z")) <= 1e-9);
+    CHECK(home.at("axis").at("K") == 1);
+}
+
+TEST_CASE("cli: pose round trips: joints -> tip and axis -> joints -> the same tip and axis, on every shipped machine") {
+    TempDir d;
+    struct Case {
+        const char* machine;
+        const char* joints;
+    };
+    for (const Case& k : {Case{"pentarod", "X=10 Y=-20 Z=15 A=35 C=-60"}, Case{"rw2", "X=100 Y=90 Z=20 A=30 B=25"},
+                          Case{"koc5", "B=20 C=40"}, Case{"wpi5", ""}, Case{"xyzac-trt", "X=5 Y=5 Z=30 A=20 C=130"}}) {
+        CAPTURE(k.machine);
+        const Result f = run(d, std::string("-m ") + k.machine + " pose " + k.joints);
+        REQUIRE(f.code == 0);
+        const auto p = pose_lines(f.out);
+        const auto& tip = p.at("tip");
+        const auto& axis = p.at("axis");
+        const Result i = run(d, std::string("-m ") + k.machine + " pose --tip " + triple(tip.at("X"), tip.at("Y"), tip.at("Z")) + " --axis " +
+                                    triple(axis.at("I"), axis.at("J"), axis.at("K")));
+        REQUIRE(i.code == 0);
+        const auto q = pose_lines(i.out);
+        // The joints it found reach the pose asked for (FK of the printed joints, independently run).
+        std::string joints;
+        for (const auto& [name, v] : q.at("joints")) joints += " " + name + "=" + std::to_string(v);
+        const auto back = pose_lines(run(d, std::string("-m ") + k.machine + " pose" + joints).out);
+        for (const char* c : {"X", "Y", "Z"}) CHECK(std::abs(back.at("tip").at(c) - tip.at(c)) <= 2e-3);
+        for (const char* c : {"I", "J", "K"}) CHECK(std::abs(back.at("axis").at(c) - axis.at(c)) <= 1e-4);
+        // Started from the original joints, the nearest solution is those joints.
+        const auto same = pose_lines(run(d, std::string("-m ") + k.machine + " pose " + k.joints + " --tip " +
+                                                triple(tip.at("X"), tip.at("Y"), tip.at("Z")) + " --axis " +
+                                                triple(axis.at("I"), axis.at("J"), axis.at("K")))
+                                         .out);
+        for (const auto& [name, v] : p.at("joints")) {
+            CAPTURE(name);
+            CHECK(std::abs(same.at("joints").at(name) - v) <= 2e-3);
+        }
+    }
+}
+
+TEST_CASE("cli: pose refuses an unknown joint, a zero axis and an unreachable pose, saying why") {
+    TempDir d;
+    Result r = run(d, "-m pentarod pose Q=3");
+    CHECK(r.code == 2);
+    CHECK(contains(r.err, "xlate5: "));
+    CHECK(contains(r.err, "no joint Q (it has X, Y, Z, A, C)"));
+    r = run(d, "-m pentarod pose A=abc");
+    CHECK(r.code == 2);
+    r = run(d, "-m pentarod pose --tip 0,0,0 --axis 0,0,0");
+    CHECK(r.code == 2);
+    CHECK(contains(r.err, "0,0,0"));
+    r = run(d, "-m pentarod pose --tip 0,0 --axis 0,0,1");
+    CHECK(r.code == 2);
+    // Pentarod's A stops at 90 degrees: an axis pointing down cannot be reached.
+    r = run(d, "-m pentarod pose --tip 0,0,10 --axis 0,0,-1");
+    CHECK(r.code == 1);
+    CHECK(contains(r.err, "pose"));
+    CHECK(r.out.empty());
+    // Joints outside their limits are shown, with a note.
+    r = run(d, "-m pentarod pose A=120");
+    CHECK(r.code == 0);
+    CHECK(contains(r.out, "A=120.0000 is outside its limits -90 to 90"));
+}
+
+namespace {
+
+// Everything readable on `fd`: waits up to `first_ms` for the first bytes (a loaded machine, a
+// sanitizer build), then reads until `quiet_ms` pass without more, or the end.
+std::string drain(int fd, int first_ms, int quiet_ms = 300) {
+    std::string got;
+    char b[4096];
+    for (;;) {
+        pollfd p{fd, POLLIN, 0};
+        if (::poll(&p, 1, got.empty() ? first_ms : quiet_ms) <= 0) return got;
+        const ssize_t n = ::read(fd, b, sizeof b);
+        if (n <= 0) return got;
+        got.append(b, std::size_t(n));
+    }
+}
+
+void put_all(int fd, const std::string& s) {
+    for (std::size_t done = 0; done < s.size();) {
+        const ssize_t n = ::write(fd, s.data() + done, s.size() - done);
+        REQUIRE(n > 0);
+        done += std::size_t(n);
+    }
+}
+
+// A travel move and printing moves after it, `count` times: the look-back releases each group's
+// output when the next travel move arrives.
+std::string groups(int count, int& e) {
+    std::string s;
+    for (int g = 0; g < count; ++g) {
+        s += "G1 X" + std::to_string(100 + g % 20) + " Y100 Z10 A0 B0 F1200\n";
+        for (int i = 0; i < 5; ++i) s += "G1 X" + std::to_string(101 + g % 20) + "." + std::to_string(i) + " Y101 E" + std::to_string(++e) + "\n";
+    }
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("cli: as a filter, output is written before the input ends; the progress bar shows only on a terminal") {
+    int in[2], out[2];
+    REQUIRE(::pipe(in) == 0);
+    REQUIRE(::pipe(out) == 0);
+    const int master = ::posix_openpt(O_RDWR | O_NOCTTY);
+    REQUIRE(master >= 0);
+    REQUIRE(::grantpt(master) == 0);
+    REQUIRE(::unlockpt(master) == 0);
+    const std::string slave = ::ptsname(master);
+    const pid_t pid = ::fork();
+    REQUIRE(pid >= 0);
+    if (pid == 0) {
+        const int tty = ::open(slave.c_str(), O_RDWR | O_NOCTTY);
+        ::dup2(in[0], 0), ::dup2(out[1], 1), ::dup2(tty, 2);
+        ::close(in[0]), ::close(in[1]), ::close(out[0]), ::close(out[1]), ::close(tty), ::close(master);
+        ::execl(XLATE5_BINARY, "xlate5", "-m", "rw2", static_cast<char*>(nullptr));
+        ::_exit(127);
+    }
+    ::close(in[0]);
+    ::close(out[1]);
+    int e = 0;
+    put_all(in[1], groups(3, e));
+    // The input is still open: the first groups' joints must arrive anyway.
+    const std::string early = drain(out[0], 10000);
+    CHECK(lines_of(early).size() >= 6);
+    // After the first second, each block read draws the bar on the terminal.
+    for (int k = 0; k < 4; ++k) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(400));
+        put_all(in[1], groups(2, e));
+        CHECK(!drain(out[0], 10000).empty());
+    }
+    ::close(in[1]);
+    const std::string rest = drain(out[0], 10000, 10000);
+    int status = 0;
+    REQUIRE(::waitpid(pid, &status, 0) == pid);
+    CHECK(WIFEXITED(status));
+    CHECK(WEXITSTATUS(status) == 0);
+    const std::string tty = drain(master, 2000);
+    ::close(out[0]);
+    ::close(master);
+    CAPTURE(tty);
+    CHECK(contains(tty, "xlate5: "));
+    CHECK(contains(tty, " lines, "));
+    // Cleared at the end: the prompt (or an error) starts on a clean line.
+    CHECK(tty.size() >= 4);
+    CHECK(tty.substr(tty.size() - 4) == "\r\033[K");
+
+    // The same translation with standard error in a file: nothing but the output.
+    TempDir d;
+    e = 0;
+    const Result r = run(d, "-m rw2", groups(12, e));
+    CHECK(r.code == 0);
+    CHECK(r.err.empty());
+}
+
+namespace {
+
+// The first `chromium` on PATH, or "".
+std::string find_chromium() {
+    const char* path = std::getenv("PATH");
+    std::stringstream dirs(path ? path : "");
+    for (std::string dir; std::getline(dirs, dir, ':');)
+        if (!dir.empty() && ::access((dir + "/chromium").c_str(), X_OK) == 0) return dir + "/chromium";
+    return "";
+}
+
+}  // namespace
+
+TEST_CASE("cli: --preview writes one self-contained page, bounded in size, that headless Chromium loads and draws") {
+    TempDir d;
+    const fs::path source = fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path();
+    const std::string example = (source / "examples/rw2_flared_wall.gcode").string();
+    const fs::path page = d.path / "wall.html";
+    const Result r = run(d, "-m rw2 -i " + quote(example) + " -o " + quote((d.path / "out.gcode").string()) + " --preview " + quote(page.string()));
+    REQUIRE(r.code == 0);
+    const std::string html = read(page);
+    REQUIRE(!html.empty());
+    // Nothing from the network: no external script, style, image or font.
+    CHECK(!contains(html, "http://"));
+    CHECK(!contains(html, "https://"));
+    CHECK(!contains(html, " src="));
+    // Every written joint line is counted.
+    std::size_t moves = 0;
+    for (const auto& l : lines_of(read(d.path / "out.gcode")))
+        if (l.rfind("G1 ", 0) == 0 || l.rfind("G0 ", 0) == 0) ++moves;
+    CHECK(contains(html, std::to_string(moves) + " moves written"));
+
+    // Bounded: a long file is thinned to at most 4000 points, evenly.
+    int e = 0;
+    const Result big = run(d, "-m rw2 -o /dev/null --preview " + quote((d.path / "big.html").string()), groups(8000, e));
+    REQUIRE(big.code == 0);
+    const std::string bightml = read(d.path / "big.html");
+    const auto shown_at = bightml.find(" shown");
+    REQUIRE(shown_at != std::string::npos);
+    const auto comma = bightml.rfind(", ", shown_at);
+    const long shown = std::stol(bightml.substr(comma + 2));
+    CHECK(shown <= 4000);
+    CHECK(shown >= 2000);
+    CHECK(bightml.size() < 1500000);
+
+    const std::string chromium = find_chromium();
+    if (chromium.empty()) {
+        MESSAGE("chromium not installed: the page is not rendered (Debian package chromium)");
+        return;
+    }
+    const std::string flags = " --headless --no-sandbox --disable-gpu --disable-background-networking --disable-component-update "
+                              "--disable-sync --no-first-run --window-size=1000,1400 --enable-logging=stderr --v=0 ";
+    auto shot = [&](const fs::path& html_file, const std::string& png, const std::string& profile, std::string& log) {
+        const std::string cmd = quote(chromium) + flags + "--user-data-dir=" + quote((d.path / profile).string()) + " --screenshot=" +
+                                quote((d.path / png).string()) + " " + quote("file://" + html_file.string()) + " >" +
+                                quote((d.path / (png + ".log")).string()) + " 2>&1";
+        const int status = std::system(cmd.c_str());
+        log = read(d.path / (png + ".log"));
+        return status;
+    };
+    std::string log;
+    REQUIRE(shot(page, "page.png", "profile1", log) == 0);
+    CAPTURE(log);
+    // Whatever reaches the console (errors, uncaught exceptions) is logged as a CONSOLE line; the
+    // page writes nothing there.
+    CHECK(!contains(log, "Uncaught"));
+    CHECK(!contains(log, ":CONSOLE"));
+    CHECK(contains(log, "bytes written to file"));
+    // The script ran to its end (it marks the title last).
+    const std::string dom_cmd = quote(chromium) + flags + "--user-data-dir=" + quote((d.path / "profile2").string()) + " --dump-dom " +
+                                quote("file://" + page.string()) + " 2>/dev/null";
+    std::string dom;
+    if (FILE* p = ::popen(dom_cmd.c_str(), "r")) {
+        char b[4096];
+        for (std::size_t n; (n = std::fread(b, 1, sizeof b, p)) > 0;) dom.append(b, n);
+        ::pclose(p);
+    }
+    CHECK(contains(dom, "(drawn)</title>"));
+    // Not blank: a page of the same size with nothing drawn compresses to far fewer bytes.
+    const fs::path blank = d.write("blank.html", "<!DOCTYPE html><html><body style=\"margin:0;background:#fff\"></body></html>\n");
+    std::string blank_log;
+    REQUIRE(shot(blank, "blank.png", "profile3", blank_log) == 0);
+    const auto drawn = fs::file_size(d.path / "page.png"), empty = fs::file_size(d.path / "blank.png");
+    MESSAGE("screenshot " << drawn << " bytes, blank page " << empty << " bytes");
+    CHECK(drawn > 4 * empty);
 }

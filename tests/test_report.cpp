@@ -21,6 +21,7 @@ namespace {
 double field(const std::string& json, const std::string& object, const std::string& key) {
     const auto o = json.find("\"" + object + "\"");
     REQUIRE(o != std::string::npos);
+    if (key.empty()) return std::stod(json.substr(o + object.size() + 4));  // "object": value
     const auto k = json.find("\"" + key + "\": ", o);
     REQUIRE(k != std::string::npos);
     return std::stod(json.substr(k + key.size() + 4));
@@ -176,5 +177,130 @@ TEST_CASE("the tolerance holds for the joints as printed, and the report measure
         CHECK(report.max_tip() > 0.5 * m.motion.tolerance);  // the split works near the tolerance
         // The report's figure is the printed path's, at its own sample points.
         CHECK(std::abs(report.max_tip() - at_reported_line) <= 1e-9);
+    }
+}
+
+namespace {
+
+// Joint values after each output line of `out` (G0/G1 only), starting from `q`.
+std::vector<std::vector<double>> joints_along(const Machine& m, std::vector<double> q, const std::string& out) {
+    std::vector<std::vector<double>> r;
+    for (const auto& l : lines_of(out)) {
+        if (l.rfind("G1", 0) != 0 && l.rfind("G0", 0) != 0) continue;
+        const auto w = words_of(l);
+        for (std::size_t j = 0; j < q.size(); ++j)
+            if (w.count(m.joints[j].output)) q[j] = w.at(m.joints[j].output);
+        r.push_back(q);
+    }
+    return r;
+}
+
+}  // namespace
+
+TEST_CASE("the report's joint ranges are the extremes of the written joints, its time the moves' lengths over their feeds") {
+    Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/pentarod.toml");
+    const Kinematics k(m);
+    DeviationReport report("t.gcode", "pentarod", m.motion.tolerance, m.motion.angle_tolerance);
+    TranslatorOptions o;
+    o.report = &report;
+    o.start_mode = OrientationMode::Angles;
+    Translator t(k, o);
+    const std::vector<double> home = t.joints();
+    std::string out;
+    std::uint64_t n = 0;
+    for (const char* line : {"G1 X10 Y0 Z5 A0 C0 F600", "G1 X20 Y10 Z5", "G1 A30", "G1 X0 Y0 Z5 F1200", "G1 C-50", "G1 X-15 Y5 Z2"})
+        t.feed(line, ++n, out);
+    t.finish(out);
+    const std::string json = report.json();
+    CAPTURE(json);
+    // Independent: extremes over the start and every written line (printed to 3 decimals).
+    std::vector<double> lo = home, hi = home;
+    for (const auto& q : joints_along(m, home, out))
+        for (std::size_t j = 0; j < q.size(); ++j) lo[j] = std::min(lo[j], q[j]), hi[j] = std::max(hi[j], q[j]);
+    for (std::size_t j = 0; j < m.joints.size(); ++j) {
+        CAPTURE(m.joints[j].name);
+        CHECK(std::abs(field(json, std::string(1, m.joints[j].name) + "\": {", "min") - lo[j]) <= 1e-3);
+        CHECK(std::abs(field(json, std::string(1, m.joints[j].name) + "\": {", "max") - hi[j]) <= 1e-3);
+    }
+    CHECK(hi[3] == doctest::Approx(30));  // A reached 30 and C -50: the ranges are not the home's
+    CHECK(lo[4] == doctest::Approx(-50));
+    // Time: tip length over the feed; a pure turn at the rotary's max_feed (A 1800, C 3600 deg/min),
+    // or the machine's rotary_feed when that is slower.
+    const double turn_a = std::max(30.0 / m.joints[3].max_feed, 30.0 / m.motion.rotary_feed);
+    const double turn_c = std::max(50.0 / m.joints[4].max_feed, 50.0 / m.motion.rotary_feed);
+    const double minutes = std::sqrt(125.0) / 600 + std::sqrt(200.0) / 600 + turn_a + std::sqrt(500.0) / 1200 + turn_c +
+                           std::sqrt(15.0 * 15 + 5 * 5 + 3 * 3) / 1200;
+    CHECK(field(json, "estimated_minutes", "") == doctest::Approx(minutes).epsilon(1e-4));
+    CHECK(field(json, "unwinds", "") == 0);
+    CHECK(field(json, "branch_changes", "") == 0);
+}
+
+TEST_CASE("the report counts a travel move that takes the other orientation branch at a limit") {
+    Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/rw2.toml");
+    const Kinematics k(m);
+    DeviationReport report("t.gcode", "rw2", m.motion.tolerance, m.motion.angle_tolerance);
+    TranslatorOptions o;
+    o.report = &report;
+    Translator t(k, o);
+    const std::vector<double> home = t.joints();
+    std::string out;
+    std::uint64_t n = 0;
+    // A175 is past rw2's A limit (168): the travel ends on A-5 B-20, the same tool axis (eq. 4.5).
+    for (const char* line : {"G1 X100 Y100 Z10 A150 B20 F1200", "G1 X110 Y100 Z10 A175 B20", "G1 X120 Y100 Z10 A170 B20"}) t.feed(line, ++n, out);
+    t.finish(out);
+    const auto q = joints_along(m, home, out);
+    REQUIRE(!q.empty());
+    // Independent of the planner: count the sign changes of B between written lines.
+    int flips = 0, sign = 0;
+    for (const auto& qi : q) {
+        if (std::abs(qi[4]) <= 1) continue;  // passing upright
+        const int s = qi[4] > 0 ? 1 : -1;
+        flips += sign != 0 && s != sign;
+        sign = s;
+    }
+    const std::string json = report.json();
+    CAPTURE(out);
+    CAPTURE(json);
+    CHECK(q.back()[4] == doctest::Approx(-20));
+    CHECK(flips == 1);
+    CHECK(field(json, "branch_changes", "") == flips);
+    CHECK(field(json, "unwinds", "") == 0);
+}
+
+TEST_CASE("the plot's deviation axis is logarithmic with decade ticks written plainly, its line axis in round steps") {
+    DeviationReport r("t.gcode", "rw2", 0.01, 0.5);
+    for (std::uint64_t i = 1; i <= 1000; ++i) r.add_move(i, i <= 500 ? 0.001 : 0.1, 0, 0, 1);
+    const std::string svg = r.svg();
+    CAPTURE(svg);
+    // label -> y of each tick
+    auto ticks = [&](const std::string& cls) {
+        std::map<std::string, double> t;
+        for (std::size_t at = svg.find("class=\"" + cls + "\""); at != std::string::npos; at = svg.find("class=\"" + cls + "\"", at + 1)) {
+            const auto gt = svg.find('>', at), end = svg.find('<', gt);
+            const auto ya = svg.find(cls == "ytick" ? "y=\"" : "x=\"", at) + 3;
+            t[svg.substr(gt + 1, end - gt - 1)] = std::stod(svg.substr(ya));
+        }
+        return t;
+    };
+    const auto y = ticks("ytick");
+    REQUIRE(y.count("0.001"));
+    REQUIRE(y.count("0.01"));
+    REQUIRE(y.count("0.1"));
+    // Equal spacing per decade: a log scale.
+    CHECK(std::abs((y.at("0.001") - y.at("0.01")) - (y.at("0.01") - y.at("0.1"))) < 1e-6);
+    CHECK(y.at("0.001") > y.at("0.1"));  // up is larger
+    // The points of 0.1 mm sit on the 0.1 tick (labels are drawn 4 below their line).
+    const auto poly = svg.find("points=\"");
+    const auto last_point = svg.rfind(',', svg.find('"', poly + 8));
+    CHECK(std::stod(svg.substr(last_point + 1)) == doctest::Approx(y.at("0.1") - 4));
+    const auto x = ticks("xtick");
+    CHECK(x.size() >= 4);
+    CHECK(x.size() <= 12);
+    for (const auto& [label, pos] : x) {
+        const double v = std::stod(label);
+        const double m = v / std::pow(10.0, std::floor(std::log10(v)));  // leading digits: multiples of 1, 2 or 5 steps
+        CAPTURE(label);
+        CHECK((std::abs(m - std::round(m)) < 1e-9));
+        CHECK(label.find('e') == std::string::npos);
     }
 }

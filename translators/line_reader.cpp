@@ -40,6 +40,10 @@ bool LineReader::fill() {
     }
 }
 
+bool LineReader::has_line() const {
+    return eof_ || std::memchr(buf_.data() + begin_, '\n', end_ - begin_) != nullptr;
+}
+
 bool LineReader::next(std::string_view& line) {
     std::size_t scanned = begin_;
     for (;;) {

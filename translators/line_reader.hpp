@@ -16,6 +16,9 @@ public:
     bool next(std::string_view& line);
     std::uint64_t line_number() const { return line_no_; }
     std::uint64_t bytes_read() const { return total_; }
+    // True when next() can return a line without reading: when false, the next call may wait on
+    // a pipe or a terminal, so a filter writes out what it has first.
+    bool has_line() const;
 
 private:
     bool fill();

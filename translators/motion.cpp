@@ -297,6 +297,11 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
                     // The turn about the pole is rotary travel of this move too.
                     result->travel.resize(first.travel.size(), 0.0);
                     for (std::size_t j = 0; j < first.travel.size(); ++j) result->travel[j] += first.travel[j];
+                    result->minutes += first.minutes;
+                    for (std::size_t j = 0; j < result->low.size() && j < first.low.size(); ++j) {
+                        result->low[j] = std::min(result->low[j], first.low[j]);
+                        result->high[j] = std::max(result->high[j], first.high[j]);
+                    }
                 }
                 return {};
             }
@@ -479,6 +484,9 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         // real speed along the firmware's path against the programmed feed, and joint travel.
         result->pieces = pieces;
         result->travel.assign(n, 0.0);
+        result->low = q0;
+        result->high = q0;
+        result->minutes = 0;
         double tip = 0, ang = 0, ptip, pang, sa = 0, worst_feed = 0;
         const double* qa = q0.data();
         std::vector<double> qq(n);
@@ -487,7 +495,12 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
             piece_error(mv, sa, s_[std::size_t(k)], qa, qb, 2 * kCheckSamples, ptip, pang);
             tip = std::max(tip, ptip);
             ang = std::max(ang, pang);
-            for (std::size_t j = 0; j < n; ++j) result->travel[j] += std::abs(qb[j] - qa[j]);
+            for (std::size_t j = 0; j < n; ++j) {
+                result->travel[j] += std::abs(qb[j] - qa[j]);
+                result->low[j] = std::min(result->low[j], qb[j]);  // joint-linear pieces: extremes at their ends
+                result->high[j] = std::max(result->high[j], qb[j]);
+            }
+            result->minutes += piece_time_[std::size_t(k)];
             if (mv.feed > 0 && mv.mode != OrientationMode::Joints && length > 0) {
                 // Tip path length of the joint-linear piece, and the time the firmware gives it.
                 double walked = 0;

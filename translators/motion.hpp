@@ -35,6 +35,9 @@ struct MoveSpec {
     double inverse_time = 0;                         // G93 input: the move's duration is 1/F minutes
 };
 
+// A travel move that ended on another solution of its pose than the usual one.
+enum class SolutionChange { None, Turns, Branch };
+
 // What one move became, for the report and tests.
 struct MoveResult {
     int pieces = 0;
@@ -43,6 +46,9 @@ struct MoveResult {
     double feed_error = 0;   // relative: the tip's speed under the firmware over the programmed, - 1 (worst piece)
     std::vector<double> travel;  // degrees (or mm) each joint moves, summed over the pieces
     int pole_crossings = 0;      // the move changed branch across a pole
+    std::vector<double> low, high;  // each joint's extremes over the move (its start and every piece's end)
+    double minutes = 0;          // time the pieces take at the feeds written (no acceleration)
+    SolutionChange change = SolutionChange::None;  // set by the planner
 };
 
 class MotionStage {

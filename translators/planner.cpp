@@ -138,12 +138,21 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     const bool travel = tool_space && !prints && (mv.any_xyz || mv.any_rotary || mv.any_ijk);
     run.travels = run.travels || travel;
     bool unwind = false;
+    SolutionChange change = SolutionChange::None;
     const int forced = travel ? run.end_candidate : -1;
     if (travel) run.end_candidate = -1;
     if (travel && (forced >= 0 || (!r.ok() && r.status == IkStatus::OutOfLimits))) {
         end_candidates(mv.mode, next, *mv.angles, q_next_);
         const std::size_t k = forced >= 0 ? std::size_t(forced) : 0;
         if (k < candidates_.size()) {
+            // For the report: whole turns of the rotaries from the usual end are an unwind,
+            // anything else the other orientation branch.
+            change = SolutionChange::Turns;
+            for (std::size_t j = 0; j < q_next_.size(); ++j) {
+                if (!machine_.joints[j].rotary) continue;
+                const double d = candidates_[k].q[j] - q_next_[j];
+                if (!(std::abs(d - 360.0 * std::round(d / 360.0)) < 1e-6)) change = SolutionChange::Branch;
+            }
             q_next_ = candidates_[k].q;
             if (mv.mode == OrientationMode::Angles) s.image = candidates_[k].image;
             unwind = true;
@@ -193,7 +202,10 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
         run.hit_limit = res.status == IkStatus::OutOfLimits;
         throw LineError(mv.column, res.message);
     }
-    if (measured) log_->add(run.line_no, *measured);
+    if (measured) {
+        measured->change = change;
+        log_->add(run.line_no, *measured);
+    }
     if (spec.mode == OrientationMode::Vector) q_next_ = motion_.final_joints();
     // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move
     // (no extrusion), where a G92 cannot disturb a printed line: firmware without wrapping

@@ -118,6 +118,16 @@ void DeviationReport::add_rotary_travel(char joint, double degrees) {
     travel_.emplace_back(joint, degrees);
 }
 
+void DeviationReport::add_joint_range(char joint, double low, double high) {
+    for (auto& r : ranges_)
+        if (r.joint == joint) {
+            r.low = std::min(r.low, low);
+            r.high = std::max(r.high, high);
+            return;
+        }
+    ranges_.push_back({joint, low, high});
+}
+
 std::string DeviationReport::json() const {
     std::string o = "{\n";
     o += "  \"file\": \"" + escape(file_) + "\",\n";
@@ -137,39 +147,86 @@ std::string DeviationReport::json() const {
     o += "  \"rotary_travel_deg\": {";
     for (std::size_t i = 0; i < travel_.size(); ++i)
         o += std::string(i ? ", " : "") + "\"" + travel_[i].first + "\": " + num(travel_[i].second);
-    o += "}\n}\n";
+    o += "},\n";
+    // Extremes over the translated tool-space moves (joint-space G49 moves are passed on as written).
+    o += "  \"joint_range\": {";
+    for (std::size_t i = 0; i < ranges_.size(); ++i)
+        o += std::string(i ? ", " : "") + "\"" + ranges_[i].joint + "\": {\"min\": " + num(ranges_[i].low) + ", \"max\": " + num(ranges_[i].high) + "}";
+    o += "},\n";
+    // At the feeds written, without acceleration: a lower bound of the print's duration.
+    o += "  \"estimated_minutes\": " + num(minutes_) + ",\n";
+    o += "  \"unwinds\": " + std::to_string(turns_) + ",\n";
+    o += "  \"branch_changes\": " + std::to_string(branches_) + "\n}\n";
     return o;
 }
 
+namespace {
+
+// A step of 1, 2 or 5 times a power of ten giving about `count` ticks over `range`.
+double nice_step(double range, int count) {
+    const double raw = range / count;
+    const double decade = std::pow(10.0, std::floor(std::log10(raw)));
+    for (double m : {1.0, 2.0, 5.0})
+        if (m * decade >= raw) return m * decade;
+    return 10 * decade;
+}
+
+// A tick label as a person writes it: 0.001, 0.01, 2500, 1e-05 only below 0.0001.
+std::string tick_text(double v) {
+    char b[48];
+    if (v != 0 && std::abs(v) < 1e-4) std::snprintf(b, sizeof b, "%.0e", v);
+    else std::snprintf(b, sizeof b, "%.10g", v);
+    return b;
+}
+
+}  // namespace
+
 std::string DeviationReport::svg() const {
-    // Tip deviation (mm) along the file, with the tolerance as a line; 900 x 360 plot area.
-    const double W = 900, H = 300, left = 70, top = 30;
-    double ymax = std::max(tolerance_ * 1.25, tip_.max * 1.1);
-    if (!(ymax > 0)) ymax = 1;
-    if (!std::isfinite(ymax)) ymax = std::pow(10.0, kLogMax);  // an infinite deviation is drawn at the top
+    // Tip deviation (mm) along the file on a log scale (deviations span decades, the tolerance
+    // among them), with the tolerance as a line; 900 x 300 plot area.
+    const double W = 900, H = 300, left = 80, top = 30;
+    double vmax = std::max(tolerance_, tip_.max), vmin = tolerance_ / 100;
+    for (const Point& p : series_)
+        if (p.tip > 0) vmin = std::min(vmin, p.tip);
+    if (!(vmax > 0) || !std::isfinite(vmax)) vmax = std::pow(10.0, kLogMax);  // an infinite deviation is drawn at the top
+    if (!(vmin > 0)) vmin = vmax / 1e3;
+    // At most four decades under the tolerance: below that a deviation is nothing to look at.
+    const double lo = std::max({kLogMin, std::floor(std::log10(vmin)), std::floor(std::log10(tolerance_)) - 4}), hi = std::max(lo + 1, std::ceil(std::log10(vmax) + 1e-9));
     const double first = series_.empty() ? 0 : double(series_.front().first_line);
     const double last = series_.empty() ? 1 : std::max(double(series_.back().last_line), first + 1);
     auto X = [&](double line) { return left + (line - first) / (last - first) * W; };
-    auto Y = [&](double v) { return top + H - std::min(v, ymax) / ymax * H; };
+    auto Y = [&](double v) {  // zero and below the range at the bottom
+        const double l = v > 0 ? std::clamp(std::log10(v), lo, hi) : lo;
+        return top + H - (l - lo) / (hi - lo) * H;
+    };
+    const std::string font = "font-family=\"sans-serif\" font-size=\"11\"";
     std::string o;
     o += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + num(W + left + 30) + "\" height=\"" + num(H + top + 60) + "\">\n";
     o += "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
     o += "<text x=\"" + num(left) + "\" y=\"18\" font-family=\"sans-serif\" font-size=\"13\">" + escape(file_) + " on " +
          escape(machine_) + ": largest tip deviation from the programmed path per move (max " + num(tip_.max) + " mm at line " +
          std::to_string(tip_.max_line) + ")</text>\n";
+    // Decades on the deviation axis, with grid lines; the x axis in 1-2-5 steps of input lines.
+    for (double d = lo; d <= hi + 1e-9; d += 1) {
+        const double v = std::pow(10.0, d);
+        o += "<line class=\"grid\" x1=\"" + num(left) + "\" y1=\"" + num(Y(v)) + "\" x2=\"" + num(left + W) + "\" y2=\"" + num(Y(v)) +
+             "\" stroke=\"#ddd\"/>\n";
+        o += "<text class=\"ytick\" x=\"" + num(left - 6) + "\" y=\"" + num(Y(v) + 4) + "\" " + font + " text-anchor=\"end\">" + tick_text(v) +
+             "</text>\n";
+    }
+    const double step = nice_step(last - first, 8);
+    for (double l = std::ceil(first / step) * step; l <= last + 1e-9; l += step) {
+        o += "<line x1=\"" + num(X(l)) + "\" y1=\"" + num(top + H) + "\" x2=\"" + num(X(l)) + "\" y2=\"" + num(top + H + 5) +
+             "\" stroke=\"black\"/>\n";
+        o += "<text class=\"xtick\" x=\"" + num(X(l)) + "\" y=\"" + num(top + H + 18) + "\" " + font + " text-anchor=\"middle\">" +
+             tick_text(l) + "</text>\n";
+    }
     o += "<line x1=\"" + num(left) + "\" y1=\"" + num(top + H) + "\" x2=\"" + num(left + W) + "\" y2=\"" + num(top + H) + "\" stroke=\"black\"/>\n";
     o += "<line x1=\"" + num(left) + "\" y1=\"" + num(top) + "\" x2=\"" + num(left) + "\" y2=\"" + num(top + H) + "\" stroke=\"black\"/>\n";
-    for (int i = 0; i <= 4; ++i) {
-        const double v = ymax * i / 4;
-        o += "<text x=\"" + num(left - 6) + "\" y=\"" + num(Y(v) + 4) + "\" font-family=\"sans-serif\" font-size=\"11\" text-anchor=\"end\">" +
-             num(v) + "</text>\n";
-    }
-    o += "<text x=\"" + num(left) + "\" y=\"" + num(top + H + 18) + "\" font-family=\"sans-serif\" font-size=\"11\">line " + num(first) +
-         "</text>\n<text x=\"" + num(left + W) + "\" y=\"" + num(top + H + 18) +
-         "\" font-family=\"sans-serif\" font-size=\"11\" text-anchor=\"end\">line " + num(last) + "</text>\n";
+    o += "<text x=\"16\" y=\"" + num(top + H / 2) + "\" font-family=\"sans-serif\" font-size=\"12\" text-anchor=\"middle\" transform=\"rotate(-90 16 " +
+         num(top + H / 2) + ")\">tip deviation, mm (log scale)</text>\n";
     o += "<text x=\"" + num(left + W / 2) + "\" y=\"" + num(top + H + 40) +
-         "\" font-family=\"sans-serif\" font-size=\"12\" text-anchor=\"middle\">input line (mm of tip deviation, red: tolerance " + num(tolerance_) +
-         " mm)</text>\n";
+         "\" font-family=\"sans-serif\" font-size=\"12\" text-anchor=\"middle\">input line (red: tolerance " + num(tolerance_) + " mm)</text>\n";
     o += "<line x1=\"" + num(left) + "\" y1=\"" + num(Y(tolerance_)) + "\" x2=\"" + num(left + W) + "\" y2=\"" + num(Y(tolerance_)) +
          "\" stroke=\"red\" stroke-dasharray=\"6,4\"/>\n";
     o += "<polyline fill=\"none\" stroke=\"steelblue\" stroke-width=\"1\" points=\"";
@@ -186,23 +243,42 @@ void MoveLog::add(std::uint64_t line, const MoveResult& m) {
         if (hold_) held_.travel.emplace_back(machine_.joints[j].name, m.travel[j]);
         else report_.add_rotary_travel(machine_.joints[j].name, m.travel[j]);
     }
+    const std::size_t n = machine_.joints.size();
+    const bool ranged = m.low.size() == n && m.high.size() == n;
     if (hold_) {
-        held_.moves.push_back({line, m.tip_error, m.angle_error, m.feed_error, m.pieces, held_.travel.size(), m.pole_crossings, half_turn});
-    } else {
-        report_.add_move(line, m.tip_error, m.angle_error, m.feed_error, m.pieces);
-        report_.add_route(m.pole_crossings, half_turn);
+        held_.moves.push_back({line, m.tip_error, m.angle_error, m.feed_error, m.pieces, held_.travel.size(), m.minutes, int(m.change), m.pole_crossings, half_turn});
+        for (std::size_t j = 0; j < n; ++j) held_.ranges.push_back(ranged ? m.low[j] : NAN);
+        for (std::size_t j = 0; j < n; ++j) held_.ranges.push_back(ranged ? m.high[j] : NAN);
+        return;
     }
+    report_.add_move(line, m.tip_error, m.angle_error, m.feed_error, m.pieces);
+    ranges_.clear();
+    for (std::size_t j = 0; j < n; ++j) ranges_.push_back(ranged ? m.low[j] : NAN);
+    for (std::size_t j = 0; j < n; ++j) ranges_.push_back(ranged ? m.high[j] : NAN);
+    add_rest(ranges_.data(), m.minutes, int(m.change));
+    report_.add_route(m.pole_crossings, half_turn);
+}
+
+void MoveLog::add_rest(const double* ranges, double minutes, int change) {
+    const std::size_t n = machine_.joints.size();
+    for (std::size_t j = 0; j < n; ++j)
+        if (!std::isnan(ranges[j])) report_.add_joint_range(machine_.joints[j].name, ranges[j], ranges[n + j]);
+    report_.add_time(minutes);
+    report_.add_solution_change(change == int(SolutionChange::Turns), change == int(SolutionChange::Branch));
 }
 
 void MoveLog::release(std::size_t moves) {
     if (moves == 0) return;
     const std::size_t travel_end = held_.moves[moves - 1].travel_end;
+    const std::size_t n = machine_.joints.size();
     for (std::size_t i = 0, t = 0; i < moves; ++i) {
         const Pending& m = held_.moves[i];
         report_.add_move(m.line, m.tip, m.angle, m.feed, m.pieces);
         report_.add_route(m.pole_crossings, m.half_turn);
+        add_rest(&held_.ranges[i * 2 * n], m.minutes, m.change);
         for (; t < m.travel_end; ++t) report_.add_rotary_travel(held_.travel[t].first, held_.travel[t].second);
     }
+    held_.ranges.erase(held_.ranges.begin(), held_.ranges.begin() + std::ptrdiff_t(moves * 2 * n));
     held_.moves.erase(held_.moves.begin(), held_.moves.begin() + std::ptrdiff_t(moves));
     held_.travel.erase(held_.travel.begin(), held_.travel.begin() + std::ptrdiff_t(travel_end));
     for (Pending& m : held_.moves) m.travel_end -= travel_end;

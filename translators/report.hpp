@@ -24,6 +24,11 @@ public:
     // a rotary turned by kHalfTurnDeg or more within it (a half turn of the table or head).
     void add_route(int pole_crossings, bool half_turn) { pole_crossings_ += std::uint64_t(pole_crossings), half_turns_ += half_turn; }
     static constexpr double kHalfTurnDeg = 150;
+    // The rest of what a move did: where each joint went (its extremes over the move), how long
+    // the firmware takes for it, and whether it ended on another solution of its pose.
+    void add_joint_range(char joint, double low, double high);
+    void add_time(double minutes) { minutes_ += minutes; }
+    void add_solution_change(int turns, int branch) { turns_ += std::uint64_t(turns), branches_ += std::uint64_t(branch); }
     void set_lines(std::uint64_t in, std::uint64_t out) { lines_in_ = in, lines_out_ = out; }
 
     std::string json() const;
@@ -54,6 +59,13 @@ private:
     std::uint64_t lines_in_ = 0, lines_out_ = 0, moves_ = 0, split_moves_ = 0, pieces_ = 0, pole_crossings_ = 0, half_turns_ = 0;
     Distribution tip_, angle_, feed_;
     std::vector<std::pair<char, double>> travel_;
+    struct Range {
+        char joint;
+        double low, high;
+    };
+    std::vector<Range> ranges_;  // one per joint
+    double minutes_ = 0;
+    std::uint64_t turns_ = 0, branches_ = 0;
     std::vector<Point> series_;  // at most kMaxPoints, each the worst of `bucket_` moves
     std::uint64_t bucket_ = 1, in_bucket_ = 0;
     static constexpr std::size_t kMaxPoints = 2000;
@@ -77,12 +89,15 @@ public:
         double tip, angle, feed;
         int pieces;
         std::size_t travel_end;
+        double minutes;
+        int change;  // SolutionChange
         int pole_crossings;
         bool half_turn;
     };
     struct Held {
         std::vector<Pending> moves;
         std::vector<std::pair<char, double>> travel;
+        std::vector<double> ranges;  // per held move, low and high of every joint
     };
     std::size_t held_count() const { return held_.moves.size(); }
     void release(std::size_t moves);  // the first `moves` held moves go to the report
@@ -91,13 +106,16 @@ public:
     void drop_held() {
         held_.moves.clear();
         held_.travel.clear();
+        held_.ranges.clear();
     }
 
 private:
+    void add_rest(const double* ranges, double minutes, int change);  // ranges: low, high of every joint
     DeviationReport& report_;
     const Machine& machine_;
     bool hold_ = false;
     Held held_;
+    std::vector<double> ranges_;  // scratch: one move's low and high of every joint
 };
 
 }  // namespace xlate5

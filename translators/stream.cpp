@@ -13,33 +13,44 @@ namespace {
 constexpr std::size_t kFlushAt = 1u << 18;
 }  // namespace
 
-StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink) {
+StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink, bool streaming,
+                             const std::function<void(const StreamStats&)>& on_read,
+                             const std::function<void(std::string_view)>& on_write) {
     FrontOptions o;
     o.format = InputFormat::GCode;
     InputFront front(translator, o);
-    return translate_stream(reader, front, sink);
+    return translate_stream(reader, front, sink, streaming, on_read, on_write);
 }
 
-StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& sink) {
+StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& sink, bool streaming,
+                             const std::function<void(const StreamStats&)>& on_read,
+                             const std::function<void(std::string_view)>& on_write) {
     Translator& translator = front.translator();
     StreamStats stats;
     std::string out;
     out.reserve(kFlushAt + 4096);
     std::string_view line;
+    std::uint64_t seen = 0;  // bytes read when on_read was last called
+    auto flush = [&] {
+        if (on_write) on_write(out);
+        sink.write(out);
+        stats.bytes_out += out.size();
+        stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));
+        out.clear();
+    };
     translator.set_lookback(Translator::kDefaultLookback);  // a limit further on can be unwound on an earlier travel move
     while (reader.next(line)) {
         front.feed(line, reader.line_number(), out);
-        if (out.size() >= kFlushAt) {
-            sink.write(out);
-            stats.bytes_out += out.size();
-            stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));
-            out.clear();
+        if (out.size() >= kFlushAt || (streaming && !out.empty() && !reader.has_line())) flush();
+        if (on_read && reader.bytes_read() != seen) {
+            seen = reader.bytes_read();
+            stats.lines_in = reader.line_number();
+            stats.bytes_in = seen;
+            on_read(stats);
         }
     }
     front.finish(reader.line_number(), out);
-    sink.write(out);
-    stats.bytes_out += out.size();
-    stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));
+    flush();
     stats.lines_in = reader.line_number();
     stats.bytes_in = reader.bytes_read();
     return stats;

@@ -2,6 +2,7 @@
 // the sink. May call: line_reader, input_front, the front door (translator.hpp), output_sink.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <string_view>
 
@@ -21,9 +22,19 @@ struct StreamStats {
 
 class InputFront;
 
-// Runs every line of `reader` through `translator` into `sink`.
-StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink);
-// The same through an input front (CL data, waypoint tables, or G-code detected by content).
-StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& sink);
+// Runs every line of `reader` through `front` (CL data, waypoint tables, or G-code detected by
+// content) into `sink`. Output is written in large blocks; with `streaming` (the input is a pipe
+// or a terminal) also whenever the input has no further line at hand, so a filter between a
+// sender and a printer never holds decided output while it waits for input (the look-back still
+// holds what it may translate again). `on_read`, when given, is called with the counts so far
+// once per block of input read, never per line; `on_write` with each block of output as it goes
+// to the sink (whole lines).
+StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& sink, bool streaming = false,
+                             const std::function<void(const StreamStats&)>& on_read = {},
+                             const std::function<void(std::string_view)>& on_write = {});
+// The same for G-code.
+StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink, bool streaming = false,
+                             const std::function<void(const StreamStats&)>& on_read = {},
+                             const std::function<void(std::string_view)>& on_write = {});
 
 }  // namespace xlate5
