@@ -343,7 +343,8 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
     std::vector<double> prev = q0, cur = q0;
     double stay = 0;
     for (int i = 1; i <= kEstimate; ++i) {
-        if (!orient_within_limits(kin_, pose_at(mv, double(i) / kEstimate).axis, prev, prev, cur).ok()) break;
+        if (!orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(pose_at(mv, double(i) / kEstimate).axis), prev, prev, cur).ok())
+            break;
         stay += rotary_distance(prev, cur);
         prev = cur;
     }
@@ -353,7 +354,7 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
     double best = stay - kClearlyLess;
     for (int b = 0; b < solutions.count; ++b) {
         q = q0;
-        if (!orient_on_branch(kin_, mv.p1.axis, b, q0, q0, q).ok()) continue;
+        if (!orient_on_branch(machine_, kin_.rotary_joints(), solutions, b, q0, q0, q).ok()) continue;
         const double travel = rotary_distance(q, q0);
         if (travel >= best) continue;
         if (!kin_.solve_position(mv.p1.tip, q).ok() || !check_limits(machine_, q).ok()) continue;
