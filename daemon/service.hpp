@@ -22,7 +22,7 @@ namespace xlate5 {
 
 struct ServiceOptions {
     std::size_t queue_lines = 64;     // translated lines waiting for the firmware before senders are held
-    double busy_interval = 2.0;       // seconds between "busy: processing" to a sender held by a full queue
+    double busy_interval = marlin::kKeepaliveSeconds;  // seconds between "busy: processing" to a sender held by a full queue
     double hold_seconds = 1.0;        // a pause this long in the senders' stream ends the look-back window
     std::size_t max_pending = 256;    // lines of one sender read ahead of the queue before it is read no further
     TranslatorOptions translator;

@@ -41,6 +41,8 @@ bool is_slow(const proto::Code& c) {
     return c.is('G', 28) || c.is('G', 4) || c.is('M', 109) || c.is('M', 190) || c.is('M', 400);
 }
 
+constexpr double kStepsPerMm = 80;  // for M114's "Count" words only
+
 constexpr std::string_view kStopped =
     "Printer stopped due to errors. Fix the error and use M999 to restart. (Temperature is reset. Set it after restarting)";
 
@@ -361,7 +363,7 @@ std::string VirtualPrinter::position_report() const {
     for (std::size_t i = 0; i < opt_.axes.size(); ++i) {
         std::snprintf(buf, sizeof buf, "%s%c:%.2f", i ? " " : "", opt_.axes[i], pos_[i]);
         s += buf;
-        std::snprintf(buf, sizeof buf, " %c:%ld", opt_.axes[i], long(std::lround(pos_[i] * 80)));
+        std::snprintf(buf, sizeof buf, " %c:%ld", opt_.axes[i], long(std::lround(pos_[i] * kStepsPerMm)));
         count += buf;
     }
     std::snprintf(buf, sizeof buf, " E:%.2f", pos_.back());

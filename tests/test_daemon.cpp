@@ -28,21 +28,6 @@ TEST_CASE("a clean print executes exactly the offline translation, numbered or b
     }
 }
 
-TEST_CASE("1% line corruption over 100k lines: every line executed once, in order") {
-    const auto lines = rw2_print(100000, 11);
-    Rig rig("rw2", [](ServeConfig& c) {
-        c.sim.faults.corrupt = 0.01;
-        c.sim.faults.seed = 5;
-    });
-    stream_and_compare(rig, lines, 600);
-    INFO("corrupted " << rig.sim().stats().corrupted << ", resend requests " << rig.service().firmware()->stats().resend_requests);
-    CHECK(rig.sim().stats().corrupted > 500);
-    // Every refusal's Resend reached xlate5. (A damaged line behind a refused one is flushed
-    // unanswered, as Marlin does: refusals can be fewer than damaged lines.)
-    CHECK(rig.service().firmware()->stats().resend_requests == rig.sim().stats().refused);
-    CHECK(rig.sim().stats().refused > 500);
-}
-
 TEST_CASE("fault classes: dropped bytes, spurious resends with and without ok, garbled replies, busy, slow planner") {
     const auto lines = rw2_print(4000, 3);
     SUBCASE("dropped bytes (a lost newline merges two lines)") {
