@@ -34,7 +34,8 @@ struct FaultRun {
     double seconds = 0;
 };
 
-FaultRun run_fault(const char* name, const std::function<void(ServeConfig&)>& tweak, std::size_t moves, std::uint64_t seed) {
+FaultRun run_fault(const char* name, const std::function<void(ServeConfig&)>& tweak, std::size_t moves, std::uint64_t seed,
+                   const std::function<void(Rig&)>& after = {}) {
     const auto lines = rw2_print(moves, seed);
     Rig rig("rw2", tweak);
     const auto t0 = std::chrono::steady_clock::now();
@@ -47,6 +48,7 @@ FaultRun run_fault(const char* name, const std::function<void(ServeConfig&)>& tw
     r.probes = s.probes;
     r.stops = rig.service().stopped() ? 1 : 0;
     r.corrupted = rig.sim().stats().corrupted;
+    if (after) after(rig);
     r.refused = rig.sim().stats().refused;
     // The figures for docs/service.md: XLATE5_FAULT_REPORT=1 prints them.
     if (std::getenv("XLATE5_FAULT_REPORT"))
@@ -67,6 +69,19 @@ TEST_CASE("Marlin's receive rules: each fault at 1% over a long print runs every
         // unanswered, as Marlin does: refusals can be fewer than damaged lines.)
         CHECK(r.resends == r.refused);
         CHECK(r.refused > n / 200);
+    }
+    SUBCASE("a damaged line with lines right behind it (a wider window: they are flushed unanswered)") {
+        std::uint64_t flushed = 0;
+        const auto r = run_fault("damaged line, window 3", [&](ServeConfig& c) {
+            c.sim.faults.corrupt = 0.01;
+            c.sim.faults.seed = 29;
+            c.sim.faults.move_ms = 0.2;  // the firmware a little slower than the sender: the window stays full
+            c.firmware.window = 3;
+            c.firmware.rx_bytes = 255;
+            c.sim.rx_size = 256;
+        }, n / 10, 39, [&](Rig& rig) { flushed = rig.sim().stats().flushed_bytes; });
+        CHECK(flushed > 0);  // lines behind a refused one vanished, and were sent again
+        CHECK(r.resends > n / 2000);
     }
     SUBCASE("a lost ok") {
         const auto r = run_fault("lost ok", [](ServeConfig& c) {
