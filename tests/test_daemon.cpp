@@ -175,6 +175,11 @@ TEST_CASE("M112 reaches the firmware at once while the queue is full") {
     TestSender sender(rig.io, rig.config.pty);
     sender.stream(rw2_print(500, 2));
     REQUIRE(rig.run_until([&] { return rig.service().firmware()->queued() >= 32; }, 20));
+    // The look-back releases its held lines in one burst: wait until the firmware's planner is
+    // full, so that from here on it takes one move per 200 ms.
+    const auto full = 2 + std::size_t(rig.config.sim.planner) + 2;  // greeting, planner, the next lines
+    REQUIRE(rig.run_until([&] { return rig.sim().executed().size() >= full; }, 20));
+    rig.run_until([] { return false; }, 0.05);
     const auto before = rig.sim().executed().size();
     sender.send_now("M112");
     REQUIRE(rig.run_until([&] { return rig.sim().halted(); }, 2));
