@@ -1,6 +1,7 @@
 // A line-oriented, full-duplex byte link over any Asio stream (a serial port or pseudo-terminal
 // descriptor, a TCP socket): lines in through a callback, text out through an ordered write
-// queue. Both sides of the service and the virtual printer talk through it.
+// queue. Both sides of the service and the virtual printer talk through it. Stage: the
+// service's transport; may call Asio only.
 #pragma once
 #include <array>
 #include <functional>

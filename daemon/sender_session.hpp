@@ -1,7 +1,8 @@
 // The sender side: xlate5 as the printer an OctoPrint-style sender believes it talks to. Checks
 // "N<n> … *<cs>" lines the way Marlin does (Error:/Resend:/ok), handles the line-protocol and
 // emergency commands itself, and hands every other command to the service, which answers ok
-// once the command is in xlate5's queue.
+// once the command is in xlate5's queue. Stage: the service, sender end; may call
+// line_checker, line_protocol, link.
 #pragma once
 #include <cstdint>
 #include <memory>

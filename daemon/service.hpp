@@ -1,6 +1,7 @@
 // The service: senders' lines in, through the translator, into a bounded queue, out to the
 // firmware link; the firmware's replies back to the senders (positions converted to tool space).
-// One io_context drives everything; nothing blocks and nothing polls.
+// One io_context drives everything; nothing blocks and nothing polls. Stage: the service's
+// middle; may call the translator (its public API), sender_session, firmware_link.
 #pragma once
 #include <cstdint>
 #include <deque>
