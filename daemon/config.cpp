@@ -1,6 +1,7 @@
 #include "daemon/config.hpp"
 
 #include <cctype>
+#include <cmath>
 #include <cstdlib>
 #include <sstream>
 #include <toml++/toml.h>
@@ -88,20 +89,39 @@ void set_sim_fault(SimFaults& f, const std::string& a) {
 
 void set_sim_fault(SimFaults& f, const std::string& k, double d) {
     if (!(d >= 0)) throw std::invalid_argument("must not be negative");
-    if (k == "corrupt") f.corrupt = d;
-    else if (k == "drop") f.drop = d;
-    else if (k == "garble_reply") f.garble_reply = d;
-    else if (k == "spurious_resend") f.spurious_resend = d;
+    const auto probability = [&](double& out) {
+        if (d > 1) throw std::invalid_argument("a probability must be between 0 and 1");
+        out = d;
+    };
+    const auto seconds = [&](double& out) {
+        if (d > 3600) throw std::invalid_argument("must be at most 3600 seconds");
+        out = d;
+    };
+    // Counts: whole numbers up to 2^53, where a double still holds every integer.
+    const auto count = [&](std::uint64_t& out) {
+        if (d != std::floor(d) || d > 9007199254740992.0) throw std::invalid_argument("expected a whole number up to 2^53");
+        out = std::uint64_t(d);
+    };
+    if (k == "corrupt") probability(f.corrupt);
+    else if (k == "drop") probability(f.drop);
+    else if (k == "lose_newline") probability(f.lose_newline);
+    else if (k == "lose_ok") probability(f.lose_ok);
+    else if (k == "garble_reply") probability(f.garble_reply);
+    else if (k == "spurious_resend") probability(f.spurious_resend);
     else if (k == "no_ok_after_resend") f.no_ok_after_resend = d != 0;
-    else if (k == "busy") f.busy = d;
-    else if (k == "busy_seconds") f.busy_seconds = d;
-    else if (k == "busy_interval") f.busy_interval = d;
-    else if (k == "move_ms") f.move_ms = d;
-    else if (k == "slow_seconds") f.slow_seconds = d;
-    else if (k == "reset_after") f.reset_after = std::uint64_t(d);
-    else if (k == "kill_after") f.kill_after = std::uint64_t(d);
-    else if (k == "unplug_after") f.unplug_after = std::uint64_t(d);
-    else if (k == "seed") f.seed = std::uint64_t(d);
+    else if (k == "greeting_resend") f.greeting_resend = d != 0;
+    else if (k == "quiet_planner") f.quiet_planner = d != 0;
+    else if (k == "stale_oks") count(f.stale_oks);
+    else if (k == "busy") probability(f.busy);
+    else if (k == "busy_seconds") seconds(f.busy_seconds);
+    else if (k == "busy_interval") seconds(f.busy_interval);
+    else if (k == "move_ms") seconds(f.move_ms);
+    else if (k == "slow_seconds") seconds(f.slow_seconds);
+    else if (k == "reset_after") count(f.reset_after);
+    else if (k == "kill_after") count(f.kill_after);
+    else if (k == "stop_after") count(f.stop_after);
+    else if (k == "unplug_after") count(f.unplug_after);
+    else if (k == "seed") count(f.seed);
     else throw std::invalid_argument("unknown fault '" + k + "'");
 }
 
@@ -118,11 +138,13 @@ ServeConfig load_serve_config(const std::string& path) {
     r.check_known(root, "", {"machine", "compensation", "tolerance", "mode", "extruder_letter", "firmware", "sender", "sim", "log"});
     if (auto* t = root["firmware"].as_table())
         r.check_known(*t, "firmware.", {"firmware.port", "firmware.baud", "firmware.flavor", "firmware.window", "firmware.rx_bytes",
-                                        "firmware.max_line", "firmware.reply_timeout", "firmware.long_timeout", "firmware.boot_wait", "firmware.max_timeouts"});
+                                        "firmware.max_line", "firmware.reply_timeout", "firmware.long_timeout", "firmware.boot_wait", "firmware.max_timeouts",
+                                        "firmware.settle", "firmware.max_greetings", "firmware.max_resyncs"});
     if (auto* t = root["sender"].as_table())
-        r.check_known(*t, "sender.", {"sender.pty", "sender.pty_group", "sender.tcp", "sender.allow_remote", "sender.queue_lines", "sender.drain_timeout", "sender.busy_interval"});
+        r.check_known(*t, "sender.", {"sender.pty", "sender.pty_group", "sender.tcp", "sender.allow_remote", "sender.queue_lines", "sender.drain_timeout", "sender.busy_interval",
+                                      "sender.hold_seconds", "sender.max_pending"});
     if (auto* t = root["sim"].as_table())
-        r.check_known(*t, "sim.", {"sim.flavor", "sim.advanced_ok", "sim.buffer", "sim.planner", "sim.baud", "sim.record", "sim.faults"});
+        r.check_known(*t, "sim.", {"sim.flavor", "sim.advanced_ok", "sim.buffer", "sim.planner", "sim.baud", "sim.record", "sim.faults", "sim.rx_size"});
     if (auto* t = root["log"].as_table()) r.check_known(*t, "log.", {"log.level"});
 
     ServeConfig c;
@@ -156,6 +178,9 @@ ServeConfig load_serve_config(const std::string& path) {
     r.get("firmware.long_timeout", c.firmware.long_timeout, 1, 86400);
     r.get("firmware.boot_wait", c.firmware.boot_wait, 0, 60);
     r.get_int("firmware.max_timeouts", c.firmware.max_timeouts, 1, 1000);
+    r.get("firmware.settle", c.firmware.settle, 0.001, 60);
+    r.get_int("firmware.max_greetings", c.firmware.max_greetings, 1, 100);
+    r.get_int("firmware.max_resyncs", c.firmware.max_resyncs, 1, 100000);
     r.get("sender.pty", c.pty);
     r.get("sender.pty_group", c.pty_group);
     r.get("sender.tcp", c.tcp);
@@ -163,6 +188,8 @@ ServeConfig load_serve_config(const std::string& path) {
     r.get_int("sender.queue_lines", c.queue_lines, 1, 1 << 20);
     r.get("sender.drain_timeout", c.drain_timeout, 0, 86400);
     r.get("sender.busy_interval", c.busy_interval, 0.1, 60);
+    r.get("sender.hold_seconds", c.hold_seconds, 0.01, 60);
+    r.get_int("sender.max_pending", c.max_pending, 2, 1 << 20);
     std::string sim_flavor = "marlin";
     r.get("sim.flavor", sim_flavor);
     if (sim_flavor != "marlin" && sim_flavor != "reprap") r.fail(r.find("sim.flavor"), "sim.flavor", "expected \"marlin\" or \"reprap\"");
@@ -171,6 +198,7 @@ ServeConfig load_serve_config(const std::string& path) {
     r.get_int("sim.buffer", c.sim.buffer, 1, 64);
     r.get_int("sim.planner", c.sim.planner, 1, 256);
     r.get_int("sim.baud", c.sim.baud, 0, 4000000);
+    r.get_int("sim.rx_size", c.sim.rx_size, 16, 1 << 20);
     r.get("sim.record", c.sim.record_path);
     if (auto* t = root.at_path("sim.faults").as_table()) {
         for (const auto& [k, v] : *t) {

@@ -28,6 +28,8 @@ struct ServeConfig {
     bool allow_remote = false;          // binding beyond loopback must be asked for
     std::size_t queue_lines = 64;
     double busy_interval = 2;           // seconds between "busy: processing" to a sender held by a full queue
+    double hold_seconds = 1;            // a pause this long in the stream ends the look-back window
+    std::size_t max_pending = 256;      // lines a sender may write ahead before it is read no further
     double drain_timeout = 60;          // seconds SIGTERM waits for the queue to drain
     // Virtual printer
     SimOptions sim;

@@ -1,6 +1,7 @@
 // The host line protocol that Marlin and RepRapFirmware speak (and senders expect of them):
 // "N<n> <command>*<checksum>" lines, the XOR checksum, and the shape of the replies. Pure text
-// functions, shared by both sides of the service and by the virtual printer.
+// functions, shared by both sides of the service and by the virtual printer. Stage: the
+// service's wire format; calls nothing.
 #pragma once
 #include <cstdint>
 #include <optional>

@@ -10,12 +10,25 @@ void Link::start(LineHandler on_line, CloseHandler on_close) {
     read();
 }
 
+void Link::resume_reading() {
+    if (!paused_) return;
+    paused_ = false;
+    if (open_ && !reading_) read();
+}
+
 void Link::read() {
+    if (paused_ || reading_) return;
+    reading_ = true;
     auto self = shared_from_this();
     read_some(asio::buffer(buffer_), [this, self](boost::system::error_code ec, std::size_t n) {
+        reading_ = false;
         if (!open_) return;
         if (ec) {
             if (transient(ec)) {
+                if (!hung_up_) {
+                    hung_up_ = true;
+                    if (on_hangup_) on_hangup_();
+                }
                 // Nobody holds the other end: look again shortly (a timer, not a busy loop).
                 partial_.clear();
                 if (!retry_) retry_ = std::make_unique<asio::steady_timer>(executor());
@@ -28,6 +41,7 @@ void Link::read() {
             finish(ec == asio::error::eof ? "end of file (the other side closed the link)" : ec.message());
             return;
         }
+        hung_up_ = false;
         std::size_t begin = 0;
         for (std::size_t i = 0; i < n; ++i) {
             if (buffer_[i] != '\n') continue;

@@ -1,6 +1,7 @@
 // A line-oriented, full-duplex byte link over any Asio stream (a serial port or pseudo-terminal
 // descriptor, a TCP socket): lines in through a callback, text out through an ordered write
-// queue. Both sides of the service and the virtual printer talk through it.
+// queue. Both sides of the service and the virtual printer talk through it. Stage: the
+// service's transport; may call Asio only.
 #pragma once
 #include <array>
 #include <functional>
@@ -30,6 +31,12 @@ public:
     void send(std::string_view text);
     void close();
     bool open() const { return open_; }
+    // Back-pressure: no more reads until resumed (lines of the chunk already read are still
+    // delivered), so a peer that writes without waiting cannot grow memory here.
+    void pause_reading() { paused_ = true; }
+    void resume_reading();
+    // Called when the other end goes away for now (a pseudo-terminal whose sender closed it).
+    void on_hangup(std::function<void()> f) { on_hangup_ = std::move(f); }
     std::size_t unsent_bytes() const { return out_.size() + writing_.size(); }
     const std::string& name() const { return name_; }
     asio::any_io_executor stream_executor() { return executor(); }
@@ -59,6 +66,8 @@ private:
     bool writing_now_ = false;
     bool open_ = true;
     bool overlong_ = false;
+    bool paused_ = false, reading_ = false, hung_up_ = false;
+    std::function<void()> on_hangup_;
     std::unique_ptr<asio::steady_timer> retry_;
 };
 

@@ -1,6 +1,7 @@
 #include "daemon/sender_session.hpp"
 
 #include <cstdlib>
+#include <spdlog/spdlog.h>
 
 #include "daemon/line_protocol.hpp"
 
@@ -12,18 +13,23 @@ SenderSession::SenderSession(std::shared_ptr<Link> link, Host& host, std::string
 SenderSession::~SenderSession() { link_->close(); }
 
 void SenderSession::start() {
-    // Weak: the service owns the session; the link must not keep it alive in a cycle.
-    std::weak_ptr<SenderSession> weak = shared_from_this();
-    link_->start([weak](std::string_view line) {
-        if (auto self = weak.lock()) self->on_line(line);
-    }, [weak](const std::string&) {
-        if (auto self = weak.lock()) self->host_.sender_gone(*self);
-    });
+    // The service owns the session; the link's handlers must not keep it alive (guarded, not owning).
+    link_->start(lifetime_.guard([this](std::string_view line) { on_line(line); }),
+                 lifetime_.guard([this](const std::string&) { host_.sender_gone(*this); }));
+    link_->on_hangup(lifetime_.guard([this] { host_.sender_left(*this); }));
 }
 
 void SenderSession::close() { link_->close(); }
 
 void SenderSession::send_line(std::string_view line) {
+    if (!link_->open()) return;
+    if (link_->unsent_bytes() > kMaxUnreadBytes) {
+        // It writes and does not read: its replies would pile up here without bound.
+        spdlog::warn("{}: more than {} bytes of replies unread: closing the connection", name_, kMaxUnreadBytes);
+        link_->close();
+        host_.sender_gone(*this);
+        return;
+    }
     std::string s(line);
     s += '\n';
     link_->send(s);
@@ -35,33 +41,34 @@ void SenderSession::ok(std::string_view payload) {
     send_line(s);
 }
 
-void SenderSession::refuse(const char* why) {
+void SenderSession::refuse(std::string_view why) {
     // Marlin's words, so a sender's resend logic works unchanged.
-    send_line(std::string("Error:") + why + ", Last Line: " + std::to_string(last_n_));
-    send_line("Resend: " + std::to_string(last_n_ + 1));
+    send_line(checker_.error_line(why));
+    send_line(checker_.resend_line());
     ok();
 }
 
 void SenderSession::on_line(std::string_view raw) {
-    const auto r = proto::parse_received(raw);
     ++received_;
-    const std::string bare = proto::strip_comment(r.command);
-    const auto code = proto::command_code(bare);
-    if (r.number) {
-        if (!r.has_checksum) return refuse("No Checksum with line number");
-        if (!r.checksum_ok) return refuse("checksum mismatch");
-        if (!code.is('M', 110) && *r.number != last_n_ + 1) return refuse("Line Number is not Last Line Number+1");
-        last_n_ = *r.number;
-    } else if (r.has_checksum) {
-        return refuse("No Line Number with checksum");
+    const auto v = checker_.check(raw);
+    if (v.verdict == proto::LineChecker::Verdict::Refuse) return refuse(v.why);
+    if (v.verdict == proto::LineChecker::Verdict::Duplicate) {
+        // Marlin drops a repeat of its last line without a word; a sender that repeated it
+        // because an ok was lost would then wait for ever. It is not run again, but answered.
+        ok();
+        return;
     }
+    const std::string bare = proto::strip_comment(v.command);
+    const auto code = proto::command_code(bare);
+    const auto& r = v;
     if (bare.empty()) {
         if (r.number) ok();  // a numbered line that holds only a comment still counts
         return;
     }
     if (code.is('M', 110)) {
         // "M110 N<n>" (or the line's own number) sets the next expected line.
-        if (const auto n = proto::m110_line(bare)) last_n_ = *n;
+        if (const auto n = proto::m110_line(bare)) checker_.set_last_line(*n);
+        host_.sender_reset(*this);
         ok();
         return;
     }
@@ -75,7 +82,7 @@ void SenderSession::on_line(std::string_view raw) {
         ok();
         return;
     }
-    host_.sender_command(*this, r.command, code, r.number ? std::uint64_t(*r.number) : received_);
+    host_.sender_command(*this, v.command, code, r.number ? std::uint64_t(*r.number) : received_, r.number.has_value());
 }
 
 }  // namespace xlate5

@@ -1,13 +1,16 @@
 // The sender side: xlate5 as the printer an OctoPrint-style sender believes it talks to. Checks
 // "N<n> … *<cs>" lines the way Marlin does (Error:/Resend:/ok), handles the line-protocol and
 // emergency commands itself, and hands every other command to the service, which answers ok
-// once the command is in xlate5's queue.
+// once the command is in xlate5's queue. Stage: the service, sender end; may call
+// line_checker, line_protocol, link.
 #pragma once
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <string_view>
 
+#include "daemon/lifetime.hpp"
+#include "daemon/line_checker.hpp"
 #include "daemon/line_protocol.hpp"
 #include "daemon/link.hpp"
 
@@ -20,12 +23,17 @@ public:
         virtual ~Host() = default;
         // A command for the queue (comments kept: the translator reads them as the file would),
         // with the G/M code it starts with.
-        virtual void sender_command(SenderSession& s, std::string_view command, proto::Code code, std::uint64_t line_no) = 0;
+        // `numbered`: the line came with N and a checksum (OctoPrint numbers the lines of a print,
+        // not what is typed in its terminal).
+        virtual void sender_command(SenderSession& s, std::string_view command, proto::Code code, std::uint64_t line_no,
+                                    bool numbered) = 0;
         // M112, M108, M410: to the firmware at once, ahead of the queue.
         virtual void sender_emergency(SenderSession& s, std::string_view command) = 0;
         // M115's answer, without the final ok.
         virtual std::string sender_m115() = 0;
-        virtual void sender_gone(SenderSession& s) = 0;
+        virtual void sender_gone(SenderSession& s) = 0;   // the link closed (TCP): the session ends
+        virtual void sender_left(SenderSession& s) = 0;   // the sender closed the pseudo-terminal: it may come back
+        virtual void sender_reset(SenderSession& s) = 0;  // M110: the sender starts numbering again (a new print)
     };
 
     SenderSession(std::shared_ptr<Link> link, Host& host, std::string name);
@@ -35,18 +43,24 @@ public:
     void send_line(std::string_view line);      // one reply line; '\n' added
     void ok(std::string_view payload = {});     // "ok" + payload
     const std::string& name() const { return name_; }
-    std::int64_t last_line() const { return last_n_; }
+    std::int64_t last_line() const { return checker_.last_line(); }
     bool open() const { return link_->open(); }
+    void pause_reading() { link_->pause_reading(); }
+    void resume_reading() { link_->resume_reading(); }
+    std::size_t in_service = 0;  // its lines the service holds, not yet translated (kept by the service)
+    // Replies not yet written that make a sender "not reading": the session is closed.
+    static constexpr std::size_t kMaxUnreadBytes = std::size_t(1) << 20;
 
 private:
     void on_line(std::string_view line);
-    void refuse(const char* why);
+    void refuse(std::string_view why);
 
     std::shared_ptr<Link> link_;
     Host& host_;
     std::string name_;
-    std::int64_t last_n_ = 0;
+    proto::LineChecker checker_{/*strict_unnumbered=*/true};
     std::uint64_t received_ = 0;
+    Lifetime lifetime_;
 };
 
 }  // namespace xlate5

@@ -59,6 +59,8 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
     ServiceOptions sopt;
     sopt.queue_lines = config.queue_lines;
     sopt.busy_interval = config.busy_interval;
+    sopt.hold_seconds = config.hold_seconds;
+    sopt.max_pending = config.max_pending;
     sopt.translator.input_name = "sender";
     sopt.translator.start_mode = config.mode;
     sopt.translator.extruder_letter = config.extruder_letter;
@@ -165,16 +167,19 @@ int run_serve(const ServeConfig& config) {
             if (sig == SIGHUP) {
                 if (config.source.empty()) {
                     spdlog::warn("SIGHUP: no configuration file to reload");
-                } else if (!service.idle()) {
-                    spdlog::warn("SIGHUP: a print is running; the configuration is reloaded only when idle");
                 } else {
-                    try {
-                        const auto fresh = load_serve_config(config.source);
-                        service.replace_machine(load_configured_machine(fresh));
-                        spdlog::info("SIGHUP: reloaded {} (machine {}); port and endpoint changes need a restart", config.source, fresh.machine);
-                    } catch (const std::exception& e) {
-                        spdlog::error("SIGHUP: {} (keeping the running configuration)", e.what());
-                    }
+                    const auto reload = [&] {
+                        try {
+                            const auto fresh = load_serve_config(config.source);
+                            service.replace_machine(load_configured_machine(fresh));
+                            spdlog::info("SIGHUP: reloaded {} (machine {}); port and endpoint changes need a restart", config.source,
+                                         fresh.machine);
+                        } catch (const std::exception& e) {
+                            spdlog::error("SIGHUP: {} (keeping the running configuration)", e.what());
+                        }
+                    };
+                    if (!service.idle()) spdlog::warn("SIGHUP: a print is running; the configuration is reloaded once it is idle");
+                    service.when_idle(reload);
                 }
                 wait_signal();
                 return;

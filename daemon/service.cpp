@@ -58,10 +58,12 @@ bool split_for_firmware(const FirmwareLink& fw, const std::string& cmd, std::vec
 }  // namespace
 
 std::vector<std::string> firmware_commands(const Machine& machine, const std::vector<std::string>& lines, const TranslatorOptions& options) {
+    // As `xlate5 translate` does it: with the look-back window, finished at the end.
     const Kinematics kin(machine);
     TranslatorOptions o = options;
     o.input_name = "sender";
     Translator t(kin, o);
+    t.set_lookback(Translator::kDefaultLookback);
     std::vector<std::string> out;
     std::string text;
     std::uint64_t n = 0;
@@ -70,11 +72,14 @@ std::vector<std::string> firmware_commands(const Machine& machine, const std::ve
         t.feed(l, ++n, text);
         proto::append_commands(text, out);
     }
+    text.clear();
+    t.finish(text);
+    proto::append_commands(text, out);
     return out;
 }
 
 Service::Service(asio::io_context& io, const Machine& machine, ServiceOptions options)
-    : io_(io), machine_(machine), opt_(std::move(options)), busy_timer_(io), drain_timer_(io) {
+    : io_(io), machine_(machine), opt_(std::move(options)), busy_timer_(io), drain_timer_(io), hold_timer_(io) {
     kin_ = std::make_unique<Kinematics>(machine_);
     reset_translator();
 }
@@ -84,8 +89,41 @@ Service::~Service() {
 }
 
 void Service::reset_translator() {
-    // A fresh interpreter: modal state from the machine file, position unknown until homed or placed.
+    // A fresh interpreter: modal state from the machine file, position unknown until homed or
+    // placed; the same look-back window as offline translation (output held until decided).
     translator_ = std::make_unique<Translator>(*kin_, opt_.translator);
+    translator_->set_lookback(Translator::kDefaultLookback);
+    holding_ = false;
+}
+
+void Service::release_held() {
+    // The end of the look-back window: what the translator holds is final.
+    if (!holding_ || !translator_ || !firmware_) return;
+    holding_ = false;
+    out_.clear();
+    translator_->finish(out_);
+    std::vector<std::string> commands, lines;
+    proto::append_commands(out_, commands);
+    std::string bad;
+    if (!split_all(commands, lines, bad)) {
+        stop_healthy_ = true;
+        stop("'" + bad + "' is longer than the firmware's line buffer");
+        return;
+    }
+    enqueue_all(lines, 0, {});
+}
+
+bool Service::split_all(const std::vector<std::string>& commands, std::vector<std::string>& lines, std::string& bad) {
+    std::vector<std::string> parts;
+    for (const auto& cmd : commands) {
+        if (!split_for_firmware(*firmware_, cmd, parts)) {
+            bad = cmd;
+            return false;
+        }
+        if (parts.size() > 1) ++stats_.split_long;
+        for (auto& part : parts) lines.push_back(std::move(part));
+    }
+    return true;
 }
 
 bool Service::replace_machine(const Machine& machine) {
@@ -112,14 +150,52 @@ void Service::add_sender(std::shared_ptr<Link> link, const std::string& name) {
     spdlog::info("sender connected: {}", name);
 }
 
-void Service::sender_gone(SenderSession& s) {
-    spdlog::info("sender gone: {}", s.name());
-    asio::post(io_, [this, p = &s] {
-        std::erase_if(sessions_, [p](const auto& x) { return x.get() == p; });
-    });
+void Service::sender_left(SenderSession& s) {
+    // The documented rule: when the sender that prints leaves, the print ends at the last line
+    // it was answered ok for. Those lines run (as a firmware runs its buffer when the host goes);
+    // the lines it wrote without an ok yet are dropped, so nothing runs that no sender was told
+    // of. The next sender starts from a fresh state (home or place the tool first).
+    auto owner = owner_.lock();
+    if (owner.get() != &s) return;
+    owner_.reset();
+    std::size_t dropped = 0;
+    for (auto it = pending_.begin(); it != pending_.end();) {
+        if (it->session.lock().get() == &s) it = pending_.erase(it), ++dropped;
+        else ++it;
+    }
+    s.in_service = 0;
+    if (!stopped() && firmware_ && firmware_->state() == FirmwareLink::State::Ready) release_held();
+    reset_translator();
+    if (dropped) spdlog::warn("{} left with {} lines not yet answered: dropped, not run", s.name(), dropped);
+    check_drained();
 }
 
-bool Service::idle() const { return pending_.empty() && (!firmware_ || firmware_->idle()); }
+void Service::sender_reset(SenderSession& s) {
+    // A new print (M110) after a cancelled one: the cancel is over for its owner.
+    if (stopped() && stop_healthy_ && (!owner_.lock() || owner_.lock().get() == &s)) {
+        spdlog::info("{}: M110, a new print after: {}", s.name(), stop_reason_);
+        clear_stop();
+    }
+}
+
+void Service::clear_stop() {
+    stop_reason_.clear();
+    stop_healthy_ = false;
+    pending_.clear();
+    for (auto& x : sessions_) x->in_service = 0;
+    deferred_.clear();
+    reset_translator();
+}
+
+void Service::sender_gone(SenderSession& s) {
+    spdlog::info("sender gone: {}", s.name());
+    sender_left(s);
+    asio::post(io_, lifetime_.guard([this, p = &s] {
+        std::erase_if(sessions_, [p](const auto& x) { return x.get() == p; });
+    }));
+}
+
+bool Service::idle() const { return pending_.empty() && !holding_ && (!firmware_ || firmware_->idle()); }
 
 void Service::broadcast(std::string_view line) {
     for (auto& s : sessions_)
@@ -142,24 +218,44 @@ std::string Service::sender_m115() {
 
 void Service::sender_emergency(SenderSession& s, std::string_view command) {
     spdlog::warn("{}: {} sent to the firmware at once", s.name(), command);
+    // M112 stops the firmware link itself (one fault, one count of the lines not executed,
+    // told the sender and the log alike); M108 and M410 just go ahead of the queue.
     if (firmware_) firmware_->send_now(command);
-    if (proto::command_code(command).is('M', 112)) {
-        // Whether or not the firmware acts on it at once (EMERGENCY_PARSER), nothing queued behind it may run.
-        const auto dropped = firmware_ ? firmware_->drop_unsent() : 0;
-        stop("emergency stop (M112) from " + s.name() + "; " + std::to_string(dropped) + " queued lines dropped");
-    }
+    else if (proto::command_code(command).is('M', 112)) stop("emergency stop (M112) from " + s.name());
 }
 
-void Service::sender_command(SenderSession& s, std::string_view command, proto::Code code, std::uint64_t line_no) {
+bool Service::claim(SenderSession& s) {
+    // One sender prints at a time. Another may ask for temperatures (M105) and stop the printer
+    // (M112); the printer passes to it only when the queue is empty.
+    auto owner = owner_.lock();
+    if (owner && owner.get() != &s && owner->open() && !idle()) return false;
+    if (!owner || owner.get() != &s) {
+        if (owner) spdlog::info("{} now prints (the queue was empty)", s.name());
+        owner_ = s.weak_from_this();
+    }
+    return true;
+}
+
+void Service::sender_command(SenderSession& s, std::string_view command, proto::Code code, std::uint64_t line_no, bool numbered) {
+    if (!code.is('M', 105) && !claim(s)) {
+        const auto owner = owner_.lock();
+        const std::string why = "xlate5: busy: " + (owner ? owner->name() : std::string("another sender")) +
+                                " is printing; '" + proto::strip_comment(command) + "' was not run";
+        s.send_line("echo:" + why);
+        s.send_line("//action:notification " + why);
+        s.ok();
+        return;
+    }
     if (code.is('M', 999)) {
-        // Restart after a stop: the queue is empty, the firmware is greeted again, and the
-        // translator starts over (the position is unknown until the program homes or places it).
+        // Restart after a stop: the queue is empty, the firmware is greeted again (after M999,
+        // which revives a stopped Marlin), and the translator starts over (the position is
+        // unknown until the program homes or places it).
         if (!stopped()) {
             s.ok();
             return;
         }
         spdlog::info("{}: M999, restarting after: {}", s.name(), stop_reason_);
-        if (firmware_ && !firmware_->link().open()) {
+        if (!stop_healthy_ && firmware_ && !firmware_->link().open()) {
             // The port went away: open it again, or stay stopped and say why.
             if (!reopen_) {
                 s.send_line("Error:xlate5: the firmware's port is gone and cannot be reopened; restart the service");
@@ -173,18 +269,32 @@ void Service::sender_command(SenderSession& s, std::string_view command, proto::
                 s.ok();
                 return;
             }
-        } else if (firmware_) {
+        } else if (!stop_healthy_ && firmware_) {
             firmware_->restart();
         }
-        stop_reason_.clear();
-        pending_.clear();
-        deferred_.clear();
-        reset_translator();
+        clear_stop();
         s.ok();
         return;
     }
-    pending_.push_back({s.weak_from_this(), std::string(command), code, line_no});
+    pending_.push_back({s.weak_from_this(), std::string(command), code, line_no, numbered});
+    // Back-pressure: a sender that writes ahead without waiting for its oks is read no further
+    // until the service has caught up.
+    if (++s.in_service >= opt_.max_pending) s.pause_reading();
+    ++lines_seen_;
     pump();
+    arm_hold();
+}
+
+void Service::arm_hold() {
+    // A pause in the stream ends the look-back window: what is held goes to the firmware.
+    if (!holding_) return;
+    const auto seen = lines_seen_;
+    hold_timer_.expires_after(std::chrono::milliseconds(std::int64_t(opt_.hold_seconds * 1000)));
+    hold_timer_.async_wait(lifetime_.guard([this, seen](boost::system::error_code ec) {
+        if (ec || seen != lines_seen_ || !pending_.empty()) return;
+        release_held();
+        check_drained();
+    }));
 }
 
 void Service::pump() {
@@ -196,56 +306,103 @@ void Service::pump() {
         }
         const Pending p = std::move(pending_.front());
         pending_.pop_front();
+        if (auto s = p.session.lock()) {
+            if (s->in_service > 0) --s->in_service;
+            if (s->in_service <= opt_.max_pending / 2) s->resume_reading();
+        }
         process(p);
     }
     check_drained();
+}
+
+void Service::refuse_line(const Pending& p, const std::string& cause) {
+    // The command's own text, not "sender:1023". OctoPrint takes any Error: that is not about
+    // line numbers or checksums as fatal and sends M112 to a healthy printer: a refused line
+    // is told with echo: and an action command instead (docs/service.md).
+    auto session = p.session.lock();
+    const std::string quoted = "line " + std::to_string(p.line_no) + " '" + proto::strip_comment(p.command) + "': " + cause;
+    ++stats_.rejected;
+    if (!p.numbered) {
+        // Typed in a terminal: refused, and nothing else changes.
+        if (session) {
+            session->send_line("echo:xlate5: refused " + quoted);
+            session->send_line("//action:notification xlate5: refused " + quoted);
+            session->ok();
+        }
+        return;
+    }
+    // Part of a print: the print ends there; every line before it runs (what the look-back
+    // held included), nothing after it.
+    if (session) {
+        session->send_line("//action:cancel");
+        session->send_line("echo:xlate5: print cancelled at " + quoted);
+        session->send_line("//action:notification xlate5: print cancelled at " + quoted);
+        session->ok();
+    }
+    release_held();
+    stop_healthy_ = true;
+    stop("print cancelled at " + quoted);
+}
+
+void Service::enqueue_all(std::vector<std::string>& commands, std::uint64_t tag, const std::weak_ptr<SenderSession>& who) {
+    for (std::size_t i = 0; i < commands.size(); ++i) {
+        std::uint64_t t = 0;
+        if (tag && i + 1 == commands.size()) {
+            t = tag;
+            deferred_[tag] = who;
+        }
+        firmware_->enqueue(std::move(commands[i]), t);
+        ++stats_.lines_out;
+    }
 }
 
 void Service::process(const Pending& p) {
     auto session = p.session.lock();
     if (stopped() || !firmware_) {
         if (session) {
-            session->send_line("Error:Printer stopped (xlate5): " + (stopped() ? stop_reason_ : std::string("no firmware")) +
-                               ". Fix the cause and send M999 to restart.");
+            if (stop_healthy_) {
+                // The print was cancelled; the printer is fine: not an Error: (OctoPrint would send M112).
+                session->send_line("echo:xlate5: not run: '" + proto::strip_comment(p.command) + "' (" + stop_reason_ +
+                                   "); start a new print or send M999");
+            } else {
+                session->send_line("Error:Printer stopped (xlate5): " + (stopped() ? stop_reason_ : std::string("no firmware")) +
+                                   ". Fix the cause and send M999 to restart.");
+            }
             session->ok();
         }
         ++stats_.rejected;
         return;
     }
     ++stats_.lines_in;
-    out_.clear();
-    try {
-        translator_->feed(p.command, p.line_no, out_);
-    } catch (const InputError& e) {
-        if (session) session->send_line(std::string("Error:xlate5: ") + e.what());
-        stop(std::string("line ") + std::to_string(p.line_no) + " cannot be translated: " + e.message());
-        if (session) session->ok();
-        return;
-    }
     const bool wait_for_firmware = answered_by_firmware(p.code);
-    std::uint64_t tag = 0;
-    std::vector<std::string> parts, commands, lines;
-    proto::append_commands(out_, commands);
-    for (const auto& cmd : commands) {
-        if (!split_for_firmware(*firmware_, cmd, parts)) {
-            if (session) session->send_line("Error:xlate5: line " + std::to_string(p.line_no) + ": '" + cmd +
-                                            "' is longer than the firmware's line buffer");
-            stop("line " + std::to_string(p.line_no) + " is too long for the firmware");
-            if (session) session->ok();
+    std::vector<std::string> commands;
+    if (p.code.is('M', 105)) {
+        // Temperatures: nothing to translate, and no reason to end the look-back window.
+        commands.push_back(proto::strip_comment(p.command));
+    } else {
+        // A wait or a report (M400, M114, M109 …) is answered by the firmware once everything
+        // before it ran: the look-back window ends there.
+        if (wait_for_firmware) release_held();
+        out_.clear();
+        try {
+            translator_->feed(p.command, p.line_no, out_);
+        } catch (const InputError& e) {
+            refuse_line(p, e.message());
             return;
         }
-        if (parts.size() > 1) ++stats_.split_long;
-        for (auto& part : parts) lines.push_back(std::move(part));
+        holding_ = true;
+        proto::append_commands(out_, commands);
+    }
+    std::vector<std::string> lines;
+    std::string bad;
+    if (!split_all(commands, lines, bad)) {
+        refuse_line(p, "'" + bad + "' is longer than the firmware's line buffer");
+        return;
     }
     // All or nothing: a line that fails above leaves nothing of itself in the queue.
-    for (std::size_t i = 0; i < lines.size(); ++i) {
-        if (wait_for_firmware && i + 1 == lines.size()) {
-            tag = next_tag_++;
-            deferred_[tag] = p.session;
-        }
-        firmware_->enqueue(std::move(lines[i]), tag);
-        ++stats_.lines_out;
-    }
+    std::uint64_t tag = 0;
+    if (wait_for_firmware && !lines.empty()) tag = next_tag_++;
+    enqueue_all(lines, tag, p.session);
     if (session && tag == 0) session->ok();
 }
 
@@ -264,12 +421,12 @@ void Service::arm_busy() {
     if (busy_armed_) return;
     busy_armed_ = true;
     busy_timer_.expires_after(std::chrono::milliseconds(int(opt_.busy_interval * 1000)));
-    busy_timer_.async_wait([this](boost::system::error_code ec) {
+    busy_timer_.async_wait(lifetime_.guard([this](boost::system::error_code ec) {
         busy_armed_ = false;
         if (ec || pending_.empty()) return;
         if (auto s = pending_.front().session.lock()) s->send_line("echo:busy: processing");
         arm_busy();
-    });
+    }));
 }
 
 void Service::firmware_ready(const std::vector<std::string>&) {
@@ -286,8 +443,9 @@ void Service::firmware_acked(std::uint64_t tag, std::string_view ok_payload) {
 void Service::firmware_progress() { pump(); }
 
 void Service::firmware_fault(const std::string& why, std::size_t lines_not_executed) {
+    stop_healthy_ = false;
     broadcast("Error:xlate5: " + why + "; print stopped, " + std::to_string(lines_not_executed) +
-              " queued lines were not sent (nothing is replayed). Send M999 to restart.");
+              " queued lines not executed or not confirmed (nothing is replayed). Send M999 to restart.");
     stop(why);
     reset_translator();
     check_drained();
@@ -317,13 +475,15 @@ std::string Service::tool_space_position(std::string_view report) const {
     char buf[96];
     std::snprintf(buf, sizeof buf, "X:%.2f Y:%.2f Z:%.2f", tip.x(), tip.y(), tip.z());
     std::string out = buf;
+    // E right after Z: OctoPrint 1.x reads M114 only as "X: Y: Z: E:" (PROTOCOL.md); the
+    // rotaries follow.
+    if (have_e) {
+        std::snprintf(buf, sizeof buf, " E:%.2f", e);
+        out += buf;
+    }
     for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
         if (!machine_.joints[j].rotary) continue;
         std::snprintf(buf, sizeof buf, " %c:%.2f", machine_.joints[j].name, q[j]);
-        out += buf;
-    }
-    if (have_e) {
-        std::snprintf(buf, sizeof buf, " E:%.2f", e);
         out += buf;
     }
     return out;
@@ -338,27 +498,38 @@ void Service::firmware_message(std::string_view line) {
 }
 
 void Service::drain(double timeout, std::function<void(const std::string&)> done) {
+    if (!stopped() && firmware_ && firmware_->state() == FirmwareLink::State::Ready) release_held();
     draining_ = true;
     drained_ = std::move(done);
     drain_timer_.expires_after(std::chrono::milliseconds(std::int64_t(timeout * 1000)));
-    drain_timer_.async_wait([this](boost::system::error_code ec) {
+    drain_timer_.async_wait(lifetime_.guard([this](boost::system::error_code ec) {
         if (ec || !drained_) return;
         const auto left = firmware_ ? firmware_->queued() : 0;
         auto done = std::move(drained_);
         drained_ = nullptr;
         done("not drained after the timeout: " + std::to_string(left) + " lines not sent; the print is stopped between lines");
-    });
+    }));
+    check_drained();
+}
+
+void Service::when_idle(std::function<void()> f) {
+    idle_waiter_ = std::move(f);
     check_drained();
 }
 
 void Service::check_drained() {
+    if (idle_waiter_ && idle()) {
+        auto f = std::move(idle_waiter_);
+        idle_waiter_ = nullptr;
+        f();
+    }
     if (!draining_ || !drained_) return;
     const bool fw_done = !firmware_ || firmware_->idle() || firmware_->state() == FirmwareLink::State::Faulted;
     if (!fw_done) return;
     drain_timer_.cancel();
     auto done = std::move(drained_);
     drained_ = nullptr;
-    done(stopped() ? "stopped: " + stop_reason_ : std::string("drained: every accepted line was executed"));
+    done(stopped() ? "stopped: " + stop_reason_ : std::string("drained: the firmware acknowledged every accepted line"));
 }
 
 }  // namespace xlate5

@@ -1,6 +1,7 @@
 // The service: senders' lines in, through the translator, into a bounded queue, out to the
 // firmware link; the firmware's replies back to the senders (positions converted to tool space).
-// One io_context drives everything; nothing blocks and nothing polls.
+// One io_context drives everything; nothing blocks and nothing polls. Stage: the service's
+// middle; may call the translator (its public API), sender_session, firmware_link.
 #pragma once
 #include <cstdint>
 #include <deque>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "daemon/firmware_link.hpp"
+#include "daemon/lifetime.hpp"
 #include "daemon/sender_session.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
@@ -21,7 +23,9 @@ namespace xlate5 {
 
 struct ServiceOptions {
     std::size_t queue_lines = 64;     // translated lines waiting for the firmware before senders are held
-    double busy_interval = 2.0;       // seconds between "busy: processing" to a sender held by a full queue
+    double busy_interval = marlin::kKeepaliveSeconds;  // seconds between "busy: processing" to a sender held by a full queue
+    double hold_seconds = 1.0;        // a pause this long in the senders' stream ends the look-back window
+    std::size_t max_pending = 256;    // lines of one sender read ahead of the queue before it is read no further
     TranslatorOptions translator;
 };
 
@@ -51,6 +55,8 @@ public:
     // the firmware faulted); after `timeout` seconds, the unsent lines are dropped explicitly.
     void drain(double timeout, std::function<void(const std::string& outcome)> done);
     bool idle() const;
+    // Calls `f` once the service is idle (at once if it is): nothing queued, held or in flight.
+    void when_idle(std::function<void()> f);
     bool stopped() const { return !stop_reason_.empty(); }
     const std::string& stop_reason() const { return stop_reason_; }
     FirmwareLink* firmware() { return firmware_.get(); }
@@ -65,10 +71,13 @@ public:
     void firmware_fault(const std::string& why, std::size_t lines_not_executed) override;
     void firmware_progress() override;
     // SenderSession::Host
-    void sender_command(SenderSession& s, std::string_view command, proto::Code code, std::uint64_t line_no) override;
+    void sender_command(SenderSession& s, std::string_view command, proto::Code code, std::uint64_t line_no, bool numbered) override;
     void sender_emergency(SenderSession& s, std::string_view command) override;
     std::string sender_m115() override;
     void sender_gone(SenderSession& s) override;
+    void sender_left(SenderSession& s) override;
+    void sender_reset(SenderSession& s) override;
+    std::size_t pending_lines() const { return pending_.size(); }
 
 private:
     struct Pending {
@@ -76,6 +85,7 @@ private:
         std::string command;
         proto::Code code;
         std::uint64_t line_no;
+        bool numbered;
     };
     void pump();
     void process(const Pending& p);
@@ -85,6 +95,13 @@ private:
     void check_drained();
     std::string tool_space_position(std::string_view report) const;
     void reset_translator();
+    void release_held();
+    bool split_all(const std::vector<std::string>& commands, std::vector<std::string>& lines, std::string& bad);
+    void arm_hold();
+    bool claim(SenderSession& s);
+    void clear_stop();
+    void refuse_line(const Pending& p, const std::string& cause);
+    void enqueue_all(std::vector<std::string>& commands, std::uint64_t tag, const std::weak_ptr<SenderSession>& who);
 
     asio::io_context& io_;
     Machine machine_;
@@ -101,10 +118,16 @@ private:
     std::string stop_reason_;
     bool draining_ = false;
     std::function<void(const std::string&)> drained_;
-    asio::steady_timer busy_timer_, drain_timer_;
+    std::function<void()> idle_waiter_;
+    asio::steady_timer busy_timer_, drain_timer_, hold_timer_;
+    bool holding_ = false;            // the translator may hold output (look-back)
+    std::uint64_t lines_seen_ = 0;
+    bool stop_healthy_ = false;       // stopped by a refused line, not by the firmware: the printer is fine
+    std::weak_ptr<SenderSession> owner_;  // the sender printing
     bool busy_armed_ = false;
     std::string out_;  // translator output scratch
     ServiceStats stats_;
+    Lifetime lifetime_;  // last member: handlers check it first
 };
 
 }  // namespace xlate5

@@ -37,13 +37,21 @@ bool known(const proto::Code& c, bool reprap) {
     return false;
 }
 
+bool is_slow(const proto::Code& c) {
+    return c.is('G', 28) || c.is('G', 4) || c.is('M', 109) || c.is('M', 190) || c.is('M', 400);
+}
+
+constexpr double kStepsPerMm = 80;  // for M114's "Count" words only
+
+constexpr std::string_view kStopped =
+    "Printer stopped due to errors. Fix the error and use M999 to restart. (Temperature is reset. Set it after restarting)";
+
 }  // namespace
 
 VirtualPrinter::VirtualPrinter(asio::io_context& io, int master_fd, SimOptions options)
     : opt_(std::move(options)), rng_(opt_.faults.seed), run_timer_(io), wire_timer_(io), busy_timer_(io) {
     link_ = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, master_fd), "virtual printer");
     link_->eio_is_transient = true;  // xlate5 may close and reopen its end
-    link_->max_line = opt_.max_line;  // a longer line is cut, as in the firmware's buffer
     pos_.assign(opt_.axes.size() + 1, 0.0);
     if (!opt_.record_path.empty()) record_.open(opt_.record_path, std::ios::trunc);
 }
@@ -51,8 +59,8 @@ VirtualPrinter::VirtualPrinter(asio::io_context& io, int master_fd, SimOptions o
 VirtualPrinter::~VirtualPrinter() { link_->close(); }
 
 void VirtualPrinter::start() {
-    // A weak reference: the link must not keep its owner alive (the record file is flushed when
-    // the printer goes away).
+    // Weak: the link must not keep its owner alive (the record file is flushed when the
+    // printer goes away); the same guard as every other handler of the service.
     std::weak_ptr<VirtualPrinter> weak = shared_from_this();
     link_->start([weak](std::string_view line) {
         if (auto self = weak.lock()) self->on_line(line);
@@ -61,13 +69,20 @@ void VirtualPrinter::start() {
 }
 
 void VirtualPrinter::boot() {
-    last_n_ = 0;
-    buffer_.clear();
+    checker_.set_last_line(0);
+    rx_.clear();
+    line_.clear();
+    ring_.clear();
     planner_.clear();
-    halted_ = false;
+    halted_ = stopped_ = false;
     run_timer_.cancel();
     busy_timer_.cancel();
     running_ = false;
+    if (opt_.faults.greeting_resend) {
+        // Still the number of a print before: the host's first numbered line is out of sequence.
+        checker_.set_last_line(1000);
+        stale_resend_due_ = true;
+    }
     reply("start");
     reply(opt_.reprap ? "RepRapFirmware (virtual, xlate5) started" : "echo:Marlin 2.1.2 (virtual printer, xlate5)");
 }
@@ -80,11 +95,21 @@ void VirtualPrinter::unplug() {
     link_->close();
 }
 
+void VirtualPrinter::halt(const std::string& why) {
+    halted_ = true;
+    ring_.clear();
+    rx_.clear();
+    line_.clear();
+    if (!why.empty()) reply(why);
+    reply("Error:Printer halted. kill() called!");
+}
+
 void VirtualPrinter::reply(std::string line) {
     if (unplugged_) return;
     if (opt_.faults.garble_reply > 0 && uni_(rng_) < opt_.faults.garble_reply && !line.empty()) {
         std::uniform_int_distribution<std::size_t> at(0, line.size() - 1);
-        line[at(rng_)] ^= 0x20;  // e.g. "ok" becomes "oK" or "Ok"... and "Resend" something else
+        std::uniform_int_distribution<int> bit(0, 6);
+        line[at(rng_)] ^= char(1 << bit(rng_));  // "ok" may become "oo", "Resend: 41" "Resend: 45"
         ++stats_.garbled;
     }
     line += '\n';
@@ -93,39 +118,43 @@ void VirtualPrinter::reply(std::string line) {
 
 void VirtualPrinter::on_line(std::string_view raw) {
     if (unplugged_) return;
-    stats_.bytes += raw.size() + 1;
     std::string line(raw);
     auto& f = opt_.faults;
+    // M112 is acted on by the emergency parser as its bytes arrive, ahead of everything queued.
+    if (!opt_.reprap && !halted_ && proto::command_code(proto::strip_comment(proto::parse_received(line).command)).is('M', 112)) {
+        if (opt_.keep_executed) executed_.push_back("M112");
+        if (record_.is_open()) record_ << "M112\n";
+        halt("echo:M112 Shutdown");
+        return;
+    }
     if (f.corrupt > 0 && !line.empty() && uni_(rng_) < f.corrupt) {
         std::uniform_int_distribution<std::size_t> at(0, line.size() - 1);
         std::uniform_int_distribution<int> bit(0, 6);
         line[at(rng_)] ^= char(1 << bit(rng_));
         ++stats_.corrupted;
     }
-    if (!carry_.empty()) {
-        line = carry_ + line;  // the newline before this line was lost: the two arrive as one
-        carry_.clear();
-    }
+    bool newline = true;
     if (f.drop > 0 && !line.empty() && uni_(rng_) < f.drop) {
-        // One byte lost (a single lost byte always changes an XOR checksum; several can cancel
-        // out, which no XOR-checked firmware can notice), or the newline.
+        // One byte lost, or the newline (a single lost byte always changes an XOR checksum).
         std::uniform_int_distribution<std::size_t> at(0, line.size());
         const auto a = at(rng_);
         ++stats_.corrupted;
-        if (a == line.size()) {
-            carry_ = line;
-            return;
-        }
-        line.erase(a, 1);
+        if (a == line.size()) newline = false;
+        else line.erase(a, 1);
     }
+    if (f.lose_newline > 0 && newline && uni_(rng_) < f.lose_newline) {
+        newline = false;
+        ++stats_.lost_newlines;
+    }
+    if (newline) line += '\n';
     if (opt_.baud <= 0) {
-        accept(line);
+        arrive(line);
         return;
     }
-    // The wire: a line is complete only after its bytes have crossed at baud/10 bytes per second.
+    // The wire: bytes are there only after they have crossed at baud/10 bytes per second.
     const auto now = Clock::now();
     if (wire_free_ < now) wire_free_ = now;
-    wire_free_ += std::chrono::microseconds(std::int64_t((line.size() + 1) * 10.0 * 1e6 / opt_.baud));
+    wire_free_ += std::chrono::microseconds(std::int64_t(double(line.size()) * 10.0 * 1e6 / opt_.baud));
     wire_.emplace_back(wire_free_, std::move(line));
     pump_wire();
 }
@@ -133,93 +162,160 @@ void VirtualPrinter::on_line(std::string_view raw) {
 void VirtualPrinter::pump_wire() {
     if (wire_.empty() || wire_armed_) return;
     wire_armed_ = true;
-    auto self = shared_from_this();
+    std::weak_ptr<VirtualPrinter> weak = shared_from_this();
     wire_timer_.expires_at(wire_.front().first);
-    wire_timer_.async_wait([this, self](boost::system::error_code ec) {
-        wire_armed_ = false;
-        if (ec || unplugged_) return;
+    wire_timer_.async_wait([weak](boost::system::error_code ec) {
+        auto self = weak.lock();
+        if (!self) return;
+        self->wire_armed_ = false;
+        if (ec || self->unplugged_) return;
         const auto t = Clock::now();
-        while (!wire_.empty() && wire_.front().first <= t) {
-            const std::string l = std::move(wire_.front().second);
-            wire_.pop_front();
-            accept(l);
+        while (!self->wire_.empty() && self->wire_.front().first <= t) {
+            const std::string l = std::move(self->wire_.front().second);
+            self->wire_.pop_front();
+            self->arrive(l);
         }
-        pump_wire();
+        self->pump_wire();
     });
 }
 
-void VirtualPrinter::refuse(const char* why) {
+void VirtualPrinter::arrive(const std::string& bytes) {
+    if (halted_ || unplugged_) return;
+    stats_.bytes += bytes.size();
+    // The serial receive buffer: what does not fit is lost.
+    const std::size_t room = opt_.rx_size > rx_.size() ? opt_.rx_size - rx_.size() : 0;
+    rx_.append(bytes, 0, std::min(room, bytes.size()));
+    if (bytes.size() > room) stats_.overflow_bytes += bytes.size() - room;
+    schedule();
+}
+
+void VirtualPrinter::schedule() {
+    // The firmware's main loop reads the receive buffer later, not byte by byte as it arrives:
+    // everything that came in one burst is in the buffer together (and flushed together).
+    if (scheduled_) return;
+    scheduled_ = true;
+    std::weak_ptr<VirtualPrinter> weak = shared_from_this();
+    asio::post(link_->stream_executor(), [weak] {
+        auto self = weak.lock();
+        if (!self) return;
+        self->scheduled_ = false;
+        self->read_serial();
+        self->run_queue();
+    });
+}
+
+void VirtualPrinter::read_serial() {
+    // Marlin's get_serial_commands: read while the command buffer has room.
+    while (!halted_ && !unplugged_ && int(ring_.size()) < opt_.buffer && !rx_.empty()) {
+        const char c = rx_.front();
+        rx_.erase(0, 1);
+        if (c == '\n' || c == '\r') {
+            if (!line_.empty()) {
+                std::string l;
+                l.swap(line_);
+                process(l);
+            }
+            continue;
+        }
+        line_ += c;
+        if (line_.size() >= opt_.max_line - 1) {
+            // MAX_CMD_SIZE - 1 characters: the line ends here, the rest is read as a new line.
+            ++stats_.cut_lines;
+            std::string l;
+            l.swap(line_);
+            process(l);
+        }
+    }
+}
+
+void VirtualPrinter::refuse(std::string_view why) {
     ++stats_.refused;
-    reply(std::string("Error:") + why + ", Last Line: " + std::to_string(last_n_));
-    reply("Resend: " + std::to_string(last_n_ + 1));
+    reply(checker_.error_line(why));
+    // Marlin empties the whole receive buffer: every line received but not yet read vanishes.
+    stats_.flushed_bytes += rx_.size() + line_.size();
+    rx_.clear();
+    line_.clear();
+    reply(checker_.resend_line());
     if (!opt_.faults.no_ok_after_resend) reply("ok");
 }
 
-void VirtualPrinter::accept(std::string_view line) {
-    if (halted_ || unplugged_) return;
+void VirtualPrinter::process(const std::string& line) {
     ++stats_.received;
-    const auto r = proto::parse_received(line);
-    const std::string command = proto::strip_comment(r.command);
-    if (command.empty() && !r.number) return;
+    if (stale_resend_due_) {
+        // The firmware answers the first line with the old number it still holds.
+        stale_resend_due_ = false;
+        const auto r = proto::parse_received(line);
+        if (r.number && !proto::command_code(proto::strip_comment(r.command)).is('M', 110)) {
+            refuse(proto::kErrLineNumber);
+            return;
+        }
+        reply(checker_.error_line(proto::kErrLineNumber));
+        reply(checker_.resend_line());
+        reply("ok");
+    }
+    const auto parsed = proto::parse_received(line);
+    const std::string command = proto::strip_comment(parsed.command);
     const auto code = proto::command_code(command);
-    // The emergency parser acts on these as the bytes arrive, ahead of the buffer.
-    if (code.is('M', 112)) {
-        if (opt_.keep_executed) executed_.push_back("M112");
-        if (record_.is_open()) record_ << "M112\n";
-        halted_ = true;
-        reply("Error:Printer halted. kill() called!");
-        return;
+    if (code.is('M', 110) && parsed.number) {
+        // A host greeting again: oks of earlier lines may still be on their way.
+        if (greeted_once_)
+            for (std::uint64_t i = 0; i < opt_.faults.stale_oks; ++i) reply("ok");
+        greeted_once_ = true;
     }
-    if (r.number) {
-        const bool checked = r.has_checksum && r.checksum_ok;
-        if (opt_.reprap) {
-            if (!checked) {  // RepRapFirmware drops it without a word: the host must time out
-                ++stats_.dropped;
-                return;
-            }
-        } else {
-            if (!r.has_checksum) return refuse("No Checksum with line number");
-            if (!r.checksum_ok) return refuse("checksum mismatch");
-            if (!code.is('M', 110) && *r.number != last_n_ + 1) return refuse("Line Number is not Last Line Number+1");
-            if (opt_.faults.spurious_resend > 0 && !code.is('M', 110) && uni_(rng_) < opt_.faults.spurious_resend)
-                return refuse("checksum mismatch");
+    if (opt_.reprap) {
+        // RepRapFirmware: a numbered line must carry a checksum, and any checksum must be right, or the line is dropped without a word.
+        if ((parsed.number && !parsed.has_checksum) || !parsed.checksum_ok) {
+            ++stats_.dropped;
+            return;
         }
-        last_n_ = *r.number;
-    }
-    if (code.is('M', 110))
-        if (const auto n = proto::m110_line(command)) last_n_ = *n;
-    if (!r.number && r.has_checksum) {
-        if (!r.checksum_ok || !opt_.reprap) {
-            // A damaged N: Marlin refuses it, RepRapFirmware drops it (the checksum fails).
-            if (opt_.reprap) {
-                ++stats_.dropped;
-                return;
-            }
-            return refuse("No Line Number with checksum");
+    } else {
+        const auto v = checker_.check(line);
+        if (v.verdict == proto::LineChecker::Verdict::Duplicate) {
+            ++stats_.duplicates;  // taken for a copy of a line already in transit: no reply at all
+            return;
+        }
+        if (v.verdict == proto::LineChecker::Verdict::Refuse) return refuse(v.why);
+        if (opt_.faults.spurious_resend > 0 && parsed.number && !code.is('M', 110) && uni_(rng_) < opt_.faults.spurious_resend) {
+            checker_.set_last_line(*parsed.number - 1);
+            return refuse(proto::kErrChecksumMismatch);
         }
     }
-    buffer_.push_back({command, r.number.value_or(-1)});
-    run_queue();
+    if (command.empty()) return;
+    ring_.push_back({command, parsed.number.value_or(-1)});
 }
 
 void VirtualPrinter::run_queue() {
     if (running_) return;
-    auto self = shared_from_this();
-    while (!buffer_.empty() && !halted_ && !unplugged_) {
+    std::weak_ptr<VirtualPrinter> weak = shared_from_this();
+    const auto wait = [&](asio::steady_timer& t, Clock::time_point until) {
+        running_ = true;
+        t.expires_at(until);
+        t.async_wait([weak](boost::system::error_code ec) {
+            auto self = weak.lock();
+            if (!self) return;
+            self->running_ = false;
+            if (!ec) self->run_queue();
+        });
+    };
+    while (!halted_ && !unplugged_) {
+        read_serial();
+        if (ring_.empty()) return;
         const auto now = Clock::now();
-        const auto code = proto::command_code(buffer_.front().text);
-        if (is_move(code)) {
+        const auto code = proto::command_code(ring_.front().text);
+        if (is_move(code) && !stopped_) {
             while (!planner_.empty() && planner_.front() <= now) planner_.pop_front();
             if (int(planner_.size()) >= opt_.planner) {
-                // Slow planner: the command waits for a slot, and so does its ok.
-                running_ = true;
-                run_timer_.expires_at(planner_.front());
-                run_timer_.async_wait([this, self](boost::system::error_code ec) {
-                    running_ = false;
-                    if (!ec) run_queue();
-                });
+                // A full planner: the command waits for a slot, and so does its ok. Marlin's
+                // keepalive runs meanwhile (the command is in its handler).
+                if (blocked_since_ == Clock::time_point{}) blocked_since_ = last_keepalive_ = now;
+                if (!opt_.faults.quiet_planner && !opt_.reprap && now - last_keepalive_ >= ms(opt_.faults.busy_interval * 1000)) {
+                    reply("echo:busy: processing");
+                    last_keepalive_ = now;
+                }
+                wait(run_timer_, std::min(planner_.front(), last_keepalive_ + ms(opt_.faults.busy_interval * 1000)));
                 return;
             }
+            blocked_since_ = {};
             const auto begin = planner_.empty() ? now : std::max(now, planner_.back());
             planner_.push_back(begin + ms(opt_.faults.move_ms));
         }
@@ -227,38 +323,36 @@ void VirtualPrinter::run_queue() {
         // dwelling). Marlin sends keepalives meanwhile; RepRapFirmware says nothing.
         double hold = 0;
         if (is_move(code) && opt_.faults.busy > 0 && uni_(rng_) < opt_.faults.busy) hold = opt_.faults.busy_seconds;
-        if (opt_.faults.slow_seconds > 0 && (code.is('G', 28) || code.is('G', 4) || code.is('M', 109) || code.is('M', 190) || code.is('M', 400)))
-            hold = opt_.faults.slow_seconds;
+        if (opt_.faults.slow_seconds > 0 && is_slow(code)) hold = opt_.faults.slow_seconds;
         if (hold > 0) {
-            {
-                running_ = true;
-                const auto until = now + ms(hold * 1000);
-                const bool keepalives = !opt_.reprap;
-                // The keepalive loop holds itself only through the pending timer's handler (a
-                // weak self-reference), so it goes away when the loop ends.
-                auto keepalive = std::make_shared<std::function<void()>>();
-                std::weak_ptr<std::function<void()>> loop = keepalive;
-                *keepalive = [this, self, until, loop, keepalives]() {
-                    if (halted_ || unplugged_) { running_ = false; return; }
-                    if (Clock::now() >= until) {
-                        running_ = false;
-                        const auto c = buffer_.front();
-                        buffer_.pop_front();
-                        execute(c);
-                        run_queue();
-                        return;
-                    }
-                    if (keepalives) reply("echo:busy: processing");
-                    busy_timer_.expires_after(ms(opt_.faults.busy_interval * 1000));
-                    busy_timer_.async_wait([again = loop.lock()](boost::system::error_code ec) { if (!ec && again) (*again)(); });
-                };
-                busy_timer_.expires_after(ms(opt_.faults.busy_interval * 1000));
-                busy_timer_.async_wait([keepalive](boost::system::error_code ec) { if (!ec) (*keepalive)(); });
-                return;
-            }
+            const auto until = now + ms(hold * 1000);
+            running_ = true;
+            auto tick = std::make_shared<std::function<void()>>();
+            std::weak_ptr<std::function<void()>> loop = tick;
+            *tick = [weak, until, loop]() {
+                auto self = weak.lock();
+                auto again = loop.lock();
+                if (!self || !again) return;
+                if (self->halted_ || self->unplugged_) { self->running_ = false; return; }
+                if (Clock::now() >= until) {
+                    self->running_ = false;
+                    if (self->ring_.empty()) return;
+                    const auto c = self->ring_.front();
+                    self->ring_.pop_front();
+                    self->execute(c);
+                    self->run_queue();
+                    return;
+                }
+                if (!self->opt_.reprap) self->reply("echo:busy: processing");
+                self->busy_timer_.expires_after(std::min(ms(self->opt_.faults.busy_interval * 1000), until - Clock::now()));
+                self->busy_timer_.async_wait([again](boost::system::error_code ec) { if (!ec) (*again)(); });
+            };
+            busy_timer_.expires_after(std::min(ms(opt_.faults.busy_interval * 1000), until - now));
+            busy_timer_.async_wait([tick](boost::system::error_code ec) { if (!ec) (*tick)(); });
+            return;
         }
-        const auto c = buffer_.front();
-        buffer_.pop_front();
+        const auto c = ring_.front();
+        ring_.pop_front();
         execute(c);
     }
 }
@@ -269,7 +363,7 @@ std::string VirtualPrinter::position_report() const {
     for (std::size_t i = 0; i < opt_.axes.size(); ++i) {
         std::snprintf(buf, sizeof buf, "%s%c:%.2f", i ? " " : "", opt_.axes[i], pos_[i]);
         s += buf;
-        std::snprintf(buf, sizeof buf, " %c:%ld", opt_.axes[i], long(std::lround(pos_[i] * 80)));
+        std::snprintf(buf, sizeof buf, " %c:%ld", opt_.axes[i], long(std::lround(pos_[i] * kStepsPerMm)));
         count += buf;
     }
     std::snprintf(buf, sizeof buf, " E:%.2f", pos_.back());
@@ -277,12 +371,21 @@ std::string VirtualPrinter::position_report() const {
 }
 
 void VirtualPrinter::execute(const Command& c) {
-    ++stats_.executed;
-    if (opt_.keep_executed) executed_.push_back(c.text);
-    if (record_.is_open()) record_ << c.text << '\n';
     const auto code = proto::command_code(c.text);
     std::string ok = "ok";
-    if (code.is('G', 0) || code.is('G', 1) || code.is('G', 92)) {
+    const bool unknown = !code.letter || !known(code, opt_.reprap);
+    if (stopped_ && is_move(code)) {
+        // Stopped: moves are refused (and not run) until M999.
+        reply("Error:" + std::string(kStopped));
+    } else if (!unknown) {
+        // Executed: what the firmware acted on (an unknown command is only echoed).
+        ++stats_.executed;
+        if (opt_.keep_executed) executed_.push_back(c.text);
+        if (record_.is_open()) record_ << c.text << '\n';
+    }
+    if ((stopped_ && is_move(code)) || unknown) {
+        if (unknown) reply("echo:Unknown command: \"" + c.text.substr(0, c.text.find(' ')) + "\"");
+    } else if (code.is('G', 0) || code.is('G', 1) || code.is('G', 92)) {
         // Track the position for M114 (absolute words only: xlate5 always sends absolute joints).
         for (std::size_t i = 0; i < c.text.size(); ++i) {
             const char l = c.text[i];
@@ -292,7 +395,9 @@ void VirtualPrinter::execute(const Command& c) {
             if (l == 'E') pos_.back() = std::strtod(c.text.c_str() + i + 1, nullptr);
         }
     } else if (code.is('M', 115)) {
-        if (opt_.reprap) {
+        if (!opt_.firmware_name.empty()) {
+            reply("FIRMWARE_NAME:" + opt_.firmware_name);
+        } else if (opt_.reprap) {
             reply("FIRMWARE_NAME: RepRapFirmware for Duet 3 (virtual, xlate5) FIRMWARE_VERSION: 3.5.0 ELECTRONICS: virtual");
         } else {
             reply("FIRMWARE_NAME:Marlin 2.1.2 (virtual printer, xlate5) SOURCE_CODE_URL:local PROTOCOL_VERSION:1.0 "
@@ -308,22 +413,27 @@ void VirtualPrinter::execute(const Command& c) {
         reply(position_report());
     } else if (code.is('M', 105)) {
         ok = "ok T:21.50 /0.00 B:20.10 /0.00 @:0 B@:0";
-    } else if (code.letter && !known(code, opt_.reprap)) {
-        reply("echo:Unknown command: \"" + c.text.substr(0, c.text.find(' ')) + "\"");
+    } else if (code.is('M', 999) && !opt_.reprap) {
+        // Marlin: running again, and the host is asked to go on from the line after the last one.
+        stopped_ = false;
+        reply(checker_.resend_line());
     }
     if (opt_.advanced_ok && !opt_.reprap && ok == "ok") {
-        int planner_free = opt_.planner - int(planner_.size());
-        ok += " N" + std::to_string(c.n < 0 ? last_n_ : c.n) + " P" + std::to_string(std::max(0, planner_free)) + " B" +
-              std::to_string(std::max(0, opt_.buffer - 1 - int(buffer_.size())));
+        // The N is the command's own, when it had one (Marlin copies it from the buffer).
+        const int planner_free = opt_.planner - int(planner_.size());
+        if (c.n >= 0) ok += " N" + std::to_string(c.n);
+        ok += " P" + std::to_string(std::max(0, planner_free)) + " B" + std::to_string(std::max(0, opt_.buffer - 1 - int(ring_.size())));
     }
-    reply(ok);
+    if (opt_.faults.lose_ok > 0 && uni_(rng_) < opt_.faults.lose_ok) ++stats_.lost_oks;
+    else reply(ok);
     const auto& f = opt_.faults;
     if (f.unplug_after && stats_.executed == f.unplug_after) {
         unplug();
     } else if (f.kill_after && stats_.executed == f.kill_after) {
-        halted_ = true;
-        reply("echo:Homing Failed");
-        reply("Error:Printer halted. kill() called!");
+        halt("echo:Homing Failed");
+    } else if (f.stop_after && stats_.executed == f.stop_after && !stopped_) {
+        stopped_ = true;
+        reply("Error:" + std::string(kStopped));
     } else if (f.reset_after && stats_.executed == f.reset_after) {
         ++stats_.resets;
         boot();

@@ -1,7 +1,23 @@
-// A virtual printer: a Marlin-like or RepRapFirmware-like firmware on the far end of a
-// pseudo-terminal, so the whole service runs with no hardware (`--printer sim`) and tests can
-// inject every fault a real link shows. It records every command it executes, in order, so a
-// test can prove that nothing was lost, duplicated or reordered on the way.
+// A TEST DOUBLE of a printer's firmware (stage: service, used by tests, `--printer sim` and the
+// bench; may call line_checker, line_protocol, link): a Marlin-like or RepRapFirmware-like
+// firmware on the far end of a pseudo-terminal, so the whole service runs with no hardware and
+// tests can inject the faults a real link shows. It records every command it executes, in
+// order, so a test can prove that nothing was lost, duplicated or reordered on the way.
+//
+// It follows Marlin's receive rules as ../shared/spec/PROTOCOL.md quotes them from Marlin's
+// queue.cpp: a serial receive buffer of `rx_size` bytes (bytes beyond it are lost), a command
+// buffer of `buffer` lines that the receive buffer is read into only while it has room, lines
+// read up to MAX_CMD_SIZE - 1 characters (the rest is read as a new line), the line number
+// checked before the checksum, a repeat of last_N or last_N - 1 dropped without a word, every
+// refusal emptying the whole receive buffer, and "ok" only once a command is taken (a move: once
+// the planner has room). M112 acts as its bytes arrive (EMERGENCY_PARSER).
+//
+// What it leaves out: temperatures (M105 reports fixed values, M109/M190 only take time), real
+// motion (a move takes `move_ms`; positions are the last commanded), SD cards, host action
+// commands, multiple serial ports, the exact text of most echo: messages, and what Marlin's
+// parser makes of the tail of a cut line beyond "unknown command" (a tail that starts with a G
+// or M code is run, as Marlin would). RepRapFirmware is modelled only as far as its reply to
+// a bad line (dropped silently) and its silence during long commands.
 #pragma once
 #include <cstdint>
 #include <deque>
@@ -11,23 +27,31 @@
 #include <string>
 #include <vector>
 
+#include "daemon/firmware_protocol.hpp"
+#include "daemon/line_checker.hpp"
 #include "daemon/link.hpp"
 
 namespace xlate5 {
 
 struct SimFaults {
-    double corrupt = 0;          // per received line: one byte flipped (line noise)
-    double drop = 0;             // per received line: a run of bytes lost (possibly the '\n')
+    double corrupt = 0;          // per received line: one bit flipped (line noise)
+    double drop = 0;             // per received line: one byte lost (possibly the '\n')
+    double lose_newline = 0;     // per received line: its '\n' lost (it joins the next line)
+    double lose_ok = 0;          // per ok: not sent
     double garble_reply = 0;     // per reply line: a byte flipped on the way back
-    double spurious_resend = 0;  // per accepted line: refuse it anyway with Resend (as after noise)
+    double spurious_resend = 0;  // per accepted line: refuse it anyway (as after noise)
     bool no_ok_after_resend = false;  // some Marlin versions send Resend without an ok
+    bool greeting_resend = false;     // the firmware still holds an old line number: the first line it gets draws a stale Resend
+    std::uint64_t stale_oks = 0;      // oks of earlier lines still on their way when the host greets again
+    bool quiet_planner = false;  // no busy: keepalives while a move waits for the planner (HOST_KEEPALIVE off)
     double busy = 0;             // per executed move: a busy period with "busy: processing" keepalives
     double busy_seconds = 3;
-    double busy_interval = 1;    // seconds between keepalives (Marlin: 2)
+    double busy_interval = marlin::kKeepaliveSeconds;  // seconds between keepalives
     double move_ms = 0;          // time each planned move takes: a slow planner holds oks back when full
     double slow_seconds = 0;     // G28, G4, M109, M190, M400 take this long (Marlin: with keepalives; RRF: silent)
     std::uint64_t reset_after = 0;   // after executing this many lines: reboot ("start", state lost)
     std::uint64_t kill_after = 0;    // after this many: "Error:Printer halted. kill() called!"
+    std::uint64_t stop_after = 0;    // after this many: "Error:Printer stopped…" (M999 revives it)
     std::uint64_t unplug_after = 0;  // after this many: the port disappears
     std::uint64_t seed = 1;
 };
@@ -35,18 +59,21 @@ struct SimFaults {
 struct SimOptions {
     bool reprap = false;       // RepRapFirmware personality (drops bad lines silently)
     bool advanced_ok = false;  // Marlin ADVANCED_OK: "ok N<n> P<p> B<b>"
-    int buffer = 4;            // command buffer (BUFSIZE)
-    int planner = 16;          // planner slots
+    int buffer = marlin::kBufSize;         // command buffer (BUFSIZE)
+    int planner = marlin::kPlannerSize;    // planner slots
+    std::size_t rx_size = marlin::kRxBufferSize;  // serial receive buffer (RX_BUFFER_SIZE)
     std::string axes = "XYZAB";  // the firmware's axis letters
-    int baud = 0;              // 0: unlimited; else lines arrive no faster than baud/10 bytes per second
+    int baud = 0;              // 0: unlimited; else bytes arrive no faster than baud/10 per second
     SimFaults faults;
     std::string record_path;   // write executed commands here, one a line
     bool keep_executed = false;  // also keep them in memory (tests); off, memory stays flat however long the print
-    std::size_t max_line = 96; // a longer line is cut (MAX_CMD_SIZE)
+    std::size_t max_line = marlin::kMaxCmdSize;  // MAX_CMD_SIZE: lines are read up to max_line - 1 characters
+    std::string firmware_name;   // overrides the M115 FIRMWARE_NAME (a firmware of another flavour)
 };
 
 struct SimStats {
     std::uint64_t received = 0, executed = 0, refused = 0, dropped = 0, corrupted = 0, garbled = 0, resets = 0;
+    std::uint64_t duplicates = 0, flushed_bytes = 0, overflow_bytes = 0, lost_oks = 0, lost_newlines = 0, cut_lines = 0;
     std::uint64_t bytes = 0;  // received, newlines included
 };
 
@@ -64,30 +91,40 @@ public:
 private:
     struct Command { std::string text; std::int64_t n; };
     void on_line(std::string_view raw);
-    void accept(std::string_view line);
-    void refuse(const char* why);
+    void arrive(const std::string& bytes);
+    void schedule();
+    void read_serial();
+    void process(const std::string& line);
+    void refuse(std::string_view why);
     void run_queue();
     void pump_wire();
     void execute(const Command& c);
     void reply(std::string line);
     void boot();
+    void halt(const std::string& why);
     std::string position_report() const;
 
     std::shared_ptr<DescriptorLink> link_;
     SimOptions opt_;
     std::mt19937_64 rng_;
     std::uniform_real_distribution<double> uni_{0.0, 1.0};
-    std::int64_t last_n_ = 0;
-    std::deque<Command> buffer_;          // accepted, not yet executed
+    proto::LineChecker checker_;
+    std::string rx_;                      // serial receive buffer: received, not yet read
+    std::string line_;                    // the line being read
+    std::deque<Command> ring_;            // command buffer: taken, not yet executed
     std::deque<std::chrono::steady_clock::time_point> planner_;  // when each planned move finishes
     asio::steady_timer run_timer_, wire_timer_, busy_timer_;
     std::deque<std::pair<std::chrono::steady_clock::time_point, std::string>> wire_;  // baud-limited arrival
     std::chrono::steady_clock::time_point wire_free_{};
+    std::chrono::steady_clock::time_point blocked_since_{}, last_keepalive_{};
     bool wire_armed_ = false;
+    bool scheduled_ = false;
     bool running_ = false;  // run_queue is waiting on a timer
     bool halted_ = false;
+    bool stopped_ = false;  // Marlin's "stopped" state: moves refused until M999
     bool unplugged_ = false;
-    std::string carry_;  // a line whose newline was dropped
+    bool greeted_once_ = false;
+    bool stale_resend_due_ = false;
     std::vector<std::string> executed_;
     std::ofstream record_;
     std::vector<double> pos_;  // per axis letter, plus E last

@@ -4,6 +4,7 @@
 #pragma once
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <fcntl.h>
 #include <filesystem>
@@ -127,6 +128,8 @@ struct Rig {
         config.pty = (dir.path / "printer").string();
         config.firmware.boot_wait = 0.1;
         config.firmware.reply_timeout = 0.5;
+        config.firmware.settle = 0.02;  // a pseudo-terminal answers within milliseconds
+        config.hold_seconds = 0.2;      // the test senders stream without pauses
         config.sim.keep_executed = true;
         if (tweak) tweak(config);
         machine = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + config.machine + ".toml");
@@ -147,13 +150,15 @@ struct Rig {
     bool ready() {
         return run_until([&] { return service().firmware()->state() == FirmwareLink::State::Ready; }, 5);
     }
-    // What the virtual printer executed after its greeting (M110 N0, M115).
+    // What the virtual printer executed after its greeting (M110 N0, M115), without the M105
+    // probes xlate5 sends to resynchronise (they report temperatures and move nothing).
     std::vector<std::string> executed_after_hello() const {
         const auto& e = parts.sim->executed();
         std::vector<std::string> out;
         std::size_t i = 0;
         while (i < e.size() && (e[i] == "M110 N0" || e[i] == "M115")) ++i;
-        out.assign(e.begin() + std::ptrdiff_t(i), e.end());
+        for (; i < e.size(); ++i)
+            if (e[i] != "M105") out.push_back(e[i]);
         return out;
     }
 };
@@ -183,5 +188,30 @@ inline std::vector<std::string> rw2_print(std::size_t moves, std::uint64_t seed 
     }
     return l;
 }
+
+// Streams `lines` and checks the executed sequence against the offline translation; returns
+// what the sender received besides ok and Resend.
+inline std::vector<std::string> stream_and_compare(Rig& rig, const std::vector<std::string>& lines, double seconds, bool numbered = true) {
+    REQUIRE(rig.ready());
+    const auto expected = offline(rig.machine, lines);
+    TestSender sender(rig.io, rig.config.pty, numbered);
+    sender.stream(lines);
+    const bool finished = rig.run_until([&] { return sender.done() && rig.service().idle(); }, seconds);
+    CHECK_MESSAGE(finished, "stream did not finish: executed " << rig.sim().executed().size() << " of " << expected.size());
+    const auto executed = rig.executed_after_hello();
+    CHECK(executed.size() == expected.size());
+    // The first difference, if any, is the useful message.
+    const auto mismatch = std::mismatch(executed.begin(), executed.end(), expected.begin(), expected.end());
+    if (mismatch.first != executed.end() || mismatch.second != expected.end()) {
+        const auto at = mismatch.first - executed.begin();
+        FAIL("executed differs from the offline translation at command " << at << ": '"
+             << (mismatch.first != executed.end() ? *mismatch.first : "<end>") << "' vs '"
+             << (mismatch.second != expected.end() ? *mismatch.second : "<end>") << "'");
+    }
+    CHECK(rig.service().stop_reason().empty());
+    for (const auto& r : sender.received) CHECK_MESSAGE(r.rfind("Error", 0) != 0, "sender got: " << r);
+    return sender.received;
+}
+
 
 }  // namespace xlate5::test

@@ -1,0 +1,517 @@
+#include "daemon/firmware_protocol.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <spdlog/spdlog.h>
+
+namespace xlate5 {
+namespace {
+
+using Time = FirmwareProtocol::Time;
+
+FirmwareProtocol::Clock::duration seconds(double s) {
+    return std::chrono::duration_cast<FirmwareProtocol::Clock::duration>(std::chrono::duration<double>(s));
+}
+
+// Commands RepRapFirmware may take minutes over without a word (it sends no busy: keepalives):
+// silence after them is not a lost line. Marlin keeps talking meanwhile, so it gets no such grace.
+bool may_wait_long(std::string_view command) {
+    const auto c = proto::command_code(command);
+    if (c.letter == 'G') return c.code10 == 40 || c.code10 == 280 || c.code10 == 290;  // G4, G28, G29
+    if (c.letter != 'M' || c.code10 % 10) return false;
+    switch (c.code10 / 10) {
+        case 0: case 1: case 109: case 116: case 190: case 191: case 303: case 400: case 600: return true;
+        default: return false;
+    }
+}
+
+// "Error:…, Last Line: 41" -> 41.
+std::optional<std::int64_t> last_line_of(std::string_view line) {
+    const auto p = line.find("Last Line:");
+    if (p == std::string_view::npos) return std::nullopt;
+    std::string_view s = line.substr(p + 10);
+    while (!s.empty() && s.front() == ' ') s.remove_prefix(1);
+    std::int64_t v = 0;
+    const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
+    if (r.ec != std::errc()) return std::nullopt;
+    return v;
+}
+
+bool is_protocol_reply(proto::ReplyKind k) {
+    using K = proto::ReplyKind;
+    return k == K::Ok || k == K::Resend || k == K::Busy || k == K::LineError || k == K::Error;
+}
+
+constexpr std::string_view kProbe = "M105";  // harmless, and its "ok T:" names itself
+
+}  // namespace
+
+FirmwareProtocol::FirmwareProtocol(FirmwareOptions options) : opt_(options) {}
+
+int FirmwareProtocol::window() const {
+    if (opt_.reprap) return 1;  // a dropped line is never reported: anything sent after it would run out of order
+    if (opt_.window > 0) return opt_.window;
+    return learned_window_ > 0 ? learned_window_ : 2;
+}
+
+bool FirmwareProtocol::fits(std::string_view command) const {
+    // "N<n> " with up to 8 digits, "*<cs>" with up to 3, and the newline.
+    constexpr std::size_t kNumberRoom = 10, kChecksumRoom = 4, kNewline = 1;
+    return command.size() + kNumberRoom + kChecksumRoom + kNewline <= opt_.max_line;
+}
+
+std::optional<Time> FirmwareProtocol::deadline() const {
+    std::optional<Time> d;
+    const auto consider = [&](const std::optional<Time>& t) {
+        if (t && (!d || *t < *d)) d = t;
+    };
+    if (state_ == State::Booting) consider(boot_deadline_);
+    if (state_ == State::Greeting || state_ == State::Ready) {
+        consider(quiet_deadline_);
+        consider(reply_deadline_);
+    }
+    return d;
+}
+
+void FirmwareProtocol::write_line(const std::string& line) { emit(Action::Kind::Write, line); }
+
+void FirmwareProtocol::open(Time now) {
+    state_ = State::Booting;
+    greetings_ = 0;
+    // A board resets when its port opens and says "start" when it is up; one that does not
+    // reset stays quiet, so after boot_wait xlate5 greets it anyway.
+    boot_deadline_ = now + seconds(opt_.boot_wait);
+}
+
+void FirmwareProtocol::restart(Time now) {
+    // A stopped Marlin (not a halted one) runs again after M999; it answers with a Resend and
+    // an ok, which the greeting's wait for quiet discards. (RepRapFirmware's M999 reboots it.)
+    if (!opt_.reprap) write_line("M999\n");
+    greetings_ = 0;
+    greet(now);
+}
+
+void FirmwareProtocol::greet(Time now) {
+    state_ = State::Greeting;
+    unsent_.clear();
+    in_flight_.clear();
+    history_.clear();
+    error_next_.reset();
+    bytes_in_flight_ = tagged_in_flight_ = 0;
+    next_n_ = 0;
+    credited_n_ = -1;
+    sync_ = Sync::None;
+    resend_from_.reset();
+    m115_.clear();
+    boot_deadline_.reset();
+    reply_deadline_.reset();
+    // Whatever the firmware still says about earlier lines (oks, Resends after M999 or a
+    // reconnect) is waited out first.
+    greet_ = Greet::Quiet;
+    quiet_deadline_ = now + seconds(opt_.settle);
+}
+
+void FirmwareProtocol::send_greeting(Time now) {
+    if (++greetings_ > opt_.max_greetings) {
+        fault("the firmware does not answer the greeting (M110, M115) after " + std::to_string(opt_.max_greetings) + " attempts");
+        return;
+    }
+    ++stats_.greetings;
+    // Line 0 sets the numbering (M110 skips the number check); M115 says what the firmware is.
+    write_line(proto::numbered(0, "M110 N0") + "\n");
+    write_line(proto::numbered(1, "M115") + "\n");
+    next_n_ = 2;
+    greet_ = Greet::AwaitReport;
+    quiet_deadline_.reset();
+    reply_deadline_ = now + seconds(opt_.reply_timeout);
+}
+
+void FirmwareProtocol::become_ready() {
+    quiet_deadline_.reset();
+    reply_deadline_.reset();
+    if (m115_.empty()) {
+        fault("the firmware did not identify itself (no FIRMWARE_NAME in its answer to M115)");
+        return;
+    }
+    const std::string& name = m115_.front();
+    const bool rrf = name.find("RepRapFirmware") != std::string::npos;
+    if (opt_.reprap != rrf) {
+        fault(std::string("flavour mismatch: xlate5 is set for ") + (opt_.reprap ? "RepRapFirmware" : "Marlin") +
+              " (firmware.flavor), but the firmware reports: " + name);
+        return;
+    }
+    state_ = State::Ready;
+    credited_n_ = next_n_ - 1;
+    greetings_ = 0;
+    timeouts_in_row_ = resyncs_in_row_ = 0;
+    spdlog::info("firmware ready: {}", name);
+    emit(Action::Kind::Ready);
+}
+
+void FirmwareProtocol::enqueue(std::string command, std::uint64_t tag, Time now) {
+    if (state_ == State::Faulted) return;
+    unsent_.push_back({std::move(command), tag});
+    transmit(now);
+}
+
+std::size_t FirmwareProtocol::drop_unsent() {
+    const auto n = unsent_.size();
+    unsent_.clear();
+    return n;
+}
+
+void FirmwareProtocol::send_unnumbered(std::string_view command, Time now) {
+    std::string line(command);
+    line += '\n';
+    write_line(line);
+    // Marlin also runs it through its queue and answers ok in turn.
+    if (state_ == State::Ready) {
+        in_flight_.push_back({-1, std::string(command), 0, line.size(), false, false});
+        bytes_in_flight_ += line.size();
+        if (!reply_deadline_) reply_deadline_ = now + seconds(opt_.reply_timeout);
+    }
+}
+
+void FirmwareProtocol::emergency_stop(std::string_view command, Time) {
+    std::string line(command);
+    line += '\n';
+    write_line(line);
+    // Whether or not the firmware acts on it at once (EMERGENCY_PARSER), nothing queued behind
+    // it may run; the count is told once, the same to the sender and the log.
+    fault("emergency stop (" + std::string(command) + ") from the sender");
+}
+
+void FirmwareProtocol::port_closed(const std::string& why) { fault(why); }
+
+void FirmwareProtocol::send_entry(Entry e, Time now) {
+    const std::string line = proto::numbered(e.n, e.command) + "\n";
+    e.bytes = line.size();
+    write_line(line);
+    bytes_in_flight_ += e.bytes;
+    if (e.tag) ++tagged_in_flight_;
+    in_flight_.push_back(std::move(e));
+    ++stats_.sent;
+    if (!reply_deadline_) reply_deadline_ = now + seconds(opt_.reply_timeout);
+}
+
+void FirmwareProtocol::transmit(Time now) {
+    if (state_ != State::Ready || sync_ != Sync::None) return;
+    const std::size_t limit = std::size_t(window());
+    while (!unsent_.empty() && in_flight_.size() < limit) {
+        // Without ADVANCED_OK a line a sender waits on travels alone, so the ok that comes is its own.
+        if (tagged_in_flight_ > 0 && !advanced_ok_) break;
+        const Item& item = unsent_.front();
+        if (item.tag && !in_flight_.empty() && !advanced_ok_) break;
+        // "N<n> " + command + "*<cs>\n", without building it twice.
+        const std::size_t bytes = item.command.size() + std::to_string(next_n_).size() + 7;
+        if (!in_flight_.empty() && bytes_in_flight_ + bytes > opt_.rx_bytes) break;  // the firmware's receive buffer is full
+        const bool anchor = !opt_.reprap && proto::command_code(item.command).is('M', 105);
+        Entry e{next_n_++, std::move(unsent_.front().command), item.tag, 0, anchor, false};
+        unsent_.pop_front();
+        send_entry(std::move(e), now);
+    }
+}
+
+void FirmwareProtocol::credit_through(std::size_t index, std::string_view payload) {
+    for (std::size_t j = 0; j <= index; ++j) {
+        Entry e = std::move(in_flight_.front());
+        in_flight_.pop_front();
+        bytes_in_flight_ -= e.bytes;
+        if (e.tag) --tagged_in_flight_;
+        if (e.n >= 0) credited_n_ = std::max(credited_n_, e.n);
+        if (!e.probe) ++stats_.acked;
+        if (e.n >= 0 && !e.probe) {
+            history_.push_back({e.n, e.command, 0, e.bytes, false, false});
+            if (history_.size() > opt_.history) history_.pop_front();
+        }
+        if (e.tag) emit(Action::Kind::Acked, j == index ? std::string(payload) : std::string(), e.tag);
+    }
+    progressed();
+    if (in_flight_.empty()) reply_deadline_.reset();
+    if (sync_ == Sync::Probing && std::none_of(in_flight_.begin(), in_flight_.end(), [](const Entry& e) { return e.probe; }))
+        sync_ = Sync::None;  // the firmware took the probe: everything before it is in, numbering agrees
+}
+
+void FirmwareProtocol::credit_front(std::string_view payload) { credit_through(0, payload); }
+
+void FirmwareProtocol::on_ok(const proto::Reply& r, Time now) {
+    if (r.buffer_free && opt_.window == 0) {
+        // ADVANCED_OK: B is the free command-buffer slots; one more is being executed.
+        learned_window_ = std::clamp(std::max(learned_window_, *r.buffer_free + 1), 1, 32);
+    }
+    const auto find = [&](auto pred) -> std::optional<std::size_t> {
+        for (std::size_t i = 0; i < in_flight_.size(); ++i)
+            if (pred(in_flight_[i])) return i;
+        return std::nullopt;
+    };
+    if (r.ok_line) {
+        // ADVANCED_OK names the line: everything up to it is in.
+        advanced_ok_ = true;
+        std::optional<std::size_t> last;
+        for (std::size_t i = 0; i < in_flight_.size(); ++i)
+            if (in_flight_[i].n >= 0 && in_flight_[i].n <= *r.ok_line) last = i;
+        if (last) credit_through(*last, r.payload);
+        else ++stats_.stray_oks;
+    } else if (!opt_.reprap && r.payload.find("T:") != std::string_view::npos) {
+        // M105's answer: it credits everything up to the M105 it answers.
+        if (const auto i = find([](const Entry& e) { return e.anchor; })) credit_through(*i, r.payload);
+        else ++stats_.stray_oks;
+    } else if (sync_ != Sync::None) {
+        // During a resync a plain ok may be the one after a Resend: it names nothing.
+        ++stats_.stray_oks;
+    } else if (in_flight_.empty() || (advanced_ok_ && in_flight_.front().n >= 0) || in_flight_.front().anchor) {
+        ++stats_.stray_oks;  // not the answer to anything xlate5 waits for in this order
+    } else {
+        credit_front(r.payload);
+    }
+    transmit(now);
+    emit(Action::Kind::Progress);
+}
+
+void FirmwareProtocol::on_refusal(std::optional<std::int64_t> next, bool confirmed, Time now) {
+    // The firmware's last line is next - 1. Above what xlate5 sent, the number was damaged on
+    // the way. Below a line xlate5 counted as acknowledged it is believed only when the Error
+    // line and the Resend agree: a stray ok (the tail of a cut line answered as an unknown
+    // command) can credit a line the firmware never took. Otherwise the probe will tell.
+    if (next && *next <= next_n_) {
+        const bool beyond_credit = *next > credited_n_;
+        const bool in_history = !history_.empty() && *next >= history_.front().n;
+        if (beyond_credit || (confirmed && in_history)) resend_from_ = *next;
+    }
+    if (sync_ != Sync::Quiet) {
+        ++stats_.resyncs;
+        if (++resyncs_in_row_ > opt_.max_resyncs) {
+            fault("the firmware keeps refusing lines (" + std::to_string(opt_.max_resyncs) +
+                  " resyncs without progress): it lost its place or the line is too noisy");
+            return;
+        }
+    }
+    sync_ = Sync::Quiet;
+    quiet_deadline_ = now + seconds(opt_.settle);
+}
+
+void FirmwareProtocol::rewind(std::int64_t k) {
+    // Lines from k on never reached the firmware's queue: they go back, in order, ahead of the
+    // unsent ones; probes are not repeated.
+    std::deque<Entry> keep;
+    std::vector<Item> back;
+    // Lines counted as acknowledged that the firmware says it never took (a stray ok credited
+    // them) come first; their senders were answered already.
+    std::size_t cut = history_.size();
+    while (cut > 0 && history_[cut - 1].n >= k) --cut;
+    for (std::size_t i = cut; i < history_.size(); ++i) back.push_back({std::move(history_[i].command), 0});
+    history_.erase(history_.begin() + std::ptrdiff_t(cut), history_.end());
+    if (credited_n_ >= k) credited_n_ = k - 1;
+    bool past = false;
+    for (auto& e : in_flight_) {
+        past = past || e.n >= k;
+        if (!past) {
+            keep.push_back(std::move(e));
+            continue;
+        }
+        if (e.n >= 0 && !e.probe) back.push_back({std::move(e.command), e.tag});
+    }
+    in_flight_ = std::move(keep);
+    bytes_in_flight_ = tagged_in_flight_ = 0;
+    for (const auto& e : in_flight_) {
+        bytes_in_flight_ += e.bytes;
+        if (e.tag) ++tagged_in_flight_;
+    }
+    for (auto it = back.rbegin(); it != back.rend(); ++it) unsent_.push_front(std::move(*it));
+    stats_.resent += back.size();
+    next_n_ = k;
+}
+
+void FirmwareProtocol::send_probe(std::int64_t n, Time now) {
+    ++stats_.probes;
+    next_n_ = n + 1;
+    // A newline first: a line whose own newline was lost ends there instead of swallowing the
+    // probe (an empty line is nothing to the firmware).
+    write_line("\n");
+    send_entry({n, std::string(kProbe), 0, 0, true, true}, now);
+    sync_ = Sync::Probing;
+}
+
+void FirmwareProtocol::end_quiet(Time now) {
+    quiet_deadline_.reset();
+    const auto from = resend_from_;
+    resend_from_.reset();
+    if (from) {
+        spdlog::debug("firmware: resync from line {}", *from);
+        rewind(*from);
+        if (advanced_ok_) {
+            // Each ok names its line: continue at once.
+            sync_ = Sync::None;
+            transmit(now);
+            return;
+        }
+    }
+    // Probe under the next number: taken, it proves every earlier line is in; refused, the
+    // firmware names the line it wants.
+    send_probe(next_n_, now);
+}
+
+void FirmwareProtocol::on_reply_timeout(Time now) {
+    reply_deadline_.reset();
+    if (in_flight_.empty()) return;
+    ++stats_.timeouts;
+    if (opt_.reprap) {
+        const Entry& f = in_flight_.front();
+        if (may_wait_long(f.command) && ++long_waits_ * opt_.reply_timeout < opt_.long_timeout) {
+            // Heating, homing, dwelling: wait on (up to long_timeout) before taking silence for a lost line.
+            --stats_.timeouts;
+            reply_deadline_ = now + seconds(opt_.reply_timeout);
+            return;
+        }
+    }
+    if (++timeouts_in_row_ > opt_.max_timeouts) {
+        fault("the firmware has not answered for " + std::to_string(int(opt_.reply_timeout * opt_.max_timeouts)) + " s");
+        return;
+    }
+    long_waits_ = 0;
+    if (opt_.reprap) {
+        // RepRapFirmware dropped the line (bad checksum) or its ok was lost: it ignores line
+        // numbers, so the line goes again as it was.
+        const Entry& f = in_flight_.front();
+        spdlog::warn("firmware: no reply for {:.1f} s, resending line {}", opt_.reply_timeout, f.n);
+        write_line(f.n >= 0 ? proto::numbered(f.n, f.command) + "\n" : f.command + "\n");
+        ++stats_.resent;
+        reply_deadline_ = now + seconds(opt_.reply_timeout);
+        return;
+    }
+    // Silence: every reply that was coming has come. Marlin drops a repeat of its last line
+    // without a word, so nothing is repeated: a probe under a fresh number asks where it is.
+    // Earlier M105s were answered or their answers lost: they no longer name an "ok T:".
+    spdlog::warn("firmware: no reply for {:.1f} s with {} lines in flight: asking where it is", opt_.reply_timeout, in_flight_.size());
+    for (auto& e : in_flight_) e.anchor = false;
+    resend_from_.reset();
+    quiet_deadline_.reset();
+    send_probe(next_n_, now);
+}
+
+void FirmwareProtocol::on_time(Time now) {
+    if (state_ == State::Booting) {
+        if (boot_deadline_ && *boot_deadline_ <= now) greet(now);
+        return;
+    }
+    if (state_ == State::Greeting) {
+        if (quiet_deadline_ && *quiet_deadline_ <= now) {
+            if (greet_ == Greet::Quiet) send_greeting(now);
+            else if (greet_ == Greet::Settle) become_ready();
+            if (state_ == State::Ready) transmit(now);
+            return;
+        }
+        if (reply_deadline_ && *reply_deadline_ <= now) {
+            ++stats_.timeouts;
+            spdlog::warn("firmware: no answer to the greeting, greeting again");
+            greet(now);
+        }
+        return;
+    }
+    if (state_ != State::Ready) return;
+    if (quiet_deadline_ && *quiet_deadline_ <= now) {
+        if (sync_ == Sync::Quiet) end_quiet(now);
+        else quiet_deadline_.reset();
+    }
+    if (state_ == State::Ready && reply_deadline_ && *reply_deadline_ <= now) on_reply_timeout(now);
+}
+
+void FirmwareProtocol::on_line(std::string_view line, Time now) {
+    const auto r = proto::classify(line);
+    if (state_ == State::Faulted || state_ == State::Booting) {
+        if (state_ == State::Booting && r.kind == proto::ReplyKind::Start) {
+            greet(now);
+            return;
+        }
+        if (state_ == State::Faulted && r.kind != proto::ReplyKind::Ok) emit(Action::Kind::Message, std::string(line));
+        else spdlog::info("firmware: {}", line);
+        return;
+    }
+    if (is_protocol_reply(r.kind)) {
+        timeouts_in_row_ = 0;
+        long_waits_ = 0;
+        if (reply_deadline_) reply_deadline_ = now + seconds(opt_.reply_timeout);
+    }
+    if (r.kind == proto::ReplyKind::Halted) {
+        emit(Action::Kind::Message, std::string(line));
+        fault("the firmware stopped: " + std::string(line));
+        return;
+    }
+    if (state_ == State::Greeting) {
+        if (r.kind == proto::ReplyKind::Start) {
+            greet(now);  // it was still booting
+            return;
+        }
+        const bool report = line.rfind("FIRMWARE_NAME", 0) == 0;
+        if (greet_ != Greet::AwaitReport) {
+            if (is_protocol_reply(r.kind) || report) quiet_deadline_ = now + seconds(opt_.settle);  // stale: wait on
+            if (r.kind != proto::ReplyKind::Ok) spdlog::info("firmware: {}", line);
+            return;
+        }
+        if (report) {
+            m115_ = {std::string(line)};
+        } else if (line.rfind("Cap:", 0) == 0 && !m115_.empty()) {
+            m115_.emplace_back(line);
+        } else if (r.kind == proto::ReplyKind::Ok && !m115_.empty()) {
+            greet_ = Greet::Settle;  // M115 answered; whatever else comes now is stale
+            reply_deadline_.reset();
+            quiet_deadline_ = now + seconds(opt_.settle);
+        } else if (r.kind == proto::ReplyKind::Resend || r.kind == proto::ReplyKind::LineError) {
+            ++stats_.resend_requests;
+            greet(now);  // a greeting line was refused (or a stale Resend came): again, after quiet
+        } else if (r.kind != proto::ReplyKind::Ok) {
+            spdlog::info("firmware: {}", line);
+        }
+        return;
+    }
+    // Ready.
+    if (is_protocol_reply(r.kind) && sync_ == Sync::Quiet) quiet_deadline_ = now + seconds(opt_.settle);
+    switch (r.kind) {
+        case proto::ReplyKind::Ok:
+            on_ok(r, now);
+            return;
+        case proto::ReplyKind::Resend: {
+            ++stats_.resend_requests;
+            const bool confirmed = error_next_ && *error_next_ == r.resend_line;
+            error_next_.reset();
+            on_refusal(r.resend_line, confirmed, now);
+            return;
+        }
+        case proto::ReplyKind::LineError: {
+            const auto last = last_line_of(line);
+            if (last) error_next_ = *last + 1;
+            else error_next_.reset();
+            on_refusal(error_next_, false, now);
+            return;
+        }
+        case proto::ReplyKind::Busy:
+            ++stats_.busy;
+            emit(Action::Kind::Message, std::string(line));
+            return;
+        case proto::ReplyKind::Wait:
+            return;
+        case proto::ReplyKind::Start:
+            fault("the firmware restarted (it sent 'start'): its position and temperatures are lost");
+            return;
+        default:
+            emit(Action::Kind::Message, std::string(line));
+            return;
+    }
+}
+
+void FirmwareProtocol::fault(const std::string& why) {
+    if (state_ == State::Faulted) return;
+    const std::size_t lost = queued();
+    state_ = State::Faulted;
+    unsent_.clear();
+    in_flight_.clear();
+    bytes_in_flight_ = tagged_in_flight_ = 0;
+    sync_ = Sync::None;
+    boot_deadline_.reset();
+    quiet_deadline_.reset();
+    reply_deadline_.reset();
+    spdlog::error("firmware: {} ({} lines not executed or not confirmed)", why, lost);
+    emit(Action::Kind::Fault, why, 0, lost);
+}
+
+}  // namespace xlate5

@@ -1,0 +1,163 @@
+// The firmware side's protocol as a state machine with no I/O (stage: service, firmware end;
+// may call line_protocol only). Events in: lines received, the clock passing a deadline,
+// commands to send; actions out: text to write, replies for the sender side, faults. The Asio
+// adapter (firmware_link) writes the text and arms one timer at deadline(); tests drive this
+// class with scripted replies and a scripted clock.
+//
+// What it must survive is Marlin's receive rules (../shared/spec/PROTOCOL.md): a refused line
+// empties the firmware's receive buffer, so the number of replies after an error does not
+// follow from the lines sent, and a repeat of the last line is dropped without a word. Hence:
+//  - after any Resend, line error or silence, nothing more is sent until the firmware has been
+//    quiet for `settle` seconds; then it is asked where it is with a harmless numbered M105 (the
+//    probe), whose "ok T:" is the only reply that names itself; lines continue from the number
+//    the firmware named (or after the probe, which it took);
+//  - without ADVANCED_OK, plain oks are credited in order only while nothing went wrong; an
+//    "ok T:" credits everything up to the M105 it answers; a line a sender waits on (M400, M114,
+//    M105) goes alone, so its ok is its own; with ADVANCED_OK, "ok N<n>" credits up to n;
+//  - silence is answered with a probe under a fresh number (never a repeat Marlin may drop),
+//    and only `max_timeouts` probes in a row without any reply make the firmware "gone";
+//  - the greeting (and M999) waits for quiet, sends M110 N0 and M115, takes the firmware's word
+//    only from the FIRMWARE_NAME report on, waits for quiet again, and checks the flavour.
+#pragma once
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "daemon/line_protocol.hpp"
+
+namespace xlate5 {
+
+// Marlin's defaults (Configuration_adv.h) that a host has to respect.
+namespace marlin {
+inline constexpr std::size_t kMaxCmdSize = 96;        // MAX_CMD_SIZE: line buffer, terminator included
+inline constexpr std::size_t kRxBufferSize = 128;     // RX_BUFFER_SIZE: serial receive buffer (bytes)
+inline constexpr int kBufSize = 4;                    // BUFSIZE: commands queued
+inline constexpr int kPlannerSize = 16;               // BLOCK_BUFFER_SIZE
+inline constexpr double kKeepaliveSeconds = 2.0;      // DEFAULT_KEEPALIVE_INTERVAL
+}  // namespace marlin
+
+struct FirmwareOptions {
+    bool reprap = false;            // RepRapFirmware: a bad line is dropped without a word; never more than one in flight
+    int window = 0;                 // lines in flight; 0: 2, or learned from ADVANCED_OK's B
+    std::size_t rx_bytes = marlin::kRxBufferSize - 1;  // bytes in flight at most (the firmware's serial receive buffer)
+    std::size_t max_line = marlin::kMaxCmdSize;        // the firmware's line buffer, terminator included
+    double reply_timeout = 5.0;     // seconds without a protocol reply while lines are in flight: probe
+    double long_timeout = 900;      // RepRapFirmware only (it sends no keepalives): the same after homing, heating, dwelling
+    double boot_wait = 2.0;         // seconds to wait for "start" after opening the port
+    double settle = 0.25;           // seconds of quiet that end a resync or the greeting's wait
+    int max_timeouts = 5;           // probes in a row without any reply before the firmware is declared gone
+    int max_greetings = 4;          // greeting attempts before the firmware is declared unresponsive
+    int max_resyncs = 20;           // resyncs in a row without a line acknowledged before "lost its place"
+    std::size_t history = 512;      // acknowledged lines kept: a stray ok may have credited a line the firmware never took
+};
+
+struct FirmwareStats {
+    std::uint64_t sent = 0, acked = 0, resent = 0, resend_requests = 0, timeouts = 0, busy = 0;
+    std::uint64_t probes = 0, resyncs = 0, stray_oks = 0, greetings = 0;
+};
+
+class FirmwareProtocol {
+public:
+    using Clock = std::chrono::steady_clock;
+    using Time = Clock::time_point;
+
+    enum class State { Booting, Greeting, Ready, Faulted };
+    struct Action {
+        enum class Kind { Write, Ready, Acked, Message, Fault, Progress } kind;
+        std::string text;         // Write: bytes; Message: a line for the sender; Fault: why; Acked: ok payload
+        std::uint64_t tag = 0;    // Acked
+        std::size_t lost = 0;     // Fault: lines not known to be executed (unsent or unconfirmed)
+    };
+
+    explicit FirmwareProtocol(FirmwareOptions options);
+
+    // Events.
+    void open(Time now);                                   // the port is open: wait for "start" (or boot_wait)
+    void restart(Time now);                                // M999: forget the queue, greet again
+    void on_line(std::string_view line, Time now);
+    void on_time(Time now);                                // the clock reached deadline()
+    void enqueue(std::string command, std::uint64_t tag, Time now);  // tag != 0: reported with Acked
+    void send_unnumbered(std::string_view command, Time now);        // M108, M410: ahead of the queue
+    void emergency_stop(std::string_view command, Time now);         // M112: ahead of everything; one Fault
+    void port_closed(const std::string& why);
+    std::size_t drop_unsent();
+
+    // Actions since the last call, in order.
+    std::vector<Action> take_actions() { return std::exchange(actions_, {}); }
+    std::optional<Time> deadline() const;
+
+    bool fits(std::string_view command) const;  // within the firmware's line buffer with N and checksum
+    std::size_t queued() const { return unsent_.size() + in_flight_.size(); }
+    bool idle() const { return queued() == 0; }
+    State state() const { return state_; }
+    int window() const;
+    bool advanced_ok() const { return advanced_ok_; }
+    const FirmwareStats& stats() const { return stats_; }
+    const std::vector<std::string>& m115() const { return m115_; }
+
+private:
+    struct Item { std::string command; std::uint64_t tag = 0; };
+    struct Entry {
+        std::int64_t n = -1;      // -1: unnumbered
+        std::string command;
+        std::uint64_t tag = 0;
+        std::size_t bytes = 0;
+        bool anchor = false;      // an M105: its "ok T:" names it
+        bool probe = false;       // sent by xlate5 to learn where the firmware is
+    };
+    enum class Sync { None, Quiet, Probing };
+    enum class Greet { Quiet, AwaitReport, Settle };
+
+    void emit(Action::Kind k, std::string text = {}, std::uint64_t tag = 0, std::size_t lost = 0) {
+        actions_.push_back({k, std::move(text), tag, lost});
+    }
+    void write_line(const std::string& line);
+    void greet(Time now);
+    void send_greeting(Time now);
+    void become_ready();
+    void transmit(Time now);
+    void send_entry(Entry e, Time now);
+    void credit_front(std::string_view payload);
+    void credit_through(std::size_t index, std::string_view payload);
+    void on_ok(const proto::Reply& r, Time now);
+    void on_refusal(std::optional<std::int64_t> next, bool confirmed, Time now);
+    void end_quiet(Time now);
+    void send_probe(std::int64_t n, Time now);
+    void rewind(std::int64_t k);
+    void on_reply_timeout(Time now);
+    void fault(const std::string& why);
+    void progressed() { resyncs_in_row_ = 0; timeouts_in_row_ = 0; }
+
+    FirmwareOptions opt_;
+    State state_ = State::Booting;
+    std::vector<Action> actions_;
+
+    std::deque<Item> unsent_;
+    std::deque<Entry> in_flight_;
+    std::deque<Entry> history_;       // acknowledged numbered lines, oldest first
+    std::size_t bytes_in_flight_ = 0;
+    std::size_t tagged_in_flight_ = 0;
+    std::int64_t next_n_ = 0;         // number for the next line
+    std::int64_t max_sent_n_ = -1;    // highest number written since the greeting
+    std::int64_t credited_n_ = -1;    // highest number acknowledged by the firmware
+
+    Sync sync_ = Sync::None;
+    std::optional<std::int64_t> resend_from_;  // the line the firmware named in this resync
+    std::optional<std::int64_t> error_next_;   // the line after "Last Line: n" of the latest Error
+    Greet greet_ = Greet::Quiet;
+    int greetings_ = 0;
+
+    std::optional<Time> boot_deadline_, quiet_deadline_, reply_deadline_;
+    int timeouts_in_row_ = 0, resyncs_in_row_ = 0, long_waits_ = 0;
+    bool advanced_ok_ = false;
+    int learned_window_ = 0;
+    std::vector<std::string> m115_;
+    FirmwareStats stats_;
+};
+
+}  // namespace xlate5

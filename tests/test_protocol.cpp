@@ -1,0 +1,455 @@
+// The firmware protocol core on its own, with no port and no pseudo-terminal: a scripted clock
+// and scripted firmware replies, written the way Marlin answers (../shared/spec/PROTOCOL.md,
+// "Marlin's receive rules"), and what the core writes checked line by line.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <spdlog/spdlog.h>
+
+#include "daemon/firmware_protocol.hpp"
+#include "daemon/line_checker.hpp"
+#include "daemon/line_protocol.hpp"
+
+using namespace xlate5;
+
+namespace {
+
+using Kind = FirmwareProtocol::Action::Kind;
+
+struct Script {
+    FirmwareOptions opt;
+    FirmwareProtocol p;
+    FirmwareProtocol::Time t = FirmwareProtocol::Clock::now();
+    std::vector<std::string> writes;             // every line written, in order (blank ones counted apart)
+    std::size_t blank_lines = 0;
+    std::vector<std::pair<std::uint64_t, std::string>> acked;
+    std::vector<std::string> faults, messages;
+    std::vector<std::size_t> lost;
+    bool ready = false;
+
+    static FirmwareOptions defaults(FirmwareOptions o) {
+        spdlog::set_level(spdlog::level::off);
+        o.boot_wait = 1;
+        o.reply_timeout = 2;
+        o.settle = 0.1;
+        return o;
+    }
+    explicit Script(FirmwareOptions o = {}) : opt(defaults(o)), p(opt) {}
+
+    void collect() {
+        for (auto& a : p.take_actions()) {
+            switch (a.kind) {
+                case Kind::Write: {
+                    // A write may hold several lines (never here, but keep it honest).
+                    std::size_t b = 0;
+                    while (b < a.text.size()) {
+                        const auto e = a.text.find('\n', b);
+                        REQUIRE(e != std::string::npos);
+                        if (e == b) ++blank_lines;  // the newline before a probe
+                        else writes.push_back(a.text.substr(b, e - b));
+                        b = e + 1;
+                    }
+                    break;
+                }
+                case Kind::Ready: ready = true; break;
+                case Kind::Acked: acked.emplace_back(a.tag, a.text); break;
+                case Kind::Message: messages.push_back(a.text); break;
+                case Kind::Fault: faults.push_back(a.text), lost.push_back(a.lost); break;
+                case Kind::Progress: break;
+            }
+        }
+    }
+    // Lets `s` seconds pass, firing deadlines as they come.
+    void pass(double s) {
+        const auto end = t + std::chrono::duration_cast<FirmwareProtocol::Clock::duration>(std::chrono::duration<double>(s));
+        for (;;) {
+            const auto d = p.deadline();
+            if (!d || *d > end) break;
+            t = std::max(t, *d);
+            p.on_time(t);
+            collect();
+        }
+        t = end;
+    }
+    void reply(std::string_view line) {
+        p.on_line(line, t);
+        collect();
+    }
+    void enqueue(const std::string& c, std::uint64_t tag = 0) {
+        p.enqueue(c, tag, t);
+        collect();
+    }
+    std::vector<std::string> take_writes() { return std::exchange(writes, {}); }
+
+    // Up to Ready, as a virtual Marlin answers: start, the greeting, its M115.
+    void greet(std::string_view name = "FIRMWARE_NAME:Marlin 2.1.2 PROTOCOL_VERSION:1.0") {
+        p.open(t);
+        reply("start");
+        pass(0.2);  // quiet
+        const auto w = take_writes();
+        REQUIRE(w.size() == 2);
+        CHECK(w[0] == proto::numbered(0, "M110 N0"));
+        CHECK(w[1] == proto::numbered(1, "M115"));
+        reply("ok");
+        reply(name);
+        reply("Cap:EMERGENCY_PARSER:1");
+        reply("ok");
+        pass(0.2);  // quiet again
+    }
+};
+
+// The number a written line carries.
+std::int64_t number_of(const std::string& line) { return *proto::parse_received(line).number; }
+std::string command_of(const std::string& line) { return std::string(proto::parse_received(line).command); }
+
+}  // namespace
+
+TEST_CASE("protocol: the greeting waits for quiet, takes M115's word only from FIRMWARE_NAME on, then is ready") {
+    Script s;
+    s.p.open(s.t);
+    s.reply("start");
+    // Stale replies of an earlier session keep the greeting waiting: nothing is written meanwhile.
+    s.pass(0.05);
+    s.reply("ok");
+    s.pass(0.05);
+    s.reply("Resend: 77");
+    s.pass(0.05);
+    CHECK(s.writes.empty());
+    s.pass(0.2);
+    REQUIRE(s.writes.size() == 2);
+    s.take_writes();
+    s.reply("ok");  // M110's, or a stale one: not the M115's answer
+    s.pass(0.05);
+    CHECK_FALSE(s.ready);
+    s.reply("FIRMWARE_NAME:Marlin 2.1.2");
+    s.reply("Cap:AUTOREPORT_POS:0");
+    s.reply("ok");
+    CHECK_FALSE(s.ready);  // not before the settle
+    s.pass(0.2);
+    CHECK(s.ready);
+    CHECK(s.p.m115() == std::vector<std::string>{"FIRMWARE_NAME:Marlin 2.1.2", "Cap:AUTOREPORT_POS:0"});
+    s.enqueue("G28");
+    REQUIRE(s.writes.size() == 1);
+    CHECK(s.writes[0] == proto::numbered(2, "G28"));
+}
+
+TEST_CASE("protocol: a Resend during the greeting greets again; it never becomes ready without its own M115 answer") {
+    Script s;
+    s.p.open(s.t);
+    s.reply("start");
+    s.pass(0.2);
+    REQUIRE(s.take_writes().size() == 2);
+    // The firmware still had an old number and answered something with a refusal.
+    s.reply("Error:Line Number is not Last Line Number+1, Last Line: 1000");
+    s.reply("Resend: 1001");
+    s.reply("ok");
+    s.pass(0.05);
+    CHECK(s.writes.empty());
+    s.pass(0.2);
+    const auto w = s.take_writes();
+    REQUIRE(w.size() == 2);  // greeted again from the start
+    CHECK(w[0] == proto::numbered(0, "M110 N0"));
+    CHECK(w[1] == proto::numbered(1, "M115"));
+    s.reply("ok");
+    s.reply("FIRMWARE_NAME:Marlin 2.1.2");
+    s.reply("ok");
+    s.pass(0.2);
+    CHECK(s.ready);
+    CHECK(s.faults.empty());
+}
+
+TEST_CASE("protocol: the flavour is checked against M115") {
+    SUBCASE("RepRapFirmware answering a host set for Marlin") {
+        Script s;
+        s.greet("FIRMWARE_NAME: RepRapFirmware for Duet 3 FIRMWARE_VERSION: 3.5.0");
+        CHECK_FALSE(s.ready);
+        REQUIRE(s.faults.size() == 1);
+        CHECK(s.faults[0].find("flavour mismatch") != std::string::npos);
+        CHECK(s.faults[0].find("RepRapFirmware for Duet 3") != std::string::npos);
+    }
+    SUBCASE("Marlin answering a host set for RepRapFirmware") {
+        FirmwareOptions o;
+        o.reprap = true;
+        Script s(o);
+        s.greet();
+        REQUIRE(s.faults.size() == 1);
+        CHECK(s.faults[0].find("flavour mismatch") != std::string::npos);
+    }
+    SUBCASE("no FIRMWARE_NAME at all") {
+        Script s;
+        s.p.open(s.t);
+        s.reply("start");
+        s.pass(0.2);
+        s.reply("ok");
+        s.reply("ok");
+        s.pass(5);  // no report: greeted again until it gives up
+        CHECK_FALSE(s.ready);
+    }
+}
+
+TEST_CASE("protocol: one lost ok is recovered by a probe under a fresh number, never by repeating a line") {
+    Script s;
+    s.greet();
+    REQUIRE(s.ready);
+    s.enqueue("G1 X1");
+    s.enqueue("G1 X2");
+    auto w = s.take_writes();
+    REQUIRE(w.size() == 2);  // the window is 2
+    CHECK(number_of(w[0]) == 2);
+    CHECK(number_of(w[1]) == 3);
+    s.enqueue("G1 X3", 7);   // a line a sender waits on: it goes alone
+    s.reply("ok");           // for line 2; the ok of line 3 is lost
+    w = s.take_writes();
+    CHECK(w.empty());        // line 3 still counts as in flight: the tagged line waits
+    s.pass(2.5);             // silence: the reply timeout
+    w = s.take_writes();
+    REQUIRE(w.size() == 1);
+    // Not a repeat of line 3 (Marlin would drop it without a word): a probe under number 4.
+    CHECK(number_of(w[0]) == 4);
+    CHECK(command_of(w[0]) == "M105");
+    CHECK(s.blank_lines == 1);  // a newline ahead of it ends any line whose own newline was lost
+    s.reply("ok T:21.5 /0.0");
+    // Everything before the probe is in; the tagged line goes next, alone, under the next number.
+    w = s.take_writes();
+    REQUIRE(w.size() == 1);
+    CHECK(w[0] == proto::numbered(5, "G1 X3"));
+    CHECK(s.acked.empty());
+    s.reply("ok");
+    REQUIRE(s.acked.size() == 1);
+    CHECK(s.acked[0].first == 7);
+    CHECK(s.p.idle());
+    CHECK(s.faults.empty());
+    CHECK(s.p.stats().probes == 1);
+}
+
+TEST_CASE("protocol: a refused line with another behind it (flushed without a reply): resync from the named line") {
+    FirmwareOptions o;
+    o.window = 3;
+    Script s(o);
+    s.greet();
+    for (int i = 1; i <= 5; ++i) s.enqueue("G1 X" + std::to_string(i));
+    auto w = s.take_writes();
+    REQUIRE(w.size() == 3);  // lines 2, 3, 4
+    // Marlin: line 2 runs; line 3 fails its checksum; the receive buffer held line 4: flushed.
+    s.reply("ok");
+    CHECK(s.take_writes() == std::vector<std::string>{proto::numbered(5, "G1 X4")});  // room for one more
+    s.reply("Error:checksum mismatch, Last Line: 2");
+    s.reply("Resend: 3");
+    s.reply("ok");
+    CHECK(s.take_writes().empty());  // nothing is sent until the firmware is quiet
+    s.pass(0.2);
+    w = s.take_writes();
+    // A probe under the named number: the firmware takes it, and its "ok T:" is the fence.
+    REQUIRE(w.size() == 1);
+    CHECK(w[0] == proto::numbered(3, "M105"));
+    s.reply("ok T:20.0 /0.0");
+    w = s.take_writes();
+    REQUIRE(w.size() == 3);
+    CHECK(w[0] == proto::numbered(4, "G1 X2"));
+    CHECK(w[1] == proto::numbered(5, "G1 X3"));
+    CHECK(w[2] == proto::numbered(6, "G1 X4"));
+    s.reply("ok");
+    s.reply("ok");
+    s.reply("ok");
+    w = s.take_writes();
+    REQUIRE(w.size() == 1);
+    CHECK(w[0] == proto::numbered(7, "G1 X5"));
+    s.reply("ok");
+    CHECK(s.p.idle());
+    CHECK(s.p.stats().acked == 5);
+}
+
+TEST_CASE("protocol: stale Resends of lines sent before the resync do not rewind again") {
+    FirmwareOptions o;
+    o.window = 3;
+    Script s(o);
+    s.greet();
+    for (int i = 1; i <= 3; ++i) s.enqueue("G1 X" + std::to_string(i));
+    s.take_writes();
+    // Line 2 refused; lines 3 and 4 arrived after the flush: each draws its own triple.
+    for (int i = 0; i < 3; ++i) {
+        s.reply("Error:checksum mismatch, Last Line: 1");
+        s.reply("Resend: 2");
+        s.reply("ok");
+        s.pass(0.05);
+    }
+    s.pass(0.2);
+    auto w = s.take_writes();
+    REQUIRE(w.size() == 1);
+    CHECK(w[0] == proto::numbered(2, "M105"));
+    s.reply("ok T:20.0 /0.0");
+    w = s.take_writes();
+    REQUIRE(w.size() == 3);
+    CHECK(w[0] == proto::numbered(3, "G1 X1"));
+    CHECK(w[2] == proto::numbered(5, "G1 X3"));
+}
+
+TEST_CASE("protocol: silence while the firmware's planner is full marks nothing done; a wait is answered only after its ok") {
+    Script s;
+    s.greet();
+    s.enqueue("G1 X1");
+    s.enqueue("G1 X2");
+    s.enqueue("M400", 9);
+    s.take_writes();
+    s.pass(2.5);  // a busy planner, no keepalives: the reply timeout passes
+    auto w = s.take_writes();
+    REQUIRE(w.size() == 1);
+    CHECK(command_of(w[0]) == "M105");
+    CHECK(s.p.stats().acked == 0);
+    CHECK_FALSE(s.p.idle());
+    // The moves finish; their oks and then the probe's come.
+    s.reply("ok");
+    s.reply("ok");
+    CHECK(s.acked.empty());
+    s.reply("ok T:20.0 /0.0");
+    w = s.take_writes();
+    REQUIRE(w.size() == 1);
+    CHECK(command_of(w[0]) == "M400");
+    CHECK(s.acked.empty());  // M400 is answered by its own ok only
+    CHECK_FALSE(s.p.idle());
+    s.reply("ok");
+    REQUIRE(s.acked.size() == 1);
+    CHECK(s.acked[0].first == 9);
+    CHECK(s.p.idle());
+}
+
+TEST_CASE("protocol: a garbled Resend number does not rewind to lines already acknowledged") {
+    Script s;
+    s.greet();
+    for (int i = 1; i <= 4; ++i) s.enqueue("G1 X" + std::to_string(i));
+    s.reply("ok");
+    s.reply("ok");  // lines 2 and 3 acknowledged; 4 and 5 in flight
+    s.take_writes();
+    s.reply("Resend: 1");  // damaged on the way ("Resend: 4" -> "Resend: 1")
+    s.pass(0.2);
+    auto w = s.take_writes();
+    REQUIRE(w.size() == 1);
+    // Not a rewind to line 1: a probe under a fresh number asks where the firmware is.
+    CHECK(w[0] == proto::numbered(6, "M105"));
+    s.reply("Error:Line Number is not Last Line Number+1, Last Line: 3");
+    s.reply("Resend: 4");
+    s.reply("ok");
+    s.pass(0.2);
+    w = s.take_writes();
+    REQUIRE(w.size() == 1);
+    CHECK(w[0] == proto::numbered(4, "M105"));
+    s.reply("ok T:20.0 /0.0");
+    w = s.take_writes();
+    REQUIRE(w.size() == 2);
+    CHECK(w[0] == proto::numbered(5, "G1 X3"));
+    CHECK(w[1] == proto::numbered(6, "G1 X4"));
+}
+
+TEST_CASE("protocol: ADVANCED_OK ties each ok to its line; after a Resend it continues without a probe") {
+    FirmwareOptions o;
+    o.window = 3;
+    Script s(o);
+    s.greet();
+    for (int i = 1; i <= 4; ++i) s.enqueue("G1 X" + std::to_string(i), std::uint64_t(100 + i));
+    // With ADVANCED_OK unknown, tagged lines go alone.
+    auto w = s.take_writes();
+    REQUIRE(w.size() == 1);
+    s.reply("ok N2 P15 B3");
+    CHECK(s.p.advanced_ok());
+    w = s.take_writes();
+    REQUIRE(w.size() == 3);  // lines 3, 4, 5
+    s.reply("Error:checksum mismatch, Last Line: 3");  // line 4 refused, 5 flushed
+    s.reply("Resend: 4");
+    s.reply("ok P15 B3");
+    s.reply("ok N3 P15 B3");  // line 3 ran: the ok names it
+    s.pass(0.2);
+    w = s.take_writes();
+    REQUIRE(w.size() == 2);
+    CHECK(w[0] == proto::numbered(4, "G1 X3"));
+    CHECK(w[1] == proto::numbered(5, "G1 X4"));
+    s.reply("ok N4 P15 B3");
+    s.reply("ok N5 P15 B3");
+    REQUIRE(s.acked.size() == 4);
+    for (std::size_t i = 0; i < 4; ++i) CHECK(s.acked[i].first == 101 + i);
+    CHECK(s.p.stats().probes == 0);
+}
+
+TEST_CASE("protocol: a firmware that says nothing at all is declared gone after max_timeouts probes, each a fresh number") {
+    Script s;
+    s.greet();
+    s.enqueue("G1 X1");
+    s.take_writes();
+    s.pass(2.0 * (s.opt.max_timeouts + 2));
+    const auto w = s.take_writes();
+    REQUIRE(w.size() == std::size_t(s.opt.max_timeouts));
+    for (std::size_t i = 0; i < w.size(); ++i) CHECK(number_of(w[i]) == std::int64_t(3 + i));
+    REQUIRE(s.faults.size() == 1);
+    CHECK(s.faults[0].find("has not answered") != std::string::npos);
+}
+
+TEST_CASE("protocol: M112 goes out ahead of everything, and the count of lines not executed is told once") {
+    Script s;
+    s.greet();
+    for (int i = 1; i <= 10; ++i) s.enqueue("G1 X" + std::to_string(i));
+    s.take_writes();
+    s.p.emergency_stop("M112", s.t);
+    s.collect();
+    REQUIRE(s.writes.size() == 1);
+    CHECK(s.writes[0] == "M112");
+    REQUIRE(s.faults.size() == 1);
+    CHECK(s.lost[0] == 10);
+    s.reply("echo:M112 Shutdown");
+    s.reply("Error:Printer halted. kill() called!");
+    CHECK(s.faults.size() == 1);  // the firmware's own word adds no second count
+    CHECK(s.p.queued() == 0);
+}
+
+TEST_CASE("protocol: M999 greets again and discards the stale oks still coming") {
+    Script s;
+    s.greet();
+    s.enqueue("G1 X1");
+    s.reply("Error:Printer stopped due to errors. Fix the error and use M999 to restart.");
+    REQUIRE(s.faults.size() == 1);
+    s.take_writes();
+    s.ready = false;
+    s.p.restart(s.t);
+    s.collect();
+    REQUIRE(s.take_writes() == std::vector<std::string>{"M999"});  // revives a stopped Marlin
+    s.reply("Resend: 3");  // M999's own answer
+    s.reply("ok");
+    s.reply("ok");  // oks of lines from before the stop
+    s.reply("ok");
+    s.pass(0.05);
+    CHECK(s.writes.empty());
+    s.pass(0.2);
+    REQUIRE(s.take_writes().size() == 2);
+    s.reply("ok");  // a stale one again: not M115's answer
+    CHECK_FALSE(s.ready);
+    s.reply("FIRMWARE_NAME:Marlin 2.1.2");
+    s.reply("ok");
+    s.pass(0.2);
+    CHECK(s.ready);
+}
+
+TEST_CASE("line checker: Marlin's order of checks and its silent drop of repeats") {
+    proto::LineChecker c;
+    using V = proto::LineChecker::Verdict;
+    CHECK(c.check(proto::numbered(0, "M110 N0")).verdict == V::Take);
+    CHECK(c.check(proto::numbered(1, "G28")).verdict == V::Take);
+    CHECK(c.check(proto::numbered(1, "G28")).verdict == V::Duplicate);  // last_N
+    CHECK(c.check(proto::numbered(0, "G28")).verdict == V::Duplicate);  // last_N - 1
+    CHECK(c.check("N1 G28*0").verdict == V::Duplicate);                 // the number is read before the checksum
+    auto r = c.check(proto::numbered(5, "G1 X1"));
+    CHECK(r.verdict == V::Refuse);
+    CHECK(r.why == proto::kErrLineNumber);
+    r = c.check("N2 G1 X1*1");
+    CHECK(r.verdict == V::Refuse);
+    CHECK(r.why == proto::kErrChecksumMismatch);
+    r = c.check("N2 G1 X1");
+    CHECK(r.why == proto::kErrNoChecksum);
+    CHECK(c.error_line(r.why) == "Error:No Checksum with line number, Last Line: 1");
+    CHECK(c.resend_line() == "Resend: 2");
+    CHECK(c.check(proto::numbered(101, "M110 N100")).verdict == V::Take);
+    CHECK(c.last_line() == 100);
+    CHECK(c.check("G1 X5*12").verdict == V::Take);  // Marlin 2.1 takes an unnumbered line as it is
+    // Marlin reads the checksum with strtol: digits up to the first non-digit (a joined line).
+    const std::string first = proto::numbered(101, "G1 X1");
+    CHECK(c.check(first + "N102 G1 X").verdict == V::Take);
+    CHECK(c.last_line() == 101);
+    CHECK(proto::LineChecker(true).check("G1 X5*12").why == proto::kErrNoLineNumber);
+}
