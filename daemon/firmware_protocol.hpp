@@ -4,7 +4,7 @@
 // adapter (firmware_link) writes the text and arms one timer at deadline(); tests drive this
 // class with scripted replies and a scripted clock.
 //
-// What it must survive is Marlin's receive rules (../shared/spec/PROTOCOL.md): a refused line
+// What it must survive is Marlin's receive rules (docs/service.md, "Marlin's receive rules"): a refused line
 // empties the firmware's receive buffer, so the number of replies after an error does not
 // follow from the lines sent, and a repeat of the last line is dropped without a word. Hence:
 //  - after any Resend, line error or silence, nothing more is sent until the firmware has been

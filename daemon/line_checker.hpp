@@ -1,5 +1,5 @@
 // The printer's side of the host line protocol: how a received line is judged before it is
-// queued (Marlin's get_serial_commands rules, see ../shared/spec/PROTOCOL.md, "Marlin's receive
+// queued (Marlin's get_serial_commands rules, see docs/service.md, "Marlin's receive
 // rules"): line number first, then checksum; M110 sets the number. Pure; shared by the sender
 // session (xlate5 as the printer) and the virtual printer (a test double of Marlin), so both
 // refuse with the same words. May call line_protocol only.

@@ -475,7 +475,7 @@ std::string Service::tool_space_position(std::string_view report) const {
     char buf[96];
     std::snprintf(buf, sizeof buf, "X:%.2f Y:%.2f Z:%.2f", tip.x(), tip.y(), tip.z());
     std::string out = buf;
-    // E right after Z: OctoPrint 1.x reads M114 only as "X: Y: Z: E:" (PROTOCOL.md); the
+    // E right after Z: OctoPrint 1.x reads M114 only as "X: Y: Z: E:" (docs/service.md); the
     // rotaries follow.
     if (have_e) {
         std::snprintf(buf, sizeof buf, " E:%.2f", e);

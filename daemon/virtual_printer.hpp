@@ -4,7 +4,7 @@
 // tests can inject the faults a real link shows. It records every command it executes, in
 // order, so a test can prove that nothing was lost, duplicated or reordered on the way.
 //
-// It follows Marlin's receive rules as ../shared/spec/PROTOCOL.md quotes them from Marlin's
+// It follows Marlin's receive rules as docs/service.md states them from Marlin's
 // queue.cpp: a serial receive buffer of `rx_size` bytes (bytes beyond it are lost), a command
 // buffer of `buffer` lines that the receive buffer is read into only while it has room, lines
 // read up to MAX_CMD_SIZE - 1 characters (the rest is read as a new line), the line number

@@ -1,5 +1,5 @@
 // The firmware link against a virtual printer that follows Marlin's receive rules
-// (../shared/spec/PROTOCOL.md): each fault class at 1 % over a long print, and the failures a
+// (docs/service.md, "Marlin's receive rules"): each fault class at 1 % over a long print, and the failures a
 // real Marlin showed (a lost ok, a line flushed behind a refused one, a Resend during the
 // greeting, a silent busy planner, a lost newline, stale oks after a stop, another flavour).
 // Each print must execute exactly the offline translation, with no false stop and no stall.

@@ -144,7 +144,7 @@ TEST_CASE("pentarod equals seed 002 pseudo code 4.1 and its tool vector") {
         const double ca = std::cos(rad(a)), sa = std::sin(rad(a)), cc = std::cos(rad(c)), sc = std::sin(rad(c));
         const Eigen::Vector3d expect(p.x() * cc - p.y() * sc, p.x() * ca * sc + p.y() * ca * cc - p.z() * sa,
                                      p.x() * sa * sc + p.y() * sa * cc + p.z() * ca);
-        // Tool vector of MACHINES.md: u = (sin A sin C, sin A cos C, cos A); IK must recover a pose
+        // Tool vector of Grutle 2015's pseudo code 4.1: u = (sin A sin C, sin A cos C, cos A); IK must recover a pose
         // with that axis and those machine coordinates.
         const Eigen::Vector3d u(sa * sc, sa * cc, ca);
         std::vector<double> prev(m.joints.size(), 0.0);

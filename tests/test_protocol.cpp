@@ -1,5 +1,5 @@
 // The firmware protocol core on its own, with no port and no pseudo-terminal: a scripted clock
-// and scripted firmware replies, written the way Marlin answers (../shared/spec/PROTOCOL.md,
+// and scripted firmware replies, written the way Marlin answers (docs/service.md,
 // "Marlin's receive rules"), and what the core writes checked line by line.
 #include <doctest/doctest.h>
 
