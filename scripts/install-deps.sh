@@ -5,7 +5,8 @@ pkgs=(build-essential cmake pkg-config
       libeigen3-dev libboost-dev libtomlplusplus-dev libspdlog-dev libfmt-dev
       doctest-dev libcli11-dev libserialport-dev libsystemd-dev
       printcore python3-serial
-      man-db)  # man-db: the manual page test renders xlate5(1) with man -l
+      man-db   # the manual page test renders xlate5(1) with man -l
+      clang libclang-rt-14-dev)  # the fuzz targets (scripts/fuzz.sh): libFuzzer and the sanitizer runtimes
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
