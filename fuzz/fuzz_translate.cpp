@@ -31,7 +31,7 @@ namespace {
 // a file starts in. The cost of an input is its moves: split to the machine's tolerance (0.01 mm)
 // one tilted move is thousands of pieces. The fuzzed machines are split coarser (kTolerance,
 // kAngleTolerance): the same code runs, with fewer turns of the same loops.
-constexpr double kTolerance = 2, kAngleTolerance = 15;
+constexpr double kTolerance = 10, kAngleTolerance = 45;
 
 const std::vector<std::unique_ptr<Kinematics>>& kinematics() {
     static const auto all = [] {
