@@ -7,6 +7,9 @@ pkgs=(build-essential cmake pkg-config
       printcore python3-serial
       man-db    # man-db: the manual page test renders xlate5(1) with man -l
       chromium) # the --preview test loads the page in headless Chromium (skipped without it)
+# `install-deps.sh fuzz` adds what the fuzz targets need (scripts/fuzz.sh): clang, libFuzzer and
+# the sanitizer runtimes. The test suite does not need them.
+if [ "${1:-}" = fuzz ]; then pkgs+=(clang libclang-rt-14-dev); fi
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
