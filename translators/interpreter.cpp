@@ -135,20 +135,7 @@ void Interpreter::apply_modal(int code10, const Params& words, std::string& out)
 void Interpreter::run_command(const CommandWord& c, std::string_view body, bool alone, const Params& words, LineRun& run,
                               std::string& out) {
     ModalState& m = state_.modal;
-    if (c.letter == 'S') {  // a spindle speed (laser power) on its own: passed on
-        append_passthrough(out, 'S', 0, body, alone, words);
-        return;
-    }
-    if (c.letter == 'M') {
-        if (c.code10 == 820) m.modes.e_relative = false;
-        if (c.code10 == 830) m.modes.e_relative = true;
-        append_passthrough(out, c.letter, c.code10, body, alone, words);
-        return;
-    }
-    if (c.letter == 'T') {
-        append_passthrough(out, c.letter, c.code10, body, alone, words);
-        return;
-    }
+    if (pass_non_g(c, body, alone, words, m.modes, out)) return;
     switch (c.code10) {
         case 0:
         case 10:

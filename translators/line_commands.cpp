@@ -131,6 +131,15 @@ void append_wordless(std::string& out, std::string_view line, const Block& block
     }
 }
 
+bool pass_non_g(const CommandWord& c, std::string_view body, bool alone, const Params& words, Modes& modes, std::string& out) {
+    if (c.letter == 'G') return false;
+    if (c.letter == 'M' && c.code10 == 820) modes.e_relative = false;
+    if (c.letter == 'M' && c.code10 == 830) modes.e_relative = true;
+    // A spindle speed (laser power) on its own is passed on as its words alone.
+    append_passthrough(out, c.letter, c.letter == 'S' ? 0 : c.code10, body, alone, words);
+    return true;
+}
+
 void append_passthrough(std::string& out, char letter, int code10, std::string_view body, bool alone, const Params& params) {
     if (alone) {
         out += body;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "translators/gcode_lexer.hpp"
+#include "translators/modes.hpp"
 
 namespace xlate5 {
 
@@ -82,6 +83,10 @@ void append_code(std::string& out, char letter, int code10);
 // A command passed on to the firmware: the line as written when it is the line's only command,
 // else the command and (unless mode-only) the line's words. Letter 'S': the words alone.
 void append_passthrough(std::string& out, char letter, int code10, std::string_view body, bool alone, const Params& params);
+
+// An S, M or T command, which both directions pass on as written (M82/M83 also set E's mode in
+// `modes`). False for a G command, which the caller interprets.
+bool pass_non_g(const CommandWord& c, std::string_view body, bool alone, const Params& words, Modes& modes, std::string& out);
 
 // A line with no words: its text (a comment), or an empty line for a blank one, or nothing.
 void append_wordless(std::string& out, std::string_view line, const Block& block);
