@@ -279,7 +279,8 @@ TEST_CASE("serve: a firmware port that appears late is waited for, said once; st
         ::_exit(127);
     }
     // The printer is off: the service waits (no exit, no sender endpoint yet) and says so once.
-    collect(1500);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1200));
+    collect(100);
     int status = 0;
     CHECK(::waitpid(pid, &status, WNOHANG) == 0);
     CHECK_FALSE(fs::exists(fs::symlink_status(printer)));
@@ -321,7 +322,7 @@ TEST_CASE("serve: a firmware port that appears late is waited for, said once; st
         ::close(s);
     }
     CHECK(contains(got, "ok T:"));
-    collect(2500);
+    for (int i = 0; i < 50 && !noted("STATUS=idle; 1 lines from senders"); ++i) collect(100);
     CHECK(noted("STATUS=idle; 1 lines from senders"));
     ::kill(pid, SIGTERM);
     REQUIRE(::waitpid(pid, &status, 0) == pid);
