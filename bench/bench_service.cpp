@@ -118,7 +118,9 @@ struct Sender {
         if (c.kind != proto::ReplyKind::Ok) return;
         const double us = std::chrono::duration<double, std::micro>(Clock::now() - sent_at).count();
         latency.add(us);
-        if (had_room) with_room.add(us);
+        // The first line waits for xlate5 to notice the sender (a closed pseudo-terminal is polled
+        // every 100 ms): once per connection, not per line.
+        if (had_room && next > 0) with_room.add(us);
         if (std::getenv("BENCH_SLOW") && us > 10000) std::fprintf(stderr, "slow ok: line %zu %.0f us room %d\n", next, us, int(had_room));
         if (resend > 0) next = std::size_t(resend - 1), resend = -1;
         else ++next;
@@ -200,7 +202,7 @@ int main(int argc, char** argv) {
         std::printf("  firmware link busy %.1f%% of the whole run (%llu bytes of %.0f it could carry), %s\n", 100.0 * double(bytes) / wire_capacity,
                     static_cast<unsigned long long>(bytes), wire_capacity,
                     "start and end included");
-    std::printf("  sender send->ok latency: p50 %.0f us, p99 %.0f us; with room in the queue (%llu lines): p50 %.0f us, p99 %.0f us\n",
+    std::printf("  sender send->ok latency: p50 %.0f us, p99 %.0f us; with room in the queue (%llu lines, the first apart): p50 %.0f us, p99 %.0f us\n",
                 sender.latency.percentile(0.5), sender.latency.percentile(0.99), static_cast<unsigned long long>(sender.with_room.count),
                 sender.with_room.percentile(0.5), sender.with_room.percentile(0.99));
     {
