@@ -2,6 +2,7 @@
 // (stage: command line; may call daemon/serve and daemon/config, the service's front door).
 #pragma once
 #include <CLI/CLI.hpp>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -11,11 +12,13 @@ namespace xlate5::cli {
 struct ServeCommands {
     CLI::App* serve = nullptr;
     CLI::App* ports = nullptr;
-    std::string config, machine, port, printer, flavor, pty, pty_group, tcp, record, sim_flavor, log_level;
-    int baud = 0, sim_baud = -1;
-    bool allow_remote = false, advanced_ok = false, no_pty = false;
-    double drain_timeout = -1, reply_timeout = 0, boot_wait = -1;
+    std::string config, printer, check;
+    bool no_pty = false;
     std::vector<std::string> faults;
+    // One flag per configuration key (daemon/config's table), by key: the text given, or the switch.
+    std::map<std::string, std::string> values;
+    std::map<std::string, bool> switches;
+    std::map<std::string, CLI::Option*> given;
 };
 
 std::unique_ptr<ServeCommands> add_serve_commands(CLI::App& app);

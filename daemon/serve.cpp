@@ -1,6 +1,12 @@
 #include "daemon/serve.hpp"
 
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
 #include <csignal>
+#include <cstring>
+#include <fstream>
+#include <unistd.h>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
@@ -8,8 +14,8 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/sinks/systemd_sink.h>
 #include <spdlog/spdlog.h>
-#include <systemd/sd-daemon.h>
 
+#include "daemon/notify.hpp"
 #include "daemon/ports.hpp"
 #include "daemon/service.hpp"
 #include "daemon/virtual_printer.hpp"
@@ -64,6 +70,7 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
     sopt.translator.input_name = "sender";
     sopt.translator.start_mode = config.mode;
     sopt.translator.extruder_letter = config.extruder_letter;
+    if (config.port.empty()) throw IoError("firmware.port: not set (a serial device, or \"sim\" for the built-in virtual printer)");
     a.service = std::make_unique<Service>(io, machine, sopt);
     Service& service = *a.service;
 
@@ -103,14 +110,18 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
         spdlog::info("senders: open {} (-> {}) as the printer's serial port", config.pty, a.sender_pty->path());
     }
     if (!config.tcp.empty()) {
-        const auto colon = config.tcp.rfind(':');
-        if (colon == std::string::npos) throw IoError("sender.tcp: expected host:port, got '" + config.tcp + "'");
+        TcpEndpoint endpoint;
+        try {
+            endpoint = parse_tcp_endpoint(config.tcp);
+        } catch (const SettingError& e) {
+            throw IoError(std::string("sender.tcp: ") + e.what());
+        }
         boost::system::error_code ec;
-        const auto address = asio::ip::make_address(config.tcp.substr(0, colon), ec);
-        if (ec) throw IoError("sender.tcp: '" + config.tcp.substr(0, colon) + "' is not an IP address");
+        const auto address = asio::ip::make_address(endpoint.host, ec);
+        if (ec) throw IoError("sender.tcp: '" + endpoint.host + "' is not an IP address");
         if (!is_loopback(address) && !config.allow_remote)
             throw IoError("sender.tcp: " + config.tcp + " is not a loopback address; set allow_remote = true to bind it");
-        const auto port = static_cast<unsigned short>(std::stoi(config.tcp.substr(colon + 1)));
+        const auto port = endpoint.port;
         a.acceptor.emplace(io);
         const asio::ip::tcp::endpoint ep(address, port);
         a.acceptor->open(ep.protocol());
@@ -137,6 +148,41 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
     }
 }
 
+namespace {
+
+// The firmware end as the start log and `serve --check` describe it.
+std::string link_summary(const ServeConfig& c) {
+    const auto& f = c.firmware;
+    std::string port = c.port.empty() ? "no port set" : c.port == "sim" ? std::string("the built-in virtual printer (") + (c.sim.reprap ? "RepRapFirmware" : "Marlin") + "-like)" : c.port;
+    const std::string window = f.reprap ? "1 line in flight (RepRapFirmware drops a bad line without a word)"
+                               : f.window > 0 ? std::to_string(f.window) + " lines in flight"
+                                              : "2 lines in flight (more when ADVANCED_OK reports a larger buffer)";
+    return port + ", " + (f.reprap ? "reprap" : "marlin") + ", " + std::to_string(c.baud) + " baud; " + window + ", at most " +
+           std::to_string(f.rx_bytes) + " bytes in flight (receive buffer), lines up to " + std::to_string(f.max_line) + " bytes";
+}
+
+std::string seconds_text(double s) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.1f s", s);
+    return buf;
+}
+
+// The one-line state systemd shows (`systemctl status`): lines, queue, resends.
+std::string status_line(Service& service, const std::string& waiting_for) {
+    if (!waiting_for.empty()) return "STATUS=waiting for " + waiting_for + " to appear";
+    const auto& st = service.stats();
+    std::string s = "STATUS=";
+    if (service.stopped()) s += "stopped: " + service.stop_reason() + "; ";
+    else s += service.idle() ? "idle; " : "printing; ";
+    s += std::to_string(st.lines_in) + " lines from senders, " + std::to_string(st.lines_out) + " to the firmware";
+    if (auto* fw = service.firmware())
+        s += ", queue " + std::to_string(fw->queued()) + ", resends " + std::to_string(fw->stats().resend_requests) + ", timeouts " +
+             std::to_string(fw->stats().timeouts);
+    return s;
+}
+
+}  // namespace
+
 int run_serve(const ServeConfig& config) {
     setup_logging(config.log_level);
     Machine machine;
@@ -146,32 +192,62 @@ int run_serve(const ServeConfig& config) {
         spdlog::error("machine: {}", e.what());
         return 3;
     }
+    const auto started = std::chrono::steady_clock::now();
+    spdlog::info("xlate5 {} serve: machine {}; firmware {}", XLATE5_VERSION_STRING, machine.name, link_summary(config));
 
     asio::io_context io;
     Assembly parts;
-    try {
-        assemble(io, config, machine, parts);
-    } catch (const std::exception& e) {
-        spdlog::error("{}", e.what());
-        return 4;
-    }
-    Service& service = *parts.service;
+    int exit_code = 0;
+    bool stopping = false;
+    // A printer switched off is a port that is not there yet: wait for it (and say so once)
+    // rather than exit and be restarted by systemd every few seconds. The senders' endpoints
+    // open with the firmware's, so a sender finds the printer when the printer is there.
+    std::string waiting_for;
+    asio::steady_timer port_timer(io), status_timer(io);
+    const auto start = [&] {
+        try {
+            assemble(io, config, machine, parts);
+        } catch (const std::exception& e) {
+            spdlog::error("{}", e.what());
+            exit_code = 4;
+            io.stop();
+        }
+    };
+    std::function<void()> wait_port = [&] {
+        if (::access(config.port.c_str(), R_OK | W_OK) == 0) {
+            if (!waiting_for.empty()) spdlog::info("firmware: {} is there", config.port);
+            waiting_for.clear();
+            start();
+            return;
+        }
+        if (waiting_for.empty()) {
+            spdlog::warn("firmware: waiting for {} to appear ({}); senders can connect once it is there", config.port, std::strerror(errno));
+            waiting_for = config.port;
+            notify_systemd("STATUS=waiting for " + waiting_for + " to appear");
+        }
+        port_timer.expires_after(std::chrono::milliseconds(250));
+        port_timer.async_wait([&](boost::system::error_code ec) {
+            if (!ec && !stopping) wait_port();
+        });
+    };
 
     // SIGTERM/SIGINT: drain, then stop; a second one stops at once (between lines). SIGHUP:
     // reload the machine when idle.
     asio::signal_set signals(io, SIGINT, SIGTERM, SIGHUP);
-    bool stopping = false;
     std::function<void()> wait_signal = [&] {
         signals.async_wait([&](boost::system::error_code ec, int sig) {
             if (ec) return;
             if (sig == SIGHUP) {
                 if (config.source.empty()) {
                     spdlog::warn("SIGHUP: no configuration file to reload");
+                } else if (!parts.service) {
+                    spdlog::warn("SIGHUP: the firmware's port is not there yet; nothing to reload");
                 } else {
+                    Service& service = *parts.service;
                     const auto reload = [&] {
                         try {
                             const auto fresh = load_serve_config(config.source);
-                            service.replace_machine(load_configured_machine(fresh));
+                            parts.service->replace_machine(load_configured_machine(fresh));
                             spdlog::info("SIGHUP: reloaded {} (machine {}); port and endpoint changes need a restart", config.source,
                                          fresh.machine);
                         } catch (const std::exception& e) {
@@ -184,15 +260,16 @@ int run_serve(const ServeConfig& config) {
                 wait_signal();
                 return;
             }
-            if (stopping) {
-                spdlog::warn("second signal: stopping now, between lines");
+            if (stopping || !parts.service) {
+                if (stopping) spdlog::warn("second signal: stopping now, between lines");
+                stopping = true;
                 io.stop();
                 return;
             }
             stopping = true;
-            sd_notify(0, "STOPPING=1");
+            notify_systemd("STOPPING=1");
             spdlog::info("stopping: draining the queue (up to {} s)", config.drain_timeout);
-            service.drain(config.drain_timeout, [&](const std::string& outcome) {
+            parts.service->drain(config.drain_timeout, [&](const std::string& outcome) {
                 spdlog::info("{}", outcome);
                 io.stop();
             });
@@ -200,14 +277,113 @@ int run_serve(const ServeConfig& config) {
         });
     };
     wait_signal();
-    sd_notify(0, "READY=1");
+    if (config.port == "sim") start();
+    else wait_port();
+    // STATUS= for systemctl status, when it changed, every 2 s.
+    std::string last_status;
+    std::function<void()> tick = [&] {
+        if (parts.service) {
+            auto st = status_line(*parts.service, waiting_for);
+            if (st != last_status) notify_systemd(st), last_status = std::move(st);
+        }
+        status_timer.expires_after(std::chrono::seconds(2));
+        status_timer.async_wait([&](boost::system::error_code ec) {
+            if (!ec) tick();
+        });
+    };
+    tick();
+    notify_systemd(waiting_for.empty() ? "READY=1" : "READY=1\nSTATUS=waiting for " + waiting_for + " to appear");
     io.run();
-    const auto& st = service.stats();
-    spdlog::info("lines from senders {}, lines to the firmware {}, refused {}", st.lines_in, st.lines_out, st.rejected);
+
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    if (!parts.service) {
+        spdlog::info("stopped after {} without a firmware (its port never appeared)", seconds_text(seconds));
+        return exit_code;
+    }
+    const auto& st = parts.service->stats();
+    std::string firmware = "no firmware";
+    if (auto* fw = parts.service->firmware()) {
+        const auto& f = fw->stats();
+        firmware = std::to_string(f.acked) + " acknowledged, " + std::to_string(f.resend_requests) + " resends, " + std::to_string(f.timeouts) +
+                   " timeouts, " + std::to_string(f.probes) + " probes";
+    }
+    spdlog::info("served {}: {} lines from senders, {} to the firmware, {} refused, {} prints cancelled, {} firmware faults; firmware: {}",
+                 seconds_text(seconds), st.lines_in, st.lines_out, st.rejected, st.cancelled, st.faults, firmware);
     if (parts.sim)
         spdlog::info("virtual printer: executed {}, refused {}, dropped {}", parts.sim->stats().executed, parts.sim->stats().refused,
                      parts.sim->stats().dropped);
-    return 0;
+    return exit_code;
+}
+
+int run_serve_check(const ServeConfig& config, const std::string& path) {
+    Machine machine;
+    try {
+        machine = load_configured_machine(config);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "xlate5: machine: %s\n", e.what());
+        return 3;
+    }
+    std::ifstream in(path);
+    if (!in) {
+        std::fprintf(stderr, "xlate5: %s: cannot read: %s\n", path.c_str(), std::strerror(errno));
+        return 4;
+    }
+    std::vector<std::string> lines;
+    for (std::string l; std::getline(in, l);) {
+        if (!l.empty() && l.back() == '\r') l.pop_back();
+        lines.push_back(std::move(l));
+    }
+    TranslatorOptions topt;
+    topt.start_mode = config.mode;
+    topt.extruder_letter = config.extruder_letter;
+    const auto plan = plan_as_serve(machine, lines, topt, config.firmware);
+    std::optional<std::string> offline_error;
+    std::vector<std::string> offline;
+    try {
+        offline = firmware_commands(machine, lines, topt);
+    } catch (const InputError& e) {
+        offline_error = e.what();
+    }
+
+    std::printf("serve --check %s (machine %s)\n", path.c_str(), machine.name.c_str());
+    std::printf("the firmware: %s%s\n", link_summary(config).c_str(),
+                config.port.empty() ? " (serve would not start: give --port DEVICE, --printer sim or [firmware] port)" : "");
+    std::printf("senders: %s%s; the queue holds %zu translated lines; a sender may write %zu lines ahead\n",
+                config.pty.empty() ? "no pseudo-terminal" : ("pseudo-terminal " + config.pty).c_str(),
+                config.tcp.empty() ? "" : (", tcp " + config.tcp).c_str(), config.queue_lines, config.max_pending);
+    std::printf("look-back: as offline (%zu lines), but held output goes to the firmware early before every wait or report,\n"
+                "  after a pause of %g s in the sender's stream, and when the service drains\n",
+                Translator::kDefaultLookback, config.hold_seconds);
+    const auto quote = [](const ServePlan::Point& p) {
+        std::string t = p.text.size() > 60 ? p.text.substr(0, 57) + "..." : p.text;
+        return "line " + std::to_string(p.line) + " '" + t + "'";
+    };
+    const auto list = [&](const char* what, const std::vector<ServePlan::Point>& points) {
+        std::printf("%s: %zu\n", what, points.size());
+        constexpr std::size_t kShown = 10;
+        for (std::size_t i = 0; i < points.size() && i < kShown; ++i) std::printf("  %s\n", quote(points[i]).c_str());
+        if (points.size() > kShown) std::printf("  ... and %zu more\n", points.size() - kShown);
+    };
+    std::printf("%zu input lines -> %zu firmware lines\n", lines.size(), plan.commands.size());
+    list("held output released before a wait or report (offline keeps holding it)", plan.releases);
+    list("lines whose output is split or shortened for the firmware's line buffer", plan.split);
+    bool same = !plan.cancel && !offline_error && plan.translated == offline;
+    if (plan.cancel) {
+        std::printf("serve would cancel the print at %s: %s\n", quote(*plan.cancel).c_str(), plan.cause.c_str());
+        if (plan.too_long) std::printf("  no split fits the firmware's %zu-byte lines (F alone, then the rest): raise max_line if it takes longer ones\n",
+                                       config.firmware.max_line);
+        else if (!offline_error)
+            std::printf("  offline translation keeps it: an unwind it finds by look-back would reach back across a release above\n");
+    }
+    if (offline_error) std::printf("offline translation refuses the file: %s\n", offline_error->c_str());
+    if (!plan.cancel && !offline_error && !same) {
+        const auto m = std::mismatch(plan.translated.begin(), plan.translated.end(), offline.begin(), offline.end());
+        std::printf("serve's joint moves differ from offline from firmware line %zu: '%s' (offline: '%s')\n",
+                    std::size_t(m.first - plan.translated.begin()) + 1, m.first != plan.translated.end() ? m.first->c_str() : "<end>",
+                    m.second != offline.end() ? m.second->c_str() : "<end>");
+    }
+    if (same) std::printf("serve prints the same joint moves as offline translation\n");
+    return same ? 0 : 1;
 }
 
 }  // namespace xlate5

@@ -29,6 +29,11 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
 // Returns the process exit code.
 int run_serve(const ServeConfig& config);
 
+// `serve --check FILE`: prints what serve would do with the file that offline translation does
+// not, and the link settings it would use; opens nothing. 0 when serve prints the file exactly
+// as offline translation does, 1 when not, 3 for a broken machine, 4 for an unreadable file.
+int run_serve_check(const ServeConfig& config, const std::string& path);
+
 // Lists serial ports with their USB vendor/product and description.
 int run_ports();
 

@@ -24,7 +24,8 @@ bool answered_by_firmware(const proto::Code& c) {
 
 // A firmware that reads at most max_line bytes per line must never get a longer one: F moves to
 // a line of its own, a message is shortened; anything else is refused.
-bool split_for_firmware(const FirmwareLink& fw, const std::string& cmd, std::vector<std::string>& parts) {
+template <class Firmware>
+bool split_for_firmware(const Firmware& fw, const std::string& cmd, std::vector<std::string>& parts) {
     parts.clear();
     if (fw.fits(cmd)) {
         parts.push_back(cmd);
@@ -78,6 +79,67 @@ std::vector<std::string> firmware_commands(const Machine& machine, const std::ve
     return out;
 }
 
+ServePlan plan_as_serve(const Machine& machine, const std::vector<std::string>& lines, const TranslatorOptions& options,
+                        const FirmwareOptions& firmware) {
+    // The steps of Service::process, without the queue: M105 passes untranslated; a wait or a
+    // report releases what the look-back holds first; a line the translator refuses ends it.
+    const Kinematics kin(machine);
+    TranslatorOptions o = options;
+    o.input_name = "sender";
+    Translator t(kin, o);
+    t.set_lookback(Translator::kDefaultLookback);
+    const FirmwareProtocol fw(firmware);
+    ServePlan plan;
+    std::string text;
+    std::vector<std::string> fresh, parts;
+    const auto take = [&](std::uint64_t line_no, const std::string& line) {
+        fresh.clear();
+        proto::append_commands(text, fresh);
+        bool noted = false;
+        for (auto& cmd : fresh) {
+            if (!split_for_firmware(fw, cmd, parts)) {
+                plan.cancel = ServePlan::Point{line_no, line};
+                plan.cause = "'" + cmd + "' is longer than the firmware's line buffer";
+                plan.too_long = true;
+                return false;
+            }
+            if ((parts.size() > 1 || parts[0] != cmd) && !noted) plan.split.push_back({line_no, line}), noted = true;
+            plan.translated.push_back(std::move(cmd));
+            for (auto& p : parts) plan.commands.push_back(std::move(p));
+        }
+        return true;
+    };
+    std::uint64_t n = 0;
+    for (const auto& line : lines) {
+        ++n;
+        const auto code = proto::command_code(line);
+        text.clear();
+        if (code.is('M', 105)) {
+            text = proto::strip_comment(line) + "\n";
+            if (!take(n, line)) return plan;
+            continue;
+        }
+        if (answered_by_firmware(code)) {
+            t.finish(text);
+            if (!text.empty()) plan.releases.push_back({n, line});
+            if (!take(n, line)) return plan;
+            text.clear();
+        }
+        try {
+            t.feed(line, n, text);
+        } catch (const InputError& e) {
+            plan.cancel = ServePlan::Point{n, line};
+            plan.cause = e.message();
+            return plan;
+        }
+        if (!take(n, line)) return plan;
+    }
+    text.clear();
+    t.finish(text);
+    take(n, "(end of the print)");
+    return plan;
+}
+
 Service::Service(asio::io_context& io, const Machine& machine, ServiceOptions options)
     : io_(io), machine_(machine), opt_(std::move(options)), busy_timer_(io), drain_timer_(io), hold_timer_(io) {
     kin_ = std::make_unique<Kinematics>(machine_);
@@ -107,6 +169,7 @@ void Service::release_held() {
     std::string bad;
     if (!split_all(commands, lines, bad)) {
         stop_healthy_ = true;
+        ++stats_.cancelled;
         stop("'" + bad + "' is longer than the firmware's line buffer");
         return;
     }
@@ -158,6 +221,9 @@ void Service::sender_left(SenderSession& s) {
     auto owner = owner_.lock();
     if (owner.get() != &s) return;
     owner_.reset();
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - owner_since_).count();
+    const auto lines = stats_.lines_in - owner_lines_;
+    spdlog::info("{} left: {} lines in {:.1f} s ({:.0f} lines/s)", s.name(), lines, seconds, seconds > 0 ? double(lines) / seconds : 0.0);
     std::size_t dropped = 0;
     for (auto it = pending_.begin(); it != pending_.end();) {
         if (it->session.lock().get() == &s) it = pending_.erase(it), ++dropped;
@@ -231,7 +297,10 @@ bool Service::claim(SenderSession& s) {
     if (owner && owner.get() != &s && owner->open() && !idle()) return false;
     if (!owner || owner.get() != &s) {
         if (owner) spdlog::info("{} now prints (the queue was empty)", s.name());
+        else spdlog::info("{} prints", s.name());
         owner_ = s.weak_from_this();
+        owner_lines_ = stats_.lines_in;
+        owner_since_ = std::chrono::steady_clock::now();
     }
     return true;
 }
@@ -341,6 +410,7 @@ void Service::refuse_line(const Pending& p, const std::string& cause) {
     }
     release_held();
     stop_healthy_ = true;
+    ++stats_.cancelled;
     stop("print cancelled at " + quoted);
 }
 
@@ -444,6 +514,7 @@ void Service::firmware_progress() { pump(); }
 
 void Service::firmware_fault(const std::string& why, std::size_t lines_not_executed) {
     stop_healthy_ = false;
+    ++stats_.faults;
     broadcast("Error:xlate5: " + why + "; print stopped, " + std::to_string(lines_not_executed) +
               " queued lines not executed or not confirmed (nothing is replayed). Send M999 to restart.");
     stop(why);

@@ -3,6 +3,7 @@
 // One io_context drives everything; nothing blocks and nothing polls. Stage: the service's
 // middle; may call the translator (its public API), sender_session, firmware_link.
 #pragma once
+#include <chrono>
 #include <cstdint>
 #include <deque>
 #include <functional>
@@ -31,12 +32,32 @@ struct ServiceOptions {
 
 struct ServiceStats {
     std::uint64_t lines_in = 0, lines_out = 0, rejected = 0, split_long = 0;
+    std::uint64_t cancelled = 0, faults = 0;  // prints cancelled at a refused line; firmware faults (each stops the print)
 };
 
 // What the service sends the firmware for `lines` (before any line is split for a short
 // buffer): the translation of a whole stream, as one sender would send it.
 std::vector<std::string> firmware_commands(const Machine& machine, const std::vector<std::string>& lines,
                                            const TranslatorOptions& options = {});
+
+// What `serve` does with a whole file, as a sender would print it (numbered lines, no pauses):
+// translated line by line exactly as Service::process does, for `serve --check`. It differs from
+// offline translation only where the look-back's held output is released early.
+struct ServePlan {
+    struct Point {
+        std::uint64_t line = 0;
+        std::string text;
+    };
+    std::vector<std::string> translated;  // what the translator gave, before splitting for the firmware
+    std::vector<std::string> commands;    // what the firmware gets
+    std::vector<Point> releases;          // waits and reports: held output goes to the firmware before them
+    std::vector<Point> split;             // lines whose output was split or shortened for the firmware's line buffer
+    std::optional<Point> cancel;          // where serve would cancel the print, and why (cause)
+    std::string cause;
+    bool too_long = false;                // cancelled for the firmware's line buffer, not by the translator
+};
+ServePlan plan_as_serve(const Machine& machine, const std::vector<std::string>& lines, const TranslatorOptions& options,
+                        const FirmwareOptions& firmware);
 
 class Service final : public FirmwareLink::Listener, public SenderSession::Host {
 public:
@@ -124,6 +145,8 @@ private:
     std::uint64_t lines_seen_ = 0;
     bool stop_healthy_ = false;       // stopped by a refused line, not by the firmware: the printer is fine
     std::weak_ptr<SenderSession> owner_;  // the sender printing
+    std::uint64_t owner_lines_ = 0;       // lines_in when it began
+    std::chrono::steady_clock::time_point owner_since_;
     bool busy_armed_ = false;
     std::string out_;  // translator output scratch
     ServiceStats stats_;

@@ -528,3 +528,40 @@ TEST_CASE("the shipped configuration loads with its documented defaults; a broke
     CHECK(v.extruder_letter == 'A');
 }
 
+
+TEST_CASE("a refused line leaves nothing behind: later lines print as if it never came (look-back on)") {
+    // "F0" is refused while the move runs, after the interpreter took the line apart: the
+    // translator's state, and what its emitter remembers of the firmware, must be as before it.
+    std::vector<std::string> good = {"G28", "G92 A-168", "G1 A0 B0 F3000", "M83", "G0 X100 Y100 Z10 A0 B0 F1200"};
+    for (int i = 1; i <= 40; ++i) {
+        char buf[96];
+        std::snprintf(buf, sizeof buf, "G1 X%.1f Y100 Z10 A%.1f B0 E0.02", 100 + 0.5 * i, 0.5 * (i % 7));
+        good.emplace_back(buf);
+    }
+    std::vector<std::string> with_bad = good;
+    with_bad.insert(with_bad.begin() + 20, "G1 X95 Y101 Z10 A3 B2 F0");     // refused: F must be positive
+    with_bad.insert(with_bad.begin() + 30, "G1 X95 Y101 Z10 A3 B2 E-1 Q4");  // refused: Q is not a word of rw2
+    Rig rig("rw2");
+    REQUIRE(rig.ready());
+    const auto expected = offline(rig.machine, good);
+    TestSender sender(rig.io, rig.config.pty, /*numbered=*/false);  // typed: refused, and the print goes on
+    sender.stream(with_bad);
+    REQUIRE(rig.run_until([&] { return sender.done() && rig.service().idle(); }, 30));
+    CHECK(rig.service().stats().rejected == 2);
+    CHECK(rig.service().stop_reason().empty());
+    CHECK(rig.executed_after_hello() == expected);
+}
+
+TEST_CASE("M73 progress from the sender passes through to the firmware in its place") {
+    auto lines = rw2_print(200);
+    lines.insert(lines.begin() + 6, "M73 P0 R12");
+    lines.insert(lines.begin() + 100, "M73 P50 R6");
+    lines.emplace_back("M73 P100 R0");
+    Rig rig("rw2");
+    stream_and_compare(rig, lines, 30);
+    const auto executed = rig.executed_after_hello();
+    for (const char* m : {"M73 P0 R12", "M73 P50 R6", "M73 P100 R0"}) CHECK(std::count(executed.begin(), executed.end(), m) == 1);
+    const auto at = [&](const char* m) { return std::find(executed.begin(), executed.end(), m) - executed.begin(); };
+    CHECK(at("M73 P0 R12") < at("M73 P50 R6"));
+    CHECK(at("M73 P100 R0") == std::ptrdiff_t(executed.size()) - 1);
+}
