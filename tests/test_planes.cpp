@@ -226,8 +226,20 @@ TEST_CASE("G68.2 errors: nested planes, G69 or G53.1 without one, orientation wo
     e = error_of(start + "G68.2 J30\nG92 X0\n");
     CHECK(e.line() == 5);
     // A failed G68.2 leaves no plane behind: G69 after it has nothing to cancel.
-    e = error_of(start + "G68.2 J30 Q121\n");
-    CHECK(e.line() == 4);
+    const Machine m = machine("wpi5");
+    const Kinematics k(m);
+    TranslatorOptions o;
+    o.input_name = "plane.gcode";
+    Translator t(k, o);
+    std::string out;
+    t.feed("G0 X0 Y0 Z20", 1, out);
+    CHECK_THROWS_AS(t.feed("G68.2 J30 Q121", 2, out), InputError);
+    try {
+        t.feed("G69", 3, out);
+        FAIL("G69 after a refused G68.2 was accepted");
+    } catch (const InputError& g69) {
+        CHECK(g69.message().find("G69 without a tilted plane") != std::string::npos);
+    }
 }
 
 TEST_CASE("join: a base file and one whose build direction is (1,0,1), checked by FK") {
