@@ -110,8 +110,12 @@ std::string usage_error(const CLI::App& app, const CLI::ParseError& e) {
     const auto is_option = [](const std::string& w) {
         return w.size() >= 2 && w[0] == '-' && !std::isdigit(static_cast<unsigned char>(w[1])) && w[1] != '.';
     };
-    // A mistyped command first: the options after it are unknown only because of it.
-    for (const auto& word : extras) {
+    // A mistyped command first: the options after it are unknown only because of it. The
+    // translation's FILE may have taken it.
+    std::vector<std::string> words = extras;
+    if (const CLI::Option* file = app.get_option_no_throw("file"); file && file->count() > 0)
+        words.insert(words.begin(), file->results().begin(), file->results().end());
+    for (const auto& word : words) {
         if (is_option(word)) continue;
         if (const std::string guess = nearest(word, commands); !guess.empty())
             return "xlate5: unknown command '" + word + "'; did you mean '" + guess + "'?" + hint;

@@ -4,6 +4,7 @@
 
 #include <cctype>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fcntl.h>
 #include <map>
@@ -14,6 +15,7 @@
 #include "cli/options.hpp"
 #include "cli/preview.hpp"
 #include "cli/progress.hpp"
+#include "cli/provenance.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
 #include "translators/gcode_lexer.hpp"
@@ -25,8 +27,20 @@
 #include "translators/stream.hpp"
 #include "translators/translator.hpp"
 
+#ifndef XLATE5_VERSION
+#define XLATE5_VERSION "0.0.0"
+#endif
+
 namespace xlate5::cli {
 namespace {
+
+// An error in made input, told at the file and line it comes from.
+InputError traced(const InputError& e, const MadeInput& made) {
+    if (e.line() == 0 || e.line() > made.origin.size()) return e;
+    const SourceLine& at = made.origin[e.line() - 1];
+    return InputError(at.file, at.line, at.inserted ? 1 : e.column(),
+                      at.inserted ? "in the change join writes before this line: " + e.message() : e.message());
+}
 
 std::optional<OrientationMode> parse_mode(const std::string& s) {
     if (s == "G43.4" || s == "angles") return OrientationMode::Angles;
@@ -65,6 +79,13 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
                    "write a page to look at before printing: the tip path in 3D coloured by tilt, the tool axis, each joint against its limits")
         ->option_text("FILE.html");
     app.add_flag("--no-progress", o.no_progress, "no progress bar on standard error (there is one only when it is a terminal)");
+    app.add_option("file", o.file,
+                   "translate FILE in place, atomically (as a slicer's post-processing script: PrusaSlicer, OrcaSlicer, SuperSlicer "
+                   "call SCRIPT FILE)")
+        ->option_text("FILE");
+    app.add_flag("--force", o.force,
+                 "translate a file that starts with xlate5's header of the space it would write (already translated: "
+                 "refused without it)");
     app.add_flag("--inverse", o.inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
     app.add_option("--preview-form", o.preview, with_default("with --inverse: write orientation as G43.4 angles or G43.5 I J K", "G43.4"))
         ->check(CLI::IsMember({"G43.4", "G43.5"}))
@@ -79,10 +100,16 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
                                             "is set normal to the path, toward the nearest item at or below the current Z");
 }
 
-int run_translate(const Common& common, const TranslateOptions& o) {
+int run_translate(const Common& common, const TranslateOptions& given, const MadeInput* made) {
     std::map<std::string, double> overrides;
     TranslatorOptions options;
+    TranslateOptions o = given;
     try {
+        if (!o.file.empty()) {
+            if (o.input != "-" || o.output != "-")
+                throw CLI::ValidationError("FILE", "is translated in place: give FILE, or -i and -o, not both");
+            o.input = o.output = o.file;
+        }
         if (common.machine.empty()) throw CLI::ValidationError("--machine", "is required (see 'xlate5 machines')");
         overrides = parse_sets(common.sets);
         if (!o.mode.empty()) {
@@ -102,6 +129,10 @@ int run_translate(const Common& common, const TranslateOptions& o) {
     options.inverse = o.inverse;
     options.preview_form = o.preview == "G43.5" ? OrientationMode::Vector : OrientationMode::Angles;
     options.input_name = o.input == "-" ? "<stdin>" : o.input;
+    // A slicer's post-processing works on a temporary copy; the name the user will see is this.
+    if (const char* final_name = std::getenv("SLIC3R_PP_OUTPUT_NAME"); !o.file.empty() && final_name && *final_name)
+        options.input_name = final_name;
+    if (made) options.input_name = "<join>";
 
     std::optional<Machine> machine;
     try {
@@ -117,7 +148,9 @@ int run_translate(const Common& common, const TranslateOptions& o) {
     int in_fd = 0;
     try {
         const Kinematics kinematics(*machine);  // a layout outside the family: MachineError
-        if (o.input != "-") {
+        if (made) {
+            in_fd = made->fd;
+        } else if (o.input != "-") {
             in_fd = ::open(o.input.c_str(), O_RDONLY | O_CLOEXEC);
             if (in_fd < 0) throw IoError(o.input + ": cannot open: " + std::strerror(errno));
         }
@@ -151,15 +184,38 @@ int run_translate(const Common& common, const TranslateOptions& o) {
         Progress progress(regular ? std::uint64_t(in_stat.st_size) : 0, !o.no_progress && ::isatty(2));
         std::optional<Preview> preview;
         if (!o.preview_html.empty()) preview.emplace(kinematics);
+
+        // The first line says what the file is: binary G-code is refused, xlate5's own header
+        // of the space this run writes is a second translation (refused unless forced), the
+        // header of the other space (a preview read back) is dropped: the output has its own.
+        const Space writes = o.inverse ? Space::Tool : Space::Joint;
+        const std::string head = provenance_header(XLATE5_VERSION, machine->name, writes) + "\n";
+        const auto first_line = [&](std::string_view first, std::string& out) {
+            if (is_binary_gcode(first)) throw InputError(options.input_name, 1, 1, binary_gcode_message());
+            const std::optional<Space> was = read_provenance(first);
+            if (was == writes && !o.force)
+                throw InputError(options.input_name, 1, 1,
+                                 std::string("this file is xlate5's output already (") +
+                                     (writes == Space::Joint ? "joint space: translating it again would move the print by the kinematics twice"
+                                                             : "tool space: --inverse reads joint space") +
+                                     "); give --force to translate it anyway");
+            out += head;
+            return !was || was == writes;
+        };
         const auto stats = translate_stream(
             reader, front, sink, !regular, [&](const StreamStats& s) { progress.update(s.bytes_in, s.lines_in); },
             preview ? std::function<void(std::string_view)>([&](std::string_view block) { preview->scan(block); })
-                    : std::function<void(std::string_view)>());
+                    : std::function<void(std::string_view)>(),
+            first_line);
+        if (stats.lines_in == 0) {
+            sink.write(head);  // an empty input: the header alone
+            if (preview) preview->scan(head);
+        }
         // The report files are written like the output: whole, or not at all.
         std::optional<OutputSink> report_sink, plot_sink, preview_sink;
         if (preview) preview_sink.emplace(o.preview_html), preview_sink->write(preview->html(options.input_name + " on " + machine->name));
         if (report) {
-            report->set_lines(stats.lines_in, stats.lines_out);
+            report->set_lines(stats.lines_in, stats.lines_out + (stats.lines_in == 0 ? 1 : 0));
             if (!o.report.empty()) report_sink.emplace(o.report), report_sink->write(report->json());
             if (!o.plot.empty()) plot_sink.emplace(o.plot), plot_sink->write(report->svg());
         }
@@ -167,10 +223,12 @@ int run_translate(const Common& common, const TranslateOptions& o) {
         if (report_sink) report_sink->commit();
         if (plot_sink) plot_sink->commit();
         if (preview_sink) preview_sink->commit();
+    } catch (const InputError& e) {
+        return exit_with(std::make_exception_ptr(made ? traced(e, *made) : e));
     } catch (...) {
         return exit_with(std::current_exception());
     }
-    if (in_fd > 0) ::close(in_fd);
+    if (in_fd > 0 && !made) ::close(in_fd);
     return kOk;
 }
 

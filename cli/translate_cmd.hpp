@@ -2,7 +2,9 @@
 // line; may call the translators' public API: machine, kinematics, translator, stream, report).
 #pragma once
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "cli/errors.hpp"
 
@@ -15,11 +17,27 @@ struct TranslateOptions {
     // Other inputs: CL data and waypoint tables (input_front), keep-out items (keep_out).
     std::string input_format = "auto", keep_out;
     double extrusion_per_mm = 0, waypoint_feed = 1200;
+    // Slicer post-processing: FILE translated in place; --force translates a file that already
+    // carries xlate5's header of the same space (provenance.hpp).
+    std::string file;
+    bool force = false;
+};
+
+// Input made by another command (join): the lines of `fd`, each traced back to the file and
+// line it comes from, so that errors name those.
+struct SourceLine {
+    std::string file;
+    std::uint64_t line = 0;
+    bool inserted = false;  // written by the command itself (before that line)
+};
+struct MadeInput {
+    int fd = -1;
+    std::vector<SourceLine> origin;  // per line, from line 1
 };
 
 // The translation's options live on the top-level command: translating is what xlate5 does
 // when no subcommand is given.
 void add_translate_options(CLI::App& app, TranslateOptions& o);
-int run_translate(const Common& common, const TranslateOptions& o);
+int run_translate(const Common& common, const TranslateOptions& o, const MadeInput* made = nullptr);
 
 }  // namespace xlate5::cli

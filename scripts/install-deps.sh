@@ -6,7 +6,8 @@ pkgs=(build-essential cmake pkg-config
       doctest-dev libcli11-dev libserialport-dev libsystemd-dev
       printcore python3-serial
       man-db    # man-db: the manual page test renders xlate5(1) with man -l
-      chromium) # the --preview test loads the page in headless Chromium (skipped without it)
+      chromium      # the --preview test loads the page in headless Chromium (skipped without it)
+      prusa-slicer) # the post-processing test slices with xlate5 as its script (skipped without it)
 # `install-deps.sh fuzz` adds what the fuzz targets need (scripts/fuzz.sh): clang, libFuzzer and
 # the sanitizer runtimes. The test suite does not need them.
 if [ "${1:-}" = fuzz ]; then pkgs+=(clang libclang-rt-14-dev); fi

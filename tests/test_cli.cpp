@@ -62,6 +62,17 @@ Result run(const TempDir& dir, const std::string& args, const std::string& stdin
     return r;
 }
 
+// The lines of a translation's output after its first, which must be xlate5's header naming
+// the machine and the space written.
+std::vector<std::string> body_lines(const std::string& out, const std::string& machine, const std::string& space = "joint space") {
+    auto lines = lines_of(out);
+    REQUIRE(!lines.empty());
+    CHECK(lines[0].rfind("; xlate5 ", 0) == 0);
+    CHECK(lines[0].find(" machine=" + machine + " " + space) != std::string::npos);
+    lines.erase(lines.begin());
+    return lines;
+}
+
 
 
 
@@ -96,7 +107,7 @@ TEST_CASE("cli: a good file translates with exit code 0, from -i and from standa
     const Result r = run(d, "-m rw2 --no-segment -i " + quote(in.string()));
     CHECK(r.code == 0);
     CHECK(r.err.empty());
-    const auto lines = lines_of(r.out);
+    const auto lines = body_lines(r.out, "rw2");
     REQUIRE(lines.size() == 7);
     CHECK(lines[0] == "; a small tool-space file");
     CHECK(lines[1] == "G28");
@@ -177,7 +188,7 @@ TEST_CASE("cli: with -o, bad input leaves no output file and an existing one unc
     r = run(d, "-m rw2 --no-segment -i " + quote(good.string()) + " -o " + quote(out.string()));
     CHECK(r.code == 0);
     CHECK(r.out.empty());
-    CHECK(lines_of(read(out)).size() == 7);
+    CHECK(body_lines(read(out), "rw2").size() == 7);
     CHECK(d.entries() == std::vector<std::string>{"bad.gcode", "good.gcode", "out.gcode"});
 }
 
@@ -412,7 +423,7 @@ TEST_CASE("cli: --set la=29 changes the output per eq. 4.5") {
         CAPTURE(la);
         const Result r = run(d, la == 29.0 ? "-m rw2 --no-segment --set la=29" : "-m rw2 --no-segment", in);
         REQUIRE(r.code == 0);
-        const auto lines = lines_of(r.out);
+        const auto lines = body_lines(r.out, "rw2");
         REQUIRE(lines.size() == 2);
         auto w = words_of(lines[0]);
         Xyz e = eq45(100, 100, 10, 90, 0, la);
@@ -441,7 +452,7 @@ TEST_CASE("cli: --inverse turns joint-space G-code into tool space") {
     std::snprintf(line, sizeof line, "G1 X%.3f Y%.3f Z%.3f A30 B10 F1200\n", j.x, j.y, j.z);
     const Result r = run(d, "-m rw2 --inverse", line);
     REQUIRE(r.code == 0);
-    const auto lines = lines_of(r.out);
+    const auto lines = body_lines(r.out, "rw2", "tool space");
     REQUIRE(lines.size() == 1);
     const auto w = words_of(lines[0]);
     CHECK(std::abs(w.at('X') - 100) <= 2e-3);
@@ -454,7 +465,7 @@ TEST_CASE("cli: --inverse turns joint-space G-code into tool space") {
     // G43.5 preview: the tool axis u = (sin B cos A, -sin B sin A, cos B) of rw2.toml.
     const Result v = run(d, "-m rw2 --inverse --preview-form G43.5", line);
     REQUIRE(v.code == 0);
-    const auto wv = words_of(lines_of(v.out).at(0));
+    const auto wv = words_of(body_lines(v.out, "rw2", "tool space").at(0));
     CHECK(std::abs(wv.at('I') - std::sin(rad(10)) * std::cos(rad(30))) < 1e-6);
     CHECK(std::abs(wv.at('J') + std::sin(rad(10)) * std::sin(rad(30))) < 1e-6);
     CHECK(std::abs(wv.at('K') - std::cos(rad(10))) < 1e-6);

@@ -4,12 +4,22 @@
 
 #include <cmath>
 #include <optional>
+#include <string>
 
 #include "translators/arcs.hpp"
 #include "translators/error.hpp"
 #include "translators/keep_out.hpp"
 
 namespace xlate5 {
+
+namespace {
+
+std::string plane_orientation_error(const WorkPlane& plane) {
+    return "orientation words inside a tilted plane (G68.2 on line " + std::to_string(plane.line) +
+           ") are ambiguous: the tool axis there is the plane's +Z (G53.1); cancel the plane with G69 to orient the tool";
+}
+
+}  // namespace
 
 Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner& planner, std::string input_name,
                          char extruder_letter)
@@ -140,6 +150,9 @@ void Interpreter::run_command(const CommandWord& c, std::string_view body, bool 
         case 0:
         case 10:
             m.modes.motion = c.code10 / 10;
+            if (m.mode == OrientationMode::Joints && m.plane.active)
+                fail(c.column, "joint moves (G49) inside a tilted plane (G68.2 on line " + std::to_string(m.plane.line) +
+                                   "): cancel it with G69 first");
             if (m.mode == OrientationMode::Joints) joint_move(c.code10 / 10, words, out);
             else tool_move(c.code10 / 10, c.column, words, m.modes.absolute, m.modes.inches, run, out);
             return;
@@ -162,6 +175,11 @@ void Interpreter::run_command(const CommandWord& c, std::string_view body, bool 
             return;
         case 280:
             home(words, out);
+            return;
+        case 531:
+        case 682:
+        case 690:
+            work_plane_command(c, words, run, out);
             return;
         case 920:
             set_position(words, body, out);
@@ -193,7 +211,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, const Params& words
     ModalState& m = state_.modal;
     const PlannerState& at = state_.planner;
     const double unit = inches ? 25.4 : 1.0;
-    Eigen::Vector3d tip = at.pose.tip - m.offset;  // program frame
+    Eigen::Vector3d tip = input_frame_tip();  // program frame, or the tilted plane's
     Eigen::Vector3d ijk = Eigen::Vector3d::Zero();
     bool any_xyz = false, any_ijk = false, any_rotary = false;
     std::uint32_t ijk_column = column;
@@ -211,6 +229,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, const Params& words
                 break;
             }
             case 'I': case 'J': case 'K':
+                if (m.plane.active) fail(p.column, plane_orientation_error(m.plane));
                 if (m.mode != OrientationMode::Vector)
                     fail(p.column, "I J K give a tool vector only under G43.5");
                 if (!any_ijk) ijk_column = p.column;
@@ -227,6 +246,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, const Params& words
                 if (j < 0 || !machine_.joints[std::size_t(j)].rotary)
                     fail(p.column, std::string("word ") + p.letter + " is not a tool-space word for machine " + machine_.name +
                                        " (X Y Z give the tip" + (m.mode == OrientationMode::Vector ? ", I J K the tool axis)" : ", its rotary letters the orientation)"));
+                if (m.plane.active) fail(p.column, plane_orientation_error(m.plane));
                 if (m.mode == OrientationMode::Vector)
                     fail(p.column, std::string("rotary word ") + p.letter + " under G43.5: give the tool axis as I J K, or switch to G43.4");
                 const double v = number(p);
@@ -243,6 +263,13 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, const Params& words
         if (!(ijk.norm() > 1e-12)) fail(ijk_column, "tool vector I J K has length 0");
         mv.axis = ijk.normalized();
     }
+    mv.mode = m.mode;
+    if (m.plane.active && m.plane.tool_turned) {
+        // After G53.1 every move inside the plane holds the tool on the plane's +Z.
+        any_ijk = true;
+        mv.axis = m.plane.normal();
+        mv.mode = OrientationMode::Vector;
+    }
     for (std::size_t j = 0; j < at.q.size(); ++j) {
         const bool rotary = machine_.joints[j].rotary;
         if ((!rotary && any_xyz) || (rotary && any_ijk)) commanded_[j] = true;
@@ -253,9 +280,8 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, const Params& words
         fail(column, "under G93 every feed move (G1, G2, G3) needs its F (1/minutes)");
     mv.gcode = gcode;
     mv.column = column;
-    mv.mode = m.mode;
     mv.any_xyz = any_xyz;
-    mv.tip = tip + m.offset;
+    mv.tip = part_from_input(tip);
     mv.any_rotary = any_rotary;
     mv.angles = &angles_;
     mv.any_ijk = any_ijk;
@@ -283,7 +309,7 @@ void Interpreter::arc(bool clockwise, std::uint32_t column, const Params& words,
     Arc a;
     a.clockwise = clockwise;
     a.plane = saved.plane;
-    a.start = state_.planner.pose.tip - m.offset;
+    a.start = input_frame_tip();  // inside a tilted plane, the arc and its G17-G19 are the plane's
     a.end = a.start;
     bool centre = false;
     rotary_words_.clear();
@@ -412,7 +438,12 @@ void Interpreter::set_position(const Params& words, std::string_view body, std::
             m.modes.e_position = e->value;
             continue;
         }
-        if (tcp && (p.letter == 'X' || p.letter == 'Y' || p.letter == 'Z')) continue;  // applied below, after the joints
+        if (tcp && (p.letter == 'X' || p.letter == 'Y' || p.letter == 'Z')) {
+            if (m.plane.active)
+                fail(p.column, "G92 X Y Z inside a tilted plane (G68.2 on line " + std::to_string(m.plane.line) +
+                                   "): set the program frame before G68.2, or cancel it with G69 first");
+            continue;  // applied below, after the joints
+        }
         const int j = machine_.joint_index(p.letter);
         if (j < 0 || (tcp && !machine_.joints[std::size_t(j)].rotary))
             fail(p.column, std::string("G92 word ") + p.letter + " is not a joint of machine " + machine_.name);
@@ -450,6 +481,84 @@ void Interpreter::home(const Params& words, std::string& out) {
     }
     out += '\n';
     state_.modal.offset.setZero();
+}
+
+Eigen::Vector3d Interpreter::input_frame_tip() const {
+    const ModalState& m = state_.modal;
+    const Eigen::Vector3d program = state_.planner.pose.tip - m.offset;
+    return m.plane.active ? m.plane.to_plane(program) : program;
+}
+
+Eigen::Vector3d Interpreter::part_from_input(const Eigen::Vector3d& p) const {
+    const ModalState& m = state_.modal;
+    return (m.plane.active ? m.plane.to_program(p) : p) + m.offset;
+}
+
+// G68.2 X Y Z I J K: origin (program frame, the program's unit) and Z-X-Z Euler angles in
+// degrees, each 0 when not given (LinuxCNC 2.9's P0 Q313, the only form read). G53.1 turns the
+// tool to the plane's +Z about the tip held still (a rapid under tool-centre-point control).
+// G69 cancels the plane; the tool stays where it is. None of them is sent to the firmware.
+void Interpreter::work_plane_command(const CommandWord& c, const Params& words, LineRun& run, std::string& out) {
+    ModalState& m = state_.modal;
+    WorkPlane& plane = m.plane;
+    const std::string code = c.code10 == 682 ? "G68.2" : c.code10 == 531 ? "G53.1" : "G69";
+    if (m.mode == OrientationMode::Joints)
+        fail(c.column, code + " needs tool-centre-point control (G43.4 or G43.5), not G49");
+    if (c.code10 == 682) {
+        if (plane.active)
+            fail(c.column, "G68.2 inside a tilted plane (G68.2 on line " + std::to_string(plane.line) +
+                               "): planes do not nest, cancel it with G69 first");
+        Eigen::Vector3d origin = Eigen::Vector3d::Zero(), angles = Eigen::Vector3d::Zero();
+        for (const Param& p : words) {
+            const double v = number(p);
+            switch (p.letter) {
+                case 'X': case 'Y': case 'Z': origin[p.letter - 'X'] = v * m.modes.unit(); break;
+                case 'I': case 'J': case 'K':
+                    if (!(std::abs(v) <= 360.0)) fail(p.column, std::string("G68.2 angle ") + p.letter + " must be within -360..360 degrees");
+                    angles[p.letter - 'I'] = v;
+                    break;
+                case 'P':
+                    if (v != 0) fail(p.column, "G68.2 reads Euler angles only (P0)");
+                    break;
+                case 'Q':
+                    if (v != 313) fail(p.column, "G68.2 reads Z-X-Z Euler angles only (Q313)");
+                    break;
+                default:
+                    fail(p.column, std::string("word ") + p.letter + " is not a G68.2 word (X Y Z origin, I J K Z-X-Z angles in degrees)");
+            }
+        }
+        plane.active = true;
+        plane.tool_turned = false;
+        plane.origin = origin;
+        plane.rotation = euler_zxz(angles.x(), angles.y(), angles.z());
+        plane.line = run.line_no;
+        return;
+    }
+    if (!words.empty()) fail(words.front().column, code + " takes no words");
+    if (!plane.active) fail(c.column, code + " without a tilted plane: G68.2 defines one first");
+    if (c.code10 == 690) {
+        plane = WorkPlane{};
+        return;
+    }
+    // G53.1: the rotaries turn, the tip stays.
+    commanded_.assign(state_.planner.q.size(), false);
+    for (std::size_t j = 0; j < commanded_.size(); ++j) commanded_[j] = machine_.joints[j].rotary;
+    planner_.programmed_angles(angles_);
+    ToolMove mv;
+    mv.gcode = 0;
+    mv.column = c.column;
+    mv.mode = OrientationMode::Vector;
+    mv.tip = state_.planner.pose.tip;
+    mv.angles = &angles_;
+    mv.any_ijk = true;
+    mv.axis = plane.normal();
+    mv.commanded = &commanded_;
+    mv.e_relative = m.modes.e_relative;
+    mv.e_position = m.modes.e_position;
+    mv.feed = m.modes.feed;
+    if (keep_out_) keep_out_->tool_move(mv, run, out);
+    else planner_.tool_move(mv, run, out);
+    plane.tool_turned = true;
 }
 
 }  // namespace xlate5

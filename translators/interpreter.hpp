@@ -1,10 +1,12 @@
 // The interpreter stage, between the lexer and the planner: one line's words + the modal state
-// (G43.4/G43.5/G49, G90/G91, G20/G21, G17-G19, G93/G94, M82/M83, F, G92's program frame) ->
+// (G43.4/G43.5/G49, G90/G91, G20/G21, G17-G19, G93/G94, M82/M83, F, G92's program frame, the
+// tilted work plane of G68.2/G53.1/G69) ->
 // typed commands: a ToolMove (G0/G1 under tool-centre-point control; each chord of a G2/G3), a
 // JointMove (G49), a position set (G92), homing (G28), or the line passed on as written. Lines it
 // does not need to understand pass through unchanged and in order. A failed line leaves neither
 // output nor state changed.
-// May call: the lexer, line_commands, arcs (G2/G3 -> chords), the keep-out stage, the planner.
+// May call: the lexer, line_commands, arcs (G2/G3 -> chords), work_plane (the plane's frame), the
+// keep-out stage, the planner.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -19,6 +21,7 @@
 #include "translators/machine.hpp"
 #include "translators/modes.hpp"
 #include "translators/planner.hpp"
+#include "translators/work_plane.hpp"
 
 namespace xlate5 {
 
@@ -27,6 +30,7 @@ struct ModalState {
     OrientationMode mode = OrientationMode::Angles;
     Modes modes;
     Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // program frame origin in the part frame (G92)
+    WorkPlane plane;  // G68.2 ... G69: X Y Z are read in the plane's frame (work_plane.hpp)
 };
 
 // The state a line can change above the emitter: rolled back as one when a line fails.
@@ -63,6 +67,12 @@ private:
     void set_position(const Params& words, std::string_view body, std::string& out);
     void home(const Params& words, std::string& out);
     void track_extrusion(const std::optional<PassedNumber>& e);
+    // G68.2 (define a tilted plane), G53.1 (turn the tool to its +Z), G69 (cancel).
+    void work_plane_command(const CommandWord& c, const Params& words, LineRun& run, std::string& out);
+    // The current tip in the frame the input's X Y Z are read in: the program frame, or inside a
+    // tilted plane the plane's; and back to the part frame.
+    Eigen::Vector3d input_frame_tip() const;
+    Eigen::Vector3d part_from_input(const Eigen::Vector3d& p) const;
 
     const Machine& machine_;
     LineState& state_;

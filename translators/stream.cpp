@@ -24,7 +24,8 @@ StreamStats translate_stream(LineReader& reader, Translator& translator, OutputS
 
 StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& sink, bool streaming,
                              const std::function<void(const StreamStats&)>& on_read,
-                             const std::function<void(std::string_view)>& on_write) {
+                             const std::function<void(std::string_view)>& on_write,
+                             const std::function<bool(std::string_view, std::string&)>& on_first_line) {
     Translator& translator = front.translator();
     StreamStats stats;
     std::string out;
@@ -40,7 +41,7 @@ StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& 
     };
     translator.set_lookback(Translator::kDefaultLookback);  // a limit further on can be unwound on an earlier travel move
     while (reader.next(line)) {
-        front.feed(line, reader.line_number(), out);
+        if (!on_first_line || reader.line_number() != 1 || on_first_line(line, out)) front.feed(line, reader.line_number(), out);
         if (out.size() >= kFlushAt || (streaming && !out.empty() && !reader.has_line())) flush();
         if (on_read && reader.bytes_read() != seen) {
             seen = reader.bytes_read();

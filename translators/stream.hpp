@@ -28,10 +28,12 @@ class InputFront;
 // sender and a printer never holds decided output while it waits for input (the look-back still
 // holds what it may translate again). `on_read`, when given, is called with the counts so far
 // once per block of input read, never per line; `on_write` with each block of output as it goes
-// to the sink (whole lines).
+// to the sink (whole lines). `on_first_line`, when given, sees the first line before it is fed:
+// it may append to the output (a header) or throw, and returns whether the line is fed.
 StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& sink, bool streaming = false,
                              const std::function<void(const StreamStats&)>& on_read = {},
-                             const std::function<void(std::string_view)>& on_write = {});
+                             const std::function<void(std::string_view)>& on_write = {},
+                             const std::function<bool(std::string_view, std::string&)>& on_first_line = {});
 // The same for G-code.
 StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink, bool streaming = false,
                              const std::function<void(const StreamStats&)>& on_read = {},
