@@ -117,6 +117,11 @@ private:
     void unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
     void end_candidates(OrientationMode mode, const Pose& end, const std::vector<double>& programmed,
                         const std::vector<double>& usual);
+    // Near a pole, across moves: the end of a tool-vector move from `from` to `to` with the
+    // turntable turned no more than the angle tolerance needs (see planner.cpp). Returns true, with
+    // the end joints in `q` (linear joints solved) and the worst axis deviation of the joint-linear
+    // turn in `worst`, when the move is to be made that way (rotaries linear, angle form).
+    bool pole_passage(const Pose& from, const Pose& to, std::vector<double>& q, double& worst);
 
     struct Candidate {
         std::vector<double> q;
@@ -134,6 +139,7 @@ private:
     std::vector<double> q_next_;    // scratch: the move being solved
     std::vector<bool> which_;       // scratch: joints a re-zero tells the firmware about
     std::vector<Candidate> candidates_;
+    std::vector<double> pole_q_, pole_probe_;  // scratch for pole_passage
 };
 
 }  // namespace xlate5
