@@ -190,6 +190,8 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
         q[b] = q0[b] + wrap180(tilt_b - q0[b]);
         if (!kin_.solve_position(to.tip, q).ok() || !check_limits(machine_, q).ok()) return false;
         if (angle_between(kin_.forward(q).axis, to.axis) > budget + 1e-9) return false;
+        // The usual end from an exact start: nothing to choose (planar files, exact on the pole).
+        if (start_exact && std::abs(q[c] - q_next_[c]) < kSameAngle && std::abs(q[b] - q_next_[b]) < kSameAngle) return false;
     }
     // The joint-linear turn from the start against the programmed axis's great circle.
     worst = 0;
