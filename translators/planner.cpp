@@ -21,7 +21,8 @@ namespace {
 // d moves the tool axis by asin(sin t sin d). So there it need not follow the axis's azimuth,
 // which swings round fast however slowly the axis moves past (a half turn for a passage that
 // misses the pole by a hair, over however many short moves). Within kPoleRegion angle tolerances
-// of the pole the end of each move may leave its programmed axis by a budget: kPoleHold of the
+// of the pole the end of each short move (turning the tool axis by less than the tolerance: a
+// longer one ends exactly on its programmed axis) may leave that axis by a budget: kPoleHold of the
 // tolerance up to that tilt (any turntable angle will do: it is held), falling linearly to zero
 // at the region's edge, where the ends are exact again. The other half of the tolerance is left
 // for the joint-linear turn between the ends, which is checked on kPoleSamples points.
@@ -160,9 +161,13 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
     const Eigen::Vector3d pole = kin_.forward(probe).axis;
     const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
     const bool start_exact = angle_between(kin_.forward(q0).axis, from.axis) < 1e-6;
-    if (start_exact && tilt >= region) return false;
+    // Only a move turning the tool axis by less than the tolerance may end off its axis: a
+    // passage made of such moves cannot cross in any one of them. A longer move ends exactly
+    // where it was programmed (a crossing within it is the motion stage's).
+    const bool short_move = angle_between(from.axis, to.axis) < tolerance;
+    if (start_exact && (tilt >= region || !short_move)) return false;
     q = q_next_;  // as solved: the continuous end (exact)
-    if (tilt < region) {
+    if (tilt < region && short_move) {
         const double budget = tilt <= hold ? hold : hold * (region - tilt) / (region - hold);
         // The turntable may stay this far off an exact solution's angle.
         const double st = std::sin(tilt / kDegPerRad), sb = std::sin(budget / kDegPerRad);
