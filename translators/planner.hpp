@@ -1,7 +1,8 @@
 // The planner stage, between the interpreter and the motion stage: turns a typed move into
 // joint moves. It solves the end of each tool-space move (IK), chooses the solution (the
 // continuous one, or for a travel move another solution of its pose inside the limits: the other
-// branch or another turn), is the stage that applies the joint limits, re-zeroes a wound-up
+// branch or another turn; near a pole, over short moves, the turntable held within the angle
+// tolerance), is the stage that applies the joint limits, re-zeroes a wound-up
 // turntable, and hands the move to the motion stage to be split. Joint-space moves (G49),
 // position changes (G92) and homing (G28) reach the firmware through it too.
 // May call: kinematics, joint_limits, the motion stage, the compensation stage, the emitter, and
