@@ -10,6 +10,18 @@ namespace xlate5::cli {
 
 namespace {
 
+// A travel move turning a rotary this far is marked as an unwind (onto another turn, or the
+// other branch, as the planner's look-back does before printing that would pass a limit).
+constexpr double kUnwindTurnDeg = 150;
+constexpr int kDeviationSamples = 8;  // interior points per written move
+
+double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    const Eigen::Vector3d ab = b - a;
+    const double len2 = ab.squaredNorm();
+    const double t = len2 > 0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    return (a + t * ab - p).norm();
+}
+
 std::string num(double v) {
     if (!std::isfinite(v)) return "null";
     char b[32];
@@ -42,8 +54,10 @@ const centre = lo.map((v, k) => (v + hi[k]) / 2);
 const size = Math.max(1e-6, ...hi.map((v, k) => v - lo[k]));
 let yaw = -0.6, pitch = 0.9;
 const view = document.getElementById('view'), g = view.getContext('2d');
-function colour(tilt) {  // 0 degrees blue, the file's largest tilt red
-  const f = D.max_tilt > 0 ? Math.min(1, tilt / D.max_tilt) : 0;
+const mode = document.getElementById('colour');
+if (location.hash === '#deviation') mode.value = 'dev';  // a link straight to the deviation view
+function colour(p) {  // tilt: 0 degrees blue, the file's largest red; deviation: 0 blue, the tolerance red
+  const f = mode.value === 'dev' ? Math.min(1, p[8] / D.tolerance) : (D.max_tilt > 0 ? Math.min(1, p[6] / D.max_tilt) : 0);
   return 'hsl(' + Math.round(240 * (1 - f)) + ',85%,45%)';
 }
 function project(p) {
@@ -65,11 +79,21 @@ function draw() {
   g.lineWidth = 1.5;
   for (let i = 1; i < n; i++) {
     const a = project(tips[i - 1]), b = project(tips[i]);
-    g.strokeStyle = D.pose[i][7] || framed === tips ? colour(D.pose[i][6]) : 'rgba(0,0,0,0.15)'; g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke();
+    g.strokeStyle = D.pose[i][7] || framed === tips ? colour(D.pose[i]) : 'rgba(0,0,0,0.15)'; g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke();
+  }
+  for (const m of D.marks) {  // pole crossings: magenta rings; unwinds: orange squares
+    const a = project([m[2], m[3], m[4]]);
+    g.lineWidth = 2; g.strokeStyle = m[0] === 'pole' ? 'magenta' : 'darkorange'; g.beginPath();
+    if (m[0] === 'pole') g.arc(a[0], a[1], 6, 0, 2 * Math.PI); else g.rect(a[0] - 5, a[1] - 5, 10, 10);
+    g.stroke();
   }
   g.fillStyle = '#000'; g.font = '12px sans-serif';
-  g.fillText('tilt: blue 0\u00b0 \u2026 red ' + D.max_tilt.toFixed(1) + '\u00b0; grey: tool axis; faint: travel. Drag to turn.', 8, 16);
+  g.fillText((mode.value === 'dev' ? 'deviation: blue 0 \u2026 red ' + D.tolerance + ' mm (the tolerance) and beyond'
+                                   : 'tilt: blue 0\u00b0 \u2026 red ' + D.max_tilt.toFixed(1) + '\u00b0') +
+             '; grey: tool axis; faint: travel.', 8, 16);
+  g.fillText('Magenta ring: pole crossing; orange square: unwind. Drag to turn.', 8, 32);
 }
+mode.addEventListener('change', draw);
 let drag = null;
 view.addEventListener('mousedown', e => { drag = [e.clientX, e.clientY]; });
 window.addEventListener('mouseup', () => { drag = null; });
@@ -96,7 +120,19 @@ D.joints.forEach((j, k) => {
   h.fillStyle = '#000'; h.font = '12px sans-serif';
   h.fillText(j.name + ' ' + j.unit, 4, 14);
   h.fillText(j.low.toFixed(2) + ' \u2026 ' + j.high.toFixed(2), 4, 86);
+  for (const m of D.marks) {
+    const x = 60 + m[1] * 830;
+    h.strokeStyle = m[0] === 'pole' ? 'magenta' : 'darkorange'; h.beginPath(); h.moveTo(x, 10); h.lineTo(x, 80); h.stroke();
+  }
 });
+const list = document.getElementById('marks');
+D.marks.slice(0, 100).forEach(m => {
+  const li = document.createElement('li'); li.dataset.kind = m[0];
+  li.textContent = (m[0] === 'pole' ? 'pole crossing' : 'unwind') + ' at written move ' + m[5] +
+                   ' (tip ' + m.slice(2, 5).map(v => v.toFixed(2)).join(', ') + ')';
+  list.appendChild(li);
+});
+if (D.marks.length > 100) { const li = document.createElement('li'); li.textContent = 'and ' + (D.marks.length - 100) + ' more'; list.appendChild(li); }
 document.title = document.title + ' (drawn)';
 )JS";
 
@@ -104,7 +140,7 @@ document.title = document.title + ' (drawn)';
 
 Preview::Preview(const Kinematics& kinematics)
     : kin_(kinematics), joints_(kinematics.machine().joints.size()), q_now_(kinematics.machine().home_joints()),
-      low_(q_now_), high_(q_now_) {}
+      low_(q_now_), high_(q_now_), q_before_(q_now_) {}
 
 void Preview::scan(std::string_view output) {
     while (!output.empty()) {
@@ -139,6 +175,7 @@ void Preview::line(std::string_view l) {
     if (!move && !set) return;
     const auto& joints = kin_.machine().joints;
     printing_ = false;
+    q_before_ = q_now_;
     // Words "L<number>" separated by blanks, up to a comment.
     for (std::size_t i = 3; i < l.size();) {
         if (l[i] == ';' || l[i] == '(') break;
@@ -158,23 +195,71 @@ void Preview::line(std::string_view l) {
         for (std::size_t j = 0; j < joints_; ++j)
             if (joints[j].output == letter) q_now_[j] = v;
     }
-    if (!move) return;
+    bool turned = false, unwound = false;
+    for (std::size_t j = 0; j < joints_; ++j) {
+        if (!joints[j].rotary || q_now_[j] == q_before_[j]) continue;
+        turned = true;
+        unwound = unwound || std::abs(q_now_[j] - q_before_[j]) >= kUnwindTurnDeg;
+    }
+    if (!move) {
+        // A G92 that renames a rotary's angle: a wound-up turntable re-zeroed.
+        if (turned) mark(MarkKind::Unwind, q_now_);
+        return;
+    }
     for (std::size_t j = 0; j < joints_; ++j) low_[j] = std::min(low_[j], q_now_[j]), high_[j] = std::max(high_[j], q_now_[j]);
+    if (turned) dev_since_ = std::max(dev_since_, deviation(q_before_, q_now_));
+    if (unwound && !printing_) mark(MarkKind::Unwind, q_now_);
+    // Across a pole the tilting rotary changes sign (the other branch, where the first rotary
+    // lies along the tool at zero): marked where it arrives on the other side.
+    const auto& rot = kin_.rotary_joints();
+    if (rot.size() == 2 && kin_.has_flip()) {
+        const double tilt = q_now_[std::size_t(rot[1])];
+        const int sign = tilt > 0 ? 1 : tilt < 0 ? -1 : 0;
+        if (sign != 0) {
+            if (tilt_sign_ != 0 && sign != tilt_sign_) mark(MarkKind::PoleCrossing, q_now_);
+            tilt_sign_ = sign;
+        }
+    }
     if (moves_++ % every_ == 0) keep();
+}
+
+double Preview::deviation(const std::vector<double>& from, const std::vector<double>& to) const {
+    std::vector<double> q(from.size());
+    const Eigen::Vector3d a = kin_.forward(from).tip, b = kin_.forward(to).tip;
+    double worst = 0;
+    for (int i = 1; i <= kDeviationSamples; ++i) {
+        const double t = double(i) / (kDeviationSamples + 1);
+        for (std::size_t j = 0; j < q.size(); ++j) q[j] = from[j] + t * (to[j] - from[j]);
+        worst = std::max(worst, segment_distance(kin_.forward(q).tip, a, b));
+    }
+    return worst;
+}
+
+void Preview::mark(MarkKind kind, const std::vector<double>& q) {
+    ++marks_seen_;
+    if (marks_.size() >= kMaxMarks) return;
+    const Eigen::Vector3d tip = kin_.forward(q).tip;
+    marks_.push_back({kind, moves_, {tip.x(), tip.y(), tip.z()}});
 }
 
 void Preview::keep() {
     q_.insert(q_.end(), q_now_.begin(), q_now_.end());
     prints_.push_back(printing_ ? 1 : 0);
+    dev_.push_back(dev_since_);
+    dev_since_ = 0;
     if (q_.size() / joints_ < kMaxPoints) return;
     // Full: keep every other kept move, and keep every 2 * every_ -th from now on.
     std::size_t w = 0;
     for (std::size_t r = 0; r < q_.size() / joints_; r += 2, ++w) {
         std::copy_n(q_.begin() + std::ptrdiff_t(r * joints_), joints_, q_.begin() + std::ptrdiff_t(w * joints_));
         prints_[w] = prints_[r];
+        dev_[w] = std::max(dev_[r], r > 0 ? dev_[r - 1] : 0.0);  // the dropped move before it
     }
+    const std::size_t kept = q_.size() / joints_;
+    if (kept % 2 == 0) dev_since_ = std::max(dev_since_, dev_[kept - 1]);  // the dropped last one: with the next
     q_.resize(w * joints_);
     prints_.resize(w);
+    dev_.resize(w);
     every_ *= 2;
 }
 
@@ -197,9 +282,18 @@ std::string Preview::html(const std::string& title) const {
         const double tilt = std::acos(std::clamp(p.axis.z(), -1.0, 1.0)) * 180.0 / M_PI;
         max_tilt = std::max(max_tilt, tilt);
         pose += std::string(i ? "," : "") + "[" + num(p.tip.x()) + "," + num(p.tip.y()) + "," + num(p.tip.z()) + "," + num(p.axis.x()) + "," +
-                num(p.axis.y()) + "," + num(p.axis.z()) + "," + num(tilt) + "," + (prints_[i] ? "1" : "0") + "]";
+                num(p.axis.y()) + "," + num(p.axis.z()) + "," + num(tilt) + "," + (prints_[i] ? "1" : "0") + "," + num(dev_[i]) + "]";
     }
-    data += "], " + pose + "], \"max_tilt\": " + num(max_tilt) + ", \"joints\": [";
+    data += "], " + pose + "], \"max_tilt\": " + num(max_tilt) + ", \"tolerance\": " + num(m.motion.tolerance) + ", \"marks\": [";
+    std::size_t poles = 0, unwinds = 0;
+    for (std::size_t i = 0; i < marks_.size(); ++i) {
+        const Mark& k = marks_[i];
+        (k.kind == MarkKind::PoleCrossing ? poles : unwinds) += 1;
+        const double at = moves_ > 1 ? double(std::min(k.move, moves_ - 1)) / double(moves_ - 1) : 0.0;
+        data += std::string(i ? "," : "") + "[\"" + (k.kind == MarkKind::PoleCrossing ? "pole" : "unwind") + "\"," + num(at) + "," +
+                num(k.tip[0]) + "," + num(k.tip[1]) + "," + num(k.tip[2]) + "," + std::to_string(k.move) + "]";
+    }
+    data += "], \"joints\": [";
     for (std::size_t j = 0; j < joints_; ++j) {
         const auto& J = m.joints[j];
         data += std::string(j ? "," : "") + "{\"name\": \"" + J.output + "\", \"unit\": \"" + (J.rotary ? "deg" : "mm") +
@@ -210,8 +304,11 @@ std::string Preview::html(const std::string& title) const {
     std::string o = "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>xlate5 preview: " + html_text(title) +
                     "</title>\n<style>body{font-family:sans-serif;margin:12px}canvas{display:block;border:1px solid #ccc;margin:4px 0}</style>"
                     "</head>\n<body>\n<h3>" + html_text(title) + "</h3>\n<p>" + std::to_string(moves_) + " moves written, " +
-                    std::to_string(n) + " shown. Joints over the file below, their limits dashed red.</p>\n"
-                    "<canvas id=\"view\" width=\"900\" height=\"600\"></canvas>\n<div id=\"joints\"></div>\n"
+                    std::to_string(n) + " shown. " + std::to_string(poles) + " pole crossings, " + std::to_string(unwinds) + " unwinds marked" +
+                    (marks_seen_ > marks_.size() ? " (the first " + std::to_string(marks_.size()) + " of " + std::to_string(marks_seen_) + ")" : "") +
+                    ". Joints over the file below, their limits dashed red.</p>\n"
+                    "<p>Colour by <select id=\"colour\"><option value=\"tilt\">tilt</option><option value=\"dev\">deviation</option></select></p>\n"
+                    "<canvas id=\"view\" width=\"900\" height=\"600\"></canvas>\n<div id=\"joints\"></div>\n<ul id=\"marks\"></ul>\n"
                     "<script type=\"application/json\" id=\"data\">" + data + "</script>\n<script>" + kScript + "</script>\n</body></html>\n";
     return o;
 }

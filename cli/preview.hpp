@@ -1,7 +1,11 @@
 // `--preview FILE.html`: one self-contained page to look at a translation before printing it:
-// the tip path in 3D coloured by tilt, tool-axis whiskers, and every joint over the file against
-// its limits (stage: command line; reads the written output back through forward kinematics, so
-// it shows what the firmware will be told; may call translators/kinematics only).
+// the tip path in 3D coloured by tilt or by deviation, tool-axis whiskers, pole crossings and
+// unwinds marked, and every joint over the file against its limits (stage: command line; reads
+// the written output back through forward kinematics, so it shows what the firmware will be
+// told; may call translators/kinematics only).
+// Deviation of a written move: how far the firmware's joint-linear path leaves the straight line
+// between the tips at its two ends (where every piece of a split move starts and ends on the
+// programmed line), sampled; a thinned-out point keeps the worst of the moves it stands for.
 // Memory is bounded whatever the file size: at most kMaxPoints moves are kept, evenly spaced
 // (when full, every other one is dropped and the spacing doubles).
 #pragma once
@@ -27,9 +31,21 @@ public:
 
     std::size_t points() const { return q_.size() / joints_; }
 
+    // Where the written moves change branch across a pole or unwind a rotary (see preview.cpp).
+    enum class MarkKind { PoleCrossing, Unwind };
+    struct Mark {
+        MarkKind kind;
+        std::uint64_t move;  // written move number, from 0
+        double tip[3];
+    };
+    const std::vector<Mark>& marks() const { return marks_; }
+    static constexpr std::size_t kMaxMarks = 2000;
+
 private:
     void line(std::string_view l);
     void keep();
+    double deviation(const std::vector<double>& from, const std::vector<double>& to) const;
+    void mark(MarkKind kind, const std::vector<double>& q);
 
     const Kinematics& kin_;
     std::size_t joints_;
@@ -40,6 +56,12 @@ private:
     std::vector<double> low_, high_;  // every move's joints, not only the kept ones
     std::uint64_t moves_ = 0, every_ = 1;
     std::string pending_;          // a line cut by the block boundary
+    std::vector<double> dev_;      // kept moves: worst tip deviation (mm) of the moves each stands for
+    double dev_since_ = 0;         // worst deviation of the moves since the last kept one
+    std::vector<double> q_before_; // joints before the move being read
+    int tilt_sign_ = 0;            // sign of the tilting rotary when last away from the pole (0: not yet)
+    std::vector<Mark> marks_;
+    std::uint64_t marks_seen_ = 0;
 };
 
 }  // namespace xlate5::cli

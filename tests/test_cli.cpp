@@ -1048,3 +1048,69 @@ TEST_CASE("cli: --preview writes one self-contained page, bounded in size, that 
     MESSAGE("screenshot " << drawn << " bytes, blank page " << empty << " bytes");
     CHECK(drawn > 4 * empty);
 }
+
+TEST_CASE("cli: --preview marks pole crossings and unwinds where the written output has them, and colours by deviation") {
+    // koc5 (B tilts, C turns the table without limit): a printed helix whose tool axis passes the
+    // pole twice, then travel moves that wind C past five turns, re-zeroed with G92 by a travel.
+    TempDir d;
+    std::string in = "G43.5\nM83\n";
+    auto fmt = [](double v) {
+        char b[32];
+        std::snprintf(b, sizeof b, "%.6f", v);
+        return std::string(b);
+    };
+    for (int i = 0; i < 600; ++i) {
+        const double s = i * 0.01, tilt = rad(3 * std::sin(s * 1.5)), az = 0.3;
+        in += "G1 X" + fmt(20 * std::cos(s)) + " Y" + fmt(20 * std::sin(s)) + " Z" + fmt(1 + 0.001 * i) + " I" + fmt(std::sin(tilt) * std::cos(az)) +
+              " J" + fmt(std::sin(tilt) * std::sin(az)) + " K" + fmt(std::cos(tilt)) + (i == 0 ? " F1500\n" : " E0.01\n");
+    }
+    for (int i = 1; i <= 80; ++i) {  // travel: the axis's azimuth turns 30 degrees a move
+        const double tilt = rad(20), az = rad(i * 30.0);
+        in += "G1 X0 Y0 Z20 I" + fmt(std::sin(tilt) * std::cos(az)) + " J" + fmt(std::sin(tilt) * std::sin(az)) + " K" + fmt(std::cos(tilt)) + "\n";
+    }
+    const fs::path page = d.path / "marks.html", out = d.path / "marks.gcode";
+    const Result r = run(d, "-m koc5 -o " + quote(out.string()) + " --preview " + quote(page.string()), in);
+    REQUIRE_MESSAGE(r.code == 0, r.err);
+    // The reference, from the written lines: B changing sign (the other branch across the pole)
+    // and G92 renaming C.
+    int poles = 0, unwinds = 0, sign = 0;
+    for (const auto& l : lines_of(read(out))) {
+        const auto w = words_of(l);
+        if (l.rfind("G92 ", 0) == 0 && w.count('C')) ++unwinds;
+        if ((l.rfind("G1 ", 0) == 0 || l.rfind("G0 ", 0) == 0) && w.count('B') && w.at('B') != 0) {
+            const int now = w.at('B') > 0 ? 1 : -1;
+            if (sign != 0 && now != sign) ++poles;
+            sign = now;
+        }
+    }
+    MESSAGE("written: " << poles << " pole crossings, " << unwinds << " re-zeroes");
+    REQUIRE(poles >= 2);
+    REQUIRE(unwinds >= 1);
+    const std::string html = read(page);
+    CHECK(contains(html, std::to_string(poles) + " pole crossings, " + std::to_string(unwinds) + " unwinds marked"));
+    CHECK(contains(html, "<option value=\"dev\">deviation</option>"));
+
+    const std::string chromium = find_chromium();
+    if (chromium.empty()) {
+        MESSAGE("chromium not installed: the page is not rendered (Debian package chromium)");
+        return;
+    }
+    // Opened on the deviation view, the script draws the marks and lists them, and runs to its end.
+    const std::string cmd = quote(chromium) + " --headless --no-sandbox --disable-gpu --disable-background-networking --disable-component-update "
+                            "--disable-sync --no-first-run --window-size=1000,1400 --user-data-dir=" + quote((d.path / "profile").string()) +
+                            " --dump-dom " + quote("file://" + page.string() + "#deviation") + " 2>/dev/null";
+    std::string dom;
+    if (FILE* p = ::popen(cmd.c_str(), "r")) {
+        char b[4096];
+        for (std::size_t n; (n = std::fread(b, 1, sizeof b, p)) > 0;) dom.append(b, n);
+        ::pclose(p);
+    }
+    CHECK(contains(dom, "(drawn)</title>"));
+    auto count = [&](const std::string& what) {
+        int c = 0;
+        for (auto at = dom.find(what); at != std::string::npos; at = dom.find(what, at + 1)) ++c;
+        return c;
+    };
+    CHECK(count("data-kind=\"pole\"") == poles);
+    CHECK(count("data-kind=\"unwind\"") == unwinds);
+}

@@ -10,7 +10,42 @@
 #include "translators/joint_limits.hpp"
 #include "translators/report.hpp"
 
+#include <Eigen/Geometry>
+
 namespace xlate5 {
+
+namespace {
+
+// Near a pole (the tool axis along the turntable's axis, which then turns it no more), the
+// turntable's angle matters less the nearer the axis is: at a tilt t from the pole, turning it by
+// d moves the tool axis by asin(sin t sin d). So there it need not follow the axis's azimuth,
+// which swings round fast however slowly the axis moves past (a half turn for a passage that
+// misses the pole by a hair, over however many short moves). Within kPoleRegion angle tolerances
+// of the pole the end of each short move (turning the tool axis by less than the tolerance: a
+// longer one ends exactly on its programmed axis) may leave that axis by a budget: kPoleHold of the
+// tolerance up to that tilt (any turntable angle will do: it is held), falling linearly to zero
+// at the region's edge, where the ends are exact again. The other half of the tolerance is left
+// for the joint-linear turn between the ends, which is checked on kPoleSamples points.
+// (Affouard et al.'s singularity cone with Grandguillaume et al.'s patching of C, as Isa, Koc
+// 2018, sec. 4.6 uses them; here the cone is the angle tolerance and the patch bounded by it.)
+constexpr double kPoleRegion = 2.0;
+constexpr double kPoleHold = 0.5;
+constexpr int kPoleSamples = 64;
+constexpr double kPoleMargin = 0.97;  // as the motion stage's sampling margin
+
+double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * kDegPerRad;
+}
+
+// Great-circle interpolation of unit vectors (the programmed axis along a move).
+Eigen::Vector3d great_circle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) {
+    const double angle = std::acos(std::clamp(a.dot(b), -1.0, 1.0));
+    if (angle < 1e-12) return a;
+    const double sn = std::sin(angle);
+    return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
+}
+
+}  // namespace
 
 Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter& emitter, MoveLog* log)
     : kin_(kinematics),
@@ -111,6 +146,72 @@ void Planner::end_candidates(OrientationMode mode, const Pose& end, const std::v
     std::stable_sort(candidates_.begin(), candidates_.end(), [&](const Candidate& a, const Candidate& b) { return distance(a) < distance(b); });
 }
 
+bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>& q, double& worst) {
+    const auto& rot = kin_.rotary_joints();
+    // Machines whose tool axis at zero lies along the first rotary (has_flip): there the pole is
+    // that rotary's axis and the second tilts the tool along a great circle through it.
+    if (rot.size() != 2 || !kin_.has_flip() || !machine_.motion.segment) return false;
+    const std::size_t c = std::size_t(rot[0]), b = std::size_t(rot[1]);
+    const std::vector<double>& q0 = state_.q;
+    const double tolerance = machine_.motion.angle_tolerance;
+    const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
+    const bool start_exact = angle_between(kin_.forward(q0).axis, from.axis) < 1e-6;
+    // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
+    // files under G43.5: the axis stays on the pole).
+    if (start_exact && q_next_[c] == q0[c] && q_next_[b] == q0[b]) return false;
+    std::vector<double>& probe = pole_probe_;
+    probe = q0;
+    probe[b] = 0;
+    const Eigen::Vector3d pole = kin_.forward(probe).axis;
+    const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
+    // Only a move turning the tool axis by less than the tolerance may end off its axis: a
+    // passage made of such moves cannot cross in any one of them. A longer move ends exactly
+    // where it was programmed (a crossing within it is the motion stage's).
+    const bool short_move = angle_between(from.axis, to.axis) < tolerance;
+    if (start_exact && (tilt >= region || !short_move)) return false;
+    q = q_next_;  // as solved: the continuous end (exact)
+    if (tilt < region && short_move) {
+        const double budget = tilt <= hold ? hold : hold * (region - tilt) / (region - hold);
+        // The turntable may stay this far off an exact solution's angle.
+        const double st = std::sin(tilt / kDegPerRad), sb = std::sin(budget / kDegPerRad);
+        const double off = st > sb ? std::asin(sb / st) * kDegPerRad : 180.0;
+        const auto solutions = kin_.orientation_solutions(to.axis);
+        double best = q0[c], least = 1e300;
+        for (int k = 0; k < solutions.count; ++k) {
+            const double exact = solutions.angle[k][0];
+            double value = q0[c];
+            if (!std::isnan(exact)) {
+                const double nearest = q0[c] + wrap180(exact - q0[c]);
+                value = nearest + std::clamp(q0[c] - nearest, -off, off);
+            }
+            if (std::abs(value - q0[c]) < least) {
+                least = std::abs(value - q0[c]);
+                best = value;
+            }
+        }
+        // The tilt: the point of the great circle at that turntable angle nearest the axis
+        // (cos B along the pole, sin B along the tilt at 90 degrees), taken nearest B now.
+        q[c] = best;
+        q[b] = 90;
+        const Eigen::Vector3d toward = kin_.forward(q).axis;
+        const double tilt_b = std::atan2(to.axis.dot(toward), to.axis.dot(pole)) * kDegPerRad;
+        q[b] = q0[b] + wrap180(tilt_b - q0[b]);
+        if (!kin_.solve_position(to.tip, q).ok() || !check_limits(machine_, q).ok()) return false;
+        if (angle_between(kin_.forward(q).axis, to.axis) > budget + 1e-9) return false;
+        // The usual end from an exact start: nothing to choose (planar files, exact on the pole).
+        if (start_exact && std::abs(q[c] - q_next_[c]) < kSameAngle && std::abs(q[b] - q_next_[b]) < kSameAngle) return false;
+    }
+    // The joint-linear turn from the start against the programmed axis's great circle.
+    worst = 0;
+    std::vector<double>& lerp = probe;
+    for (int i = 0; i <= kPoleSamples; ++i) {
+        const double t = double(i) / kPoleSamples;
+        for (std::size_t j = 0; j < q.size(); ++j) lerp[j] = q0[j] + t * (q[j] - q0[j]);
+        worst = std::max(worst, angle_between(kin_.forward(lerp).axis, great_circle(from.axis, to.axis, t)));
+    }
+    return worst <= kPoleMargin * tolerance;
+}
+
 void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     PlannerState& s = state_;
     q_next_ = s.q;
@@ -166,6 +267,13 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
         run.hit_limit = r.status == IkStatus::OutOfLimits;
         throw LineError(mv.column, r.message);
     }
+    // Near a pole the end may be chosen across moves (see pole_passage): rotaries turn linearly.
+    bool passage = false;
+    double passage_angle = 0;
+    if (!unwind && mv.mode == OrientationMode::Vector && (mv.any_xyz || s.tip_known) && pole_passage(s.pose, next, pole_q_, passage_angle)) {
+        passage = true;
+        q_next_ = pole_q_;
+    }
     MoveSpec spec;
     spec.gcode = mv.gcode;
     // Before the program has placed the tip, the move is a joint move (one piece, F as written).
@@ -188,8 +296,9 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // round on it, and each rotary moves monotonically between two values inside its limits.
     // For a branch flip (rw2: A by 180 degrees, B to -B) the tool passes upright (B = 0) on the
     // way instead of sweeping a full turn at its printing tilt.
-    if (unwind) spec.mode = OrientationMode::Angles;
+    if (unwind || passage) spec.mode = OrientationMode::Angles;
     MoveResult* measured = log_ && spec.mode != OrientationMode::Joints ? &move_result_ : nullptr;
+    move_result_.pole_crossings = 0;  // set by the move that crosses, not kept from an earlier one
     auto res = motion_.emit(spec, out, measured);
     if (!res.ok() && res.status == IkStatus::OutOfLimits && travel && !unwind && spec.mode == OrientationMode::Vector) {
         // The continuous path of this travel move leaves the limits, though its end (the
@@ -204,6 +313,12 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     }
     if (measured) {
         measured->change = change;
+        if (passage) {
+            // The split measures the tip only in angle form: the axis as checked above.
+            measured->angle_error = std::max(measured->angle_error, passage_angle);
+            const std::size_t b = std::size_t(kin_.rotary_joints()[1]);
+            if (s.q[b] * q_next_[b] < 0) measured->pole_crossings = 1;  // the tilt changed sign: the other branch
+        }
         log_->add(run.line_no, *measured);
     }
     if (spec.mode == OrientationMode::Vector) q_next_ = motion_.final_joints();

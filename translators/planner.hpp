@@ -1,7 +1,8 @@
 // The planner stage, between the interpreter and the motion stage: turns a typed move into
 // joint moves. It solves the end of each tool-space move (IK), chooses the solution (the
 // continuous one, or for a travel move another solution of its pose inside the limits: the other
-// branch or another turn), is the stage that applies the joint limits, re-zeroes a wound-up
+// branch or another turn; near a pole, over short moves, the turntable held within the angle
+// tolerance), is the stage that applies the joint limits, re-zeroes a wound-up
 // turntable, and hands the move to the motion stage to be split. Joint-space moves (G49),
 // position changes (G92) and homing (G28) reach the firmware through it too.
 // May call: kinematics, joint_limits, the motion stage, the compensation stage, the emitter, and
@@ -117,6 +118,11 @@ private:
     void unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
     void end_candidates(OrientationMode mode, const Pose& end, const std::vector<double>& programmed,
                         const std::vector<double>& usual);
+    // Near a pole, across moves: the end of a tool-vector move from `from` to `to` with the
+    // turntable turned no more than the angle tolerance needs (see planner.cpp). Returns true, with
+    // the end joints in `q` (linear joints solved) and the worst axis deviation of the joint-linear
+    // turn in `worst`, when the move is to be made that way (rotaries linear, angle form).
+    bool pole_passage(const Pose& from, const Pose& to, std::vector<double>& q, double& worst);
 
     struct Candidate {
         std::vector<double> q;
@@ -134,6 +140,7 @@ private:
     std::vector<double> q_next_;    // scratch: the move being solved
     std::vector<bool> which_;       // scratch: joints a re-zero tells the firmware about
     std::vector<Candidate> candidates_;
+    std::vector<double> pole_q_, pole_probe_;  // scratch for pole_passage
 };
 
 }  // namespace xlate5
