@@ -147,6 +147,28 @@ void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const do
     }
 }
 
+bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol,
+                                 double atol) const {
+    // Sampling finds at most the true deviation, and the bound is at least that: when the bound
+    // passes, the samples would have too, so the split is the same, only cheaper. The slack
+    // covers rounding in the two computations.
+    constexpr double kSlack = 1e-9;
+    const Kinematics::PathBound b = kin_.joint_path_bound(qa, qb);
+    // The path lies within b.tip of the chord between its ends, and that chord within the
+    // farther end's distance of the programmed segment.
+    const double ends = std::max(segment_distance(b.a.tip, mv.p0.tip, mv.p1.tip), segment_distance(b.b.tip, mv.p0.tip, mv.p1.tip));
+    if (!(b.tip + ends <= tol - kSlack)) return false;
+    if (mv.mode != OrientationMode::Vector) return true;
+    // The tool axis against the great-circle arc from sa to sb: both lie near the chords between
+    // their ends (the arc within phi^2 / 8 of its own), and those chords within the ends' gaps.
+    const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : slerp(mv.p0.axis, mv.p1.axis, sa);
+    const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : slerp(mv.p0.axis, mv.p1.axis, sb);
+    const double phi = (sb - sa) * std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
+    const double chord = b.axis + std::max((b.a.axis - ia).norm(), (b.b.axis - ib).norm()) + phi * phi / 8.0;
+    if (!(chord < 2.0)) return false;
+    return 2.0 * std::asin(0.5 * chord) * kDegPerRad <= atol - 1e-6;
+}
+
 IkResult MotionStage::split(const MoveSpec& mv) {
     const std::size_t n = machine_.joints.size();
     q0_printed_ = *mv.q0;
@@ -166,6 +188,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
 
     const double tol = kSampleMargin * machine_.motion.tolerance, atol = kSampleMargin * machine_.motion.angle_tolerance;
     double tip = 0, ang = 0;
+    if (bounded_within(mv, 0, 1, q0.data(), q1.data(), tol, atol)) return {};
     piece_error(mv, 0, 1, q0.data(), q1.data(), kCheckSamples, tip, ang);
     const double ratio = std::max(tip / tol, ang / atol);
     if (ratio <= 1) return {};
@@ -201,8 +224,11 @@ IkResult MotionStage::split(const MoveSpec& mv) {
             if (sb >= 1.0 && mv.mode == OrientationMode::Angles) exact_b_ = *mv.q1;
             else exact_b_ = qb;
             round_printed(machine_, qb);
-            piece_error(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), kCheckSamples, tip, ang);
-            bool pass = tip <= tol && ang <= atol;
+            bool pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, atol);
+            if (!pass) {
+                piece_error(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), kCheckSamples, tip, ang);
+                pass = tip <= tol && ang <= atol;
+            }
             if (!pass && mv.mode == OrientationMode::Vector) {
                 // Near a pole the continuous branch swings a joint round; the other branch may
                 // cut across within the tolerance (a tilt through zero instead of a half turn).
@@ -213,8 +239,12 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                     round_printed(machine_, alt);
                     if (alt == qb) continue;
                     double t2 = 0, a2 = 0;
-                    piece_error(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), kCheckSamples, t2, a2);
-                    if (t2 <= tol && a2 <= atol) {
+                    bool alt_pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol, atol);
+                    if (!alt_pass) {
+                        piece_error(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), kCheckSamples, t2, a2);
+                        alt_pass = t2 <= tol && a2 <= atol;
+                    }
+                    if (alt_pass) {
                         pass = true;
                         qb = alt;
                         exact_b_ = alt_exact;
@@ -265,7 +295,8 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
         bool on_pole = false;
         for (int b = 0; b < at_start.count; ++b)
             for (std::size_t k = 0; k < kin_.rotary_joints().size(); ++k) on_pole = on_pole || std::isnan(at_start.angle[b][k]);
-        if (auto r = solve_at(mv, probe, *mv.q0, q_eps); on_pole && r.ok() && turn_angle > 0) {
+        // The probe's IK only where it matters: at a pole, on a move that turns.
+        if (on_pole && turn_angle > 0 && solve_at(mv, probe, *mv.q0, q_eps).ok()) {
             double jump = 0;
             for (std::size_t j = 0; j < q_eps.size(); ++j)
                 if (machine_.joints[j].rotary) jump = std::max(jump, std::abs(q_eps[j] - (*mv.q0)[j]));

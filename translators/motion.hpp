@@ -74,6 +74,10 @@ public:
     const std::vector<double>& split_joints() const { return qs_; }  // pieces x joints
 
 private:
+    // True when the firmware's path from qa to qb (move parameters sa to sb) is proved within
+    // `tol` (mm) and `atol` (degrees) by kinematics' bound, without sampling it.
+    bool bounded_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
+                        double atol) const;
     IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
     // Across a pole: the end on the other branch, reached with the rotaries turning linearly,
     // when that stays within the angle tolerance and turns the rotaries less than the
