@@ -146,11 +146,15 @@ Pose Kinematics::forward(const double* q, double* lever_arm) const {
 // changes at most by the speed of x relative to it, W r + L, so r <= (r0 + L) / (1 - W) from its
 // value r0 at qa (W < 1 rad). The tool axis is a unit vector turned by the same rotations: r = 1,
 // L = 0.
-Kinematics::PathBound Kinematics::joint_path_bound(const double* qa, const double* qb) const {
+Kinematics::PathEnd Kinematics::path_end(const double* q) const {
+    PathEnd end;
+    end.pose = forward(q, &end.lever_arm);
+    return end;
+}
+
+Kinematics::PathBound Kinematics::joint_path_bound(const PathEnd& a, const double* qa, const double* qb) const {
     PathBound out;
-    double r0 = 0;
-    out.a = forward(qa, &r0);
-    out.b = forward(qb, nullptr);
+    const double r0 = a.lever_arm;
     double w = 0, s = 0, l = 0;
     for (const auto* chain : {&machine_.part_chain, &machine_.tool_chain})
         for (const auto& e : *chain) {

@@ -30,11 +30,16 @@ public:
     // and upper bounds on how far, anywhere along it, the tip (mm) and the tool axis (a unit
     // vector) leave the chords between those ends. Cheaper than sampling the path; see
     // kinematics.cpp for the derivation.
+    // An end of such a path: its pose, and the tip's largest distance from a rotary joint's axis.
+    struct PathEnd {
+        Pose pose;
+        double lever_arm = 0;
+    };
+    PathEnd path_end(const double* q) const;
     struct PathBound {
-        Pose a, b;
         double tip = 0, axis = 0;
     };
-    PathBound joint_path_bound(const double* qa, const double* qb) const;
+    PathBound joint_path_bound(const PathEnd& a, const double* qa, const double* qb) const;
 
     // Joints reaching `pose`: of its solutions (both orientation branches, their 360-degree
     // turns), the one inside the joint limits nearest `previous`. A joint whose axis is parallel to

@@ -21,14 +21,20 @@ constexpr int kCheckSamples = 7;     // interior points checked per piece (see p
 constexpr double kSampleMargin = 0.97;
 constexpr int kMaxPieces = 100000;   // a move needing more is refused, not silently truncated
 
-// Great-circle interpolation of unit vectors; antipodal ends have no unique arc.
-Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) {
-    const double c = std::clamp(a.dot(b), -1.0, 1.0);
-    const double angle = std::acos(c);
-    if (angle < 1e-12) return a;
-    const double sn = std::sin(angle);
-    return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
-}
+// Great-circle interpolation of unit vectors; antipodal ends have no unique arc. The arc's
+// angle is found once for the many points taken along one move.
+struct GreatArc {
+    GreatArc(const Eigen::Vector3d& from, const Eigen::Vector3d& to)
+        : a(from), b(to), angle(std::acos(std::clamp(a.dot(b), -1.0, 1.0))), sn(angle < 1e-12 ? 0.0 : std::sin(angle)) {}
+    Eigen::Vector3d at(double s) const {
+        if (angle < 1e-12) return a;
+        return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
+    }
+    Eigen::Vector3d a, b;
+    double angle, sn;
+};
+
+Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) { return GreatArc(a, b).at(s); }
 
 double printed(const Machine& m, std::size_t j, double v) {
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
@@ -135,16 +141,28 @@ void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const do
     angle = 0;
     std::vector<double>& q = sample_;
     q.resize(machine_.joints.size());
+    const GreatArc arc(mv.p0.axis, mv.p1.axis);
     for (int i = 1; i <= samples; ++i) {
         const double t = double(i) / double(samples + 1);
         for (std::size_t j = 0; j < q.size(); ++j) q[j] = qa[j] + t * (qb[j] - qa[j]);
         const Pose fw = kin_.forward(q);
         tip = std::max(tip, segment_distance(fw.tip, mv.p0.tip, mv.p1.tip));
         if (mv.mode == OrientationMode::Vector) {
-            const Eigen::Vector3d ideal = slerp(mv.p0.axis, mv.p1.axis, sa + t * (sb - sa));
+            const Eigen::Vector3d ideal = arc.at(sa + t * (sb - sa));
             angle = std::max(angle, std::acos(std::clamp(fw.axis.dot(ideal), -1.0, 1.0)) * kDegPerRad);
         }
     }
+}
+
+const Kinematics::PathEnd& MotionStage::path_end(const double* q) const {
+    const std::size_t n = machine_.joints.size();
+    for (CachedEnd& c : ends_)
+        if (c.q.size() == n && std::equal(q, q + n, c.q.begin())) return c.end;
+    CachedEnd& c = ends_[ends_next_];
+    ends_next_ = 1 - ends_next_;
+    c.q.assign(q, q + n);
+    c.end = kin_.path_end(q);
+    return c.end;
 }
 
 bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol,
@@ -153,10 +171,13 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
     // passes, the samples would have too, so the split is the same, only cheaper. The slack
     // covers rounding in the two computations.
     constexpr double kSlack = 1e-9;
-    const Kinematics::PathBound b = kin_.joint_path_bound(qa, qb);
+    const Kinematics::PathEnd& ea = path_end(qa);
+    const Kinematics::PathBound b = kin_.joint_path_bound(ea, qa, qb);
+    const Pose pa = ea.pose;  // a copy: the next call may reuse the slot
+    const Pose pb = path_end(qb).pose;
     // The path lies within b.tip of the chord between its ends, and that chord within the
     // farther end's distance of the programmed segment.
-    const double ends = std::max(segment_distance(b.a.tip, mv.p0.tip, mv.p1.tip), segment_distance(b.b.tip, mv.p0.tip, mv.p1.tip));
+    const double ends = std::max(segment_distance(pa.tip, mv.p0.tip, mv.p1.tip), segment_distance(pb.tip, mv.p0.tip, mv.p1.tip));
     if (!(b.tip + ends <= tol - kSlack)) return false;
     if (mv.mode != OrientationMode::Vector) return true;
     // The tool axis against the great-circle arc from sa to sb: both lie near the chords between
@@ -164,7 +185,7 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
     const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : slerp(mv.p0.axis, mv.p1.axis, sa);
     const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : slerp(mv.p0.axis, mv.p1.axis, sb);
     const double phi = (sb - sa) * std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
-    const double chord = b.axis + std::max((b.a.axis - ia).norm(), (b.b.axis - ib).norm()) + phi * phi / 8.0;
+    const double chord = b.axis + std::max((pa.axis - ia).norm(), (pb.axis - ib).norm()) + phi * phi / 8.0;
     if (!(chord < 2.0)) return false;
     return 2.0 * std::asin(0.5 * chord) * kDegPerRad <= atol - 1e-6;
 }
@@ -371,10 +392,14 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
     constexpr int kEstimate = 16;
     std::vector<double>& q = scratch_a_;
     std::vector<double>& qq = lerp_;
-    std::vector<double> prev = q0, cur = q0;
+    std::vector<double>& prev = march_a_;
+    std::vector<double>& cur = march_b_;
+    prev = q0;
+    cur = q0;
+    const GreatArc arc(mv.p0.axis, mv.p1.axis);
     double stay = 0;
     for (int i = 1; i <= kEstimate; ++i) {
-        if (!orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(pose_at(mv, double(i) / kEstimate).axis), prev, prev, cur).ok())
+        if (!orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(arc.at(double(i) / kEstimate)), prev, prev, cur).ok())
             break;
         stay += rotary_distance(prev, cur);
         prev = cur;
@@ -397,7 +422,7 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
             const double t = double(i) / kAxisSamples;
             for (std::size_t j = 0; j < q.size(); ++j) qq[j] = q0[j] + t * (q[j] - q0[j]);
             const Eigen::Vector3d axis = kin_.forward(qq).axis;
-            worst = std::max(worst, std::acos(std::clamp(axis.dot(slerp(mv.p0.axis, mv.p1.axis, t)), -1.0, 1.0)) * kDegPerRad);
+            worst = std::max(worst, std::acos(std::clamp(axis.dot(arc.at(t)), -1.0, 1.0)) * kDegPerRad);
         }
         if (worst > kSampleMargin * machine_.motion.angle_tolerance) continue;
         best = travel;

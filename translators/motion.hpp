@@ -91,6 +91,15 @@ private:
     // rotary joint's limits.
     IkResult leaves_limits(const MoveSpec& move, double s, const std::vector<double>& previous) const;
 
+    // The ends bounded_within met last (the end of one move is the start of the next).
+    const Kinematics::PathEnd& path_end(const double* q) const;
+    struct CachedEnd {
+        std::vector<double> q;
+        Kinematics::PathEnd end;
+    };
+    mutable CachedEnd ends_[2];
+    mutable int ends_next_ = 0;
+
     const Kinematics& kin_;
     const Machine& machine_;
     CompensationStage compensation_;
