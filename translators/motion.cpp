@@ -173,10 +173,12 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
     constexpr double kSlack = 1e-9;
     const Kinematics::PathEnd& ea = path_end(qa);
     const Kinematics::PathBound b = kin_.joint_path_bound(ea, qa, qb);
+    // The path lies within b.tip of the chord between its ends, and that chord within the
+    // farther end's distance of the programmed segment. The first part alone often decides (a
+    // piece being lengthened to the tolerance): then no FK at qb.
+    if (!(b.tip <= tol - kSlack)) return false;
     const Pose pa = ea.pose;  // a copy: the next call may reuse the slot
     const Pose pb = path_end(qb).pose;
-    // The path lies within b.tip of the chord between its ends, and that chord within the
-    // farther end's distance of the programmed segment.
     const double ends = std::max(segment_distance(pa.tip, mv.p0.tip, mv.p1.tip), segment_distance(pb.tip, mv.p0.tip, mv.p1.tip));
     if (!(b.tip + ends <= tol - kSlack)) return false;
     if (mv.mode != OrientationMode::Vector) return true;
