@@ -305,6 +305,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
 }
 
 IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* result) {
+    split_for_ = nullptr;
     if (mv.mode == OrientationMode::Vector && machine_.motion.segment) {
         // Leaving a pole: at the start the tool axis is on a rotary axis, so that joint was free
         // and kept its old angle, but the path leaves in a direction that needs another angle.
@@ -389,10 +390,36 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
         for (const int j : rot) d += std::abs(a[std::size_t(j)] - b[std::size_t(j)]);
         return d;
     };
+    constexpr double kClearlyLess = 1.0;  // degrees: another way only when it turns clearly less
+    const auto solutions = kin_.orientation_solutions(mv.p1.axis);
+    std::vector<double>& q = scratch_a_;
+    // The way across is taken only when it turns the rotaries clearly less than the continuous
+    // branch's split (measured at the end below). When no end on another branch is that much
+    // nearer, the answer is no whatever the estimate says: the split is made first, then, and
+    // kept for emit_one, and the estimate is skipped (most moves, far from a pole).
+    if (split(mv).ok()) {
+        const std::size_t n = machine_.joints.size();
+        double measured = 0;
+        const double* qa = q0_printed_.data();
+        for (std::size_t k = 0; k < s_.size(); ++k) {
+            const double* qb = &qs_[k * n];
+            for (const int j : rot) measured += std::abs(qb[std::size_t(j)] - qa[std::size_t(j)]);
+            qa = qb;
+        }
+        bool nearer = false;
+        for (int b = 0; b < solutions.count && !nearer; ++b) {
+            q = q0;
+            if (orient_on_branch(machine_, kin_.rotary_joints(), solutions, b, q0, q0, q).ok())
+                nearer = rotary_distance(q, q0) < measured - kClearlyLess;
+        }
+        if (!nearer) {
+            split_for_ = &mv;
+            return false;
+        }
+    }
     // How far the continuous branch turns the rotaries, estimated on a few points of the path
     // (cheap; it is measured exactly below only when another way looks shorter).
     constexpr int kEstimate = 16;
-    std::vector<double>& q = scratch_a_;
     std::vector<double>& qq = lerp_;
     std::vector<double>& prev = march_a_;
     std::vector<double>& cur = march_b_;
@@ -406,8 +433,6 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
         stay += rotary_distance(prev, cur);
         prev = cur;
     }
-    constexpr double kClearlyLess = 1.0;  // degrees: another way only when it turns clearly less
-    const auto solutions = kin_.orientation_solutions(mv.p1.axis);
     bool found = false;
     double best = stay - kClearlyLess;
     for (int b = 0; b < solutions.count; ++b) {
@@ -447,7 +472,9 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
 }
 
 IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult* result) {
-    if (auto r = split(mv); !r.ok()) return r;
+    if (split_for_ != &mv)
+        if (auto r = split(mv); !r.ok()) return r;
+    split_for_ = nullptr;
     const std::size_t n = machine_.joints.size();
     const int pieces = int(s_.size());
     const double length = (mv.p1.tip - mv.p0.tip).norm();

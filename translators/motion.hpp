@@ -99,6 +99,7 @@ private:
     };
     mutable CachedEnd ends_[2];
     mutable int ends_next_ = 0;
+    const MoveSpec* split_for_ = nullptr;  // the move whose split s_, qs_ hold already (cross_pole made it)
 
     const Kinematics& kin_;
     const Machine& machine_;
