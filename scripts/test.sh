@@ -17,6 +17,7 @@ ctest --test-dir build --output-on-failure -j"$test_jobs"
 echo "--- benchmarks (figures only; see bench/)"
 ./build/bench/bench_translate 100000 rw2 0.01
 ./build/bench/bench_translate 100000 pentarod 0.01
+./build/bench/bench_translate 100000 rw2 0
 ./build/bench/bench_service 5000 0
 
 # -O1 without debug info: the sanitizer build is about finding bugs, and compiles much faster.

@@ -3,6 +3,7 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -81,8 +82,8 @@ Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
     flip_ = rotary_.size() == 2 && std::abs(w_[0].dot(w_[1])) < 1e-9 && w_[0].cross(p_).norm() < 1e-9;
 }
 
-void Kinematics::eval(const std::vector<ChainElement>& chain, const std::vector<double>& q, Eigen::Matrix3d& R,
-                      Eigen::Vector3d& t, Eigen::Vector3d* linear_dirs) const {
+void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
+                      Eigen::Vector3d* linear_dirs, AxisLine* lines, int* line_count) const {
     R.setIdentity();
     t.setZero();
     for (const auto& e : chain) {
@@ -94,12 +95,13 @@ void Kinematics::eval(const std::vector<ChainElement>& chain, const std::vector<
             case ChainElement::Kind::Linear: {
                 const Eigen::Vector3d d = R * e.axis;
                 if (linear_dirs) linear_dirs[e.joint] = d;
-                t += d * q[std::size_t(e.joint)];
+                t += d * q[e.joint];
                 break;
             }
             case ChainElement::Kind::Rotary: {
                 // Trans(point) * Rot(axis, q) * Trans(-point)
-                const Eigen::Matrix3d Rj = rot(e.axis, q[std::size_t(e.joint)]);
+                if (lines) lines[(*line_count)++] = {t + R * e.point, (R * e.axis).normalized()};
+                const Eigen::Matrix3d Rj = rot(e.axis, q[e.joint]);
                 t += R * (e.point - Rj * e.point);
                 R = R * Rj;
                 break;
@@ -108,15 +110,71 @@ void Kinematics::eval(const std::vector<ChainElement>& chain, const std::vector<
     }
 }
 
-Pose Kinematics::forward(const std::vector<double>& q) const {
+Pose Kinematics::forward(const std::vector<double>& q) const { return forward(q.data(), nullptr); }
+
+// With `lever_arm`: also the tip's largest distance from a rotary joint's axis.
+Pose Kinematics::forward(const double* q, double* lever_arm) const {
     Eigen::Matrix3d Rp, Rt;
     Eigen::Vector3d tp, tt;
-    eval(machine_.part_chain, q, Rp, tp, nullptr);
-    eval(machine_.tool_chain, q, Rt, tt, nullptr);
+    AxisLine lines[8];  // at most 5 joints (the loader checks)
+    int count = 0;
+    eval(machine_.part_chain, q, Rp, tp, nullptr, lever_arm ? lines : nullptr, &count);
+    eval(machine_.tool_chain, q, Rt, tt, nullptr, lever_arm ? lines : nullptr, &count);
     Pose pose;
     pose.tip = Rp.transpose() * (tt - tp);
     pose.axis = (Rp.transpose() * (Rt * machine_.tool_axis)).normalized();
+    if (lever_arm) {
+        // Distances are the same in every frame: measured in the base frame, the tip at tt.
+        *lever_arm = 0;
+        for (int i = 0; i < count; ++i) {
+            const Eigen::Vector3d d = tt - lines[i].point;
+            *lever_arm = std::max(*lever_arm, (d - lines[i].dir * lines[i].dir.dot(d)).norm());
+        }
+    }
     return pose;
+}
+
+// The bound. Seen from the part, the tip is the end point x of one serial chain (the part chain
+// inverted, then the tool chain), each joint moving at a constant rate: a rotary at angular
+// rate w_i (radians over the whole path), a linear joint at speed v_k. With V_i the velocity field
+// of joint i (its axis carried by the joints before it), x' = sum V_i x and
+// x'' = sum_i (V_i x' + sum_{j<i} [V_j, V_i] x), where for these affine fields
+// |[V_j, V_i] x| <= |w_j| |V_i x| + |w_i| |V_j x|, |V_i x| <= |w_i| r (r: the largest distance of
+// x from a rotary axis along the path) or v_k. Summed: with W = sum |w_i|, S = sum w_i^2 and
+// L = sum |v_k|, |x''| <= (2 W^2 - S) r + 2 W L. The distance from the chord of a curve whose
+// second derivative stays below a is at most a / 8. Along the path the distance from an axis
+// changes at most by the speed of x relative to it, W r + L, so r <= (r0 + L) / (1 - W) from its
+// value r0 at qa (W < 1 rad). The tool axis is a unit vector turned by the same rotations: r = 1,
+// L = 0.
+Kinematics::PathEnd Kinematics::path_end(const double* q) const {
+    PathEnd end;
+    end.pose = forward(q, &end.lever_arm);
+    return end;
+}
+
+Kinematics::PathBound Kinematics::joint_path_bound(const PathEnd& a, const double* qa, const double* qb) const {
+    PathBound out;
+    const double r0 = a.lever_arm;
+    double w = 0, s = 0, l = 0;
+    for (const auto* chain : {&machine_.part_chain, &machine_.tool_chain})
+        for (const auto& e : *chain) {
+            if (e.kind == ChainElement::Kind::Fixed) continue;
+            const double d = std::abs(qb[e.joint] - qa[e.joint]) * e.axis.norm();
+            if (e.kind == ChainElement::Kind::Rotary) {
+                w += d * kDeg;
+                s += d * kDeg * d * kDeg;
+            } else {
+                l += d;
+            }
+        }
+    if (!(w < 0.5)) {  // no useful bound for such a turn (and none at all past 1 rad)
+        out.tip = out.axis = std::numeric_limits<double>::infinity();
+        return out;
+    }
+    const double r = (r0 + l) / (1.0 - w);
+    out.tip = ((2 * w * w - s) * r + 2 * w * l) / 8.0;
+    out.axis = (2 * w * w - s) / 8.0;
+    return out;
 }
 
 IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis) const {
@@ -126,8 +184,8 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
     for (std::size_t j = 0; j < n; ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();
     Eigen::Matrix3d Rp, Rt;
     Eigen::Vector3d tp, tt;
-    eval(machine_.part_chain, q, Rp, tp, part_dirs);
-    eval(machine_.tool_chain, q, Rt, tt, tool_dirs);
+    eval(machine_.part_chain, q.data(), Rp, tp, part_dirs);
+    eval(machine_.tool_chain, q.data(), Rt, tt, tool_dirs);
     if (axis) *axis = (Rp.transpose() * (Rt * machine_.tool_axis)).normalized();
     const Eigen::Vector3d current = Rp.transpose() * (tt - tp);
     Eigen::Matrix3d J;

@@ -26,6 +26,21 @@ public:
     // Joint values (mm, degrees) -> tip and tool axis in the part frame.
     Pose forward(const std::vector<double>& q) const;
 
+    // The firmware's path from joints qa to qb (every joint at a constant rate): its end poses,
+    // and upper bounds on how far, anywhere along it, the tip (mm) and the tool axis (a unit
+    // vector) leave the chords between those ends. Cheaper than sampling the path; see
+    // kinematics.cpp for the derivation.
+    // An end of such a path: its pose, and the tip's largest distance from a rotary joint's axis.
+    struct PathEnd {
+        Pose pose;
+        double lever_arm = 0;
+    };
+    PathEnd path_end(const double* q) const;
+    struct PathBound {
+        double tip = 0, axis = 0;
+    };
+    PathBound joint_path_bound(const PathEnd& a, const double* qa, const double* qb) const;
+
     // Joints reaching `pose`: of its solutions (both orientation branches, their 360-degree
     // turns), the one inside the joint limits nearest `previous`. A joint whose axis is parallel to
     // the tool axis keeps its previous value.
@@ -48,8 +63,13 @@ public:
 
 private:
     struct Factor;
-    void eval(const std::vector<ChainElement>& chain, const std::vector<double>& q, Eigen::Matrix3d& R,
-              Eigen::Vector3d& t, Eigen::Vector3d* linear_dirs) const;
+    struct AxisLine {
+        Eigen::Vector3d point, dir;  // a rotary joint's axis in the base frame (dir unit)
+    };
+    // `lines`, when given, receives each rotary joint's axis (at most the joint count).
+    void eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
+              Eigen::Vector3d* linear_dirs, AxisLine* lines = nullptr, int* line_count = nullptr) const;
+    Pose forward(const double* q, double* lever_arm) const;
 
     Machine machine_;
     std::vector<int> rotary_;          // rotary joint indices in the order of the orientation product

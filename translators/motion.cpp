@@ -21,14 +21,20 @@ constexpr int kCheckSamples = 7;     // interior points checked per piece (see p
 constexpr double kSampleMargin = 0.97;
 constexpr int kMaxPieces = 100000;   // a move needing more is refused, not silently truncated
 
-// Great-circle interpolation of unit vectors; antipodal ends have no unique arc.
-Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) {
-    const double c = std::clamp(a.dot(b), -1.0, 1.0);
-    const double angle = std::acos(c);
-    if (angle < 1e-12) return a;
-    const double sn = std::sin(angle);
-    return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
-}
+// Great-circle interpolation of unit vectors; antipodal ends have no unique arc. The arc's
+// angle is found once for the many points taken along one move.
+struct GreatArc {
+    GreatArc(const Eigen::Vector3d& from, const Eigen::Vector3d& to)
+        : a(from), b(to), angle(std::acos(std::clamp(a.dot(b), -1.0, 1.0))), sn(angle < 1e-12 ? 0.0 : std::sin(angle)) {}
+    Eigen::Vector3d at(double s) const {
+        if (angle < 1e-12) return a;
+        return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
+    }
+    Eigen::Vector3d a, b;
+    double angle, sn;
+};
+
+Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) { return GreatArc(a, b).at(s); }
 
 double printed(const Machine& m, std::size_t j, double v) {
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
@@ -135,16 +141,55 @@ void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const do
     angle = 0;
     std::vector<double>& q = sample_;
     q.resize(machine_.joints.size());
+    const GreatArc arc(mv.p0.axis, mv.p1.axis);
     for (int i = 1; i <= samples; ++i) {
         const double t = double(i) / double(samples + 1);
         for (std::size_t j = 0; j < q.size(); ++j) q[j] = qa[j] + t * (qb[j] - qa[j]);
         const Pose fw = kin_.forward(q);
         tip = std::max(tip, segment_distance(fw.tip, mv.p0.tip, mv.p1.tip));
         if (mv.mode == OrientationMode::Vector) {
-            const Eigen::Vector3d ideal = slerp(mv.p0.axis, mv.p1.axis, sa + t * (sb - sa));
+            const Eigen::Vector3d ideal = arc.at(sa + t * (sb - sa));
             angle = std::max(angle, std::acos(std::clamp(fw.axis.dot(ideal), -1.0, 1.0)) * kDegPerRad);
         }
     }
+}
+
+const Kinematics::PathEnd& MotionStage::path_end(const double* q) const {
+    const std::size_t n = machine_.joints.size();
+    for (CachedEnd& c : ends_)
+        if (c.q.size() == n && std::equal(q, q + n, c.q.begin())) return c.end;
+    CachedEnd& c = ends_[ends_next_];
+    ends_next_ = 1 - ends_next_;
+    c.q.assign(q, q + n);
+    c.end = kin_.path_end(q);
+    return c.end;
+}
+
+bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol,
+                                 double atol) const {
+    // Sampling finds at most the true deviation, and the bound is at least that: when the bound
+    // passes, the samples would have too, so the split is the same, only cheaper. The slack
+    // covers rounding in the two computations.
+    constexpr double kSlack = 1e-9;
+    const Kinematics::PathEnd& ea = path_end(qa);
+    const Kinematics::PathBound b = kin_.joint_path_bound(ea, qa, qb);
+    // The path lies within b.tip of the chord between its ends, and that chord within the
+    // farther end's distance of the programmed segment. The first part alone often decides (a
+    // piece being lengthened to the tolerance): then no FK at qb.
+    if (!(b.tip <= tol - kSlack)) return false;
+    const Pose pa = ea.pose;  // a copy: the next call may reuse the slot
+    const Pose pb = path_end(qb).pose;
+    const double ends = std::max(segment_distance(pa.tip, mv.p0.tip, mv.p1.tip), segment_distance(pb.tip, mv.p0.tip, mv.p1.tip));
+    if (!(b.tip + ends <= tol - kSlack)) return false;
+    if (mv.mode != OrientationMode::Vector) return true;
+    // The tool axis against the great-circle arc from sa to sb: both lie near the chords between
+    // their ends (the arc within phi^2 / 8 of its own), and those chords within the ends' gaps.
+    const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : slerp(mv.p0.axis, mv.p1.axis, sa);
+    const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : slerp(mv.p0.axis, mv.p1.axis, sb);
+    const double phi = (sb - sa) * std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
+    const double chord = b.axis + std::max((pa.axis - ia).norm(), (pb.axis - ib).norm()) + phi * phi / 8.0;
+    if (!(chord < 2.0)) return false;
+    return 2.0 * std::asin(0.5 * chord) * kDegPerRad <= atol - 1e-6;
 }
 
 IkResult MotionStage::split(const MoveSpec& mv) {
@@ -166,6 +211,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
 
     const double tol = kSampleMargin * machine_.motion.tolerance, atol = kSampleMargin * machine_.motion.angle_tolerance;
     double tip = 0, ang = 0;
+    if (bounded_within(mv, 0, 1, q0.data(), q1.data(), tol, atol)) return {};
     piece_error(mv, 0, 1, q0.data(), q1.data(), kCheckSamples, tip, ang);
     const double ratio = std::max(tip / tol, ang / atol);
     if (ratio <= 1) return {};
@@ -201,8 +247,11 @@ IkResult MotionStage::split(const MoveSpec& mv) {
             if (sb >= 1.0 && mv.mode == OrientationMode::Angles) exact_b_ = *mv.q1;
             else exact_b_ = qb;
             round_printed(machine_, qb);
-            piece_error(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), kCheckSamples, tip, ang);
-            bool pass = tip <= tol && ang <= atol;
+            bool pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, atol);
+            if (!pass) {
+                piece_error(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), kCheckSamples, tip, ang);
+                pass = tip <= tol && ang <= atol;
+            }
             if (!pass && mv.mode == OrientationMode::Vector) {
                 // Near a pole the continuous branch swings a joint round; the other branch may
                 // cut across within the tolerance (a tilt through zero instead of a half turn).
@@ -213,8 +262,12 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                     round_printed(machine_, alt);
                     if (alt == qb) continue;
                     double t2 = 0, a2 = 0;
-                    piece_error(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), kCheckSamples, t2, a2);
-                    if (t2 <= tol && a2 <= atol) {
+                    bool alt_pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol, atol);
+                    if (!alt_pass) {
+                        piece_error(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), kCheckSamples, t2, a2);
+                        alt_pass = t2 <= tol && a2 <= atol;
+                    }
+                    if (alt_pass) {
                         pass = true;
                         qb = alt;
                         exact_b_ = alt_exact;
@@ -252,6 +305,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
 }
 
 IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* result) {
+    split_for_ = nullptr;
     if (mv.mode == OrientationMode::Vector && machine_.motion.segment) {
         // Leaving a pole: at the start the tool axis is on a rotary axis, so that joint was free
         // and kept its old angle, but the path leaves in a direction that needs another angle.
@@ -265,7 +319,8 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
         bool on_pole = false;
         for (int b = 0; b < at_start.count; ++b)
             for (std::size_t k = 0; k < kin_.rotary_joints().size(); ++k) on_pole = on_pole || std::isnan(at_start.angle[b][k]);
-        if (auto r = solve_at(mv, probe, *mv.q0, q_eps); on_pole && r.ok() && turn_angle > 0) {
+        // The probe's IK only where it matters: at a pole, on a move that turns.
+        if (on_pole && turn_angle > 0 && solve_at(mv, probe, *mv.q0, q_eps).ok()) {
             double jump = 0;
             for (std::size_t j = 0; j < q_eps.size(); ++j)
                 if (machine_.joints[j].rotary) jump = std::max(jump, std::abs(q_eps[j] - (*mv.q0)[j]));
@@ -335,21 +390,49 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
         for (const int j : rot) d += std::abs(a[std::size_t(j)] - b[std::size_t(j)]);
         return d;
     };
+    constexpr double kClearlyLess = 1.0;  // degrees: another way only when it turns clearly less
+    const auto solutions = kin_.orientation_solutions(mv.p1.axis);
+    std::vector<double>& q = scratch_a_;
+    // The way across is taken only when it turns the rotaries clearly less than the continuous
+    // branch's split (measured at the end below). When no end on another branch is that much
+    // nearer, the answer is no whatever the estimate says: the split is made first, then, and
+    // kept for emit_one, and the estimate is skipped (most moves, far from a pole).
+    if (split(mv).ok()) {
+        const std::size_t n = machine_.joints.size();
+        double measured = 0;
+        const double* qa = q0_printed_.data();
+        for (std::size_t k = 0; k < s_.size(); ++k) {
+            const double* qb = &qs_[k * n];
+            for (const int j : rot) measured += std::abs(qb[std::size_t(j)] - qa[std::size_t(j)]);
+            qa = qb;
+        }
+        bool nearer = false;
+        for (int b = 0; b < solutions.count && !nearer; ++b) {
+            q = q0;
+            if (orient_on_branch(machine_, kin_.rotary_joints(), solutions, b, q0, q0, q).ok())
+                nearer = rotary_distance(q, q0) < measured - kClearlyLess;
+        }
+        if (!nearer) {
+            split_for_ = &mv;
+            return false;
+        }
+    }
     // How far the continuous branch turns the rotaries, estimated on a few points of the path
     // (cheap; it is measured exactly below only when another way looks shorter).
     constexpr int kEstimate = 16;
-    std::vector<double>& q = scratch_a_;
     std::vector<double>& qq = lerp_;
-    std::vector<double> prev = q0, cur = q0;
+    std::vector<double>& prev = march_a_;
+    std::vector<double>& cur = march_b_;
+    prev = q0;
+    cur = q0;
+    const GreatArc arc(mv.p0.axis, mv.p1.axis);
     double stay = 0;
     for (int i = 1; i <= kEstimate; ++i) {
-        if (!orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(pose_at(mv, double(i) / kEstimate).axis), prev, prev, cur).ok())
+        if (!orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(arc.at(double(i) / kEstimate)), prev, prev, cur).ok())
             break;
         stay += rotary_distance(prev, cur);
         prev = cur;
     }
-    constexpr double kClearlyLess = 1.0;  // degrees: another way only when it turns clearly less
-    const auto solutions = kin_.orientation_solutions(mv.p1.axis);
     bool found = false;
     double best = stay - kClearlyLess;
     for (int b = 0; b < solutions.count; ++b) {
@@ -366,7 +449,7 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
             const double t = double(i) / kAxisSamples;
             for (std::size_t j = 0; j < q.size(); ++j) qq[j] = q0[j] + t * (q[j] - q0[j]);
             const Eigen::Vector3d axis = kin_.forward(qq).axis;
-            worst = std::max(worst, std::acos(std::clamp(axis.dot(slerp(mv.p0.axis, mv.p1.axis, t)), -1.0, 1.0)) * kDegPerRad);
+            worst = std::max(worst, std::acos(std::clamp(axis.dot(arc.at(t)), -1.0, 1.0)) * kDegPerRad);
         }
         if (worst > kSampleMargin * machine_.motion.angle_tolerance) continue;
         best = travel;
@@ -389,7 +472,9 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
 }
 
 IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult* result) {
-    if (auto r = split(mv); !r.ok()) return r;
+    if (split_for_ != &mv)
+        if (auto r = split(mv); !r.ok()) return r;
+    split_for_ = nullptr;
     const std::size_t n = machine_.joints.size();
     const int pieces = int(s_.size());
     const double length = (mv.p1.tip - mv.p0.tip).norm();

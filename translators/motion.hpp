@@ -74,6 +74,10 @@ public:
     const std::vector<double>& split_joints() const { return qs_; }  // pieces x joints
 
 private:
+    // True when the firmware's path from qa to qb (move parameters sa to sb) is proved within
+    // `tol` (mm) and `atol` (degrees) by kinematics' bound, without sampling it.
+    bool bounded_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
+                        double atol) const;
     IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
     // Across a pole: the end on the other branch, reached with the rotaries turning linearly,
     // when that stays within the angle tolerance and turns the rotaries less than the
@@ -86,6 +90,16 @@ private:
     // An OutOfLimits result when the continuous solution at s (from `previous`) is outside a
     // rotary joint's limits.
     IkResult leaves_limits(const MoveSpec& move, double s, const std::vector<double>& previous) const;
+
+    // The ends bounded_within met last (the end of one move is the start of the next).
+    const Kinematics::PathEnd& path_end(const double* q) const;
+    struct CachedEnd {
+        std::vector<double> q;
+        Kinematics::PathEnd end;
+    };
+    mutable CachedEnd ends_[2];
+    mutable int ends_next_ = 0;
+    const MoveSpec* split_for_ = nullptr;  // the move whose split s_, qs_ hold already (cross_pole made it)
 
     const Kinematics& kin_;
     const Machine& machine_;
