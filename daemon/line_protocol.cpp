@@ -76,6 +76,8 @@ Received parse_received(std::string_view line) {
         if (res.ec == std::errc()) {
             r.number = n;
             body = rest.substr(std::size_t(res.ptr - rest.data()));
+        } else {
+            r.bad_number = true;  // "N;01513 G1 …": a flipped digit, not an unnumbered command "N"
         }
     }
     r.command = trim(body);

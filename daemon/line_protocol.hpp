@@ -21,6 +21,7 @@ std::string numbered(std::int64_t n, std::string_view command);
 // surrounding blanks.
 struct Received {
     std::optional<std::int64_t> number;   // the N word, when the line starts with one
+    bool bad_number = false;              // it starts with N, but no number follows (a damaged line)
     bool has_checksum = false;
     bool checksum_ok = true;              // true when there is no checksum to check
     std::string_view command;

@@ -1,5 +1,5 @@
 // A TEST DOUBLE of a printer's firmware (stage: service, used by tests, `--printer sim` and the
-// bench; may call line_checker, line_protocol, link): a Marlin-like or RepRapFirmware-like
+// bench; may call line_checker, line_protocol, link, and error.hpp for its IoError): a Marlin-like or RepRapFirmware-like
 // firmware on the far end of a pseudo-terminal, so the whole service runs with no hardware and
 // tests can inject the faults a real link shows. It records every command it executes, in
 // order, so a test can prove that nothing was lost, duplicated or reordered on the way.
