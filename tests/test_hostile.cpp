@@ -161,6 +161,15 @@ TEST_CASE("line checker: an N without a number is refused, never run as a comman
     }
 }
 
+TEST_CASE("a G or M code past the lexer's bound is no code (its times ten overflowed an int)") {
+    // Found by fuzz_sender_line: "M287203685".
+    CHECK(proto::command_code("M287203685").letter == 0);
+    CHECK(proto::command_code("G-2147483648").letter == 0);
+    CHECK(proto::command_code("M99999").is('M', 99999));
+    CHECK(proto::command_code("G43.4 X1").is('G', 43) == false);
+    CHECK(proto::command_code("G43.4 X1").code10 == 434);
+}
+
 TEST_CASE("line checker: line numbers beyond Marlin's long are refused; last_N + 1 never overflows") {
     using V = proto::LineChecker::Verdict;
     proto::LineChecker c(true);
