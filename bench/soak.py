@@ -61,7 +61,7 @@ def make_print(moves, seed):
         b = min(30, max(-30, b + rng.uniform(-1.5, 1.5)))
         if i % 500 == 250:
             lines.append("M106 S%d" % (i % 255))
-        elif i % 200 == 100:
+        elif i % 200 == 100 and not os.environ.get("SOAK_NO_TRAVEL"):
             lines.append("G0 X%.3f Y%.3f Z%.3f" % (x, y, z))
         else:
             lines.append("G1 X%.3f Y%.3f Z%.3f A%.2f B%.2f E%.4f" % (x, y, z, a, b, 0.02 + 0.001 * (i % 7)))
@@ -121,25 +121,28 @@ class Sender:
             if m:
                 resend = int(m.group(1))
             elif r.startswith("Error:xlate5") or r.startswith("Error:Printer stopped") or "not run" in r:
+                if os.environ.get("SOAK_DEBUG"):
+                    print("soak: line %d: %s" % (n, r), file=sys.stderr)
                 stopped = True
 
 
 def stream(sender, lines):
-    """One print from M110 N0; returns True when every line was answered ok, False after a stop."""
-    n = 0
+    """One print from M110 N0; returns (True when every line was answered ok, lines written)."""
+    n = sent = 0
     while sender.command(0, "M110 N0")[0] != "ok":
         pass
     i = 0
     while i < len(lines):
         n = i + 1
         what, k = sender.command(n, lines[i])
+        sent += 1
         if what == "stopped":
-            return False
+            return False, sent
         if what == "resend":
             i = k - 1
             continue
         i += 1
-    return True
+    return True, sent
 
 
 def rss_kib(pid):
@@ -172,7 +175,7 @@ def main():
         # The virtual printer resets once, when it has executed this many commands.
         reset_after = max(10, len(expected) // 3)
         serve = subprocess.Popen([xlate5, "serve", "--machine", machine, "--printer", "sim", "--pty", pty,
-                                  "--record", record, "--reply-timeout", "0.05", "--boot-wait", "0.2",
+                                  "--record", record, "--reply-timeout", "0.5", "--boot-wait", "0.2",
                                   "--sim-fault", "corrupt=0.01", "--sim-fault", "drop=0.01",
                                   "--sim-fault", "reset_after=%d" % reset_after, "--sim-fault", "seed=5",
                                   "--log-level", "warn"], stderr=log)
@@ -191,9 +194,11 @@ def main():
             p = 0
             while p < prints:
                 sender.connect()
-                ok = stream(sender, program)
-                sent += len(program)
+                ok, n = stream(sender, program)
+                sent += n
                 if not ok:
+                    if cut >= 3:
+                        raise SystemExit("soak: FAILED: the print stopped %d times (the service's log says why)" % (cut + 1))
                     # The firmware reset: M999 (answered ok), then the print again from its start.
                     cut += 1
                     sender.write("M999\n")
