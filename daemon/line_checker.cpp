@@ -23,6 +23,13 @@ LineChecker::Result LineChecker::check(std::string_view line) {
     Result out;
     out.number = r.number;
     out.command = r.command;
+    if (r.bad_number) {
+        // Marlin reads any line that starts with N as numbered (strtol of what follows): a
+        // damaged number is refused, never run as a command "N".
+        out.verdict = Verdict::Refuse;
+        out.why = kErrLineNumber;
+        return out;
+    }
     if (!r.number) {
         if (r.has_checksum && strict_unnumbered_) {
             out.verdict = Verdict::Refuse;
@@ -36,6 +43,11 @@ LineChecker::Result LineChecker::check(std::string_view line) {
     std::int64_t n = *r.number;
     if (m110)
         if (const auto set = m110_line(strip_comment(r.command))) n = *set;
+    if (n < -kMaxLineNumber || n > kMaxLineNumber) {
+        out.verdict = Verdict::Refuse;
+        out.why = kErrLineNumber;
+        return out;
+    }
     if (!m110 && n != last_n_ + 1) {
         if (n == last_n_ || n == last_n_ - 1) {
             out.verdict = Verdict::Duplicate;

@@ -19,6 +19,10 @@ inline constexpr std::string_view kErrLineNumber = "Line Number is not Last Line
 inline constexpr std::string_view kErrNoChecksum = "No Checksum with line number";
 inline constexpr std::string_view kErrNoLineNumber = "No Line Number with checksum";  // older Marlin; xlate5's sender side
 
+// Line numbers a sender or firmware may use: Marlin's `long` on a 32-bit board. Outside it
+// (or an N without a number) a line is refused, and last_N +- 1 never overflows (docs/limits.md).
+inline constexpr std::int64_t kMaxLineNumber = 2147483647;
+
 class LineChecker {
 public:
     enum class Verdict {
@@ -38,7 +42,12 @@ public:
 
     Result check(std::string_view line);
     std::int64_t last_line() const { return last_n_; }
-    void set_last_line(std::int64_t n) { last_n_ = n; }
+    // False (and nothing set) for a number outside +-kMaxLineNumber.
+    bool set_last_line(std::int64_t n) {
+        if (n < -kMaxLineNumber || n > kMaxLineNumber) return false;
+        last_n_ = n;
+        return true;
+    }
     // The three reply lines for a refusal, in Marlin's words (the caller adds "\n" as it writes).
     std::string error_line(std::string_view why) const;
     std::string resend_line() const;

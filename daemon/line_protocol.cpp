@@ -76,6 +76,8 @@ Received parse_received(std::string_view line) {
         if (res.ec == std::errc()) {
             r.number = n;
             body = rest.substr(std::size_t(res.ptr - rest.data()));
+        } else {
+            r.bad_number = true;  // "N;01513 G1 …": a flipped digit, not an unnumbered command "N"
         }
     }
     r.command = trim(body);
@@ -122,7 +124,9 @@ Code command_code(std::string_view command) {
     std::string_view rest = command.substr(1);
     int whole = 0;
     const auto r = std::from_chars(rest.data(), rest.data() + rest.size(), whole);
-    if (r.ec != std::errc()) return c;
+    // The G-code lexer's bound on codes (kMaxCode): past it there is no code, and whole * 10
+    // cannot overflow. The translator then refuses the command with its column.
+    if (r.ec != std::errc() || whole <= -100000 || whole >= 100000) return c;
     int frac = 0;
     if (r.ptr < rest.data() + rest.size() && *r.ptr == '.' && r.ptr + 1 < rest.data() + rest.size() &&
         std::isdigit(static_cast<unsigned char>(r.ptr[1])))

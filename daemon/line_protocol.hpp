@@ -21,6 +21,7 @@ std::string numbered(std::int64_t n, std::string_view command);
 // surrounding blanks.
 struct Received {
     std::optional<std::int64_t> number;   // the N word, when the line starts with one
+    bool bad_number = false;              // it starts with N, but no number follows (a damaged line)
     bool has_checksum = false;
     bool checksum_ok = true;              // true when there is no checksum to check
     std::string_view command;
@@ -38,7 +39,7 @@ void append_commands(std::string_view text, std::vector<std::string>& out);
 std::optional<std::int64_t> m110_line(std::string_view command);
 
 // The G or M code a command starts with, e.g. ('M', 1150) for "M115" (code x10, so G43.4 is 434);
-// letter 0 when the command does not start with one.
+// letter 0 when the command does not start with one, or with a code beyond +-100000.
 struct Code {
     char letter = 0;
     int code10 = 0;

@@ -45,13 +45,16 @@ void Link::read() {
         std::size_t begin = 0;
         for (std::size_t i = 0; i < n; ++i) {
             if (buffer_[i] != '\n') continue;
-            partial_.append(buffer_.data() + begin, i - begin);
+            if (!overlong_) partial_.append(buffer_.data() + begin, i - begin);  // the tail of a cut line is dropped
+            if (partial_.size() > max_line) partial_.resize(max_line), overlong_ = true;
             begin = i + 1;
-            if (!partial_.empty() && partial_.back() == '\r') partial_.pop_back();
+            if (!overlong_ && !partial_.empty() && partial_.back() == '\r') partial_.pop_back();
+            cut_ = overlong_;
             overlong_ = false;
             std::string line;
             line.swap(partial_);
             on_line_(line);
+            cut_ = false;
             if (!open_) return;  // the handler closed the link
         }
         if (!overlong_) {

@@ -25,7 +25,8 @@ public:
 
     virtual ~Link() = default;
     // Starts reading. Lines end at '\n' (a '\r' before it is dropped); a line longer than
-    // `max_line` bytes is cut there, as a firmware's buffer would.
+    // `max_line` bytes is cut there, as a firmware's buffer would, the rest up to its '\n'
+    // dropped, and line_cut() is true while its first `max_line` bytes are handled.
     void start(LineHandler on_line, CloseHandler on_close);
     // Queues text (whole lines, with their '\n') to be written in order.
     void send(std::string_view text);
@@ -40,7 +41,8 @@ public:
     std::size_t unsent_bytes() const { return out_.size() + writing_.size(); }
     const std::string& name() const { return name_; }
     asio::any_io_executor stream_executor() { return executor(); }
-    std::size_t max_line = 1 << 16;
+    std::size_t max_line = 1 << 16;  // docs/limits.md
+    bool line_cut() const { return cut_; }
 
 protected:
     explicit Link(std::string name) : name_(std::move(name)) {}
@@ -66,6 +68,7 @@ private:
     bool writing_now_ = false;
     bool open_ = true;
     bool overlong_ = false;
+    bool cut_ = false;
     bool paused_ = false, reading_ = false, hung_up_ = false;
     std::function<void()> on_hangup_;
     std::unique_ptr<asio::steady_timer> retry_;

@@ -50,6 +50,17 @@ void SenderSession::refuse(std::string_view why) {
 
 void SenderSession::on_line(std::string_view raw) {
     ++received_;
+    if (link_->line_cut()) {
+        // Its middle is gone: neither its checksum nor its command can be trusted. Refused
+        // clearly, never run cut (a numbered one ends the print; resending it would not help).
+        const auto r = proto::parse_received(raw);
+        const bool numbered = r.number && *r.number == checker_.last_line() + 1;
+        if (numbered) checker_.set_last_line(*r.number);
+        const std::string head(r.command.substr(0, 40));
+        host_.sender_refused(*this, head + "...", numbered ? std::uint64_t(*r.number) : received_, numbered,
+                             "longer than " + std::to_string(link_->max_line) + " bytes (the line-length bound)");
+        return;
+    }
     const auto v = checker_.check(raw);
     if (v.verdict == proto::LineChecker::Verdict::Refuse) return refuse(v.why);
     if (v.verdict == proto::LineChecker::Verdict::Duplicate) {
@@ -67,7 +78,8 @@ void SenderSession::on_line(std::string_view raw) {
     }
     if (code.is('M', 110)) {
         // "M110 N<n>" (or the line's own number) sets the next expected line.
-        if (const auto n = proto::m110_line(bare)) checker_.set_last_line(*n);
+        if (const auto n = proto::m110_line(bare))
+            if (!checker_.set_last_line(*n)) return refuse(proto::kErrLineNumber);  // beyond +-kMaxLineNumber
         host_.sender_reset(*this);
         ok();
         return;

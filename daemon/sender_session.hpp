@@ -34,6 +34,10 @@ public:
         virtual void sender_gone(SenderSession& s) = 0;   // the link closed (TCP): the session ends
         virtual void sender_left(SenderSession& s) = 0;   // the sender closed the pseudo-terminal: it may come back
         virtual void sender_reset(SenderSession& s) = 0;  // M110: the sender starts numbering again (a new print)
+        // A line the session cannot take whole (longer than the link's max_line): refused in
+        // its turn, as a line the translator refuses (a numbered one ends the print).
+        virtual void sender_refused(SenderSession& s, std::string_view command, std::uint64_t line_no, bool numbered,
+                                    std::string cause) = 0;
     };
 
     SenderSession(std::shared_ptr<Link> link, Host& host, std::string name);

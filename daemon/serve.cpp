@@ -133,9 +133,23 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
         a.accept_next = std::make_shared<std::function<void()>>();
         auto* acceptor = &*a.acceptor;
         std::weak_ptr<std::function<void()>> next = a.accept_next;
-        *a.accept_next = [acceptor, &service, next] {
-            acceptor->async_accept([acceptor, &service, next](boost::system::error_code e, asio::ip::tcp::socket socket) {
-                if (e) return;
+        auto failing = std::make_shared<bool>(false);
+        *a.accept_next = [acceptor, &service, next, failing] {
+            acceptor->async_accept([acceptor, &service, next, failing](boost::system::error_code e, asio::ip::tcp::socket socket) {
+                if (e == asio::error::operation_aborted || !acceptor->is_open()) return;
+                if (e) {
+                    // Out of file descriptors (EMFILE, ENFILE) or a connection gone before it was
+                    // taken: try again after a pause (a timer, not a busy loop), never stop for good.
+                    if (!*failing) spdlog::warn("senders: tcp accept failed: {}; retrying every 0.2 s", e.message());
+                    *failing = true;
+                    auto t = std::make_shared<asio::steady_timer>(acceptor->get_executor(), std::chrono::milliseconds(200));
+                    t->async_wait([t, next](boost::system::error_code te) {
+                        if (auto n = next.lock(); n && !te) (*n)();
+                    });
+                    return;
+                }
+                if (*failing) spdlog::info("senders: tcp accepting again");
+                *failing = false;
                 socket.set_option(asio::ip::tcp::no_delay(true));
                 boost::system::error_code pe;
                 const auto rep = socket.remote_endpoint(pe);

@@ -354,6 +354,14 @@ void Service::sender_command(SenderSession& s, std::string_view command, proto::
     arm_hold();
 }
 
+void Service::sender_refused(SenderSession& s, std::string_view command, std::uint64_t line_no, bool numbered, std::string cause) {
+    // In its turn, so that every line before it runs (the sender's lines stay in order).
+    pending_.push_back({s.weak_from_this(), std::string(command), proto::Code{}, line_no, numbered, std::move(cause)});
+    if (++s.in_service >= opt_.max_pending) s.pause_reading();
+    ++lines_seen_;
+    pump();
+}
+
 void Service::arm_hold() {
     // A pause in the stream ends the look-back window: what is held goes to the firmware.
     if (!holding_) return;
@@ -443,6 +451,7 @@ void Service::process(const Pending& p) {
         ++stats_.rejected;
         return;
     }
+    if (!p.refused.empty()) return refuse_line(p, p.refused);
     ++stats_.lines_in;
     const bool wait_for_firmware = answered_by_firmware(p.code);
     std::vector<std::string> commands;

@@ -98,6 +98,7 @@ public:
     void sender_gone(SenderSession& s) override;
     void sender_left(SenderSession& s) override;
     void sender_reset(SenderSession& s) override;
+    void sender_refused(SenderSession& s, std::string_view command, std::uint64_t line_no, bool numbered, std::string cause) override;
     std::size_t pending_lines() const { return pending_.size(); }
 
 private:
@@ -107,6 +108,7 @@ private:
         proto::Code code;
         std::uint64_t line_no;
         bool numbered;
+        std::string refused = {};  // non-empty: refused in its turn with this cause (sender_refused)
     };
     void pump();
     void process(const Pending& p);

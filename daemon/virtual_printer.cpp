@@ -6,6 +6,7 @@
 #include <spdlog/spdlog.h>
 
 #include "daemon/line_protocol.hpp"
+#include "translators/error.hpp"
 
 namespace xlate5 {
 namespace {
@@ -53,7 +54,15 @@ VirtualPrinter::VirtualPrinter(asio::io_context& io, int master_fd, SimOptions o
     link_ = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, master_fd), "virtual printer");
     link_->eio_is_transient = true;  // xlate5 may close and reopen its end
     pos_.assign(opt_.axes.size() + 1, 0.0);
-    if (!opt_.record_path.empty()) record_.open(opt_.record_path, std::ios::trunc);
+    if (!opt_.record_path.empty()) {
+        // Emptied once, then written in append mode (O_APPEND): every write lands at the file's
+        // end, so a file truncated meanwhile (a user's "> file", an instance restarted on it)
+        // never gets a hole of NUL bytes where a private write offset would have left one.
+        record_.open(opt_.record_path, std::ios::trunc);
+        record_.close();
+        record_.open(opt_.record_path, std::ios::app);
+        if (!record_) throw IoError("sim.record: cannot write " + opt_.record_path);
+    }
 }
 
 VirtualPrinter::~VirtualPrinter() { link_->close(); }

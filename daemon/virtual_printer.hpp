@@ -1,8 +1,9 @@
 // A TEST DOUBLE of a printer's firmware (stage: service, used by tests, `--printer sim` and the
-// bench; may call line_checker, line_protocol, link): a Marlin-like or RepRapFirmware-like
-// firmware on the far end of a pseudo-terminal, so the whole service runs with no hardware and
-// tests can inject the faults a real link shows. It records every command it executes, in
-// order, so a test can prove that nothing was lost, duplicated or reordered on the way.
+// bench; may call line_checker, line_protocol, link, and error.hpp for its IoError): a
+// Marlin-like or RepRapFirmware-like firmware on the far end of a pseudo-terminal, so the
+// whole service runs with no hardware and tests can inject the faults a real link shows. It
+// records every command it executes, in order, so a test can prove that nothing was lost,
+// duplicated or reordered on the way.
 //
 // It follows Marlin's receive rules as docs/service.md states them from Marlin's
 // queue.cpp: a serial receive buffer of `rx_size` bytes (bytes beyond it are lost), a command

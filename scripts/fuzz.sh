@@ -19,8 +19,9 @@ mkdir -p "$build/fuzz-artifacts"
 status=0
 # The translate target's inputs are kept short: a move is costly (it is split into pieces), and
 # short inputs reach the same code more often.
-declare -A max_len=([fuzz_translate]=512 [fuzz_machine_file]=8192 [fuzz_compensation]=4096 [fuzz_calibrate]=2048)
-for t in fuzz_translate fuzz_machine_file fuzz_compensation fuzz_calibrate; do
+declare -A max_len=([fuzz_translate]=512 [fuzz_machine_file]=8192 [fuzz_compensation]=4096 [fuzz_calibrate]=2048
+                     [fuzz_sender_line]=4096 [fuzz_firmware_reply]=2048 [fuzz_protocol]=4096)
+for t in fuzz_translate fuzz_machine_file fuzz_compensation fuzz_calibrate fuzz_sender_line fuzz_firmware_reply fuzz_protocol; do
   mkdir -p "$build/fuzz-corpus/$t"
   log="$build/fuzz-artifacts/$t.log"
   echo "== $t, ${seconds} s"

@@ -20,6 +20,10 @@ echo "--- benchmarks (figures only; see bench/)"
 ./build/bench/bench_translate 100000 rw2 0
 ./build/bench/bench_service 5000 0
 
+# Every fuzz target for 15 s on its seeds (clang; only the fuzz targets are built; fuzz/README.md).
+echo "--- fuzz targets, 15 s each"
+./scripts/fuzz.sh 15
+
 # -O1 without debug info: the sanitizer build is about finding bugs, and compiles much faster.
 # The packaging tests (manual page, completion, .deb) check files, not memory: release only.
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1" -DXLATE5_SANITIZE=ON -DXLATE5_BENCH=OFF >/dev/null

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <string>
 
 #include "translators/constants.hpp"
 
@@ -16,6 +18,8 @@ ArcPlane arc_plane(int plane) {
 
 std::string arc_chords(const Arc& arc, double chord_tol, std::vector<Eigen::Vector3d>& ends) {
     ends.clear();
+    if (arc.turns < 1 || arc.turns > kMaxArcTurns)
+        return "arc turns P must be 1 to " + std::to_string(kMaxArcTurns);
     const ArcPlane pl = arc_plane(arc.plane);
     const int a = pl.a, b = pl.b, n = pl.n;
     const Eigen::Vector3d& start = arc.start;
@@ -47,7 +51,13 @@ std::string arc_chords(const Arc& arc, double chord_tol, std::vector<Eigen::Vect
     while (sweep <= 1e-12) sweep += kTwoPi;  // equal ends: a full circle
     sweep += kTwoPi * (arc.turns - 1);
     const double step = chord_tol < r0 ? 2 * std::acos(1 - chord_tol / r0) : kTwoPi / 4;
-    const int chords = std::max(1, int(std::ceil(sweep / step)));
+    // Counted in double before the cast: many turns of a small tolerance overflow an int.
+    const double need = std::ceil(sweep / step);
+    if (!(need <= kMaxPiecesPerLine))
+        return "the arc needs " + (need < 1e15 ? std::to_string(std::int64_t(need)) : std::string("too many")) +
+               " chords to stay within the tolerance, more than " + std::to_string(kMaxPiecesPerLine) +
+               " (the bound on pieces per input line)";
+    const int chords = std::max(1, int(need));
     for (int k = 1; k <= chords; ++k) {
         const double f = double(k) / chords;
         const double th = t0 + (clockwise ? -1.0 : 1.0) * sweep * f;

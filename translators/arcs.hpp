@@ -7,6 +7,10 @@
 
 namespace xlate5 {
 
+// Full turns an arc's P word may ask for (docs/limits.md); the chords are bounded as well, by
+// kMaxPiecesPerLine (constants.hpp).
+inline constexpr int kMaxArcTurns = 1000;
+
 // The plane of an arc (RS274): G17 XY, G18 ZX, G19 YZ. Axes a, b span it, n is its normal; ca and
 // cb are the centre-offset letters along a and b.
 struct ArcPlane {
@@ -27,7 +31,8 @@ struct Arc {
 
 // The chord end points of `arc`, each chord within `chord_tolerance` of it, helical along the
 // plane's normal; the last point is exactly `arc.end`. Returns an empty string, or why the arc
-// cannot be cut (a radius too small, an end point off the circle).
+// cannot be cut (a radius too small, an end point off the circle, turns outside 1..kMaxArcTurns,
+// more than kMaxPiecesPerLine chords).
 std::string arc_chords(const Arc& arc, double chord_tolerance, std::vector<Eigen::Vector3d>& ends);
 
 }  // namespace xlate5

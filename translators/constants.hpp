@@ -16,4 +16,9 @@ inline constexpr double kLimitSlack = 1e-9;
 // Two solutions whose rotaries differ by less than this (degrees) are the same solution.
 inline constexpr double kSameAngle = 1e-6;
 
+// Output moves one input line may become (the pieces of a split move, the chords of an arc and
+// their pieces together): a line that needs more is refused at its column, so one short line
+// cannot turn into an unbounded output (docs/limits.md).
+inline constexpr int kMaxPiecesPerLine = 10000;
+
 }  // namespace xlate5

@@ -2,11 +2,13 @@
 // What it may call: see interpreter.hpp.
 #include "translators/interpreter.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <string>
 
 #include "translators/arcs.hpp"
+#include "translators/constants.hpp"
 #include "translators/error.hpp"
 #include "translators/keep_out.hpp"
 
@@ -330,7 +332,8 @@ void Interpreter::arc(bool clockwise, std::uint32_t column, const Params& words,
             case 'R': a.radius = number(p) * unit, a.by_radius = true; break;
             case 'P': {
                 const double v = number(p);
-                if (v < 1 || v != std::floor(v)) fail(p.column, "P (turns) must be a whole number >= 1");
+                if (v < 1 || v > kMaxArcTurns || v != std::floor(v))
+                    fail(p.column, "P (turns) must be a whole number from 1 to " + std::to_string(kMaxArcTurns));
                 a.turns = int(v);
                 break;
             }
@@ -347,6 +350,9 @@ void Interpreter::arc(bool clockwise, std::uint32_t column, const Params& words,
     if (centre == a.by_radius) fail(column, "an arc needs its centre as I J K offsets or its radius as R (one of them)");
     if (auto why = arc_chords(a, 0.5 * machine_.motion.tolerance, chord_ends_); !why.empty()) fail(column, why);
     const int chords = int(chord_ends_.size());
+    // Each chord may be split further: the line's output as a whole is bounded too.
+    std::size_t counted = out.size();
+    long pieces = 0;
 
     // Each chord runs through tool_move() as an absolute, metric G1 with its own words.
     planner_.programmed_angles(arc_angles_);  // rotary words are programmed angles
@@ -374,6 +380,11 @@ void Interpreter::arc(bool clockwise, std::uint32_t column, const Params& words,
         if (f_word && k == 1) chord_words_.push_back(*f_word);
         if (f_word && k == 1 && saved.inches) chord_words_.back().value *= 25.4, chord_words_.back().text = {};
         tool_move(1, column, chord_words_, true, false, run, out);
+        pieces += std::count(out.begin() + std::ptrdiff_t(counted), out.end(), '\n');
+        counted = out.size();
+        if (pieces > kMaxPiecesPerLine)
+            fail(column, "the arc needs more than " + std::to_string(kMaxPiecesPerLine) +
+                             " output lines to stay within the tolerance (the bound on pieces per input line)");
     }
     m.modes.motion = clockwise ? 2 : 3;
 }

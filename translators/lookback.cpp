@@ -71,9 +71,9 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
         window_text_ += '\n';
         window_lines_.push_back(line_no);
     }
-    // Memory stays bounded: past the window (or a few MB of output) the held lines are final.
-    constexpr std::size_t kMaxHeldBytes = std::size_t(8) << 20;
-    if (!have_checkpoint_ || window_lines_.size() > lines_ || held_.size() > kMaxHeldBytes) {
+    // Memory stays bounded: past the window (in lines or in bytes) the held lines are final.
+    if (!have_checkpoint_ || window_lines_.size() > lines_ || window_text_.size() > kMaxWindowBytes ||
+        held_.size() > kMaxHeldBytes) {
         release(held_.size(), held_moves(), out);
         have_checkpoint_ = false;
         window_text_.clear();

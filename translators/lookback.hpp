@@ -26,6 +26,12 @@ struct ForwardState {
 
 class LookBack {
 public:
+    // Memory stays bounded by bytes as well as by lines (docs/limits.md): past either bound the
+    // window closes (what it held is final, as past `lines`): the input text a replay needs,
+    // and the output held back.
+    static constexpr std::size_t kMaxWindowBytes = std::size_t(1) << 20;
+    static constexpr std::size_t kMaxHeldBytes = std::size_t(8) << 20;
+
     // `log` may be null (no report).
     LookBack(Interpreter& interpreter, ForwardState& state, MoveLog* log);
 

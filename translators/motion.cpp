@@ -19,7 +19,6 @@ constexpr int kCheckSamples = 7;     // interior points checked per piece (see p
 // The error between two of those samples can exceed both by a little (the tests measure it
 // against 400-point sampling: under 1%); a piece passes only with this much room left.
 constexpr double kSampleMargin = 0.97;
-constexpr int kMaxPieces = 100000;   // a move needing more is refused, not silently truncated
 
 // Great-circle interpolation of unit vectors; antipodal ends have no unique arc. The arc's
 // angle is found once for the many points taken along one move.
@@ -297,7 +296,9 @@ IkResult MotionStage::split(const MoveSpec& mv) {
         s_.push_back(sb);
         qs_.insert(qs_.end(), qb.begin(), qb.end());
         qs_exact_.insert(qs_exact_.end(), ok_exact_.begin(), ok_exact_.end());
-        if (int(s_.size()) > kMaxPieces) return {IkStatus::Singular, "the move needs more than 100000 pieces to stay within the tolerance"};
+        if (int(s_.size()) > kMaxPiecesPerLine)  // refused, not silently truncated (docs/limits.md)
+            return {IkStatus::Singular, "the move needs more than " + std::to_string(kMaxPiecesPerLine) +
+                                            " pieces to stay within the tolerance (the bound on pieces per input line)"};
         sa = sb;
         qa.swap(qb);
     }

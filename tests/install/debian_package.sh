@@ -31,6 +31,12 @@ example="$root/usr/share/doc/xlate5/examples/$(basename "$source_example")"
 cmp -s "$source_example" "$example" || fail "the packaged example differs from $source_example"
 grep -q '^ExecStart=/usr/bin/xlate5 serve ' "$root/usr/lib/systemd/system/xlate5@.service" || fail "the unit does not run /usr/bin/xlate5"
 grep -q 'file:///usr/share/doc/xlate5/' "$root/usr/lib/systemd/system/xlate5@.service" || fail "the unit's documentation path"
+# The installed unit's sandbox (docs/limits.md): systemd's exposure score at most 1.5.
+if command -v systemd-analyze >/dev/null; then
+  score=$(cd "$root/usr/lib/systemd/system" && systemd-analyze security --offline=true ./xlate5@.service 2>&1 | sed -n 's/.*Overall exposure level for [^:]*: \([0-9.]*\).*/\1/p')
+  [ -n "$score" ] || fail "systemd-analyze gave no exposure score"
+  awk -v s="$score" 'BEGIN { exit !(s <= 1.5) }' || fail "the unit's exposure score is $score (at most 1.5)"
+fi
 if strings "$root/usr/bin/xlate5" | grep -qF "$build"; then fail "the packaged program names the build directory"; fi
 
 # A clean environment: no user or override machine directory.
