@@ -4,6 +4,7 @@
 # present, ../shared/corpus. Inputs the fuzzers add are kept in build-fuzz/fuzz-corpus/<target>,
 # crashes in build-fuzz/fuzz-artifacts/. Exit status 1 if any target found a crash.
 # Longer runs: fuzz/README.md.
+# `fuzz.sh --build-only` builds the targets and their seeds and runs nothing.
 set -euo pipefail
 seconds="${1:-60}"
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -15,6 +16,7 @@ if [ ! -f "$build/CMakeCache.txt" ]; then
 fi
 cmake --build "$build" -j2 --target fuzz
 "$root/fuzz/make_seeds.sh" "$build/fuzz-seeds"
+[ "$seconds" = --build-only ] && exit 0
 mkdir -p "$build/fuzz-artifacts"
 status=0
 # The translate target's inputs are kept short: a move is costly (it is split into pieces), and

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Installs the dependencies, builds xlate5 and runs the whole test suite: once in a release
-# build, once under AddressSanitizer + UndefinedBehaviorSanitizer. Small benchmark runs in
-# between print their figures (no timing is asserted), so a slowdown shows in every CI log.
+# build, once under AddressSanitizer + UndefinedBehaviorSanitizer, and each fuzz target briefly.
+# Small benchmark runs in between print their figures (no timing is asserted), so a slowdown
+# shows in every CI log.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-./scripts/install-deps.sh
+./scripts/install-deps.sh fuzz  # the build, the tests, and clang for the fuzz targets
 jobs=$(nproc 2>/dev/null || echo 2)
 # Most of the suite's time is spent waiting on pseudo-terminals and timers (the fault tests),
 # not on the processors, so one test program more than the cores runs at once.
@@ -20,13 +21,27 @@ echo "--- benchmarks (figures only; see bench/)"
 ./build/bench/bench_translate 100000 rw2 0
 ./build/bench/bench_service 5000 0
 
-# Every fuzz target for 15 s on its seeds (clang; only the fuzz targets are built; fuzz/README.md).
-echo "--- fuzz targets, 15 s each"
-./scripts/fuzz.sh 15
-
 # -O1 without debug info: the sanitizer build is about finding bugs, and compiles much faster.
 # The packaging tests (manual page, completion, .deb) check files, not memory: release only.
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1" -DXLATE5_SANITIZE=ON -DXLATE5_BENCH=OFF >/dev/null
 cmake --build build-asan -j"$jobs"
-ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  ctest --test-dir build-asan --output-on-failure -j"$test_jobs" -E '^(man_page|bash_completion|debian_package)$'
+# The fuzz targets (clang; only they are built; fuzz/README.md).
+./scripts/fuzz.sh --build-only
+
+# The sanitizer tests mostly wait on pseudo-terminals and timers, so each fuzz target runs 10 s
+# on its seeds meanwhile; the tests' output is printed after the fuzz figures.
+asan_log=$(mktemp)
+trap 'rm -f "$asan_log"' EXIT
+( ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+    ctest --test-dir build-asan --output-on-failure -j"$test_jobs" -E '^(man_page|bash_completion|debian_package)$' \
+    > "$asan_log" 2>&1 ) &
+asan=$!
+echo "--- fuzz targets, 10 s each"
+fuzz_status=0
+./scripts/fuzz.sh 10 || fuzz_status=$?
+asan_status=0
+wait "$asan" || asan_status=$?
+echo "--- sanitizer build's tests (ASan+UBSan)"
+cat "$asan_log"
+if [ "$fuzz_status" -ne 0 ]; then echo "a fuzz target failed (above)"; fi
+[ "$fuzz_status" -eq 0 ] && [ "$asan_status" -eq 0 ]
