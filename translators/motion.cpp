@@ -258,7 +258,8 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                 std::vector<double>& alt = scratch_b_;
                 for (int b = 0; b < 2 && !pass; ++b) {
                     if (!solve_at(mv, std::min(sb, 1.0), qa, alt, b).ok()) continue;
-                    std::vector<double> alt_exact = alt;
+                    std::vector<double>& alt_exact = alt_exact_;  // a member: no allocation per try
+                    alt_exact = alt;
                     round_printed(machine_, alt);
                     if (alt == qb) continue;
                     double t2 = 0, a2 = 0;
@@ -489,7 +490,9 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     double prev_share = 0;
     long long e_units_done = 0;
     const int ed = machine_.dialect.extrusion_decimals;
-    const double escale = std::pow(10.0, ed);
+    // 10^ed from a table for the usual decimals (the same exact value pow gives, without the call).
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+    const double escale = ed >= 0 && ed <= 9 ? kPow10[ed] : std::pow(10.0, ed);
     // Inverse-time output where the firmware takes it, for tool-space moves that have a duration.
     const bool inverse_time_out = machine_.dialect.inverse_time && mv.mode != OrientationMode::Joints && (total_time > 0 || mv.feed > 0);
     std::vector<double>& qprev = piece_prev_;

@@ -41,34 +41,43 @@ void append_units(std::string& out, long long units, int decimals) {
         u /= 10;
         --d;
     }
-    // Digits right to left, two at a time; the point goes in after d fraction digits.
+    // Written right to left into a small buffer, appended once: the d fraction digits (leading
+    // zeros included: 0.05), the point, then the integer part two digits at a time.
     static constexpr char kPairs[] =
         "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
         "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
         "8081828384858687888990919293949596979899";
-    char digits[24];
-    int n = 0;
+    char buf[32];
+    char* const end = buf + sizeof buf;
+    char* p = end;
+    if (d > 0) {
+        int k = d;
+        for (; k >= 2; k -= 2) {
+            const unsigned r = unsigned(u % 100);
+            u /= 100;
+            *--p = kPairs[2 * r + 1];
+            *--p = kPairs[2 * r];
+        }
+        if (k == 1) {
+            *--p = char('0' + u % 10);
+            u /= 10;
+        }
+        *--p = '.';
+    }
     while (u >= 100) {
         const unsigned r = unsigned(u % 100);
         u /= 100;
-        digits[n++] = kPairs[2 * r + 1];
-        digits[n++] = kPairs[2 * r];
+        *--p = kPairs[2 * r + 1];
+        *--p = kPairs[2 * r];
     }
     if (u >= 10) {
-        digits[n++] = kPairs[2 * u + 1];
-        digits[n++] = kPairs[2 * u];
+        *--p = kPairs[2 * u + 1];
+        *--p = kPairs[2 * u];
     } else {
-        digits[n++] = char('0' + u);
+        *--p = char('0' + u);
     }
-    while (n <= d) digits[n++] = '0';  // 0.05 -> "0.05": leading zeros of the fraction
-    char buf[32];
-    char* p = buf;
-    if (negative) *p++ = '-';
-    for (int k = n - 1; k >= 0; --k) {
-        *p++ = digits[k];
-        if (k == d && d > 0) *p++ = '.';
-    }
-    out.append(buf, p);
+    if (negative) *--p = '-';
+    out.append(p, end);
 }
 
 namespace {
