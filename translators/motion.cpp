@@ -61,10 +61,13 @@ double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, cons
 
 }  // namespace
 
-double firmware_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1) {
+namespace {
+// The dialect's rule; `round` false when both ends are already as printed (rounding is idempotent:
+// a printed value scaled back differs from its integer units by far less than half a unit).
+double dialect_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1, bool round) {
     double lin2 = 0, rot2 = 0, rot_max = 0;
     for (std::size_t j = 0; j < q0.size(); ++j) {
-        const double d = printed(m, j, q1[j]) - printed(m, j, q0[j]);
+        const double d = round ? printed(m, j, q1[j]) - printed(m, j, q0[j]) : q1[j] - q0[j];
         if (m.joints[j].rotary) {
             rot2 += d * d;
             rot_max = std::max(rot_max, std::abs(d));
@@ -83,6 +86,11 @@ double firmware_length(const Machine& m, const std::vector<double>& q0, const st
         default:
             return lin2 > 0 ? std::sqrt(lin2) : std::sqrt(rot2);  // NIST rule: XYZ if any moves, else rotaries
     }
+}
+}  // namespace
+
+double firmware_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1) {
+    return dialect_length(m, q0, q1, true);
 }
 
 MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
@@ -545,7 +553,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
             }
             if (length == 0 && mv.inverse_time == 0) t = std::max(t, rot_max / machine_.motion.rotary_feed);
             piece_time_[std::size_t(k)] = t;
-            const double d_fw = firmware_length(machine_, qprev, qk);
+            const double d_fw = dialect_length(machine_, qprev, qk, false);  // both ends come from the split, rounded
             if (inverse_time_out) {
                 // RepRapFirmware's G93: F is 1 / the piece's duration in minutes. An E-only piece
                 // takes its extrusion at the programmed feed.

@@ -19,16 +19,6 @@ void trim_zeros(std::string& out, std::size_t start) {
 }
 }  // namespace
 
-bool to_units(double v, int decimals, long long& units) {
-    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
-    if (decimals < 0 || decimals > 9 || !(std::abs(v) <= kMaxWritten)) return false;  // NaN too
-    const double scaled = v * kPow10[decimals];
-    if (!(std::abs(scaled) < 1e15)) return false;
-    // Half away from zero, as llround, without the library call (|scaled| < 1e15 fits exactly).
-    units = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
-    return true;
-}
-
 void append_units(std::string& out, long long units, int decimals) {
     if (units == 0) {
         out += '0';
