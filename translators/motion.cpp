@@ -60,10 +60,13 @@ double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, cons
 
 }  // namespace
 
-double firmware_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1) {
+namespace {
+// The dialect's rule; `round` false when both ends are already as printed (rounding is idempotent:
+// a printed value scaled back differs from its integer units by far less than half a unit).
+double dialect_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1, bool round) {
     double lin2 = 0, rot2 = 0, rot_max = 0;
     for (std::size_t j = 0; j < q0.size(); ++j) {
-        const double d = printed(m, j, q1[j]) - printed(m, j, q0[j]);
+        const double d = round ? printed(m, j, q1[j]) - printed(m, j, q0[j]) : q1[j] - q0[j];
         if (m.joints[j].rotary) {
             rot2 += d * d;
             rot_max = std::max(rot_max, std::abs(d));
@@ -82,6 +85,11 @@ double firmware_length(const Machine& m, const std::vector<double>& q0, const st
         default:
             return lin2 > 0 ? std::sqrt(lin2) : std::sqrt(rot2);  // NIST rule: XYZ if any moves, else rotaries
     }
+}
+}  // namespace
+
+double firmware_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1) {
+    return dialect_length(m, q0, q1, true);
 }
 
 MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
@@ -257,7 +265,8 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                 std::vector<double>& alt = scratch_b_;
                 for (int b = 0; b < 2 && !pass; ++b) {
                     if (!solve_at(mv, std::min(sb, 1.0), qa, alt, b).ok()) continue;
-                    std::vector<double> alt_exact = alt;
+                    std::vector<double>& alt_exact = alt_exact_;  // a member: no allocation per try
+                    alt_exact = alt;
                     round_printed(machine_, alt);
                     if (alt == qb) continue;
                     double t2 = 0, a2 = 0;
@@ -490,7 +499,9 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     double prev_share = 0;
     long long e_units_done = 0;
     const int ed = machine_.dialect.extrusion_decimals;
-    const double escale = std::pow(10.0, ed);
+    // 10^ed from a table for the usual decimals (the same exact value pow gives, without the call).
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+    const double escale = ed >= 0 && ed <= 9 ? kPow10[ed] : std::pow(10.0, ed);
     // Inverse-time output where the firmware takes it, for tool-space moves that have a duration.
     const bool inverse_time_out = machine_.dialect.inverse_time && mv.mode != OrientationMode::Joints && (total_time > 0 || mv.feed > 0);
     std::vector<double>& qprev = piece_prev_;
@@ -543,7 +554,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
             }
             if (length == 0 && mv.inverse_time == 0) t = std::max(t, rot_max / machine_.motion.rotary_feed);
             piece_time_[std::size_t(k)] = t;
-            const double d_fw = firmware_length(machine_, qprev, qk);
+            const double d_fw = dialect_length(machine_, qprev, qk, false);  // both ends come from the split, rounded
             if (inverse_time_out) {
                 // RepRapFirmware's G93: F is 1 / the piece's duration in minutes. An E-only piece
                 // takes its extrusion at the programmed feed.

@@ -111,7 +111,7 @@ private:
     std::vector<double> final_exact_, exact_b_, ok_exact_, cross_end_;
     double cross_angle_ = 0;  // the axis deviation of the last crossing found  // the last piece's end as solved (unrounded)
     // Scratch space reused move after move (no allocation on the hot path).
-    std::vector<double> scratch_a_, scratch_b_, lerp_, march_a_, march_b_, piece_prev_, piece_q_;
+    std::vector<double> scratch_a_, scratch_b_, alt_exact_, lerp_, march_a_, march_b_, piece_prev_, piece_q_;
     mutable std::vector<double> sample_;
     std::vector<double> piece_time_;  // minutes each piece of the last move takes
 };

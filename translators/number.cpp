@@ -19,16 +19,6 @@ void trim_zeros(std::string& out, std::size_t start) {
 }
 }  // namespace
 
-bool to_units(double v, int decimals, long long& units) {
-    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
-    if (decimals < 0 || decimals > 9 || !(std::abs(v) <= kMaxWritten)) return false;  // NaN too
-    const double scaled = v * kPow10[decimals];
-    if (!(std::abs(scaled) < 1e15)) return false;
-    // Half away from zero, as llround, without the library call (|scaled| < 1e15 fits exactly).
-    units = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
-    return true;
-}
-
 void append_units(std::string& out, long long units, int decimals) {
     if (units == 0) {
         out += '0';
@@ -41,34 +31,43 @@ void append_units(std::string& out, long long units, int decimals) {
         u /= 10;
         --d;
     }
-    // Digits right to left, two at a time; the point goes in after d fraction digits.
+    // Written right to left into a small buffer, appended once: the d fraction digits (leading
+    // zeros included: 0.05), the point, then the integer part two digits at a time.
     static constexpr char kPairs[] =
         "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
         "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
         "8081828384858687888990919293949596979899";
-    char digits[24];
-    int n = 0;
+    char buf[32];
+    char* const end = buf + sizeof buf;
+    char* p = end;
+    if (d > 0) {
+        int k = d;
+        for (; k >= 2; k -= 2) {
+            const unsigned r = unsigned(u % 100);
+            u /= 100;
+            *--p = kPairs[2 * r + 1];
+            *--p = kPairs[2 * r];
+        }
+        if (k == 1) {
+            *--p = char('0' + u % 10);
+            u /= 10;
+        }
+        *--p = '.';
+    }
     while (u >= 100) {
         const unsigned r = unsigned(u % 100);
         u /= 100;
-        digits[n++] = kPairs[2 * r + 1];
-        digits[n++] = kPairs[2 * r];
+        *--p = kPairs[2 * r + 1];
+        *--p = kPairs[2 * r];
     }
     if (u >= 10) {
-        digits[n++] = kPairs[2 * u + 1];
-        digits[n++] = kPairs[2 * u];
+        *--p = kPairs[2 * u + 1];
+        *--p = kPairs[2 * u];
     } else {
-        digits[n++] = char('0' + u);
+        *--p = char('0' + u);
     }
-    while (n <= d) digits[n++] = '0';  // 0.05 -> "0.05": leading zeros of the fraction
-    char buf[32];
-    char* p = buf;
-    if (negative) *p++ = '-';
-    for (int k = n - 1; k >= 0; --k) {
-        *p++ = digits[k];
-        if (k == d && d > 0) *p++ = '.';
-    }
-    out.append(buf, p);
+    if (negative) *--p = '-';
+    out.append(p, end);
 }
 
 namespace {

@@ -1,6 +1,7 @@
 // Number text <-> double, without locale and without allocation (the hot path of every line).
 // No stage: the lexer and the emitters call it. Calls nothing.
 #pragma once
+#include <cmath>
 #include <string>
 #include <string_view>
 
@@ -35,7 +36,16 @@ void append_shortest(std::string& out, double v);
 
 // v in units of 10^-decimals, rounded half away from zero: what append_fixed prints. False if
 // out of the fast range or not writable (then append_fixed falls back to std::to_chars, or throws).
-bool to_units(double v, int decimals, long long& units);
+// Inline: the emitter calls it for every joint of every line.
+inline bool to_units(double v, int decimals, long long& units) {
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+    if (decimals < 0 || decimals > 9 || !(std::abs(v) <= kMaxWritten)) return false;  // NaN too
+    const double scaled = v * kPow10[decimals];
+    if (!(std::abs(scaled) < 1e15)) return false;
+    // Half away from zero, as llround, without the library call (|scaled| < 1e15 fits exactly).
+    units = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
+    return true;
+}
 // Appends units * 10^-decimals with trailing fraction zeros removed.
 void append_units(std::string& out, long long units, int decimals);
 
