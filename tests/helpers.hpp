@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "translators/machine.hpp"
+
 namespace xlate5::test {
 
 // A whole file as text ("" when it cannot be read).
@@ -102,6 +104,20 @@ inline std::map<char, double> words_of(const std::string& line) {
         w[letter] = tok.size() > 1 ? std::stod(tok.substr(1)) : std::nan("");
     }
     return w;
+}
+
+// The firmware's joints after each line of output, as the firmware reads them: G0/G1 set the
+// joints they name, G92 says where a joint is (the same pose).
+inline void apply_joint_lines(const Machine& m, const std::string& text, std::vector<double>& q) {
+    for (const auto& line : lines_of(text)) {
+        if (line.empty() || line[0] == ';') continue;
+        const auto w = words_of(line.substr(0, line.find(';')));
+        if (!w.count('G')) continue;
+        const double g = w.at('G');
+        if (g != 0 && g != 1 && g != 92) continue;
+        for (std::size_t j = 0; j < m.joints.size(); ++j)
+            if (w.count(m.joints[j].output)) q[j] = w.at(m.joints[j].output);
+    }
 }
 
 }  // namespace xlate5::test

@@ -25,23 +25,12 @@ std::string corpus(const std::string& rel) { return corpus_dir() + "/" + rel; }
 
 Machine machine(const std::string& name) { return load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml"); }
 
-// The firmware's joints after each line of output, as the firmware reads them: G0/G1 set the
-// joints they name, G92 says where a joint is (the same pose).
+// The firmware's joints, line after line of output.
 struct JointTracker {
     const Machine& m;
     std::vector<double> q;
     explicit JointTracker(const Machine& mm) : m(mm), q(mm.home_joints()) {}
-    void apply(const std::string& text) {
-        for (const auto& line : lines_of(text)) {
-            if (line.empty() || line[0] == ';') continue;
-            const auto w = words_of(line.substr(0, line.find(';')));
-            if (!w.count('G')) continue;
-            const double g = w.at('G');
-            if (g != 0 && g != 1 && g != 92) continue;
-            for (std::size_t j = 0; j < m.joints.size(); ++j)
-                if (w.count(m.joints[j].output)) q[j] = w.at(m.joints[j].output);
-        }
-    }
+    void apply(const std::string& text) { apply_joint_lines(m, text, q); }
 };
 
 struct Record {

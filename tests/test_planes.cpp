@@ -37,19 +37,6 @@ Eigen::Matrix3d rot_z(double deg) {
     return r;
 }
 
-// The firmware's joints after each line of output (G0/G1 set what they name, G92 too).
-void apply(const Machine& m, const std::string& text, std::vector<double>& q) {
-    for (const auto& line : lines_of(text)) {
-        if (line.empty() || line[0] == ';') continue;
-        const auto w = words_of(line.substr(0, line.find(';')));
-        if (!w.count('G')) continue;
-        const double g = w.at('G');
-        if (g != 0 && g != 1 && g != 92) continue;
-        for (std::size_t j = 0; j < m.joints.size(); ++j)
-            if (w.count(m.joints[j].output)) q[j] = w.at(m.joints[j].output);
-    }
-}
-
 // Each input line's own output (no look-back).
 std::vector<std::string> per_line(const Kinematics& k, const std::string& program) {
     TranslatorOptions o;
@@ -121,7 +108,7 @@ TEST_CASE("a square printed in a plane tilted 30 degrees about X: tip and tool a
     for (std::size_t n = 0; n < lines.size(); ++n) {
         CAPTURE(lines[n]);
         for (const auto& piece : lines_of(out[n])) {
-            apply(m, piece, q);
+            apply_joint_lines(m, piece, q);
             if (n < 6 || n > 11 || piece.rfind("G1", 0) != 0) continue;
             // Every joint move of the square: on its plane, tool on the plane's normal.
             const Pose p = k.forward(q);
@@ -165,7 +152,7 @@ TEST_CASE("G68.2's angles are Z-X-Z about the turning axes, I first") {
         const auto out = per_line(k, prog.str());
         std::vector<double> q = m.home_joints();
         for (std::size_t n = 0; n < out.size(); ++n) {
-            apply(m, out[n], q);
+            apply_joint_lines(m, out[n], q);
             if (n < 5) continue;
             const Pose p = k.forward(q);
             const Eigen::Vector3d want = R * (n == 5 ? Eigen::Vector3d(10, 0, 15) : Eigen::Vector3d(0, 10, 15));
@@ -186,7 +173,7 @@ TEST_CASE("arcs inside a tilted plane are the plane's") {
     int pieces = 0;
     for (std::size_t n = 0; n < out.size(); ++n)
         for (const auto& piece : lines_of(out[n])) {
-            apply(m, piece, q);
+            apply_joint_lines(m, piece, q);
             if (n != 7 || piece.rfind("G1", 0) != 0) continue;
             const Eigen::Vector3d local = R.transpose() * k.forward(q).tip;
             CHECK(std::abs(local.z()) < 0.01);
@@ -267,7 +254,7 @@ TEST_CASE("join: a base file and one whose build direction is (1,0,1), checked b
     bool in_sub = false;
     for (const auto& line : lines_of(out)) {
         if (line.find("join: change to sub.gcode") != std::string::npos) in_sub = true;
-        apply(m, line, q);
+        apply_joint_lines(m, line, q);
         if (line.empty() || line[0] == ';') continue;
         const auto w = words_of(line.substr(0, line.find(';')));
         if (!w.count('G') || w.at('G') != 1 || !w.count('E')) continue;

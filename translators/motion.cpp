@@ -408,14 +408,7 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
     // nearer, the answer is no whatever the estimate says: the split is made first, then, and
     // kept for emit_one, and the estimate is skipped (most moves, far from a pole).
     if (split(mv).ok()) {
-        const std::size_t n = machine_.joints.size();
-        double measured = 0;
-        const double* qa = q0_printed_.data();
-        for (std::size_t k = 0; k < s_.size(); ++k) {
-            const double* qb = &qs_[k * n];
-            for (const int j : rot) measured += std::abs(qb[std::size_t(j)] - qa[std::size_t(j)]);
-            qa = qb;
-        }
+        const double measured = split_rotary_travel();
         bool nearer = false;
         for (int b = 0; b < solutions.count && !nearer; ++b) {
             q = q0;
@@ -470,15 +463,21 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
     if (!found) return false;
     // Measured: the continuous branch's split, joint by joint.
     if (!split(mv).ok()) return true;
+    return best < split_rotary_travel() - kClearlyLess;
+}
+
+double MotionStage::split_rotary_travel() const {
+    // Degrees the rotaries turn along the pieces split() made last, from the printed start.
+    const auto& rot = kin_.rotary_joints();
     const std::size_t n = machine_.joints.size();
-    double measured = 0;
+    double travel = 0;
     const double* qa = q0_printed_.data();
     for (std::size_t k = 0; k < s_.size(); ++k) {
         const double* qb = &qs_[k * n];
-        for (const int j : rot) measured += std::abs(qb[std::size_t(j)] - qa[std::size_t(j)]);
+        for (const int j : rot) travel += std::abs(qb[std::size_t(j)] - qa[std::size_t(j)]);
         qa = qb;
     }
-    return best < measured - kClearlyLess;
+    return travel;
 }
 
 IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult* result) {

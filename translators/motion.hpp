@@ -83,6 +83,7 @@ private:
     // when that stays within the angle tolerance and turns the rotaries less than the
     // continuous branch. Fills `end` and returns true when that way is the better one.
     bool cross_pole(const MoveSpec& move, std::vector<double>& end);
+    double split_rotary_travel() const;
     IkResult solve_at(const MoveSpec& move, double s, const std::vector<double>& previous, std::vector<double>& q,
                       int branch = -1) const;
     IkResult split(const MoveSpec& move);
