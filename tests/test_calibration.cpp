@@ -52,7 +52,7 @@ TEST_CASE("three exact points give rho and psi exactly; many noisy points within
     std::uniform_real_distribution<double> U(-1, 1);
     for (int trial = 0; trial < 50; ++trial) {
         const double rho = 3 * U(rng), psi = 3 * U(rng);
-        const Eigen::Matrix3d R = Ry(rho) * Rx(psi);  // seed 000 eq. 3.13's order
+        const Eigen::Matrix3d R = Ry(rho) * Rx(psi);  // Coeytaux et al. (WPI 2017) eq. 3.13's order
         const Eigen::Vector3d origin(10 * U(rng), 10 * U(rng), 5 * U(rng));
         // Three exact probes.
         std::vector<Eigen::Vector3d> three = {origin + R * Eigen::Vector3d(-60, -50, 0), origin + R * Eigen::Vector3d(70, -40, 0),
@@ -104,7 +104,7 @@ TEST_CASE("set_parameters rewrites only the named [parameters] values and keeps 
     CHECK_THROWS_AS(set_parameters(text, "t.toml", {{"nope", 1}}), MachineError);
 }
 
-TEST_CASE("rotary zero offset: seed 002 eq. 5.5, and two-sided touches that separate tilt from Z error") {
+TEST_CASE("rotary zero offset: Grutle (Oslo 2015) eq. 5.5, and two-sided touches that separate tilt from Z error") {
     // A plate tilted by the A offset about x through the origin: Z = Y tan(offset) + z0.
     std::mt19937 rng(21);
     std::uniform_real_distribution<double> U(-1, 1);
@@ -134,7 +134,7 @@ TEST_CASE("rotation centre from dots printed at several angles of C") {
     for (int trial = 0; trial < 40; ++trial) {
         const Eigen::Vector2d centre(3 * U(rng), 3 * U(rng));
         const double r = 5 + 20 * (U(rng) + 1);
-        // Dots at 0, 90, 180, 270 (seed 002's procedure): exact.
+        // Dots at 0, 90, 180, 270 (the procedure of Grutle, Oslo 2015): exact.
         std::vector<Eigen::Vector2d> dots;
         for (int k = 0; k < 4; ++k) dots.push_back(centre + r * Eigen::Vector2d(std::cos(rad(90.0 * k + 10 * trial)), std::sin(rad(90.0 * k + 10 * trial))));
         const CircleFit f = fit_circle(dots);
@@ -275,7 +275,7 @@ TEST_CASE("CLI: calibrate centre writes the C axis position (pentarod cx, cy; ko
                           {"koc5", "wx,wy", {{"wx", -2.1}, {"wy", 0.9}}, {10, -5, 0, 0, 0}}};
     for (const Case& c : cases) {
         CAPTURE(c.machine);
-        // Dots printed with the nozzle held still while the plate turns by C (seed 002: every
+        // Dots printed with the nozzle held still while the plate turns by C (Grutle, Oslo 2015: every
         // 90 degrees; here every 45), found through the machine's own FK: the plate point under
         // the nozzle. Read back at C = 0 the part frame is the machine frame.
         const Machine truth = load_machine(machine_path(c.machine), c.truth);

@@ -76,7 +76,7 @@ std::vector<std::string> body_lines(const std::string& out, const std::string& m
 
 
 
-// Seed 001 eq. 4.5.
+// Andersons (Twente 2023) eq. 4.5.
 struct Xyz {
     double x, y, z;
 };
@@ -544,9 +544,9 @@ TEST_CASE("cli: calibrate fit recovers a known series from noisy measurements, w
     CHECK(contains(b.err, "bad.csv:2:1:"));
 }
 
-TEST_CASE("cli: calibrate offset gives seed 002 eq. 5.5; calibrate centre the circle through the dots") {
+TEST_CASE("cli: calibrate offset gives Grutle (Oslo 2015) eq. 5.5; calibrate centre the circle through the dots") {
     TempDir d;
-    // Seed 002 sec. 5.2.1's procedure: touch at Y = 30 and Y = -30.
+    // Grutle (Oslo 2015) sec. 5.2.1's procedure: touch at Y = 30 and Y = -30.
     const Result r = run(d, "calibrate offset " + quote(d.write("t.csv", "30, 0.5\n-30, -0.5\n").string()));
     REQUIRE(r.code == 0);
     double offset = 0;

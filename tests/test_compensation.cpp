@@ -1,4 +1,4 @@
-// Error compensation against seed 001: its tables reproduce its measurements, agree with its
+// Error compensation against Andersons (Twente 2023): its tables reproduce its measurements, agree with its
 // fitted eq. 4.7-4.9 within the scatter of the measurements, and undo exactly in --inverse.
 #include <doctest/doctest.h>
 
@@ -31,7 +31,7 @@ Machine rw2_measured() {
     return m;
 }
 
-// Seed 001's fitted error functions, eq. 4.7-4.9 (A in degrees, mm).
+// Andersons' (Twente 2023) fitted error functions, eq. 4.7-4.9 (A in degrees, mm).
 double ex(double a) { return 2 * std::cos(rad(a)) - 2; }
 double ey(double a) { return -2 * std::sin(rad(a)); }
 double ez(double a) { return -0.45 * std::sin(rad(a + 40)) + 0.29; }
@@ -265,7 +265,7 @@ TEST_CASE("compensation over a real file: S4's joint-space R-theta print on koc5
           doctest::skip(corpus_absent())) {
     // The corpus file turns B from -54 to 12 degrees and C through 4000 degrees, so the tables
     // are read all round, across the periodic seam and beyond the linear table's ends. The
-    // tables are seed 001's table 4.1 X column re-targeted to koc5's C (no koc5 measurement
+    // tables are Andersons' (Twente 2023) table 4.1 X column re-targeted to koc5's C (no koc5 measurement
     // exists), and a made-up Z by B that clamps.
     const std::vector<std::pair<double, double>> x_by_c = {{-135, -2.80}, {-90, -1.80}, {-45, -0.80}, {0, 0.00}, {45, -0.60}, {90, -2.20}, {135, -3.40}};
     const std::vector<std::pair<double, double>> z_by_b = {{-30, 0.12}, {-10, 0.03}, {0, 0}, {10, -0.05}, {30, -0.2}};

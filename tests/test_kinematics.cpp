@@ -35,7 +35,7 @@ double angle_diff(double a, double b) { return std::abs(wrap180(a - b)); }
 
 }  // namespace
 
-TEST_CASE("rw2 equals seed 001 eq. 4.5 over a grid of poses") {
+TEST_CASE("rw2 equals Andersons (Twente 2023) eq. 4.5 over a grid of poses") {
     const Machine m = machine("rw2");
     const Kinematics k(m);
     const double la = 26.5, lb = 47.9;  // appendix C.2
@@ -64,7 +64,7 @@ TEST_CASE("rw2 equals seed 001 eq. 4.5 over a grid of poses") {
     CHECK(checked == 23 * 13 * 3);
 }
 
-TEST_CASE("rw2 with la = 29 reproduces seed 001 table 4.1's theoretical X and Y within 0.01 mm") {
+TEST_CASE("rw2 with la = 29 reproduces Andersons (Twente 2023) table 4.1's theoretical X and Y within 0.01 mm") {
     const Machine m = machine("rw2", {{"la", 29.0}});
     const Kinematics k(m);
     struct Row { double a, x, y; };
@@ -88,7 +88,7 @@ TEST_CASE("rw2 with la = 29 reproduces seed 001 table 4.1's theoretical X and Y 
     CHECK(std::abs(q[joint(m2, 'X')] - 129.00) > 1.0);
 }
 
-TEST_CASE("wpi5 equals seed 000 eq. 3.14c for random plate tilts and pivot offsets") {
+TEST_CASE("wpi5 equals Coeytaux et al. (WPI 2017) eq. 3.14c for random plate tilts and pivot offsets") {
     std::mt19937 rng(14);
     std::uniform_real_distribution<double> U(-1, 1);
     int checked = 0;
@@ -119,7 +119,7 @@ TEST_CASE("wpi5 equals seed 000 eq. 3.14c for random plate tilts and pivot offse
     CHECK(checked == 1000);
 }
 
-TEST_CASE("pentarod equals seed 002 pseudo code 4.1 and its tool vector") {
+TEST_CASE("pentarod equals Grutle (Oslo 2015) pseudo code 4.1 and its tool vector") {
     const Machine m = machine("pentarod");
     const Kinematics k(m);
     // Worked values of lines 10-12 (x, y, z, A, C) -> (X', Y', Z').
@@ -158,7 +158,7 @@ TEST_CASE("pentarod equals seed 002 pseudo code 4.1 and its tool vector") {
     }
 }
 
-TEST_CASE("koc5's build direction is seed 004 eq. 11, and IK returns (C, B) or (C + 180, -B)") {
+TEST_CASE("koc5's build direction is Isa (Koç 2018) eq. 11, and IK returns (C, B) or (C + 180, -B)") {
     const Machine m = machine("koc5");
     const Kinematics k(m);
     std::mt19937 rng(4);

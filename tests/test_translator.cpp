@@ -1,6 +1,6 @@
 // Translator: modal G-code semantics, passthrough, G92/G28, G43.4/G43.5/G49, errors, inverse.
-// Joint values are checked against the sources' formulas written out here (seed 001 eq. 4.5 for
-// rw2, seed 002 pseudo code 4.1 for pentarod), never against the program's own output.
+// Joint values are checked against the sources' formulas written out here (Andersons, Twente 2023, eq. 4.5 for
+// rw2, Grutle (Oslo 2015) pseudo code 4.1 for pentarod), never against the program's own output.
 #include <doctest/doctest.h>
 
 #include "helpers.hpp"
@@ -80,7 +80,7 @@ bool has_line(const std::string& text, const std::string& wanted) {
     return false;
 }
 
-// Seed 001 eq. 4.5 as printed (angles in degrees): machine joints X Y Z for tip (X', Y', Z').
+// Andersons (Twente 2023) eq. 4.5 as printed (angles in degrees): machine joints X Y Z for tip (X', Y', Z').
 struct Rw2Joints {
     double x, y, z;
 };
@@ -458,7 +458,7 @@ TEST_CASE("translator: G28 resets the joints to home and the next move writes ev
     CHECK(r.feed("G28") == "G28\n");
     CHECK(r.q('X') == 0);
     CHECK(r.q('Y') == 0);
-    CHECK(r.q('Z') == 300);   // rw2: Z homes at its max switch (seed 001 sec. 3.5)
+    CHECK(r.q('Z') == 300);   // rw2: Z homes at its max switch (Andersons, Twente 2023, sec. 3.5)
     CHECK(r.q('A') == -168);  // rw2: A homes at its min switch
     CHECK(r.q('B') == 0);
     CHECK(r.tr.program_offset().isZero());
@@ -497,7 +497,7 @@ TEST_CASE("translator: G28 with axis flags homes only those joints") {
     CHECK(r.q('A') == 40);
 }
 
-TEST_CASE("translator: seed 001 start code G28, G92 A-168, G1 A0 B0 leaves X Y Z") {
+TEST_CASE("translator: Andersons (Twente 2023) start code G28, G92 A-168, G1 A0 B0 leaves X Y Z") {
     Rig r("rw2");
     CHECK(r.feed("G28") == "G28\n");
     CHECK(r.feed("G92 A-168") == "G92 A-168\n");
@@ -525,7 +525,7 @@ namespace {
 Eigen::Matrix3d Rx(double deg) { return Eigen::AngleAxisd(rad(deg), Eigen::Vector3d::UnitX()).toRotationMatrix(); }
 Eigen::Matrix3d Rz(double deg) { return Eigen::AngleAxisd(rad(deg), Eigen::Vector3d::UnitZ()).toRotationMatrix(); }
 
-// Seed 002: u = (sin A sin C, sin A cos C, cos A).
+// Grutle (Oslo 2015): u = (sin A sin C, sin A cos C, cos A).
 Eigen::Vector3d pentarod_u(double a, double c) {
     return {std::sin(rad(a)) * std::sin(rad(c)), std::sin(rad(a)) * std::cos(rad(c)), std::cos(rad(a))};
 }
