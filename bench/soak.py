@@ -21,18 +21,9 @@ import termios
 import time
 import tty
 
-
-def strip(line):
-    line = line.split(";", 1)[0]
-    out, depth = [], 0
-    for ch in line:
-        if ch == "(":
-            depth += 1
-        elif ch == ")" and depth:
-            depth -= 1
-        elif not depth:
-            out.append(ch)
-    return "".join(out).strip()
+# The comment-stripping the end-to-end test compares with: one rule for both.
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests", "e2e"))
+from service_e2e import strip  # noqa: E402
 
 
 def checksum(text):

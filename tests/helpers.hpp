@@ -120,4 +120,28 @@ inline void apply_joint_lines(const Machine& m, const std::string& text, std::ve
     }
 }
 
+// A layer-change file for the look-back: azimuth printing A 0 -> 300 on rw2, whose A stops at
+// +-168; the travel move at A = 150 (the layer change) is turned onto the other branch by the
+// look-back, as `xlate5 translate` does. `wait_after_travel` puts an M400 right after it.
+inline std::vector<std::string> unwinding_print(bool wait_after_travel) {
+    std::vector<std::string> lines = {"M83"};
+    const auto tip = [](double a, double z) {
+        char buf[128];
+        const double r = -a * 3.14159265358979323846 / 180;
+        std::snprintf(buf, sizeof buf, " X%.4f Y%.4f Z%.4f A%.3f B30", 110 + 20 * std::cos(r), 110 + 20 * std::sin(r), z, a);
+        return std::string(buf);
+    };
+    double z = 5;
+    lines.push_back("G0" + tip(0, z) + " F1200");
+    for (double a = 0; a < 300; a += 5) {
+        if (a == 150) {
+            z += 0.3;
+            lines.push_back("G0" + tip(a, z));
+            if (wait_after_travel) lines.push_back("M400");
+        }
+        lines.push_back("G1" + tip(a + 5, z) + " E0.05");
+    }
+    return lines;
+}
+
 }  // namespace xlate5::test

@@ -440,22 +440,7 @@ TEST_CASE("serve translates exactly like offline: a travel move unwound by look-
     // a travel move the look-back turns onto the other branch, as `xlate5 translate` does.
     Rig probe("rw2");
     const Kinematics k(probe.machine);
-    std::vector<std::string> lines = {"M83"};
-    const auto tip = [](double a, double z) {
-        char buf[128];
-        const double r = -a * 3.14159265358979323846 / 180;
-        std::snprintf(buf, sizeof buf, " X%.4f Y%.4f Z%.4f A%.3f B30", 110 + 20 * std::cos(r), 110 + 20 * std::sin(r), z, a);
-        return std::string(buf);
-    };
-    double z = 5;
-    lines.push_back("G0" + tip(0, z) + " F1200");
-    for (double a = 0; a < 300; a += 5) {
-        if (a == 150) {
-            z += 0.3;
-            lines.push_back("G0" + tip(a, z));  // the layer change: a travel move
-        }
-        lines.push_back("G1" + tip(a + 5, z) + " E0.05");
-    }
+    const std::vector<std::string> lines = unwinding_print(false);
     // Without look-back the file cannot be translated: it needs the unwind.
     {
         Translator t(k, {});

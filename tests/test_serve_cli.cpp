@@ -63,29 +63,6 @@ std::size_t count_of(const std::string& hay, const std::string& needle) {
     return n;
 }
 
-// The layer-change file of the look-back test (test_daemon): A 0 -> 300 on rw2, whose A stops at
-// +-168; the travel move at A = 150 is turned onto the other branch by the look-back.
-std::vector<std::string> unwinding_print(bool wait_after_travel) {
-    std::vector<std::string> lines = {"M83"};
-    const auto tip = [](double a, double z) {
-        char buf[128];
-        const double r = -a * 3.14159265358979323846 / 180;
-        std::snprintf(buf, sizeof buf, " X%.4f Y%.4f Z%.4f A%.3f B30", 110 + 20 * std::cos(r), 110 + 20 * std::sin(r), z, a);
-        return std::string(buf);
-    };
-    double z = 5;
-    lines.push_back("G0" + tip(0, z) + " F1200");
-    for (double a = 0; a < 300; a += 5) {
-        if (a == 150) {
-            z += 0.3;
-            lines.push_back("G0" + tip(a, z));
-            if (wait_after_travel) lines.push_back("M400");
-        }
-        lines.push_back("G1" + tip(a + 5, z) + " E0.05");
-    }
-    return lines;
-}
-
 std::string joined(const std::vector<std::string>& lines) {
     std::string s;
     for (const auto& l : lines) s += l + "\n";
