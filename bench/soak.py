@@ -1,13 +1,18 @@
 #!/usr/bin/python3
 """Soak: millions of lines through `xlate5 serve` and its virtual printer under faults (a bit
-flipped in 1 % of the lines, a byte lost in 1 %, a firmware reset a third into the first
-print), with a sender that numbers its lines, follows Resend, restarts a print with M999 after
+flipped in 1 % of the lines, a byte lost in 1 %, a firmware reset every so many commands),
+with a sender that numbers its lines, follows Resend, restarts a print with M999 after
 the reset, and disconnects and starts its numbering again (M110 N0) between prints. At the end, what the printer executed is compared with the offline
 translation (`xlate5 --machine M -i FILE`): each print complete and identical, each print a
 reset cut short a prefix of it. The service's resident memory is sampled every few seconds.
 Figures only; not run in CI (docs/limits.md).
 
 Usage: soak.py XLATE5 TOTAL_LINES [PRINT_LINES] [MACHINE]
+
+Settings from the environment (defaults in brackets): SOAK_SETTLE [0.25] and SOAK_TIMEOUT [0.5],
+the service's settle and reply_timeout in seconds; SOAK_CORRUPT [0.01] and SOAK_DROP [0.01],
+the fault rates per line; SOAK_RESET_EVERY, commands between firmware resets [a third of the
+run, at most 2,000,000]; SOAK_NUDGE, the service's firmware.nudge [its default]; SOAK_SEED [5].
 """
 import os
 import random
@@ -147,7 +152,27 @@ def rss_kib(pid):
     return None
 
 
+def setting(name, default, kind=float, low=0.0, high=None):
+    """A number from the environment, range-checked."""
+    text = os.environ.get(name)
+    if text is None:
+        return default
+    try:
+        v = kind(text)
+    except ValueError:
+        raise SystemExit("soak: %s=%r is not a number" % (name, text))
+    if not (v >= low and (high is None or v <= high)):
+        raise SystemExit("soak: %s=%r is outside [%s, %s]" % (name, text, low, high))
+    return v
+
+
 def main():
+    settle = setting("SOAK_SETTLE", 0.25, float, 0.001, 60)
+    reply_timeout = setting("SOAK_TIMEOUT", 0.5, float, 0.05, 600)
+    corrupt = setting("SOAK_CORRUPT", 0.01, float, 0, 1)
+    drop = setting("SOAK_DROP", 0.01, float, 0, 1)
+    seed = setting("SOAK_SEED", 5, int, 0, 2**53)
+    nudge = setting("SOAK_NUDGE", None, float, 0, 60)
     xlate5 = sys.argv[1]
     total = int(sys.argv[2])
     print_lines = int(sys.argv[3]) if len(sys.argv) > 3 else 100000
@@ -163,13 +188,19 @@ def main():
         pty = os.path.join(tmp, "printer")
         record = os.path.join(tmp, "executed.gcode")
         log = open(os.path.join(tmp, "serve.log"), "w+")
-        # The virtual printer resets once, when it has executed this many commands.
-        reset_after = max(10, len(expected) // 3)
+        # The virtual printer resets each time it has executed a multiple of this many commands;
+        # each reset cuts one print short (it is streamed again from its start).
+        commands = prints * len(expected)
+        reset_every = setting("SOAK_RESET_EVERY", max(10, min(2000000, commands // 3)), int, 10, 2**53)
+        knobs = ("settle %g s, reply_timeout %g s, nudge %s, corrupt %g, drop %g, a reset every %d commands, seed %d"
+                 % (settle, reply_timeout, "default" if nudge is None else "%g s" % nudge, corrupt, drop, reset_every, seed))
+        print("soak: %d lines in %d prints of %d on %s; %s" % (prints * print_lines, prints, print_lines, machine, knobs), flush=True)
         serve = subprocess.Popen([xlate5, "serve", "--machine", machine, "--printer", "sim", "--pty", pty,
-                                  "--record", record, "--reply-timeout", "0.5", "--boot-wait", "0.2",
-                                  "--sim-fault", "corrupt=0.01", "--sim-fault", "drop=0.01",
-                                  "--sim-fault", "reset_after=%d" % reset_after, "--sim-fault", "seed=5",
-                                  "--log-level", "warn"], stderr=log)
+                                  "--record", record, "--reply-timeout", repr(reply_timeout), "--settle", repr(settle),
+                                  "--boot-wait", "0.2",
+                                  "--sim-fault", "corrupt=%r" % corrupt, "--sim-fault", "drop=%r" % drop,
+                                  "--sim-fault", "reset_every=%d" % reset_every, "--sim-fault", "seed=%d" % seed,
+                                  "--log-level", "warn"] + ([] if nudge is None else ["--nudge", repr(nudge)]), stderr=log)
         samples = []
         start = time.time()
         try:
@@ -188,8 +219,15 @@ def main():
                 ok, n = stream(sender, program)
                 sent += n
                 if not ok:
-                    if cut >= 3:
-                        raise SystemExit("soak: FAILED: the print stopped %d times (the service's log says why)" % (cut + 1))
+                    # A stop other than a reset is a failure at once.
+                    with open(log.name) as f:  # a reader of its own: the service shares `log`'s offset
+                        other = [l for l in f.read().splitlines() if "print stopped:" in l and "restarted" not in l]
+                    if other:
+                        raise SystemExit("soak: FAILED: %s" % other[0])
+                    # Each cut print is one reset; resets come with the commands executed (cut prints included).
+                    if cut + 1 > (complete + cut + 1) * (len(expected) + 8) // reset_every + 1:
+                        raise SystemExit("soak: FAILED: the print stopped %d times, with resets every %d of %d commands "
+                                         "(the service's log says why)" % (cut + 1, reset_every, commands))
                     # The firmware reset: M999 (answered ok), then the print again from its start.
                     cut += 1
                     sender.write("M999\n")
@@ -239,12 +277,14 @@ def main():
         print("soak: %d lines sent in %.0f s (%.0f lines/s); %d prints identical to the offline translation "
               "(%d commands each), %d cut short by a firmware reset, each a prefix of it; %d wrong"
               % (sent, elapsed, sent / elapsed, whole, len(expected), prefixes, len(bad)))
+        print("soak: " + knobs)
         if rss:
             print("soak: RSS of xlate5 serve: first %d KiB, min %d, max %d, last %d (%d samples)"
                   % (rss[0], min(rss), max(rss), rss[-1], len(rss)))
         log.seek(0)
         warnings = log.read()
-        print("soak: service log: %d lines (resyncs, resets)" % warnings.count("\n"))
+        print("soak: service log: %d lines (resyncs, resets); %d reply timeouts"
+              % (warnings.count("\n"), warnings.count("no reply for")))
         for i in bad[:3]:
             q = parts[i]
             j = next((k for k in range(min(len(q), len(expected))) if q[k] != expected[k]), min(len(q), len(expected)))

@@ -92,7 +92,7 @@ std::unique_ptr<ServeCommands> add_serve_commands(CLI::App& app) {
     s->add_option("--sim-fault", c->faults,
                   with_default("virtual printer fault, NAME=VALUE, repeatable (corrupt, drop, lose_newline, lose_ok, garble_reply, "
                                "spurious_resend, no_ok_after_resend, greeting_resend, stale_oks, quiet_planner, busy, busy_seconds, "
-                               "move_ms, slow_seconds, reset_after, kill_after, stop_after, unplug_after, seed)",
+                               "move_ms, slow_seconds, reset_after, reset_every, kill_after, stop_after, unplug_after, seed)",
                                "none"))
         ->option_text("NAME=VALUE");
     c->ports = app.add_subcommand("ports", "list serial ports (USB vendor:product and description)");

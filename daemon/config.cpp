@@ -38,6 +38,8 @@ const std::vector<ServeSetting> kSettings = {
     {"firmware.boot_wait", "--boot-wait", Kind::Number, 0, 60, "s", "", "seconds to wait for the firmware's 'start' after opening the port"},
     {"firmware.max_timeouts", "--max-timeouts", Kind::Whole, 1, 1000, "", "", "probes in a row without a reply before the firmware is gone"},
     {"firmware.settle", "--settle", Kind::Number, 0.001, 60, "s", "", "seconds of quiet that end a resync or the greeting's wait"},
+    {"firmware.nudge", "--nudge", Kind::Number, 0, 60, "s", "",
+     "Marlin: seconds of silence with lines in flight before one empty line (ends a line whose newline was lost); 0: never"},
     {"firmware.max_greetings", "--max-greetings", Kind::Whole, 1, 100, "", "", "greeting attempts before the firmware is unresponsive"},
     {"firmware.max_resyncs", "--max-resyncs", Kind::Whole, 1, 100000, "", "",
      "resyncs in a row without a line acknowledged before the firmware lost its place"},
@@ -117,6 +119,7 @@ void store(ServeConfig& c, const std::string& k, const Value& v) {
     else if (k == "firmware.boot_wait") c.firmware.boot_wait = v.number;
     else if (k == "firmware.max_timeouts") c.firmware.max_timeouts = int(whole());
     else if (k == "firmware.settle") c.firmware.settle = v.number;
+    else if (k == "firmware.nudge") c.firmware.nudge = v.number;
     else if (k == "firmware.max_greetings") c.firmware.max_greetings = int(whole());
     else if (k == "firmware.max_resyncs") c.firmware.max_resyncs = int(whole());
     else if (k == "sender.pty") c.pty = v.text;
@@ -212,6 +215,7 @@ std::string serve_setting_text(const ServeConfig& c, const ServeSetting& s) {
     if (k == "firmware.boot_wait") return num(c.firmware.boot_wait);
     if (k == "firmware.max_timeouts") return num(c.firmware.max_timeouts);
     if (k == "firmware.settle") return num(c.firmware.settle);
+    if (k == "firmware.nudge") return num(c.firmware.nudge);
     if (k == "firmware.max_greetings") return num(c.firmware.max_greetings);
     if (k == "firmware.max_resyncs") return num(c.firmware.max_resyncs);
     if (k == "sender.pty") return c.pty;
@@ -290,6 +294,7 @@ void set_sim_fault(SimFaults& f, const std::string& k, double d) {
     else if (k == "move_ms") seconds(f.move_ms);
     else if (k == "slow_seconds") seconds(f.slow_seconds);
     else if (k == "reset_after") count(f.reset_after);
+    else if (k == "reset_every") count(f.reset_every);
     else if (k == "kill_after") count(f.kill_after);
     else if (k == "stop_after") count(f.stop_after);
     else if (k == "unplug_after") count(f.unplug_after);

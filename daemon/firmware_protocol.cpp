@@ -69,6 +69,7 @@ std::optional<Time> FirmwareProtocol::deadline() const {
     if (state_ == State::Greeting || state_ == State::Ready) {
         consider(quiet_deadline_);
         consider(reply_deadline_);
+        consider(nudge_deadline_);
     }
     return d;
 }
@@ -105,6 +106,7 @@ void FirmwareProtocol::greet(Time now) {
     m115_.clear();
     boot_deadline_.reset();
     reply_deadline_.reset();
+    nudge_deadline_.reset();
     // Whatever the firmware still says about earlier lines (oks, Resends after M999 or a
     // reconnect) is waited out first.
     greet_ = Greet::Quiet;
@@ -168,7 +170,7 @@ void FirmwareProtocol::send_unnumbered(std::string_view command, Time now) {
     if (state_ == State::Ready) {
         in_flight_.push_back({-1, std::string(command), 0, line.size(), false, false});
         bytes_in_flight_ += line.size();
-        if (!reply_deadline_) reply_deadline_ = now + seconds(opt_.reply_timeout);
+        if (!reply_deadline_ && sync_ != Sync::Quiet) reply_deadline_ = now + seconds(opt_.reply_timeout);
     }
 }
 
@@ -192,6 +194,26 @@ void FirmwareProtocol::send_entry(Entry e, Time now) {
     in_flight_.push_back(std::move(e));
     ++stats_.sent;
     if (!reply_deadline_) reply_deadline_ = now + seconds(opt_.reply_timeout);
+    arm_nudge(now);
+}
+
+void FirmwareProtocol::arm_nudge(Time now) {
+    // RepRapFirmware gets no nudge: it is sent one line at a time and resends on silence anyway.
+    if (opt_.reprap || opt_.nudge <= 0 || opt_.nudge >= opt_.reply_timeout) return;
+    nudge_deadline_ = now + seconds(opt_.nudge);
+}
+
+void FirmwareProtocol::on_nudge() {
+    nudge_deadline_.reset();
+    // Not while a resync waits for quiet (the probe brings its own newline); not beyond the
+    // firmware's receive buffer. The byte rides with the last line in flight, and leaves the
+    // budget with it.
+    if (state_ != State::Ready || sync_ == Sync::Quiet || in_flight_.empty()) return;
+    if (bytes_in_flight_ + 1 > opt_.rx_bytes) return;
+    write_line("\n");
+    in_flight_.back().bytes += 1;
+    bytes_in_flight_ += 1;
+    ++stats_.nudges;
 }
 
 void FirmwareProtocol::transmit(Time now) {
@@ -227,7 +249,10 @@ void FirmwareProtocol::credit_through(std::size_t index, std::string_view payloa
         if (e.tag) emit(Action::Kind::Acked, j == index ? std::string(payload) : std::string(), e.tag);
     }
     progressed();
-    if (in_flight_.empty()) reply_deadline_.reset();
+    if (in_flight_.empty()) {
+        reply_deadline_.reset();
+        nudge_deadline_.reset();
+    }
     if (sync_ == Sync::Probing && std::none_of(in_flight_.begin(), in_flight_.end(), [](const Entry& e) { return e.probe; }))
         sync_ = Sync::None;  // the firmware took the probe: everything before it is in, numbering agrees
 }
@@ -288,6 +313,11 @@ void FirmwareProtocol::on_refusal(std::optional<std::int64_t> next, bool confirm
     }
     sync_ = Sync::Quiet;
     quiet_deadline_ = now + seconds(opt_.settle);
+    // Waiting for quiet is waiting for silence: the reply timeout must not end it. (It did, when
+    // `settle` was not shorter than `reply_timeout`, or a loaded host woke late past both: a probe
+    // under a fresh number, which a firmware waiting for the named line refuses, which began
+    // another resync, with no line ever acknowledged.) The probe that ends the quiet arms it again.
+    reply_deadline_.reset();
 }
 
 void FirmwareProtocol::rewind(std::int64_t k) {
@@ -329,6 +359,8 @@ void FirmwareProtocol::send_probe(std::int64_t n, Time now) {
     // probe (an empty line is nothing to the firmware).
     write_line("\n");
     send_entry({n, std::string(kProbe), 0, 0, true, true}, now);
+    in_flight_.back().bytes += 1;  // that newline, in the receive buffer's budget
+    bytes_in_flight_ += 1;
     sync_ = Sync::Probing;
 }
 
@@ -343,6 +375,7 @@ void FirmwareProtocol::end_quiet(Time now) {
             // Each ok names its line: continue at once.
             sync_ = Sync::None;
             transmit(now);
+            if (!in_flight_.empty() && !reply_deadline_) reply_deadline_ = now + seconds(opt_.reply_timeout);
             return;
         }
     }
@@ -414,6 +447,7 @@ void FirmwareProtocol::on_time(Time now) {
         else quiet_deadline_.reset();
     }
     if (state_ == State::Ready && reply_deadline_ && *reply_deadline_ <= now) on_reply_timeout(now);
+    if (state_ == State::Ready && nudge_deadline_ && *nudge_deadline_ <= now) on_nudge();
 }
 
 void FirmwareProtocol::on_line(std::string_view line, Time now) {
@@ -431,6 +465,7 @@ void FirmwareProtocol::on_line(std::string_view line, Time now) {
         timeouts_in_row_ = 0;
         long_waits_ = 0;
         if (reply_deadline_) reply_deadline_ = now + seconds(opt_.reply_timeout);
+        if (nudge_deadline_) arm_nudge(now);  // silence counts from the last reply
     }
     if (r.kind == proto::ReplyKind::Halted) {
         emit(Action::Kind::Message, std::string(line));
@@ -510,6 +545,7 @@ void FirmwareProtocol::fault(const std::string& why) {
     boot_deadline_.reset();
     quiet_deadline_.reset();
     reply_deadline_.reset();
+    nudge_deadline_.reset();
     spdlog::error("firmware: {} ({} lines not executed or not confirmed)", why, lost);
     emit(Action::Kind::Fault, why, 0, lost);
 }

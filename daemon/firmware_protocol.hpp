@@ -16,6 +16,9 @@
 //    M105) goes alone, so its ok is its own; with ADVANCED_OK, "ok N<n>" credits up to n;
 //  - silence is answered with a probe under a fresh number (never a repeat Marlin may drop),
 //    and only `max_timeouts` probes in a row without any reply make the firmware "gone";
+//  - Marlin only: a short silence (`nudge`) with lines in flight and nothing sent since is
+//    answered first with one empty line: it ends a line whose newline was lost, and Marlin skips
+//    an empty line without a reply, so it costs one byte and no reply timeout;
 //  - the greeting (and M999) waits for quiet, sends M110 N0 and M115, takes the firmware's word
 //    only from the FIRMWARE_NAME report on, waits for quiet again, and checks the flavour.
 #pragma once
@@ -50,6 +53,7 @@ struct FirmwareOptions {
     double long_timeout = 900;      // RepRapFirmware only (it sends no keepalives): the same after homing, heating, dwelling
     double boot_wait = 2.0;         // seconds to wait for "start" after opening the port
     double settle = 0.25;           // seconds of quiet that end a resync or the greeting's wait
+    double nudge = 0.05;            // Marlin: seconds of silence with lines in flight before one "\n" (0: never)
     int max_timeouts = 5;           // probes in a row without any reply before the firmware is declared gone
     int max_greetings = 4;          // greeting attempts before the firmware is declared unresponsive
     int max_resyncs = 20;           // resyncs in a row without a line acknowledged before "lost its place"
@@ -58,7 +62,7 @@ struct FirmwareOptions {
 
 struct FirmwareStats {
     std::uint64_t sent = 0, acked = 0, resent = 0, resend_requests = 0, timeouts = 0, busy = 0;
-    std::uint64_t probes = 0, resyncs = 0, stray_oks = 0, greetings = 0;
+    std::uint64_t probes = 0, resyncs = 0, stray_oks = 0, greetings = 0, nudges = 0;
 };
 
 class FirmwareProtocol {
@@ -130,6 +134,8 @@ private:
     void send_probe(std::int64_t n, Time now);
     void rewind(std::int64_t k);
     void on_reply_timeout(Time now);
+    void arm_nudge(Time now);
+    void on_nudge();
     void fault(const std::string& why);
     void progressed() { resyncs_in_row_ = 0; timeouts_in_row_ = 0; }
 
@@ -153,6 +159,7 @@ private:
     int greetings_ = 0;
 
     std::optional<Time> boot_deadline_, quiet_deadline_, reply_deadline_;
+    std::optional<Time> nudge_deadline_;  // armed by a line sent, pushed on by each reply, once per line sent
     int timeouts_in_row_ = 0, resyncs_in_row_ = 0, long_waits_ = 0;
     bool advanced_ok_ = false;
     int learned_window_ = 0;

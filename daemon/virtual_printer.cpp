@@ -443,7 +443,7 @@ void VirtualPrinter::execute(const Command& c) {
     } else if (f.stop_after && stats_.executed == f.stop_after && !stopped_) {
         stopped_ = true;
         reply("Error:" + std::string(kStopped));
-    } else if (f.reset_after && stats_.executed == f.reset_after) {
+    } else if ((f.reset_after && stats_.executed == f.reset_after) || (f.reset_every && stats_.executed % f.reset_every == 0)) {
         ++stats_.resets;
         boot();
     }

@@ -51,6 +51,7 @@ struct SimFaults {
     double move_ms = 0;          // time each planned move takes: a slow planner holds oks back when full
     double slow_seconds = 0;     // G28, G4, M109, M190, M400 take this long (Marlin: with keepalives; RRF: silent)
     std::uint64_t reset_after = 0;   // after executing this many lines: reboot ("start", state lost)
+    std::uint64_t reset_every = 0;   // each time the lines executed reach a multiple of this: reboot
     std::uint64_t kill_after = 0;    // after this many: "Error:Printer halted. kill() called!"
     std::uint64_t stop_after = 0;    // after this many: "Error:Printer stopped…" (M999 revives it)
     std::uint64_t unplug_after = 0;  // after this many: the port disappears

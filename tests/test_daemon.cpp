@@ -169,6 +169,38 @@ TEST_CASE("a firmware that resets, halts or vanishes stops the print: sender tol
     }
 }
 
+TEST_CASE("reset_every: the virtual printer reboots each time its executed commands reach a multiple; each cut print is a prefix") {
+    const auto lines = rw2_print(600, 6);
+    Rig rig("rw2", [](ServeConfig& c) { c.sim.faults.reset_every = 400; });
+    REQUIRE(rig.ready());
+    const auto expected = offline(rig.machine, lines);
+    REQUIRE(expected.size() > 400);  // each attempt is cut by the next reset
+    std::size_t seen = 0;
+    for (std::uint64_t attempt = 1; attempt <= 3; ++attempt) {
+        CAPTURE(attempt);
+        TestSender sender(rig.io, rig.config.pty);
+        std::vector<std::string> print = lines;
+        if (attempt > 1) print.insert(print.begin(), "M999");
+        sender.stream(print);
+        if (attempt > 1) REQUIRE(rig.run_until([&] { return !rig.service().stopped(); }, 30));  // M999 took
+        REQUIRE(rig.run_until([&] { return rig.service().stopped(); }, 30));
+        CHECK(rig.service().stop_reason().find("restarted") != std::string::npos);
+        CHECK(rig.sim().stats().resets == attempt);
+        CHECK(rig.sim().stats().executed == 400 * attempt);
+        // What ran since the last reset: the greeting (M999 first, after a stop), then a prefix of the print.
+        const auto& e = rig.sim().executed();
+        std::vector<std::string> part(e.begin() + std::ptrdiff_t(seen), e.end());
+        seen = e.size();
+        std::size_t skip = 0;
+        while (skip < part.size() && (part[skip] == "M999" || part[skip] == "M110 N0" || part[skip] == "M115")) ++skip;
+        part.erase(part.begin(), part.begin() + std::ptrdiff_t(skip));
+        CHECK(!part.empty());
+        REQUIRE(part.size() <= expected.size());
+        CHECK(std::equal(part.begin(), part.end(), expected.begin()));
+        rig.run_until([&] { return sender.done(); }, 10);
+    }
+}
+
 TEST_CASE("M112 reaches the firmware at once while the queue is full") {
     Rig rig("rw2", [](ServeConfig& c) {
         c.sim.faults.move_ms = 200;  // a slow printer: the queue fills and the sender is held
@@ -490,6 +522,8 @@ TEST_CASE("the shipped configuration loads with its documented defaults; a broke
     CHECK(c.baud == defaults.baud);
     CHECK(c.firmware.max_line == defaults.firmware.max_line);
     CHECK(c.firmware.reply_timeout == defaults.firmware.reply_timeout);
+    CHECK(c.firmware.settle == defaults.firmware.settle);
+    CHECK(c.firmware.nudge == defaults.firmware.nudge);
     CHECK(c.queue_lines == defaults.queue_lines);
     CHECK(c.pty == defaults.pty);
 

@@ -7,6 +7,10 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <fcntl.h>
+#include <unistd.h>
+
+#include "daemon/virtual_printer.hpp"
 
 #include "tests/daemon_rig.hpp"
 
@@ -140,6 +144,74 @@ TEST_CASE("Marlin's receive rules: each fault at 1% over a long print runs every
         }, n, 38);
         CHECK(r.probes == r.timeouts);  // each ok names its line: a probe only after silence, never after a Resend
     }
+}
+
+TEST_CASE("the virtual printer skips an empty line without a reply, as Marlin does, and an empty line ends a half line") {
+    // Marlin's get_serial_commands: at a line end, process_line_done reports an empty line and
+    // the reader goes on to the next character; no ok, no error.
+    asio::io_context io;
+    Pty port;
+    SimOptions so;
+    auto sim = std::make_shared<VirtualPrinter>(io, port.release_master(), so);
+    const int fd = ::open(port.path().c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC | O_NONBLOCK);
+    REQUIRE(fd >= 0);
+    make_raw(fd);
+    sim->start();
+    std::string got;
+    const auto pump = [&](int ms) {
+        const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(ms);
+        while (std::chrono::steady_clock::now() < end) {
+            io.run_for(std::chrono::milliseconds(5));
+            char buf[512];
+            for (ssize_t n; (n = ::read(fd, buf, sizeof buf)) > 0;) got.append(buf, std::size_t(n));
+        }
+    };
+    const auto send = [&](const std::string& text) { REQUIRE(::write(fd, text.data(), text.size()) == ssize_t(text.size())); };
+    pump(100);
+    REQUIRE(got.find("start\n") != std::string::npos);
+    got.clear();
+    send("\n\r\n\n");
+    pump(100);
+    CHECK(got.empty());
+    send(proto::numbered(1, "G1 X1"));  // its newline lost: the firmware waits for more bytes
+    pump(100);
+    CHECK(got.empty());
+    send("\n");  // one empty line: it ends the half line, which runs
+    pump(100);
+    CHECK(got == "ok\n");
+    got.clear();
+    send("\n");
+    send(proto::numbered(2, "M105") + "\n");
+    pump(100);
+    CHECK(got.rfind("ok T:", 0) == 0);
+    CHECK(sim->stats().received == 2);
+    CHECK(sim->stats().refused == 0);
+    ::close(fd);
+}
+
+TEST_CASE("a lost newline on the last line in flight: one empty line after a short silence saves the reply timeout") {
+    // Only the last line in flight waits for silence (a line sent after it joins it and is
+    // refused); that is every lost newline when the firmware's receive buffer takes one line at
+    // a time, as with a slow planner and rx_bytes for one line.
+    const std::size_t n = fault_lines() / 4;
+    const auto run = [&](double nudge) {
+        std::uint64_t nudges = 0;
+        const auto r = run_fault(nudge > 0 ? "lost newline, nudge" : "lost newline, no nudge", [&](ServeConfig& c) {
+            c.sim.faults.lose_newline = 0.01;
+            c.sim.faults.seed = 41;
+            c.firmware.reply_timeout = 0.3;
+            c.firmware.nudge = nudge;
+            c.firmware.window = 1;
+        }, n, 42, [&](Rig& rig) { nudges = rig.service().firmware()->stats().nudges; });
+        CHECK(r.stops == 0);
+        return std::pair{r, nudges};
+    };
+    const auto [without, none] = run(0);
+    const auto [with, some] = run(0.03);
+    CHECK(none == 0);
+    CHECK(some > 0);
+    CHECK(without.timeouts > n / 200);           // each lost newline cost a reply timeout
+    CHECK(with.timeouts * 4 < without.timeouts);  // the nudge ended them instead
 }
 
 TEST_CASE("a busy planner that says nothing: nothing is taken for done before its ok, the sender's M400 waits for the last move") {

@@ -4,6 +4,8 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <optional>
+#include <utility>
 #include <spdlog/spdlog.h>
 
 #include "daemon/firmware_protocol.hpp"
@@ -27,14 +29,19 @@ struct Script {
     std::vector<std::size_t> lost;
     bool ready = false;
 
-    static FirmwareOptions defaults(FirmwareOptions o) {
+    // The nudge (one empty line after a short silence) is off unless a test asks for it: the
+    // other tests count the writes of their own mechanism; the nudge's are tested on their own.
+    // `timing`: reply_timeout and settle, when a test needs its own.
+    static FirmwareOptions defaults(FirmwareOptions o, bool nudge, std::optional<std::pair<double, double>> timing) {
         spdlog::set_level(spdlog::level::off);
         o.boot_wait = 1;
-        o.reply_timeout = 2;
-        o.settle = 0.1;
+        o.reply_timeout = timing ? timing->first : 2;
+        o.settle = timing ? timing->second : 0.1;
+        if (!nudge) o.nudge = 0;
         return o;
     }
-    explicit Script(FirmwareOptions o = {}) : opt(defaults(o)), p(opt) {}
+    explicit Script(FirmwareOptions o = {}, bool nudge = false, std::optional<std::pair<double, double>> timing = {})
+        : opt(defaults(o, nudge, timing)), p(opt) {}
 
     void collect() {
         for (auto& a : p.take_actions()) {
@@ -85,7 +92,7 @@ struct Script {
     void greet(std::string_view name = "FIRMWARE_NAME:Marlin 2.1.2 PROTOCOL_VERSION:1.0") {
         p.open(t);
         reply("start");
-        pass(0.2);  // quiet
+        pass(opt.settle + std::min(0.1, opt.reply_timeout / 2));  // quiet (0.2 s with the defaults)
         const auto w = take_writes();
         REQUIRE(w.size() == 2);
         CHECK(w[0] == proto::numbered(0, "M110 N0"));
@@ -94,7 +101,40 @@ struct Script {
         reply(name);
         reply("Cap:EMERGENCY_PARSER:1");
         reply("ok");
-        pass(0.2);  // quiet again
+        pass(opt.settle + std::min(0.1, opt.reply_timeout / 2));  // quiet again
+    }
+};
+
+// A scripted Marlin for the lines the core writes after the greeting: its line checker (the
+// virtual printer's), a receive buffer emptied by every refusal, and one line damaged on the
+// way. Everything written since the last call arrived together, in order.
+struct ScriptedMarlin {
+    proto::LineChecker checker;
+    std::string damage;               // the first line carrying this command arrives damaged
+    std::vector<std::string> taken;   // commands taken, in order
+    std::size_t refusals = 0;
+    ScriptedMarlin() { checker.set_last_line(1); }  // the greeting's M110 N0 and M115
+    void answer(Script& s) {
+        const auto w = s.take_writes();
+        for (const auto& line : w) {
+            auto r = checker.check(line);
+            if (!damage.empty() && r.verdict == proto::LineChecker::Verdict::Take && r.command == damage) {
+                damage.clear();
+                checker.set_last_line(*r.number - 1);
+                r.verdict = proto::LineChecker::Verdict::Refuse;
+                r.why = proto::kErrChecksumMismatch;
+            }
+            if (r.verdict == proto::LineChecker::Verdict::Duplicate) continue;
+            if (r.verdict == proto::LineChecker::Verdict::Refuse) {
+                ++refusals;
+                s.reply(checker.error_line(r.why));
+                s.reply(checker.resend_line());
+                s.reply("ok");
+                return;  // the rest of the receive buffer is flushed
+            }
+            taken.emplace_back(r.command);
+            s.reply(r.command == "M105" ? "ok T:20.0 /0.0" : "ok");
+        }
     }
 };
 
@@ -424,6 +464,164 @@ TEST_CASE("protocol: M999 greets again and discards the stale oks still coming")
     s.reply("ok");
     s.pass(0.2);
     CHECK(s.ready);
+}
+
+TEST_CASE("protocol: a lost newline on the last line in flight is ended by one empty line after a short silence, not by a timeout") {
+    FirmwareOptions o;
+    o.nudge = 0.1;
+    Script s(o, true);
+    s.greet();
+    REQUIRE(s.ready);
+    s.enqueue("G1 X1");
+    REQUIRE(s.take_writes() == std::vector<std::string>{proto::numbered(2, "G1 X1")});
+    // The firmware got the line without its newline (Marlin rule 5: it waits for more bytes).
+    s.pass(0.09);
+    CHECK(s.blank_lines == 0);
+    s.pass(0.02);
+    CHECK(s.blank_lines == 1);  // one "\n": Marlin ends the half line with it, or skips it as empty
+    CHECK(s.take_writes().empty());
+    CHECK(s.p.stats().nudges == 1);
+    s.reply("ok");  // the line, completed, runs
+    CHECK(s.p.idle());
+    s.pass(5);      // nothing in flight: no more nudges, no timeout
+    CHECK(s.blank_lines == 1);
+    CHECK(s.p.stats().timeouts == 0);
+    CHECK(s.p.stats().probes == 0);
+    CHECK(s.p.stats().acked == 1);
+}
+
+TEST_CASE("protocol: the nudge comes once per line sent, counts from the last reply, and a silence after it still ends in a probe") {
+    FirmwareOptions o;
+    o.nudge = 0.1;
+    Script s(o, true);
+    s.greet();
+    s.enqueue("G1 X1");
+    s.enqueue("G1 X2");
+    REQUIRE(s.take_writes().size() == 2);
+    s.pass(0.08);
+    s.reply("ok");   // line 2: the silence starts again
+    s.pass(0.08);    // 0.16 s after the lines were sent, 0.08 s after the reply
+    CHECK(s.blank_lines == 0);
+    s.pass(0.03);
+    CHECK(s.blank_lines == 1);
+    s.reply("echo:busy: processing");  // a reply after the nudge does not bring another
+    s.pass(0.5);
+    CHECK(s.blank_lines == 1);
+    CHECK(s.p.stats().nudges == 1);
+    // Still nothing for line 3: the reply timeout's probe, under a fresh number, with its own newline.
+    s.pass(1.55);  // the busy: reply put the timeout at 2.19 s; now 2.24 s
+    auto w = s.take_writes();
+    REQUIRE(w.size() == 1);
+    CHECK(w[0] == proto::numbered(4, "M105"));
+    CHECK(s.blank_lines == 2);
+    CHECK(s.p.stats().timeouts == 1);
+    // The probe is a line sent: if its own newline were lost, one nudge more.
+    s.pass(0.1);
+    CHECK(s.blank_lines == 3);
+    s.reply("ok T:20.0 /0.0");
+    CHECK(s.p.idle());
+    CHECK(s.p.stats().acked == 2);
+}
+
+TEST_CASE("protocol: the nudge's byte counts in the receive buffer's budget until its line is answered; RepRapFirmware gets none") {
+    const std::string first = proto::numbered(2, "G1 X1") + "\n";
+    const std::string second = "G1 X2";
+    FirmwareOptions o;
+    o.nudge = 0.1;
+    // Room for both lines (as transmit reckons a line: command, number, "N", " ", "*", three
+    // checksum digits, newline), but not for one byte more.
+    o.rx_bytes = first.size() + second.size() + 1 + 7;
+    Script s(o, true);
+    s.greet();
+    s.enqueue("G1 X1");
+    s.pass(0.15);
+    CHECK(s.blank_lines == 1);
+    s.take_writes();
+    s.enqueue(second);
+    CHECK(s.take_writes().empty());  // the nudge's byte leaves no room for it
+    s.reply("ok");                   // line 2 answered: its bytes and the nudge's leave the budget
+    CHECK(s.take_writes() == std::vector<std::string>{proto::numbered(3, second)});
+    // Without the byte in flight, the same two lines go together.
+    Script t(o, true);
+    t.greet();
+    t.enqueue("G1 X1");
+    t.enqueue(second);
+    CHECK(t.take_writes().size() == 2);
+    // A full budget: no nudge (its byte would be lost in the firmware's receive buffer anyway).
+    o.rx_bytes = first.size();
+    Script v(o, true);
+    v.greet();
+    v.enqueue("G1 X1");
+    v.pass(0.15);
+    CHECK(v.blank_lines == 0);
+    CHECK(v.p.stats().nudges == 0);
+
+    FirmwareOptions r;
+    r.reprap = true;
+    r.nudge = 0.1;
+    Script u(r, true);
+    u.greet("FIRMWARE_NAME: RepRapFirmware for Duet 3 FIRMWARE_VERSION: 3.5.0");
+    REQUIRE(u.ready);
+    u.enqueue("G1 X1");
+    u.pass(1);
+    CHECK(u.blank_lines == 0);
+    CHECK(u.p.stats().nudges == 0);
+}
+
+TEST_CASE("protocol: a resync waits for quiet even when settle is longer than the reply timeout; the print goes on") {
+    // settle 0.25 s, reply_timeout 0.1 s: the quiet a resync waits for used to end in a reply
+    // timeout, whose probe under a fresh number the firmware refused (it wants the named line),
+    // which began another resync, until "20 resyncs without progress" stopped the print.
+    Script s({}, false, std::pair{0.1, 0.25});
+    s.greet();
+    REQUIRE(s.ready);
+    ScriptedMarlin fw;
+    fw.damage = "G1 X3";
+    std::vector<std::string> print;
+    for (int i = 1; i <= 12; ++i) print.push_back("G1 X" + std::to_string(i));
+    for (const auto& c : print) s.enqueue(c);
+    for (int step = 0; step < 400 && !(s.p.idle() && s.writes.empty()) && s.faults.empty(); ++step) {
+        fw.answer(s);
+        s.pass(0.01);
+    }
+    CHECK(s.faults.empty());
+    CHECK(s.p.idle());
+    CHECK(fw.refusals == 1);
+    CHECK(s.p.stats().timeouts == 0);
+    CHECK(s.p.stats().resyncs == 1);
+    CHECK(s.p.stats().probes == 1);
+    // Every line ran once, in order; the probe's M105 between them.
+    std::vector<std::string> ran;
+    for (const auto& c : fw.taken)
+        if (c != "M105") ran.push_back(c);
+    CHECK(ran == print);
+}
+
+TEST_CASE("protocol: a host that wakes late past both the quiet and the reply timeout sends one probe, under the named number") {
+    FirmwareOptions o;
+    o.window = 3;
+    Script s(o, false, std::pair{0.1, 0.05});
+    s.greet();
+    for (int i = 1; i <= 3; ++i) s.enqueue("G1 X" + std::to_string(i));
+    REQUIRE(s.take_writes().size() == 3);
+    s.reply("ok");
+    s.reply("Error:checksum mismatch, Last Line: 2");
+    s.reply("Resend: 3");
+    s.reply("ok");
+    // One wake-up a second later: the quiet ended long ago, and so would a reply timeout have.
+    s.t += std::chrono::seconds(1);
+    s.p.on_time(s.t);
+    s.collect();
+    auto w = s.take_writes();
+    REQUIRE(w.size() == 1);
+    CHECK(w[0] == proto::numbered(3, "M105"));
+    CHECK(s.p.stats().timeouts == 0);
+    s.reply("ok T:20.0 /0.0");
+    w = s.take_writes();
+    REQUIRE(w.size() == 2);
+    CHECK(w[0] == proto::numbered(4, "G1 X2"));
+    CHECK(w[1] == proto::numbered(5, "G1 X3"));
+    CHECK(s.faults.empty());
 }
 
 TEST_CASE("line checker: Marlin's order of checks and its silent drop of repeats") {
