@@ -87,6 +87,8 @@ void FirmwareProtocol::write_line(const std::string& line) { emit(Action::Kind::
 
 void FirmwareProtocol::open(Time now) {
     state_ = State::Booting;
+    tail_.clear();  // a port opened anew
+    m999_after_quiet_ = false;
     greetings_ = 0;
     // A board resets when its port opens and says "start" when it is up; one that does not
     // reset stays quiet, so after boot_wait xlate5 greets it anyway.
@@ -94,17 +96,22 @@ void FirmwareProtocol::open(Time now) {
 }
 
 void FirmwareProtocol::restart(Time now) {
-    abandon_tail();
     // A stopped Marlin (not a halted one) runs again after M999; it answers with a Resend and
     // an ok, which the greeting's wait for quiet discards. (RepRapFirmware's M999 reboots it.)
-    if (!opt_.reprap) write_line("M999\n");
+    // A line left half sent is ended first, and M999 waits for quiet: the refusal of its first
+    // part empties Marlin's buffer, and would take M999 with it.
+    const bool half_sent = !tail_.empty();
+    abandon_tail();
     greetings_ = 0;
     greet(now);
+    if (opt_.reprap) return;
+    if (half_sent) m999_after_quiet_ = true;
+    else write_line("M999\n");
 }
 
 void FirmwareProtocol::greet(Time now) {
     state_ = State::Greeting;
-    abandon_tail();
+    tail_.clear();  // a reset emptied the firmware's buffer; after M999, restart() ended the line
     unsent_.clear();
     in_flight_.clear();
     history_.clear();
@@ -173,7 +180,7 @@ std::size_t FirmwareProtocol::drop_unsent() {
 }
 
 void FirmwareProtocol::send_unnumbered(std::string_view command, Time now) {
-    abandon_tail();
+    finish_tail();
     std::string line(command);
     line += '\n';
     write_line(line);
@@ -186,7 +193,7 @@ void FirmwareProtocol::send_unnumbered(std::string_view command, Time now) {
 }
 
 void FirmwareProtocol::emergency_stop(std::string_view command, Time) {
-    abandon_tail();
+    finish_tail();
     std::string line(command);
     line += '\n';
     write_line(line);
@@ -251,6 +258,12 @@ bool FirmwareProtocol::write_tail() {
         tail_.erase(0, k);
     }
     return false;
+}
+
+void FirmwareProtocol::finish_tail() {
+    // Before M108, M410 or M112: a refusal now would empty the firmware's buffer, and with it the
+    // command, on a Marlin without EMERGENCY_PARSER. The line goes whole; the budget yields to it.
+    if (!tail_.empty()) write_line(std::exchange(tail_, {}));
 }
 
 void FirmwareProtocol::abandon_tail() {
@@ -336,6 +349,9 @@ void FirmwareProtocol::on_refusal(std::optional<std::int64_t> next, bool confirm
             return;
         }
     }
+    // A line half sent is ended now, so that its refusal (if the firmware still holds its
+    // first part) comes within the quiet wait.
+    abandon_tail();
     sync_ = Sync::Quiet;
     quiet_deadline_ = now + seconds(opt_.settle);
 }
@@ -449,6 +465,12 @@ void FirmwareProtocol::on_time(Time now) {
     }
     if (state_ == State::Greeting) {
         if (quiet_deadline_ && *quiet_deadline_ <= now) {
+            if (greet_ == Greet::Quiet && m999_after_quiet_) {
+                m999_after_quiet_ = false;
+                write_line("M999\n");
+                quiet_deadline_ = now + seconds(opt_.settle);
+                return;
+            }
             if (greet_ == Greet::Quiet) send_greeting(now);
             else if (greet_ == Greet::Settle) become_ready();
             if (state_ == State::Ready) transmit(now);
@@ -555,7 +577,8 @@ void FirmwareProtocol::on_line(std::string_view line, Time now) {
 void FirmwareProtocol::fault(const std::string& why) {
     if (state_ == State::Faulted) return;
     const std::size_t lost = queued();
-    abandon_tail();  // before M999 or a reconnect, nothing is left half-sent
+    // A line half sent stays so: ending it now would draw a refusal the sender would be shown;
+    // restart() ends it before M999.
     state_ = State::Faulted;
     unsent_.clear();
     in_flight_.clear();

@@ -471,22 +471,23 @@ TEST_CASE("protocol: a refusal while a line is half sent: its rest is never sent
     s.reply("Error:checksum mismatch, Last Line: 1");
     s.reply("Resend: 2");
     s.reply("ok");
-    CHECK(s.raw.size() == first + 2);  // nothing goes into a resync, the rest of line 3 neither
-    s.pass(0.2);
-    REQUIRE(s.raw.size() > first + 2);
-    CHECK(s.raw[first + 2] == "\n");  // the first part ends here
-    // Had it stayed in the buffer, Marlin refuses it (a number without a checksum): never run.
+    // The first part ends at once, so that its refusal, if Marlin still holds it, comes within
+    // the wait for quiet; its rest is never sent.
+    REQUIRE(s.raw.size() == first + 3);
+    CHECK(s.raw[first + 2] == "\n");
+    // Marlin refuses it (a number without a checksum): never run.
     proto::LineChecker marlin;
     marlin.set_last_line(1);
     CHECK(marlin.check(head).verdict == proto::LineChecker::Verdict::Refuse);
+    s.reply("Error:No Checksum with line number, Last Line: 1");
+    s.reply("Resend: 2");
+    s.reply("ok");
+    CHECK(s.raw.size() == first + 3);  // nothing goes into a resync
+    s.pass(0.2);
     // The probe, then every move again, whole and in order.
     REQUIRE(!s.writes.empty());
     CHECK(s.writes.back() == proto::numbered(2, "M105"));
-    s.reply("Error:No Checksum with line number, Last Line: 1");  // the first part, refused
-    s.reply("Resend: 2");
-    s.reply("ok");
-    s.pass(0.2);
-    s.reply("ok T:20.0 /0.0");  // the second probe, taken
+    s.reply("ok T:20.0 /0.0");
     const std::size_t resumed = s.raw.size() - 2;  // line 3 whole, then the first part of line 4
     REQUIRE(s.raw[resumed].substr(0, 3) == "N3 ");
     std::size_t answered = 0;
@@ -504,19 +505,57 @@ TEST_CASE("protocol: a refusal while a line is half sent: its rest is never sent
     CHECK(s.faults.empty());
 }
 
-TEST_CASE("protocol: M108 while a line is half sent ends the first part before it") {
+TEST_CASE("protocol: M999 after a stop with a line half sent: the line is ended, M999 waits until its refusal is over") {
     FirmwareOptions o;
     o.window = 4;
     o.rx_bytes = 64;
     Script s(o);
     s.greet();
+    const std::size_t first = s.raw.size();
     long_moves(s, 2);
     REQUIRE(s.raw.back().back() != '\n');
-    s.p.send_unnumbered("M108", s.t);
+    s.reply("Error:Printer stopped due to errors. Fix the error and use M999 to restart.");
+    REQUIRE(s.faults.size() == 1);
+    CHECK(s.raw.size() == first + 2);  // nothing ends the line while stopped: its refusal would reach the sender
+    s.p.restart(s.t);
     s.collect();
-    REQUIRE(s.raw.size() >= 2);
-    CHECK(s.raw[s.raw.size() - 2] == "\n");
-    CHECK(s.raw.back() == "M108\n");
+    REQUIRE(s.raw.size() == first + 3);
+    CHECK(s.raw.back() == "\n");
+    // Marlin refuses the first part and empties its buffer: M999 must not be in it yet.
+    s.reply("Error:No Checksum with line number, Last Line: 2");
+    s.reply("Resend: 3");
+    s.reply("ok");
+    CHECK(s.raw.size() == first + 3);
+    s.pass(0.15);  // quiet (settle 0.1 s), not yet the second wait
+    REQUIRE(s.raw.size() == first + 4);
+    CHECK(s.raw.back() == "M999\n");
+    s.reply("Resend: 3");  // a revived Marlin's stale answer
+    s.reply("ok");
+    s.pass(0.2);
+    const auto w = s.take_writes();
+    REQUIRE(w.size() >= 2);
+    CHECK(w[w.size() - 2] == proto::numbered(0, "M110 N0"));
+    CHECK(w.back() == proto::numbered(1, "M115"));
+}
+
+TEST_CASE("protocol: M108 or M112 while a line is half sent: the line is finished first, never ended early") {
+    // Ended early, the first part would be refused, and a refusal empties Marlin's buffer: the
+    // command behind it with it, on a Marlin without EMERGENCY_PARSER.
+    for (const std::string command : {"M108", "M112"}) {
+        FirmwareOptions o;
+        o.window = 4;
+        o.rx_bytes = 64;
+        Script s(o);
+        s.greet();
+        const std::size_t first = s.raw.size();
+        const auto expect = long_moves(s, 2);
+        REQUIRE(s.raw.back().back() != '\n');
+        if (command == "M108") s.p.send_unnumbered(command, s.t);
+        else s.p.emergency_stop(command, s.t);
+        s.collect();
+        CHECK(joined(s.raw, first) == expect[0] + expect[1] + command + "\n");
+        CHECK(s.blank_lines == 0);
+    }
 }
 
 TEST_CASE("protocol: M999 greets again and discards the stale oks still coming") {
