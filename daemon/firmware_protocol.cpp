@@ -44,6 +44,16 @@ bool is_protocol_reply(proto::ReplyKind k) {
 
 constexpr std::string_view kProbe = "M105";  // harmless, and its "ok T:" names itself
 
+// Where a line may be cut in two within `room` bytes: the longest head whose tail begins with a
+// digit (0 when there is none). Should an error empty the firmware's receive buffer between the
+// parts, the tail arrives as a line of its own, and a line beginning with a digit is no command
+// to Marlin ("Unknown command"), never a move run out of its place.
+std::size_t head_within(std::string_view line, std::size_t room) {
+    for (std::size_t k = std::min(room, line.size() - 1); k >= 1; --k)
+        if (line[k] >= '0' && line[k] <= '9') return k;
+    return 0;
+}
+
 }  // namespace
 
 FirmwareProtocol::FirmwareProtocol(FirmwareOptions options) : opt_(options) {}
@@ -78,6 +88,8 @@ void FirmwareProtocol::write_line(const std::string& line) { emit(Action::Kind::
 
 void FirmwareProtocol::open(Time now) {
     state_ = State::Booting;
+    tail_.clear();  // a port opened anew
+    m999_after_quiet_ = false;
     greetings_ = 0;
     // A board resets when its port opens and says "start" when it is up; one that does not
     // reset stays quiet, so after boot_wait xlate5 greets it anyway.
@@ -87,13 +99,20 @@ void FirmwareProtocol::open(Time now) {
 void FirmwareProtocol::restart(Time now) {
     // A stopped Marlin (not a halted one) runs again after M999; it answers with a Resend and
     // an ok, which the greeting's wait for quiet discards. (RepRapFirmware's M999 reboots it.)
-    if (!opt_.reprap) write_line("M999\n");
+    // A line left half sent is ended first, and M999 waits for quiet: the refusal of its first
+    // part empties Marlin's buffer, and would take M999 with it.
+    const bool half_sent = !tail_.empty();
+    abandon_tail();
     greetings_ = 0;
     greet(now);
+    if (opt_.reprap) return;
+    if (half_sent) m999_after_quiet_ = true;
+    else write_line("M999\n");
 }
 
 void FirmwareProtocol::greet(Time now) {
     state_ = State::Greeting;
+    tail_.clear();  // a reset emptied the firmware's buffer; after M999, restart() ended the line
     unsent_.clear();
     in_flight_.clear();
     history_.clear();
@@ -163,6 +182,7 @@ std::size_t FirmwareProtocol::drop_unsent() {
 }
 
 void FirmwareProtocol::send_unnumbered(std::string_view command, Time now) {
+    finish_tail();
     std::string line(command);
     line += '\n';
     write_line(line);
@@ -175,6 +195,7 @@ void FirmwareProtocol::send_unnumbered(std::string_view command, Time now) {
 }
 
 void FirmwareProtocol::emergency_stop(std::string_view command, Time) {
+    finish_tail();
     std::string line(command);
     line += '\n';
     write_line(line);
@@ -185,9 +206,15 @@ void FirmwareProtocol::emergency_stop(std::string_view command, Time) {
 
 void FirmwareProtocol::port_closed(const std::string& why) { fault(why); }
 
-void FirmwareProtocol::send_entry(Entry e, Time now) {
-    const std::string line = proto::numbered(e.n, e.command) + "\n";
+void FirmwareProtocol::send_entry(Entry e, Time now, std::size_t room) {
+    std::string line = proto::numbered(e.n, e.command) + "\n";
     e.bytes = line.size();
+    if (line.size() > room) {
+        // Only its first bytes fit the receive buffer: they go now, the rest when an ok frees room.
+        const std::size_t k = head_within(line, room);
+        tail_ = line.substr(k);
+        line.resize(k);
+    }
     write_line(line);
     bytes_in_flight_ += e.bytes;
     if (e.tag) ++tagged_in_flight_;
@@ -218,6 +245,7 @@ void FirmwareProtocol::on_nudge() {
 
 void FirmwareProtocol::transmit(Time now) {
     if (state_ != State::Ready || sync_ != Sync::None) return;
+    if (!tail_.empty() && !write_tail()) return;  // a line in two parts is finished before any other
     const std::size_t limit = std::size_t(window());
     while (!unsent_.empty() && in_flight_.size() < limit) {
         // Without ADVANCED_OK a line a sender waits on travels alone, so the ok that comes is its own.
@@ -226,18 +254,53 @@ void FirmwareProtocol::transmit(Time now) {
         if (item.tag && !in_flight_.empty() && !advanced_ok_) break;
         // "N<n> " + command + "*<cs>\n", without building it twice.
         const std::size_t bytes = item.command.size() + std::to_string(next_n_).size() + 7;
-        if (!in_flight_.empty() && bytes_in_flight_ + bytes > opt_.rx_bytes) break;  // the firmware's receive buffer is full
+        const bool fits_whole = in_flight_.empty() || bytes_in_flight_ + bytes <= opt_.rx_bytes;
+        // Marlin's receive buffer counts bytes, not lines: when the whole line does not fit, its
+        // first bytes keep the link busy while the ok for the line before is on its way. Not for
+        // RepRapFirmware, which drops a damaged line whole.
+        const std::size_t room = fits_whole ? SIZE_MAX : opt_.rx_bytes - std::min(opt_.rx_bytes, bytes_in_flight_);
+        if (!fits_whole && (opt_.reprap || room == 0)) break;  // the firmware's receive buffer is full
         const bool anchor = !opt_.reprap && proto::command_code(item.command).is('M', 105);
         Entry e{next_n_++, std::move(unsent_.front().command), item.tag, 0, anchor, false};
         unsent_.pop_front();
-        send_entry(std::move(e), now);
+        send_entry(std::move(e), now, room);
+        if (!tail_.empty()) break;
     }
+}
+
+bool FirmwareProtocol::write_tail() {
+    const std::size_t written = bytes_in_flight_ - tail_.size();
+    const std::size_t room = opt_.rx_bytes - std::min(opt_.rx_bytes, written);
+    if (tail_.size() <= room) {
+        write_line(std::exchange(tail_, {}));
+        return true;
+    }
+    if (const std::size_t k = head_within(tail_, room); k > 0) {
+        write_line(tail_.substr(0, k));
+        tail_.erase(0, k);
+    }
+    return false;
+}
+
+void FirmwareProtocol::finish_tail() {
+    // Before M108, M410 or M112: a refusal now would empty the firmware's buffer, and with it the
+    // command, on a Marlin without EMERGENCY_PARSER. The line goes whole; the budget yields to it.
+    if (!tail_.empty()) write_line(std::exchange(tail_, {}));
+}
+
+void FirmwareProtocol::abandon_tail() {
+    // The line's first bytes end here: Marlin refuses them (a number without a checksum) and
+    // asks for the line again, or skips an empty line if an error emptied its buffer meanwhile.
+    if (tail_.empty()) return;
+    tail_.clear();
+    write_line("\n");
 }
 
 void FirmwareProtocol::credit_through(std::size_t index, std::string_view payload) {
     for (std::size_t j = 0; j <= index; ++j) {
         Entry e = std::move(in_flight_.front());
         in_flight_.pop_front();
+        if (in_flight_.empty()) abandon_tail();  // a stray ok for a line the firmware has not had whole
         bytes_in_flight_ -= e.bytes;
         if (e.tag) --tagged_in_flight_;
         if (e.n >= 0) credited_n_ = std::max(credited_n_, e.n);
@@ -311,6 +374,9 @@ void FirmwareProtocol::on_refusal(std::optional<std::int64_t> next, bool confirm
             return;
         }
     }
+    // A line half sent is ended now, so that its refusal (if the firmware still holds its
+    // first part) comes within the quiet wait.
+    abandon_tail();
     sync_ = Sync::Quiet;
     quiet_deadline_ = now + seconds(opt_.settle);
     // Waiting for quiet is waiting for silence: the reply timeout must not end it. (It did, when
@@ -323,6 +389,7 @@ void FirmwareProtocol::on_refusal(std::optional<std::int64_t> next, bool confirm
 void FirmwareProtocol::rewind(std::int64_t k) {
     // Lines from k on never reached the firmware's queue: they go back, in order, ahead of the
     // unsent ones; probes are not repeated.
+    abandon_tail();
     std::deque<Entry> keep;
     std::vector<Item> back;
     // Lines counted as acknowledged that the firmware says it never took (a stray ok credited
@@ -357,6 +424,8 @@ void FirmwareProtocol::send_probe(std::int64_t n, Time now) {
     next_n_ = n + 1;
     // A newline first: a line whose own newline was lost ends there instead of swallowing the
     // probe (an empty line is nothing to the firmware).
+    // It also ends the first bytes of a line sent in two parts.
+    tail_.clear();
     write_line("\n");
     send_entry({n, std::string(kProbe), 0, 0, true, true}, now);
     in_flight_.back().bytes += 1;  // that newline, in the receive buffer's budget
@@ -429,6 +498,12 @@ void FirmwareProtocol::on_time(Time now) {
     }
     if (state_ == State::Greeting) {
         if (quiet_deadline_ && *quiet_deadline_ <= now) {
+            if (greet_ == Greet::Quiet && m999_after_quiet_) {
+                m999_after_quiet_ = false;
+                write_line("M999\n");
+                quiet_deadline_ = now + seconds(opt_.settle);
+                return;
+            }
             if (greet_ == Greet::Quiet) send_greeting(now);
             else if (greet_ == Greet::Settle) become_ready();
             if (state_ == State::Ready) transmit(now);
@@ -537,6 +612,8 @@ void FirmwareProtocol::on_line(std::string_view line, Time now) {
 void FirmwareProtocol::fault(const std::string& why) {
     if (state_ == State::Faulted) return;
     const std::size_t lost = queued();
+    // A line half sent stays so: ending it now would draw a refusal the sender would be shown;
+    // restart() ends it before M999.
     state_ = State::Faulted;
     unsent_.clear();
     in_flight_.clear();

@@ -125,7 +125,10 @@ private:
     void send_greeting(Time now);
     void become_ready();
     void transmit(Time now);
-    void send_entry(Entry e, Time now);
+    void send_entry(Entry e, Time now, std::size_t room = SIZE_MAX);
+    bool write_tail();
+    void finish_tail();
+    void abandon_tail();
     void credit_front(std::string_view payload);
     void credit_through(std::size_t index, std::string_view payload);
     void on_ok(const proto::Reply& r, Time now);
@@ -146,7 +149,9 @@ private:
     std::deque<Item> unsent_;
     std::deque<Entry> in_flight_;
     std::deque<Entry> history_;       // acknowledged numbered lines, oldest first
-    std::size_t bytes_in_flight_ = 0;
+    std::size_t bytes_in_flight_ = 0;  // of every line in flight, the unwritten tail included
+    std::string tail_;                 // the unwritten end of the newest line in flight (sent in two parts)
+    bool m999_after_quiet_ = false;    // restart(): M999 goes once the refusal of a half-sent line is over
     std::size_t tagged_in_flight_ = 0;
     std::int64_t next_n_ = 0;         // number for the next line
     std::int64_t max_sent_n_ = -1;    // highest number written since the greeting

@@ -6,6 +6,7 @@ pkgs=(build-essential cmake pkg-config
       doctest-dev libcli11-dev libserialport-dev libsystemd-dev
       printcore python3-serial
       man-db    # man-db: the manual page test renders xlate5(1) with man -l
+      file      # cpack -G DEB reads the binaries' dependencies with file and dpkg-shlibdeps
       chromium      # the --preview test loads the page in headless Chromium (skipped without it)
       prusa-slicer) # the post-processing test slices with xlate5 as its script (skipped without it)
 # `install-deps.sh fuzz` adds what the fuzz targets need (scripts/fuzz.sh): clang, libFuzzer and

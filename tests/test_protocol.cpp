@@ -23,6 +23,8 @@ struct Script {
     FirmwareProtocol p;
     FirmwareProtocol::Time t = FirmwareProtocol::Clock::now();
     std::vector<std::string> writes;             // every line written, in order (blank ones counted apart)
+    std::vector<std::string> raw;                // every write as it was made
+    std::string stream;                          // bytes written after the last newline
     std::size_t blank_lines = 0;
     std::vector<std::pair<std::uint64_t, std::string>> acked;
     std::vector<std::string> faults, messages;
@@ -47,14 +49,15 @@ struct Script {
         for (auto& a : p.take_actions()) {
             switch (a.kind) {
                 case Kind::Write: {
-                    // A write may hold several lines (never here, but keep it honest).
-                    std::size_t b = 0;
-                    while (b < a.text.size()) {
-                        const auto e = a.text.find('\n', b);
-                        REQUIRE(e != std::string::npos);
-                        if (e == b) ++blank_lines;  // the newline before a probe
-                        else writes.push_back(a.text.substr(b, e - b));
-                        b = e + 1;
+                    // The bytes as the firmware receives them: a write may end mid-line (a line
+                    // sent in two parts) or hold several lines.
+                    raw.push_back(a.text);
+                    stream += a.text;
+                    std::size_t e;
+                    while ((e = stream.find('\n')) != std::string::npos) {
+                        if (e == 0) ++blank_lines;  // the newline before a probe
+                        else writes.push_back(stream.substr(0, e));
+                        stream.erase(0, e + 1);
                     }
                     break;
                 }
@@ -437,6 +440,162 @@ TEST_CASE("protocol: M112 goes out ahead of everything, and the count of lines n
     s.reply("Error:Printer halted. kill() called!");
     CHECK(s.faults.size() == 1);  // the firmware's own word adds no second count
     CHECK(s.p.queued() == 0);
+}
+
+namespace {
+// Twenty printing moves of about 42 bytes each as numbered lines: two do not fit a 64-byte
+// receive buffer together.
+std::vector<std::string> long_moves(Script& s, std::int64_t first_n) {
+    std::vector<std::string> lines;
+    for (int i = 0; i < 20; ++i) {
+        const std::string c = "G1 X" + std::to_string(10 + i) + ".125 Y20.250 Z0.300 E0.0" + std::to_string(1000 + i);
+        lines.push_back(proto::numbered(first_n + i, c) + "\n");
+        s.enqueue(c);
+    }
+    return lines;
+}
+std::string joined(const std::vector<std::string>& v, std::size_t from = 0) {
+    std::string out;
+    for (std::size_t i = from; i < v.size(); ++i) out += v[i];
+    return out;
+}
+}  // namespace
+
+TEST_CASE("protocol: a line that does not fit the receive buffer whole goes in two parts, cut before a digit, never over the budget") {
+    FirmwareOptions o;
+    o.window = 4;
+    o.rx_bytes = 64;
+    Script s(o);
+    s.greet();
+    const std::size_t first = s.raw.size();
+    const auto expect = long_moves(s, 2);
+    // The firmware answers each whole line it has received, in order. What it holds unanswered
+    // (received, not yet answered) must never exceed the budget.
+    std::size_t answered = 0, answered_bytes = 0;
+    while (answered < expect.size()) {
+        const std::string sent = joined(s.raw, first);
+        CHECK(sent.size() - answered_bytes <= o.rx_bytes);
+        const auto whole = std::size_t(std::count(sent.begin(), sent.end(), '\n'));
+        REQUIRE(whole > answered);  // the link never waits on a line it has only half sent
+        answered_bytes += expect[answered++].size();
+        s.reply("ok");
+    }
+    // Every byte once, in order; no line lost, cut short or sent twice.
+    CHECK(joined(s.raw, first) == joined(expect));
+    CHECK(s.p.idle());
+    CHECK(s.faults.empty());
+    // Lines did go in two parts, and each first part ends where a digit follows: should the
+    // firmware empty its buffer between the parts, the rest is no command to it.
+    std::size_t heads = 0;
+    for (std::size_t i = first; i + 1 < s.raw.size(); ++i) {
+        if (s.raw[i].back() == '\n') continue;
+        ++heads;
+        CHECK(std::isdigit(static_cast<unsigned char>(s.raw[i + 1].front())));
+        CHECK(proto::command_code(s.raw[i + 1]).letter == 0);
+    }
+    CHECK(heads >= 10);
+}
+
+TEST_CASE("protocol: a refusal while a line is half sent: its rest is never sent; the first part ends as a line Marlin refuses") {
+    FirmwareOptions o;
+    o.window = 4;
+    o.rx_bytes = 64;
+    Script s(o);
+    s.greet();
+    const std::size_t first = s.raw.size();
+    const auto expect = long_moves(s, 2);
+    REQUIRE(s.raw.size() == first + 2);  // line 2 whole, then the first part of line 3
+    const std::string head = s.raw.back();
+    REQUIRE(head.back() != '\n');
+    // Line 2 failed its checksum; Marlin emptied its buffer, the first part of line 3 with it, or not.
+    s.reply("Error:checksum mismatch, Last Line: 1");
+    s.reply("Resend: 2");
+    s.reply("ok");
+    // The first part ends at once, so that its refusal, if Marlin still holds it, comes within
+    // the wait for quiet; its rest is never sent.
+    REQUIRE(s.raw.size() == first + 3);
+    CHECK(s.raw[first + 2] == "\n");
+    // Marlin refuses it (a number without a checksum): never run.
+    proto::LineChecker marlin;
+    marlin.set_last_line(1);
+    CHECK(marlin.check(head).verdict == proto::LineChecker::Verdict::Refuse);
+    s.reply("Error:No Checksum with line number, Last Line: 1");
+    s.reply("Resend: 2");
+    s.reply("ok");
+    CHECK(s.raw.size() == first + 3);  // nothing goes into a resync
+    s.pass(0.2);
+    // The probe, then every move again, whole and in order.
+    REQUIRE(!s.writes.empty());
+    CHECK(s.writes.back() == proto::numbered(2, "M105"));
+    s.reply("ok T:20.0 /0.0");
+    const std::size_t resumed = s.raw.size() - 2;  // line 3 whole, then the first part of line 4
+    REQUIRE(s.raw[resumed].substr(0, 3) == "N3 ");
+    std::size_t answered = 0;
+    while (answered < expect.size() && answered < 100) {
+        ++answered;
+        s.reply("ok");
+    }
+    std::string again;
+    for (std::size_t i = 0; i < expect.size(); ++i) {
+        const auto c = proto::parse_received(std::string_view(expect[i]).substr(0, expect[i].size() - 1)).command;
+        again += proto::numbered(std::int64_t(3 + i), c) + "\n";
+    }
+    CHECK(joined(s.raw, resumed) == again);
+    CHECK(s.p.idle());
+    CHECK(s.faults.empty());
+}
+
+TEST_CASE("protocol: M999 after a stop with a line half sent: the line is ended, M999 waits until its refusal is over") {
+    FirmwareOptions o;
+    o.window = 4;
+    o.rx_bytes = 64;
+    Script s(o);
+    s.greet();
+    const std::size_t first = s.raw.size();
+    long_moves(s, 2);
+    REQUIRE(s.raw.back().back() != '\n');
+    s.reply("Error:Printer stopped due to errors. Fix the error and use M999 to restart.");
+    REQUIRE(s.faults.size() == 1);
+    CHECK(s.raw.size() == first + 2);  // nothing ends the line while stopped: its refusal would reach the sender
+    s.p.restart(s.t);
+    s.collect();
+    REQUIRE(s.raw.size() == first + 3);
+    CHECK(s.raw.back() == "\n");
+    // Marlin refuses the first part and empties its buffer: M999 must not be in it yet.
+    s.reply("Error:No Checksum with line number, Last Line: 2");
+    s.reply("Resend: 3");
+    s.reply("ok");
+    CHECK(s.raw.size() == first + 3);
+    s.pass(0.15);  // quiet (settle 0.1 s), not yet the second wait
+    REQUIRE(s.raw.size() == first + 4);
+    CHECK(s.raw.back() == "M999\n");
+    s.reply("Resend: 3");  // a revived Marlin's stale answer
+    s.reply("ok");
+    s.pass(0.2);
+    const auto w = s.take_writes();
+    REQUIRE(w.size() >= 2);
+    CHECK(w[w.size() - 2] == proto::numbered(0, "M110 N0"));
+    CHECK(w.back() == proto::numbered(1, "M115"));
+}
+
+TEST_CASE("protocol: M108 or M112 while a line is half sent: the line is finished first, never ended early") {
+    // Ended early, the first part would be refused, and a refusal empties Marlin's buffer: the
+    // command behind it with it, on a Marlin without EMERGENCY_PARSER.
+    for (const std::string command : {"M108", "M112"}) {
+        FirmwareOptions o;
+        o.window = 4;
+        o.rx_bytes = 64;
+        Script s(o);
+        s.greet();
+        const std::size_t first = s.raw.size();
+        const auto expect = long_moves(s, 2);
+        REQUIRE(s.raw.back().back() != '\n');
+        if (command == "M108") s.p.send_unnumbered(command, s.t);
+        else s.p.emergency_stop(command, s.t);
+        s.collect();
+        CHECK(joined(s.raw, first) == expect[0] + expect[1] + command + "\n");
+        CHECK(s.blank_lines == 0);
+    }
 }
 
 TEST_CASE("protocol: M999 greets again and discards the stale oks still coming") {

@@ -29,7 +29,12 @@ void WaypointReader::read(std::string_view line, std::uint64_t line_no, FrontLin
         if (!t.empty() && t.front() == '+') t.remove_prefix(1);
         double x = 0;
         const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), x);
-        if (ec != std::errc() || end != t.data() + t.size() || t.empty()) fail(i, "'" + std::string(body.substr(i, j - i)) + "' is not a number");
+        if (ec != std::errc() || end != t.data() + t.size() || t.empty()) {
+            // Built by append: GCC 12 warns (-Wrestrict) on "'" + std::string(...) here.
+            std::string why = "'";
+            why.append(body.substr(i, j - i)).append("' is not a number");
+            fail(i, why);
+        }
         // Range-checked as the G-code lexer checks its numbers.
         if (!std::isfinite(x) || std::abs(x) > kMaxNumber) fail(i, "number beyond +-1e9");
         v[n++] = x;
