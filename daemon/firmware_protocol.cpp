@@ -236,6 +236,7 @@ void FirmwareProtocol::on_nudge() {
     // firmware's receive buffer. The byte rides with the last line in flight, and leaves the
     // budget with it.
     if (state_ != State::Ready || sync_ == Sync::Quiet || in_flight_.empty()) return;
+    if (!tail_.empty()) return;  // a line half sent waits for room, not for its newline
     if (bytes_in_flight_ + 1 > opt_.rx_bytes) return;
     write_line("\n");
     in_flight_.back().bytes += 1;
