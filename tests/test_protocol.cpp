@@ -687,19 +687,26 @@ TEST_CASE("protocol: the nudge's byte counts in the receive buffer's budget unti
     const std::string second = "G1 X2";
     FirmwareOptions o;
     o.nudge = 0.1;
-    // Room for both lines (as transmit reckons a line: command, number, "N", " ", "*", three
-    // checksum digits, newline), but not for one byte more.
-    o.rx_bytes = first.size() + second.size() + 1 + 7;
+    // Room for both lines as written, but not for one byte more.
+    const std::string line3 = proto::numbered(3, second) + "\n";
+    o.rx_bytes = first.size() + line3.size();
     Script s(o, true);
     s.greet();
+    const std::size_t from = s.raw.size();
     s.enqueue("G1 X1");
     s.pass(0.15);
     CHECK(s.blank_lines == 1);
     s.take_writes();
     s.enqueue(second);
-    CHECK(s.take_writes().empty());  // the nudge's byte leaves no room for it
+    // The nudge's byte leaves no room for line 3 whole: only its first part goes, and what is
+    // unanswered stays within the budget.
+    CHECK(s.take_writes().empty());
+    CHECK(!s.stream.empty());
+    CHECK(line3.rfind(s.stream, 0) == 0);
+    CHECK(joined(s.raw, from).size() <= o.rx_bytes);
     s.reply("ok");                   // line 2 answered: its bytes and the nudge's leave the budget
     CHECK(s.take_writes() == std::vector<std::string>{proto::numbered(3, second)});
+    CHECK(joined(s.raw, from) == first + "\n" + line3);
     // Without the byte in flight, the same two lines go together.
     Script t(o, true);
     t.greet();
