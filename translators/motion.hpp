@@ -78,6 +78,9 @@ private:
     // `tol` (mm) and `atol` (degrees) by kinematics' bound, without sampling it.
     bool bounded_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
                         double atol) const;
+    // piece_error's verdict against `tol` and `atol`, stopping at the first point outside them.
+    bool piece_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
+                      double atol) const;
     IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
     // Across a pole: the end on the other branch, reached with the rotaries turning linearly,
     // when that stays within the angle tolerance and turns the rotaries less than the
