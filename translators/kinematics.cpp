@@ -22,8 +22,45 @@ constexpr double kFreeEps = 1e-7;
 // Orientations this close (radians, squared for gamma) to the reachable set count as reachable.
 constexpr double kReachEps = 1e-6;
 
-Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double degrees) {
-    return Eigen::AngleAxisd(degrees * kDeg, axis).toRotationMatrix();
+// The chain walk below is written out in scalars: the same operations, in the same order and
+// so to the last bit, as Eigen's fixed-size products (a 3x3 matrix times a column sums rows 0 and
+// 1 as (a0 + a1) + a2 and row 2 as a0 + (a1 + a2); test_kinematics holds the two against each
+// other), with every value in its own variable so that it stays in a register (Eigen's 3-vectors
+// went through memory in part-overlapping loads and stores, which stall).
+struct V3 {
+    double x, y, z;
+};
+struct M3 {
+    double xx, xy, xz, yx, yy, yz, zx, zy, zz;  // row, column
+};
+
+inline V3 v3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+inline V3 operator+(const V3& a, const V3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline V3 operator-(const V3& a, const V3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline V3 operator*(const V3& a, double s) { return {a.x * s, a.y * s, a.z * s}; }
+
+inline V3 operator*(const M3& m, const V3& v) {
+    return {(m.xx * v.x + m.xy * v.y) + m.xz * v.z, (m.yx * v.x + m.yy * v.y) + m.yz * v.z, m.zx * v.x + (m.zy * v.y + m.zz * v.z)};
+}
+
+inline M3 operator*(const M3& a, const M3& b) {
+    const V3 c0 = a * V3{b.xx, b.yx, b.zx}, c1 = a * V3{b.xy, b.yy, b.zy}, c2 = a * V3{b.xz, b.yz, b.zz};
+    return {c0.x, c1.x, c2.x, c0.y, c1.y, c2.y, c0.z, c1.z, c2.z};
+}
+
+inline M3 m3(const Eigen::Ref<const Eigen::Matrix3d>& m) {
+    return {m(0, 0), m(0, 1), m(0, 2), m(1, 0), m(1, 1), m(1, 2), m(2, 0), m(2, 1), m(2, 2)};
+}
+
+// Eigen's AngleAxis::toRotationMatrix, entry for entry.
+inline M3 rot(const V3& axis, double degrees) {
+    const double angle = degrees * kDeg;
+    const double s = std::sin(angle), c = std::cos(angle);
+    const V3 sa = axis * s, ca = axis * (1.0 - c);
+    const double xy = ca.x * axis.y, xz = ca.x * axis.z, yz = ca.y * axis.z;
+    return {ca.x * axis.x + c, xy - sa.z, xz + sa.y,
+            xy + sa.z, ca.y * axis.y + c, yz - sa.x,
+            xz - sa.y, yz + sa.x, ca.z * axis.z + c};
 }
 
 // Paden-Kahan subproblem 1: the angle (radians) about unit w that takes p to q; NaN if free.
@@ -82,32 +119,39 @@ Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
     flip_ = rotary_.size() == 2 && std::abs(w_[0].dot(w_[1])) < 1e-9 && w_[0].cross(p_).norm() < 1e-9;
 }
 
-void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
+void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R_out, Eigen::Vector3d& t_out,
                       Eigen::Vector3d* linear_dirs, AxisLine* lines, int* line_count) const {
-    R.setIdentity();
-    t.setZero();
+    M3 R{1, 0, 0, 0, 1, 0, 0, 0, 1};
+    V3 t{0, 0, 0};
     for (const auto& e : chain) {
         switch (e.kind) {
             case ChainElement::Kind::Fixed:
-                t += R * e.fixed.translation();
-                R = R * e.fixed.linear();
+                t = t + R * v3(e.fixed.translation());
+                R = R * m3(e.fixed.linear());
                 break;
             case ChainElement::Kind::Linear: {
-                const Eigen::Vector3d d = R * e.axis;
-                if (linear_dirs) linear_dirs[e.joint] = d;
-                t += d * q[e.joint];
+                const V3 d = R * v3(e.axis);
+                if (linear_dirs) linear_dirs[e.joint] = Eigen::Vector3d(d.x, d.y, d.z);
+                t = t + d * q[e.joint];
                 break;
             }
             case ChainElement::Kind::Rotary: {
                 // Trans(point) * Rot(axis, q) * Trans(-point)
-                if (lines) lines[(*line_count)++] = {t + R * e.point, (R * e.axis).normalized()};
-                const Eigen::Matrix3d Rj = rot(e.axis, q[e.joint]);
-                t += R * (e.point - Rj * e.point);
+                if (lines) {
+                    Eigen::Matrix3d Re;
+                    Re << R.xx, R.xy, R.xz, R.yx, R.yy, R.yz, R.zx, R.zy, R.zz;
+                    lines[(*line_count)++] = {Eigen::Vector3d(t.x, t.y, t.z) + Re * e.point, (Re * e.axis).normalized()};
+                }
+                const V3 point = v3(e.point);
+                const M3 Rj = rot(v3(e.axis), q[e.joint]);
+                t = t + R * (point - Rj * point);
                 R = R * Rj;
                 break;
             }
         }
     }
+    R_out << R.xx, R.xy, R.xz, R.yx, R.yy, R.yz, R.zx, R.zy, R.zz;
+    t_out = Eigen::Vector3d(t.x, t.y, t.z);
 }
 
 Pose Kinematics::forward(const std::vector<double>& q) const { return forward(q.data(), nullptr); }
