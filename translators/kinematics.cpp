@@ -119,10 +119,18 @@ Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
     flip_ = rotary_.size() == 2 && std::abs(w_[0].dot(w_[1])) < 1e-9 && w_[0].cross(p_).norm() < 1e-9;
 }
 
-void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R_out, Eigen::Vector3d& t_out,
-                      Eigen::Vector3d* linear_dirs, AxisLine* lines, int* line_count) const {
-    M3 R{1, 0, 0, 0, 1, 0, 0, 0, 1};
-    V3 t{0, 0, 0};
+namespace {
+
+struct AxisLine {
+    Eigen::Vector3d point, dir;  // a rotary joint's axis in the base frame (dir unit)
+};
+
+// Base -> the chain's end: rotation R and translation t. `linear_dirs`, when given, receives each
+// linear joint's direction (indexed by joint); `lines` each rotary joint's axis.
+void walk(const std::vector<ChainElement>& chain, const double* q, M3& R, V3& t, Eigen::Vector3d* linear_dirs,
+          AxisLine* lines = nullptr, int* line_count = nullptr) {
+    R = M3{1, 0, 0, 0, 1, 0, 0, 0, 1};
+    t = V3{0, 0, 0};
     for (const auto& e : chain) {
         switch (e.kind) {
             case ChainElement::Kind::Fixed:
@@ -150,6 +158,28 @@ void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, E
             }
         }
     }
+}
+
+// R^T v, as Eigen sums a transposed product: every row (a0 + a1) + a2.
+inline V3 transposed_times(const M3& m, const V3& v) {
+    return {(m.xx * v.x + m.yx * v.y) + m.zx * v.z, (m.xy * v.x + m.yy * v.y) + m.zy * v.z, (m.xz * v.x + m.yz * v.y) + m.zz * v.z};
+}
+
+// Eigen's normalized(): v / |v|, the squares summed (a0 + a1) + a2; a zero vector is returned as is.
+inline V3 normalized(const V3& v) {
+    const double n = (v.x * v.x + v.y * v.y) + v.z * v.z;
+    if (!(n > 0)) return v;
+    const double r = std::sqrt(n);
+    return {v.x / r, v.y / r, v.z / r};
+}
+
+}  // namespace
+
+void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R_out, Eigen::Vector3d& t_out,
+                      Eigen::Vector3d* linear_dirs) const {
+    M3 R;
+    V3 t;
+    walk(chain, q, R, t, linear_dirs);
     R_out << R.xx, R.xy, R.xz, R.yx, R.yy, R.yz, R.zx, R.zy, R.zz;
     t_out = Eigen::Vector3d(t.x, t.y, t.z);
 }
@@ -158,20 +188,23 @@ Pose Kinematics::forward(const std::vector<double>& q) const { return forward(q.
 
 // With `lever_arm`: also the tip's largest distance from a rotary joint's axis.
 Pose Kinematics::forward(const double* q, double* lever_arm) const {
-    Eigen::Matrix3d Rp, Rt;
-    Eigen::Vector3d tp, tt;
+    M3 Rp, Rt;
+    V3 tp, tt;
     AxisLine lines[8];  // at most 5 joints (the loader checks)
     int count = 0;
-    eval(machine_.part_chain, q, Rp, tp, nullptr, lever_arm ? lines : nullptr, &count);
-    eval(machine_.tool_chain, q, Rt, tt, nullptr, lever_arm ? lines : nullptr, &count);
+    walk(machine_.part_chain, q, Rp, tp, nullptr, lever_arm ? lines : nullptr, &count);
+    walk(machine_.tool_chain, q, Rt, tt, nullptr, lever_arm ? lines : nullptr, &count);
     Pose pose;
-    pose.tip = Rp.transpose() * (tt - tp);
-    pose.axis = (Rp.transpose() * (Rt * machine_.tool_axis)).normalized();
+    const V3 tip = transposed_times(Rp, tt - tp);
+    const V3 axis = normalized(transposed_times(Rp, Rt * v3(machine_.tool_axis)));
+    pose.tip = Eigen::Vector3d(tip.x, tip.y, tip.z);
+    pose.axis = Eigen::Vector3d(axis.x, axis.y, axis.z);
     if (lever_arm) {
         // Distances are the same in every frame: measured in the base frame, the tip at tt.
         *lever_arm = 0;
+        const Eigen::Vector3d end(tt.x, tt.y, tt.z);
         for (int i = 0; i < count; ++i) {
-            const Eigen::Vector3d d = tt - lines[i].point;
+            const Eigen::Vector3d d = end - lines[i].point;
             *lever_arm = std::max(*lever_arm, (d - lines[i].dir * lines[i].dir.dot(d)).norm());
         }
     }
