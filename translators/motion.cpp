@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
@@ -185,6 +186,18 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
     return true;
 }
 
+const Kinematics::Solutions& MotionStage::solutions_of(const Eigen::Vector3d& axis) const {
+    // Bit for bit the same axis (a signed zero counts: the solutions' angles can depend on it).
+    for (const CachedSolutions& c : solved_)
+        if (c.valid && std::memcmp(c.axis.data(), axis.data(), sizeof(double) * 3) == 0) return c.solutions;
+    CachedSolutions& c = solved_[solved_next_];
+    solved_next_ = 1 - solved_next_;
+    c.axis = axis;
+    c.solutions = kin_.orientation_solutions(axis);
+    c.valid = true;
+    return c.solutions;
+}
+
 const Kinematics::PathEnd& MotionStage::path_end(const double* q) const {
     const std::size_t n = machine_.joints.size();
     for (CachedEnd& c : ends_)
@@ -342,7 +355,7 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
         // Probe just off the start, far enough (1e-4 rad) that the joint is no longer free.
         const double turn_angle = std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
         const double probe = turn_angle > 1e-4 ? 1e-4 / turn_angle : 1.0;
-        const auto at_start = kin_.orientation_solutions(mv.p0.axis);
+        const auto& at_start = solutions_of(mv.p0.axis);
         bool on_pole = false;
         for (int b = 0; b < at_start.count; ++b)
             for (std::size_t k = 0; k < kin_.rotary_joints().size(); ++k) on_pole = on_pole || std::isnan(at_start.angle[b][k]);
@@ -418,7 +431,7 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
         return d;
     };
     constexpr double kClearlyLess = 1.0;  // degrees: another way only when it turns clearly less
-    const auto solutions = kin_.orientation_solutions(mv.p1.axis);
+    const auto solutions = solutions_of(mv.p1.axis);
     std::vector<double>& q = scratch_a_;
     // The way across is taken only when it turns the rotaries clearly less than the continuous
     // branch's split (measured at the end below). When no end on another branch is that much

@@ -102,6 +102,15 @@ private:
         Kinematics::PathEnd end;
     };
     mutable CachedEnd ends_[2];
+    // The orientation solutions of the axes met last: one move's end axis is the next one's start.
+    const Kinematics::Solutions& solutions_of(const Eigen::Vector3d& axis) const;
+    struct CachedSolutions {
+        bool valid = false;
+        Eigen::Vector3d axis;
+        Kinematics::Solutions solutions;
+    };
+    mutable CachedSolutions solved_[2];
+    mutable int solved_next_ = 0;
     mutable int ends_next_ = 0;
     const MoveSpec* split_for_ = nullptr;  // the move whose split s_, qs_ hold already (cross_pole made it)
 
