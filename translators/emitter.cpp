@@ -1,8 +1,10 @@
 // The emitter stage: joint values -> firmware text. What it may call: see emitter.hpp.
 #include "translators/emitter.hpp"
 
+#include <algorithm>
 #include <limits>
 
+#include "translators/error.hpp"
 #include "translators/number.hpp"
 
 namespace xlate5 {
@@ -34,8 +36,11 @@ void finish_move(std::string& out, std::size_t start, std::size_t empty, const s
     else out += '\n';
 }
 
-JointEmitter::JointEmitter(const Machine& machine)
-    : machine_(&machine), last_(machine.joints.size(), 0), known_(machine.joints.size(), false), believed_(machine.home_joints()) {}
+JointEmitter::JointEmitter(const Machine& machine) : machine_(&machine), joints_(machine.joints.size()) {
+    if (joints_ > kMaxJoints) throw MachineError(machine.source_path + ": more joints than the emitter holds (" + std::to_string(kMaxJoints) + ")");
+    const std::vector<double> home = machine.home_joints();
+    std::copy(home.begin(), home.end(), believed_.begin());
+}
 
 int JointEmitter::decimals(std::size_t joint) const {
     return machine_->joints[joint].rotary ? machine_->dialect.rotary_decimals : machine_->dialect.linear_decimals;
@@ -56,8 +61,8 @@ void JointEmitter::append_joint(std::string& out, std::size_t joint, double valu
 }
 
 void JointEmitter::invalidate(const std::vector<double>& q) {
-    known_.assign(known_.size(), false);
-    believed_ = q;
+    known_.fill(false);
+    std::copy(q.begin(), q.begin() + std::ptrdiff_t(std::min(q.size(), joints_)), believed_.begin());
 }
 
 void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<double>& sent,

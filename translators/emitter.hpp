@@ -3,6 +3,7 @@
 // compensated. It remembers what the firmware was last told, so a line names only the joints that
 // change. May call: number formatting.
 #pragma once
+#include <array>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -63,11 +64,15 @@ private:
     int decimals(std::size_t joint) const;
     void format(std::string& text, std::size_t joint, double value) const;
 
+    // Fixed arrays, not vectors: the look-back copies the emitter with every line, and a copy of
+    // these is one block of memory. A machine has at most 5 joints (the loader checks).
+    static constexpr std::size_t kMaxJoints = 8;
     const Machine* machine_;  // a pointer, so a copy of the emitter is its whole state (the translator's snapshots)
+    std::size_t joints_ = 0;
     // What the firmware was last sent per joint, in units of its last printed digit.
-    std::vector<long long> last_;
-    std::vector<bool> known_;         // false: not sent since start, homing or probing
-    std::vector<double> believed_;    // joint values the firmware is believed to be at
+    std::array<long long, kMaxJoints> last_{};
+    std::array<bool, kMaxJoints> known_{};       // false: not sent since start, homing or probing
+    std::array<double, kMaxJoints> believed_{};  // joint values the firmware is believed to be at
     std::string last_f_, f_text_;     // F is modal in the firmware: written only when it changes
     bool inverse_time_ = false;       // the firmware's feed mode as xlate5 last set it
 };

@@ -56,7 +56,7 @@ bool Interpreter::is_axis_letter(char c) const {
     return c == 'X' || c == 'Y' || c == 'Z' || c == 'I' || c == 'J' || c == 'K' || machine_.joint_index(c) >= 0;
 }
 
-void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& out) {
+void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& out, const LineState* before) {
     try {
         lex_line(line, block_);
         if (block_.words.empty()) {
@@ -72,7 +72,10 @@ void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& ou
     // Nothing is written until the whole line has been understood and solved: an error leaves
     // neither output nor state changed by this line.
     const std::size_t out_start = out.size();
-    saved_ = state_;
+    if (!before) {
+        saved_ = state_;
+        before = &saved_;
+    }
     try {
         for (std::size_t i = 0; i < plan_.count; ++i) {
             const LineStep& step = plan_.steps[i];
@@ -83,7 +86,7 @@ void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& ou
         // Nothing of a failed line stays: output, joints, pose, modes. What the firmware was
         // told of it is not known either.
         out.resize(out_start);
-        state_ = saved_;
+        state_ = *before;
         planner_.position_unknown();
         try {
             throw;

@@ -47,8 +47,10 @@ public:
 
     // Interprets one line (without '\n'), appending its output to `out`. Throws InputError
     // naming the file, line (run.line_no) and column; the state is then as before the line and
-    // the firmware's position is taken as unknown.
-    void feed_line(std::string_view line, LineRun& run, std::string& out);
+    // the firmware's position is taken as unknown. `before`, when given, is the caller's own
+    // copy of the state as it is now (the look-back takes one of every line): the line is undone
+    // from it instead of from a second copy taken here.
+    void feed_line(std::string_view line, LineRun& run, std::string& out, const LineState* before = nullptr);
     // Tool moves go through the keep-out stage (which sets R) before the planner, when set.
     void set_keep_out(KeepOutStage* stage) { keep_out_ = stage; }
 
@@ -80,7 +82,7 @@ private:
     KeepOutStage* keep_out_ = nullptr;
     std::string input_name_;
     char extruder_letter_;
-    LineState saved_;          // the state before the current line
+    LineState saved_;          // the state before the current line (when the caller keeps none)
     Block block_;
     LineCommands commands_;
     LinePlan plan_;

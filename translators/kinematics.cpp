@@ -22,8 +22,45 @@ constexpr double kFreeEps = 1e-7;
 // Orientations this close (radians, squared for gamma) to the reachable set count as reachable.
 constexpr double kReachEps = 1e-6;
 
-Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double degrees) {
-    return Eigen::AngleAxisd(degrees * kDeg, axis).toRotationMatrix();
+// The chain walk below is written out in scalars: the same operations, in the same order and
+// so to the last bit, as Eigen's fixed-size products (a 3x3 matrix times a column sums rows 0 and
+// 1 as (a0 + a1) + a2 and row 2 as a0 + (a1 + a2); test_kinematics holds the two against each
+// other), with every value in its own variable so that it stays in a register (Eigen's 3-vectors
+// went through memory in part-overlapping loads and stores, which stall).
+struct V3 {
+    double x, y, z;
+};
+struct M3 {
+    double xx, xy, xz, yx, yy, yz, zx, zy, zz;  // row, column
+};
+
+inline V3 v3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+inline V3 operator+(const V3& a, const V3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline V3 operator-(const V3& a, const V3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline V3 operator*(const V3& a, double s) { return {a.x * s, a.y * s, a.z * s}; }
+
+inline V3 operator*(const M3& m, const V3& v) {
+    return {(m.xx * v.x + m.xy * v.y) + m.xz * v.z, (m.yx * v.x + m.yy * v.y) + m.yz * v.z, m.zx * v.x + (m.zy * v.y + m.zz * v.z)};
+}
+
+inline M3 operator*(const M3& a, const M3& b) {
+    const V3 c0 = a * V3{b.xx, b.yx, b.zx}, c1 = a * V3{b.xy, b.yy, b.zy}, c2 = a * V3{b.xz, b.yz, b.zz};
+    return {c0.x, c1.x, c2.x, c0.y, c1.y, c2.y, c0.z, c1.z, c2.z};
+}
+
+inline M3 m3(const Eigen::Ref<const Eigen::Matrix3d>& m) {
+    return {m(0, 0), m(0, 1), m(0, 2), m(1, 0), m(1, 1), m(1, 2), m(2, 0), m(2, 1), m(2, 2)};
+}
+
+// Eigen's AngleAxis::toRotationMatrix, entry for entry.
+inline M3 rot(const V3& axis, double degrees) {
+    const double angle = degrees * kDeg;
+    const double s = std::sin(angle), c = std::cos(angle);
+    const V3 sa = axis * s, ca = axis * (1.0 - c);
+    const double xy = ca.x * axis.y, xz = ca.x * axis.z, yz = ca.y * axis.z;
+    return {ca.x * axis.x + c, xy - sa.z, xz + sa.y,
+            xy + sa.z, ca.y * axis.y + c, yz - sa.x,
+            xz - sa.y, yz + sa.x, ca.z * axis.z + c};
 }
 
 // Paden-Kahan subproblem 1: the angle (radians) about unit w that takes p to q; NaN if free.
@@ -82,27 +119,40 @@ Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
     flip_ = rotary_.size() == 2 && std::abs(w_[0].dot(w_[1])) < 1e-9 && w_[0].cross(p_).norm() < 1e-9;
 }
 
-void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
-                      Eigen::Vector3d* linear_dirs, AxisLine* lines, int* line_count) const {
-    R.setIdentity();
-    t.setZero();
+namespace {
+
+struct AxisLine {
+    Eigen::Vector3d point, dir;  // a rotary joint's axis in the base frame (dir unit)
+};
+
+// Base -> the chain's end: rotation R and translation t. `linear_dirs`, when given, receives each
+// linear joint's direction (indexed by joint); `lines` each rotary joint's axis.
+void walk(const std::vector<ChainElement>& chain, const double* q, M3& R, V3& t, Eigen::Vector3d* linear_dirs,
+          AxisLine* lines = nullptr, int* line_count = nullptr) {
+    R = M3{1, 0, 0, 0, 1, 0, 0, 0, 1};
+    t = V3{0, 0, 0};
     for (const auto& e : chain) {
         switch (e.kind) {
             case ChainElement::Kind::Fixed:
-                t += R * e.fixed.translation();
-                R = R * e.fixed.linear();
+                t = t + R * v3(e.fixed.translation());
+                R = R * m3(e.fixed.linear());
                 break;
             case ChainElement::Kind::Linear: {
-                const Eigen::Vector3d d = R * e.axis;
-                if (linear_dirs) linear_dirs[e.joint] = d;
-                t += d * q[e.joint];
+                const V3 d = R * v3(e.axis);
+                if (linear_dirs) linear_dirs[e.joint] = Eigen::Vector3d(d.x, d.y, d.z);
+                t = t + d * q[e.joint];
                 break;
             }
             case ChainElement::Kind::Rotary: {
                 // Trans(point) * Rot(axis, q) * Trans(-point)
-                if (lines) lines[(*line_count)++] = {t + R * e.point, (R * e.axis).normalized()};
-                const Eigen::Matrix3d Rj = rot(e.axis, q[e.joint]);
-                t += R * (e.point - Rj * e.point);
+                if (lines) {
+                    Eigen::Matrix3d Re;
+                    Re << R.xx, R.xy, R.xz, R.yx, R.yy, R.yz, R.zx, R.zy, R.zz;
+                    lines[(*line_count)++] = {Eigen::Vector3d(t.x, t.y, t.z) + Re * e.point, (Re * e.axis).normalized()};
+                }
+                const V3 point = v3(e.point);
+                const M3 Rj = rot(v3(e.axis), q[e.joint]);
+                t = t + R * (point - Rj * point);
                 R = R * Rj;
                 break;
             }
@@ -110,24 +160,51 @@ void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, E
     }
 }
 
+// R^T v, as Eigen sums a transposed product: every row (a0 + a1) + a2.
+inline V3 transposed_times(const M3& m, const V3& v) {
+    return {(m.xx * v.x + m.yx * v.y) + m.zx * v.z, (m.xy * v.x + m.yy * v.y) + m.zy * v.z, (m.xz * v.x + m.yz * v.y) + m.zz * v.z};
+}
+
+// Eigen's normalized(): v / |v|, the squares summed (a0 + a1) + a2; a zero vector is returned as is.
+inline V3 normalized(const V3& v) {
+    const double n = (v.x * v.x + v.y * v.y) + v.z * v.z;
+    if (!(n > 0)) return v;
+    const double r = std::sqrt(n);
+    return {v.x / r, v.y / r, v.z / r};
+}
+
+}  // namespace
+
+void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R_out, Eigen::Vector3d& t_out,
+                      Eigen::Vector3d* linear_dirs) const {
+    M3 R;
+    V3 t;
+    walk(chain, q, R, t, linear_dirs);
+    R_out << R.xx, R.xy, R.xz, R.yx, R.yy, R.yz, R.zx, R.zy, R.zz;
+    t_out = Eigen::Vector3d(t.x, t.y, t.z);
+}
+
 Pose Kinematics::forward(const std::vector<double>& q) const { return forward(q.data(), nullptr); }
 
 // With `lever_arm`: also the tip's largest distance from a rotary joint's axis.
 Pose Kinematics::forward(const double* q, double* lever_arm) const {
-    Eigen::Matrix3d Rp, Rt;
-    Eigen::Vector3d tp, tt;
+    M3 Rp, Rt;
+    V3 tp, tt;
     AxisLine lines[8];  // at most 5 joints (the loader checks)
     int count = 0;
-    eval(machine_.part_chain, q, Rp, tp, nullptr, lever_arm ? lines : nullptr, &count);
-    eval(machine_.tool_chain, q, Rt, tt, nullptr, lever_arm ? lines : nullptr, &count);
+    walk(machine_.part_chain, q, Rp, tp, nullptr, lever_arm ? lines : nullptr, &count);
+    walk(machine_.tool_chain, q, Rt, tt, nullptr, lever_arm ? lines : nullptr, &count);
     Pose pose;
-    pose.tip = Rp.transpose() * (tt - tp);
-    pose.axis = (Rp.transpose() * (Rt * machine_.tool_axis)).normalized();
+    const V3 tip = transposed_times(Rp, tt - tp);
+    const V3 axis = normalized(transposed_times(Rp, Rt * v3(machine_.tool_axis)));
+    pose.tip = Eigen::Vector3d(tip.x, tip.y, tip.z);
+    pose.axis = Eigen::Vector3d(axis.x, axis.y, axis.z);
     if (lever_arm) {
         // Distances are the same in every frame: measured in the base frame, the tip at tt.
         *lever_arm = 0;
+        const Eigen::Vector3d end(tt.x, tt.y, tt.z);
         for (int i = 0; i < count; ++i) {
-            const Eigen::Vector3d d = tt - lines[i].point;
+            const Eigen::Vector3d d = end - lines[i].point;
             *lever_arm = std::max(*lever_arm, (d - lines[i].dir * lines[i].dir.dot(d)).norm());
         }
     }

@@ -63,12 +63,10 @@ public:
 
 private:
     struct Factor;
-    struct AxisLine {
-        Eigen::Vector3d point, dir;  // a rotary joint's axis in the base frame (dir unit)
-    };
-    // `lines`, when given, receives each rotary joint's axis (at most the joint count).
+    // Base -> a chain's end (rotation, translation); `linear_dirs`, when given, receives each linear
+    // joint's direction.
     void eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
-              Eigen::Vector3d* linear_dirs, AxisLine* lines = nullptr, int* line_count = nullptr) const;
+              Eigen::Vector3d* linear_dirs) const;
     Pose forward(const double* q, double* lever_arm) const;
 
     Machine machine_;

@@ -30,7 +30,7 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
     before_line_ = state_;
     const std::size_t held_start = held_.size(), moves_start = held_moves();
     try {
-        interpreter_.feed_line(line, run, held_);
+        interpreter_.feed_line(line, run, held_, &before_line_.line);  // one copy of the state per line, not two
     } catch (const InputError& e) {
         if (!run.hit_limit) {
             // A refused line (the service goes on after one typed in a terminal) leaves nothing

@@ -78,6 +78,9 @@ private:
     // `tol` (mm) and `atol` (degrees) by kinematics' bound, without sampling it.
     bool bounded_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
                         double atol) const;
+    // piece_error's verdict against `tol` and `atol`, stopping at the first point outside them.
+    bool piece_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
+                      double atol) const;
     IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
     // Across a pole: the end on the other branch, reached with the rotaries turning linearly,
     // when that stays within the angle tolerance and turns the rotaries less than the
@@ -99,6 +102,15 @@ private:
         Kinematics::PathEnd end;
     };
     mutable CachedEnd ends_[2];
+    // The orientation solutions of the axes met last: one move's end axis is the next one's start.
+    const Kinematics::Solutions& solutions_of(const Eigen::Vector3d& axis) const;
+    struct CachedSolutions {
+        bool valid = false;
+        Eigen::Vector3d axis;
+        Kinematics::Solutions solutions;
+    };
+    mutable CachedSolutions solved_[2];
+    mutable int solved_next_ = 0;
     mutable int ends_next_ = 0;
     const MoveSpec* split_for_ = nullptr;  // the move whose split s_, qs_ hold already (cross_pole made it)
 
