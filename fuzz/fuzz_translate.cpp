@@ -36,14 +36,13 @@ namespace {
 // still reached, after a few pieces instead of thousands.
 constexpr double kTolerance = 10, kAngleTolerance = 45;
 constexpr int kMaxPieces = 8;
-// The look-back translates its held lines again for each end it tries at a travel move: with the
-// default window (2000 lines) an input of a few hundred bytes is all held, and retranslated for
-// every travel. A short window runs the same code, and also reaches the window's overflow, which
-// no short input reaches with the default.
-constexpr std::size_t kLookback = 2;
-// ... and it tries up to 64 end solutions of the travel move for each line that passes a limit;
-// a few reach the same code (the next solution, the last one, none left).
-constexpr int kCandidates = 4;
+// The look-back translates its held lines again for each end it tries at a travel move, for
+// every line that passes a limit: with the default window (2000 lines) and 64 ends an input of a
+// few hundred bytes is all held, and retranslated up to 64 times a line. A window of one line and
+// two ends run the same code (an unwinding that works, one that does not, no solution left), and
+// also reach the window's overflow, which no short input reaches with the default.
+constexpr std::size_t kLookback = 1;
+constexpr int kCandidates = 2;
 
 const std::vector<std::unique_ptr<Kinematics>>& kinematics() {
     static const auto all = [] {
