@@ -12,7 +12,7 @@ Usage: soak.py XLATE5 TOTAL_LINES [PRINT_LINES] [MACHINE]
 Settings from the environment (defaults in brackets): SOAK_SETTLE [0.25] and SOAK_TIMEOUT [0.5],
 the service's settle and reply_timeout in seconds; SOAK_CORRUPT [0.01] and SOAK_DROP [0.01],
 the fault rates per line; SOAK_RESET_EVERY, commands between firmware resets [a third of the
-run, at most 2,000,000]; SOAK_NUDGE, the service's firmware.nudge [its default]; SOAK_SEED [5].
+run, at most 2,000,000, at least one and a half prints]; SOAK_NUDGE, the service's firmware.nudge [its default]; SOAK_SEED [5].
 """
 import os
 import random
@@ -190,8 +190,11 @@ def main():
         log = open(os.path.join(tmp, "serve.log"), "w+")
         # The virtual printer resets each time it has executed a multiple of this many commands;
         # each reset cuts one print short (it is streamed again from its start).
+        # A print streamed again after a reset must fit before the next one: more than a print's
+        # commands (and the greeting's and M999) between two resets.
         commands = prints * len(expected)
-        reset_every = setting("SOAK_RESET_EVERY", max(10, min(2000000, commands // 3)), int, 10, 2**53)
+        fits = len(expected) + 16
+        reset_every = setting("SOAK_RESET_EVERY", max(fits + len(expected) // 2, min(2000000, commands // 3)), int, fits, 2**53)
         knobs = ("settle %g s, reply_timeout %g s, nudge %s, corrupt %g, drop %g, a reset every %d commands, seed %d"
                  % (settle, reply_timeout, "default" if nudge is None else "%g s" % nudge, corrupt, drop, reset_every, seed))
         print("soak: %d lines in %d prints of %d on %s; %s" % (prints * print_lines, prints, print_lines, machine, knobs), flush=True)

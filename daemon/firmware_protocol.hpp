@@ -8,7 +8,7 @@
 // empties the firmware's receive buffer, so the number of replies after an error does not
 // follow from the lines sent, and a repeat of the last line is dropped without a word. Hence:
 //  - after any Resend, line error or silence, nothing more is sent until the firmware has been
-//    quiet for `settle` seconds; then it is asked where it is with a harmless numbered M105 (the
+//    quiet for `settle` seconds (the reply timeout does not cut that wait short); then it is asked where it is with a harmless numbered M105 (the
 //    probe), whose "ok T:" is the only reply that names itself; lines continue from the number
 //    the firmware named (or after the probe, which it took);
 //  - without ADVANCED_OK, plain oks are credited in order only while nothing went wrong; an

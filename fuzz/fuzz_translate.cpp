@@ -30,8 +30,19 @@ namespace {
 // build (about 0.3 ms under the sanitizers), so each input starts from a fresh one, in the state
 // a file starts in. The cost of an input is its moves: split to the machine's tolerance (0.01 mm)
 // one tilted move is thousands of pieces. The fuzzed machines are split coarser (kTolerance,
-// kAngleTolerance): the same code runs, with fewer turns of the same loops.
+// kAngleTolerance): the same code runs, with fewer turns of the same loops. A coarse tolerance
+// does not bound a long turn (C-338988 is 7,500 pieces at 45 degrees: 3 s under the sanitizers),
+// so the pieces per input line are capped lower too (kMaxPieces): the refusal past the cap is
+// still reached, after a few pieces instead of thousands.
 constexpr double kTolerance = 10, kAngleTolerance = 45;
+constexpr int kMaxPieces = 8;
+// The look-back translates its held lines again for each end it tries at a travel move, for
+// every line that passes a limit: with the default window (2000 lines) and 64 ends an input of a
+// few hundred bytes is all held, and retranslated up to 64 times a line. A window of one line and
+// two ends run the same code (an unwinding that works, one that does not, no solution left), and
+// also reach the window's overflow, which no short input reaches with the default.
+constexpr std::size_t kLookback = 1;
+constexpr int kCandidates = 2;
 
 const std::vector<std::unique_ptr<Kinematics>>& kinematics() {
     static const auto all = [] {
@@ -39,6 +50,7 @@ const std::vector<std::unique_ptr<Kinematics>>& kinematics() {
         for (Machine m : fuzz::bundled()) {
             m.motion.tolerance = kTolerance;
             m.motion.angle_tolerance = kAngleTolerance;
+            m.motion.max_pieces = kMaxPieces;
             k.push_back(std::make_unique<Kinematics>(m));
         }
         return k;
@@ -70,7 +82,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         options.report = &*report;
     }
     Translator translator(kin, options);
-    if (config & 8u) translator.set_lookback(Translator::kDefaultLookback);
+    if (config & 8u) translator.set_lookback(kLookback, kCandidates);
     std::string out;
     if (config & 32u) translator.feed("; " + std::string(kCompactDeclaration), 0, out);
 

@@ -117,6 +117,60 @@ TEST_CASE("a move needing more pieces than the bound is refused at its line and 
     CHECK(count_lines(out) <= std::size_t(kMaxPiecesPerLine));
 }
 
+TEST_CASE("a program may lower the bound on pieces per line (never raise it): moves and arcs are refused past it") {
+    Machine m = load("koc5");
+    m.motion.max_pieces = 50;
+    {
+        const Kinematics k(m);
+        Translator t(k, {});
+        std::string out;
+        t.feed("G28", 1, out);
+        t.feed("G43.4", 2, out);
+        out.clear();
+        // Ten turns of C at the machine's angle tolerance: thousands of pieces, past 50.
+        const auto e = refusal(t, "G1 X16.75 Z3.34 B-11.1 C-3600 F1385", 3, out);
+        CHECK(e.line() == 3);
+        CHECK(std::string(e.what()).find("more than 50 pieces") != std::string::npos);
+        CHECK(count_lines(out) == 0);
+        // A short turn fits: split as before, within the lower bound.
+        REQUIRE_NOTHROW(t.feed("G1 X16.75 Z3.34 B-11.1 C-5 F1385", 4, out));
+        CHECK(count_lines(out) > 1);
+        CHECK(count_lines(out) <= 50);
+    }
+    m.motion.max_pieces = 1 << 30;  // above the bound: the bound holds
+    {
+        const Kinematics k(m);
+        Translator t(k, {});
+        std::string out;
+        t.feed("G28", 1, out);
+        t.feed("G43.4", 2, out);
+        const auto e = refusal(t, "G1 X16.75 Z3.34 B-11.1 C-369037 F1385", 3, out);
+        CHECK(std::string(e.what()).find("more than 10000 pieces") != std::string::npos);
+    }
+    // Arcs: the chord function and the interpreter's count of output lines.
+    Arc a;
+    a.start = {10, 0, 0};
+    a.end = a.start;
+    a.offset_a = -10;
+    std::vector<Eigen::Vector3d> ends;
+    REQUIRE(arc_chords(a, 0.01, ends).empty());
+    const std::size_t chords = ends.size();
+    REQUIRE(chords > 4);
+    CHECK(arc_chords(a, 0.01, ends, int(chords) - 1).find("more than " + std::to_string(chords - 1)) != std::string::npos);
+    CHECK(arc_chords(a, 0.01, ends, int(chords)).empty());
+    CHECK(arc_chords(a, 0.01, ends, 1 << 30).empty());
+    Machine pr = load("pentarod");
+    pr.motion.max_pieces = 10;
+    const Kinematics kp(pr);
+    Translator t(kp, {});
+    std::string out;
+    t.feed("G1 X10 Y0 Z5 I0 J0 K1 F1200", 1, out);
+    out.clear();
+    const auto e = refusal(t, "G2 X10 Y0 I-10 J0", 2, out);
+    CHECK(std::string(e.what()).find("more than 10") != std::string::npos);
+    CHECK(out.empty());
+}
+
 TEST_CASE("the look-back's window is bounded by bytes as well as by lines") {
     const Machine m = load("rw2");
     const Kinematics k(m);

@@ -266,6 +266,27 @@ TEST_CASE("limits: the look-back window is bounded: a travel move too far back d
     CHECK(v.unwinds == 1);
 }
 
+TEST_CASE("limits: fewer end solutions tried by the look-back: the nearest one still unwinds; at least one is always tried") {
+    const Machine m = load("rw2");
+    const Kinematics k(m);
+    const Program p = azimuth_loop(k, 300, 150, false);
+    Translator all(k, {});
+    all.set_lookback(Translator::kDefaultLookback);
+    std::string expected;
+    REQUIRE_NOTHROW(expected = run(all, p));
+    REQUIRE(check(m, k, p, expected, false).unwinds == 1);
+    // The layer change unwinds onto the nearest other solution (the other branch): one tried is
+    // enough, and a bound below one is one.
+    for (const int candidates : {1, 0, -5}) {
+        CAPTURE(candidates);
+        Translator t(k, {});
+        t.set_lookback(Translator::kDefaultLookback, candidates);
+        std::string out;
+        REQUIRE_NOTHROW(out = run(t, p));
+        CHECK(out == expected);
+    }
+}
+
 TEST_CASE("limits: a travel move whose end is outside the limits takes the other branch by itself") {
     const Machine m = load("rw2");
     const Kinematics k(m);

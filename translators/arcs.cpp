@@ -16,7 +16,7 @@ ArcPlane arc_plane(int plane) {
     return {0, 1, 2, 'I', 'J'};
 }
 
-std::string arc_chords(const Arc& arc, double chord_tol, std::vector<Eigen::Vector3d>& ends) {
+std::string arc_chords(const Arc& arc, double chord_tol, std::vector<Eigen::Vector3d>& ends, int max_chords) {
     ends.clear();
     if (arc.turns < 1 || arc.turns > kMaxArcTurns)
         return "arc turns P must be 1 to " + std::to_string(kMaxArcTurns);
@@ -53,9 +53,10 @@ std::string arc_chords(const Arc& arc, double chord_tol, std::vector<Eigen::Vect
     const double step = chord_tol < r0 ? 2 * std::acos(1 - chord_tol / r0) : kTwoPi / 4;
     // Counted in double before the cast: many turns of a small tolerance overflow an int.
     const double need = std::ceil(sweep / step);
-    if (!(need <= kMaxPiecesPerLine))
+    const int cap = pieces_bound(max_chords);
+    if (!(need <= cap))
         return "the arc needs " + (need < 1e15 ? std::to_string(std::int64_t(need)) : std::string("too many")) +
-               " chords to stay within the tolerance, more than " + std::to_string(kMaxPiecesPerLine) +
+               " chords to stay within the tolerance, more than " + std::to_string(cap) +
                " (the bound on pieces per input line)";
     const int chords = std::max(1, int(need));
     for (int k = 1; k <= chords; ++k) {

@@ -33,6 +33,7 @@ struct Arc {
 // plane's normal; the last point is exactly `arc.end`. Returns an empty string, or why the arc
 // cannot be cut (a radius too small, an end point off the circle, turns outside 1..kMaxArcTurns,
 // more than kMaxPiecesPerLine chords).
-std::string arc_chords(const Arc& arc, double chord_tolerance, std::vector<Eigen::Vector3d>& ends);
+// `max_chords` (0: kMaxPiecesPerLine, never above it) lowers the bound.
+std::string arc_chords(const Arc& arc, double chord_tolerance, std::vector<Eigen::Vector3d>& ends, int max_chords = 0);
 
 }  // namespace xlate5

@@ -21,4 +21,10 @@ inline constexpr double kSameAngle = 1e-6;
 // cannot turn into an unbounded output (docs/limits.md).
 inline constexpr int kMaxPiecesPerLine = 10000;
 
+// The bound in force for a machine's `motion.max_pieces`: 0 (unset) or above the bound is the
+// bound; a program may only lower it.
+inline constexpr int pieces_bound(int requested) {
+    return requested <= 0 || requested > kMaxPiecesPerLine ? kMaxPiecesPerLine : requested;
+}
+
 }  // namespace xlate5

@@ -351,7 +351,8 @@ void Interpreter::arc(bool clockwise, std::uint32_t column, const Params& words,
         }
     }
     if (centre == a.by_radius) fail(column, "an arc needs its centre as I J K offsets or its radius as R (one of them)");
-    if (auto why = arc_chords(a, 0.5 * machine_.motion.tolerance, chord_ends_); !why.empty()) fail(column, why);
+    const int bound = pieces_bound(machine_.motion.max_pieces);
+    if (auto why = arc_chords(a, 0.5 * machine_.motion.tolerance, chord_ends_, bound); !why.empty()) fail(column, why);
     const int chords = int(chord_ends_.size());
     // Each chord may be split further: the line's output as a whole is bounded too.
     std::size_t counted = out.size();
@@ -385,8 +386,8 @@ void Interpreter::arc(bool clockwise, std::uint32_t column, const Params& words,
         tool_move(1, column, chord_words_, true, false, run, out);
         pieces += std::count(out.begin() + std::ptrdiff_t(counted), out.end(), '\n');
         counted = out.size();
-        if (pieces > kMaxPiecesPerLine)
-            fail(column, "the arc needs more than " + std::to_string(kMaxPiecesPerLine) +
+        if (pieces > bound)
+            fail(column, "the arc needs more than " + std::to_string(bound) +
                              " output lines to stay within the tolerance (the bound on pieces per input line)");
     }
     m.modes.motion = clockwise ? 2 : 3;

@@ -9,8 +9,9 @@ namespace xlate5 {
 LookBack::LookBack(Interpreter& interpreter, ForwardState& state, MoveLog* log)
     : interpreter_(interpreter), state_(state), log_(log), before_line_(state), checkpoint_(state) {}
 
-void LookBack::set_lines(std::size_t lines) {
+void LookBack::set_lines(std::size_t lines, int candidates) {
     lines_ = lines;
+    candidates_ = candidates < 1 ? 1 : candidates > kMaxCandidates ? kMaxCandidates : candidates;
     if (log_) log_->hold(lines > 0);
 }
 
@@ -96,7 +97,7 @@ bool LookBack::unwind_before(std::string_view line, std::uint64_t line_no, LineR
     const std::string held_saved = held_;
     const MoveLog::Held log_saved = log_ ? log_->held() : MoveLog::Held{};
     const int was = chosen_;
-    for (int k = 0; k < 64; ++k) {
+    for (int k = 0; k < candidates_; ++k) {
         if (k == was) continue;
         state_ = checkpoint_;
         held_.clear();

@@ -31,13 +31,16 @@ public:
     // and the output held back.
     static constexpr std::size_t kMaxWindowBytes = std::size_t(1) << 20;
     static constexpr std::size_t kMaxHeldBytes = std::size_t(8) << 20;
+    // End solutions of a travel move tried in turn (nearest first) before a line is refused.
+    static constexpr int kMaxCandidates = 64;
 
     // `log` may be null (no report).
     LookBack(Interpreter& interpreter, ForwardState& state, MoveLog* log);
 
     // 0 (the default): every line's output is appended at once, and only the travel move that
     // itself runs into a limit unwinds. With look-back on, call finish() after the last line.
-    void set_lines(std::size_t lines);
+    // `candidates` (1 to kMaxCandidates) may lower the solutions tried.
+    void set_lines(std::size_t lines, int candidates = kMaxCandidates);
     void feed(std::string_view line, std::uint64_t line_no, std::string& out);
     void finish(std::string& out);
 
@@ -50,6 +53,7 @@ private:
     ForwardState& state_;
     MoveLog* log_;
     std::size_t lines_ = 0;
+    int candidates_ = kMaxCandidates;
     bool have_checkpoint_ = false;
     std::uint64_t checkpoint_line_ = 0;
     int chosen_ = -1;  // the solution the checkpoint's travel move took (-1: its usual end)

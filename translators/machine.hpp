@@ -56,6 +56,10 @@ struct MotionSettings {
     double angle_tolerance = 0.5;  // degrees: the tool axis may leave its great-circle path by this
     double rotary_feed = 3600;     // deg/min for a pure reorientation (no tip motion)
     bool segment = true;           // split moves to the tolerance (off: one joint move per input move)
+    // Output moves one input line may become; not a machine-file key. 0: the bound of
+    // docs/limits.md (kMaxPiecesPerLine), which a program may only lower (the fuzz harness does,
+    // to bound the work per input while still reaching the refusal).
+    int max_pieces = 0;
 };
 
 struct Machine {

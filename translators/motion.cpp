@@ -335,8 +335,9 @@ IkResult MotionStage::split(const MoveSpec& mv) {
         s_.push_back(sb);
         qs_.insert(qs_.end(), qb.begin(), qb.end());
         qs_exact_.insert(qs_exact_.end(), ok_exact_.begin(), ok_exact_.end());
-        if (int(s_.size()) > kMaxPiecesPerLine)  // refused, not silently truncated (docs/limits.md)
-            return {IkStatus::Singular, "the move needs more than " + std::to_string(kMaxPiecesPerLine) +
+        const int bound = pieces_bound(machine_.motion.max_pieces);
+        if (int(s_.size()) > bound)  // refused, not silently truncated (docs/limits.md)
+            return {IkStatus::Singular, "the move needs more than " + std::to_string(bound) +
                                             " pieces to stay within the tolerance (the bound on pieces per input line)"};
         sa = sb;
         qa.swap(qb);

@@ -54,8 +54,8 @@ void Translator::feed(std::string_view line, std::uint64_t line_no, std::string&
     else forward_->lookback.feed(line, line_no, out);
 }
 
-void Translator::set_lookback(std::size_t lines) {
-    if (forward_) forward_->lookback.set_lines(lines);
+void Translator::set_lookback(std::size_t lines, int candidates) {
+    if (forward_) forward_->lookback.set_lines(lines, candidates);
 }
 
 void Translator::finish(std::string& out) {

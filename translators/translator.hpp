@@ -50,8 +50,9 @@ public:
     // held for at most `lines` input lines, so that a travel move can be translated again ending
     // on another solution when the printing after it would pass a limit. 0 (the default): every
     // line's output is appended at once. With look-back on, call finish() after the last line.
-    // The inverse direction has no look-back.
-    void set_lookback(std::size_t lines);
+    // The inverse direction has no look-back. `candidates` (1 to 64, the default) lowers the
+    // number of end solutions tried at a travel move (the fuzz harness bounds its work with it).
+    void set_lookback(std::size_t lines, int candidates = 64);
     void finish(std::string& out);
     static constexpr std::size_t kDefaultLookback = 2000;
 
