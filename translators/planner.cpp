@@ -313,13 +313,14 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     }
     if (measured) {
         measured->change = change;
+        measured->rezeros = 0;
+        measured->moves_written = emitter_.moves_written();
         if (passage) {
             // The split measures the tip only in angle form: the axis as checked above.
             measured->angle_error = std::max(measured->angle_error, passage_angle);
             const std::size_t b = std::size_t(kin_.rotary_joints()[1]);
             if (s.q[b] * q_next_[b] < 0) measured->pole_crossings = 1;  // the tilt changed sign: the other branch
         }
-        log_->add(run.line_no, *measured);
     }
     if (spec.mode == OrientationMode::Vector) q_next_ = motion_.final_joints();
     // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move
@@ -334,8 +335,10 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
             which_[j] = true;
             q_next_[j] -= 360.0 * turns;
             send_joints(which_, std::nullopt, q_next_, out);
+            if (measured) ++measured->rezeros;
         }
     }
+    if (measured) log_->add(run.line_no, *measured);  // with its re-zeros: the move's events are logged whole
     s.q.swap(q_next_);
     s.pose = next;
     s.tip_known = s.tip_known || mv.any_xyz;

@@ -31,6 +31,23 @@ public:
     void add_solution_change(int turns, int branch) { turns_ += std::uint64_t(turns), branches_ += std::uint64_t(branch); }
     void set_lines(std::uint64_t in, std::uint64_t out) { lines_in_ = in, lines_out_ = out; }
 
+    // Where the counted events happened: each at the input line of its move and at the output's
+    // move lines (the emitter's count once the move was written), so a preview of the output
+    // marks exactly what is counted here. The first kMaxMarks are kept; the counts stay exact.
+    enum class MarkKind { PoleCrossing, Unwind, BranchChange, Rezero };
+    struct Mark {
+        MarkKind kind;
+        std::uint64_t line;
+        std::uint64_t moves_written;
+    };
+    static constexpr std::size_t kMaxMarks = 2000;
+    void add_marks(std::uint64_t line, std::uint64_t moves_written, int pole_crossings, int change, int rezeros);
+    const std::vector<Mark>& marks() const { return marks_; }
+    std::uint64_t pole_crossings() const { return pole_crossings_; }
+    std::uint64_t unwinds() const { return turns_; }
+    std::uint64_t branch_changes() const { return branches_; }
+    std::uint64_t rezeros() const { return rezeros_; }
+
     std::string json() const;
     std::string svg() const;
 
@@ -65,7 +82,8 @@ private:
     };
     std::vector<Range> ranges_;  // one per joint
     double minutes_ = 0;
-    std::uint64_t turns_ = 0, branches_ = 0;
+    std::uint64_t turns_ = 0, branches_ = 0, rezeros_ = 0;
+    std::vector<Mark> marks_;
     std::vector<Point> series_;  // at most kMaxPoints, each the worst of `bucket_` moves
     std::uint64_t bucket_ = 1, in_bucket_ = 0;
     static constexpr std::size_t kMaxPoints = 2000;
@@ -93,6 +111,8 @@ public:
         int change;  // SolutionChange
         int pole_crossings;
         bool half_turn;
+        int rezeros;
+        std::uint64_t moves_written;
     };
     struct Held {
         std::vector<Pending> moves;
