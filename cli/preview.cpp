@@ -289,7 +289,9 @@ std::string Preview::html(const std::string& title) const {
     }
     for (std::size_t i = 0; i < marks.size(); ++i) {
         const Mark& k = marks[i];
-        const double at = moves_ > 1 ? double(std::min(k.move, moves_ - 1)) / double(moves_ - 1) : 0.0;
+        // Along the joint charts, which draw the kept moves (every every_-th written move from the
+        // first) evenly: a mark sits where its move is, between the kept ones around it.
+        const double at = n > 1 ? std::min(1.0, double(k.move) / double(every_) / double(n - 1)) : 0.0;
         data += std::string(i ? "," : "") + "[\"" + kind_name(k.kind) + "\"," + num(at) + "," + num(k.tip[0]) + "," + num(k.tip[1]) + "," +
                 num(k.tip[2]) + "," + std::to_string(k.move) + "]";
     }

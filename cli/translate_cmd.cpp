@@ -75,7 +75,7 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
     app.add_option("--plot", o.plot, "write the tip deviation along the file as an SVG plot to this file")->option_text("FILE");
     app.add_flag("--compact-words", o.compact_words, "the input is written without blanks: X1.5E-05 is X1.5 and E-05 (as the line '; xlate5: compact-words')");
     app.add_option("--preview", o.preview_html,
-                   "write a page to look at before printing: the tip path in 3D coloured by tilt or deviation, the tool axis, pole crossings and unwinds marked, each joint against its limits")
+                   "write a page to look at before printing: the tip path in 3D coloured by tilt or deviation, the tool axis, the pole crossings, unwinds, branch changes and re-zeros --report counts marked, each joint against its limits")
         ->option_text("FILE.html");
     app.add_flag("--no-progress", o.no_progress, "no progress bar on standard error (there is one only when it is a terminal)");
     app.add_option("file", o.file,
