@@ -304,3 +304,39 @@ TEST_CASE("the plot's deviation axis is logarithmic with decade ticks written pl
         CHECK(label.find('e') == std::string::npos);
     }
 }
+
+TEST_CASE("the report counts every G92 that re-zeroes a wound-up turntable, the joint move before the tip is placed included") {
+    // koc5's C re-zeroes beyond 1800 degrees at the end of a travel move. Under G43.4, after G28,
+    // a C-only move is a joint move (the tip is not placed yet), which the report does not
+    // measure; its re-zero is still one.
+    for (const std::size_t lookback : {std::size_t(0), Translator::kDefaultLookback}) {
+        CAPTURE(lookback);
+        Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/koc5.toml");
+        const Kinematics k(m);
+        DeviationReport report("t.gcode", "koc5", m.motion.tolerance, m.motion.angle_tolerance);
+        TranslatorOptions o;
+        o.report = &report;
+        o.start_mode = OrientationMode::Angles;
+        Translator t(k, o);
+        t.set_lookback(lookback);
+        std::string out;
+        std::uint64_t n = 0;
+        for (const char* line : {"G28", "G1 C2000 F1000", "G1 X0 Y0 Z10 C-150", "G1 X5 Y0 Z10 C1900", "G1 X5 Y5 Z10 C1900 E1"}) t.feed(line, ++n, out);
+        t.finish(out);
+        CAPTURE(out);
+        // Independent: the G92 lines naming C in the output, and the move lines before each.
+        int written = 0;
+        std::uint64_t moves = 0;
+        std::vector<std::uint64_t> after;
+        for (const auto& l : lines_of(out)) {
+            if (l.rfind("G0 ", 0) == 0 || l.rfind("G1 ", 0) == 0) ++moves;
+            if (l.rfind("G92 ", 0) == 0 && words_of(l).count('C')) ++written, after.push_back(moves);
+        }
+        CHECK(written == 2);
+        CHECK(field(report.json(), "rezeros", "") == written);
+        std::vector<std::uint64_t> marked;
+        for (const auto& mk : report.marks())
+            if (mk.kind == DeviationReport::MarkKind::Rezero) marked.push_back(mk.moves_written);
+        CHECK(marked == after);
+    }
+}

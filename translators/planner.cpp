@@ -313,7 +313,6 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     }
     if (measured) {
         measured->change = change;
-        measured->rezeros = 0;
         measured->moves_written = emitter_.moves_written();
         if (passage) {
             // The split measures the tip only in angle form: the axis as checked above.
@@ -326,6 +325,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move
     // (no extrusion), where a G92 cannot disturb a printed line: firmware without wrapping
     // (Marlin, soft endstops) then never runs out of range.
+    int rezeros = 0;
     if (!prints) {  // under absolute E, E0 after E5 extrudes (backwards): only an unchanged E does not
         for (std::size_t j = 0; j < q_next_.size(); ++j) {
             const Joint& J = machine_.joints[j];
@@ -335,10 +335,16 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
             which_[j] = true;
             q_next_[j] -= 360.0 * turns;
             send_joints(which_, std::nullopt, q_next_, out);
-            if (measured) ++measured->rezeros;
+            ++rezeros;
         }
     }
-    if (measured) log_->add(run.line_no, *measured);  // with its re-zeros: the move's events are logged whole
+    // The move's events are logged whole, with its re-zeros.
+    if (measured) {
+        measured->rezeros = rezeros;
+        log_->add(run.line_no, *measured);
+    } else if (log_ && rezeros > 0) {
+        log_->add_rezeros(run.line_no, emitter_.moves_written(), rezeros);
+    }
     s.q.swap(q_next_);
     s.pose = next;
     s.tip_known = s.tip_known || mv.any_xyz;

@@ -259,7 +259,7 @@ void MoveLog::add(std::uint64_t line, const MoveResult& m) {
     const bool ranged = m.low.size() == n && m.high.size() == n;
     if (hold_) {
         held_.moves.push_back({line, m.tip_error, m.angle_error, m.feed_error, m.pieces, held_.travel.size(), m.minutes, int(m.change), m.pole_crossings, half_turn,
-                               m.rezeros, m.moves_written});
+                               m.rezeros, m.moves_written, true});
         for (std::size_t j = 0; j < n; ++j) held_.ranges.push_back(ranged ? m.low[j] : NAN);
         for (std::size_t j = 0; j < n; ++j) held_.ranges.push_back(ranged ? m.high[j] : NAN);
         return;
@@ -271,6 +271,15 @@ void MoveLog::add(std::uint64_t line, const MoveResult& m) {
     add_rest(ranges_.data(), m.minutes, int(m.change));
     report_.add_route(m.pole_crossings, half_turn);
     report_.add_marks(line, m.moves_written, m.pole_crossings, int(m.change), m.rezeros);
+}
+
+void MoveLog::add_rezeros(std::uint64_t line, std::uint64_t moves_written, int rezeros) {
+    if (!hold_) {
+        report_.add_marks(line, moves_written, 0, int(SolutionChange::None), rezeros);
+        return;
+    }
+    held_.moves.push_back({line, 0, 0, 0, 0, held_.travel.size(), 0, int(SolutionChange::None), 0, false, rezeros, moves_written, false});
+    held_.ranges.insert(held_.ranges.end(), 2 * machine_.joints.size(), NAN);
 }
 
 void MoveLog::add_rest(const double* ranges, double minutes, int change) {
@@ -287,9 +296,11 @@ void MoveLog::release(std::size_t moves) {
     const std::size_t n = machine_.joints.size();
     for (std::size_t i = 0, t = 0; i < moves; ++i) {
         const Pending& m = held_.moves[i];
-        report_.add_move(m.line, m.tip, m.angle, m.feed, m.pieces);
-        report_.add_route(m.pole_crossings, m.half_turn);
-        add_rest(&held_.ranges[i * 2 * n], m.minutes, m.change);
+        if (m.measured) {
+            report_.add_move(m.line, m.tip, m.angle, m.feed, m.pieces);
+            report_.add_route(m.pole_crossings, m.half_turn);
+            add_rest(&held_.ranges[i * 2 * n], m.minutes, m.change);
+        }
         report_.add_marks(m.line, m.moves_written, m.pole_crossings, m.change, m.rezeros);
         for (; t < m.travel_end; ++t) report_.add_rotary_travel(held_.travel[t].first, held_.travel[t].second);
     }

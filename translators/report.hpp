@@ -100,6 +100,9 @@ public:
 
     void hold(bool on) { hold_ = on; }
     void add(std::uint64_t line, const MoveResult& m);
+    // G92s that re-zeroed a rotary after a move that is not measured (a joint move before the
+    // program placed the tip): counted and marked like a measured move's.
+    void add_rezeros(std::uint64_t line, std::uint64_t moves_written, int rezeros);
 
     // A held move, and the rotary travel of the held moves (each move's ends at travel_end).
     struct Pending {
@@ -113,6 +116,7 @@ public:
         bool half_turn;
         int rezeros;
         std::uint64_t moves_written;
+        bool measured;  // false: only its re-zeros (add_rezeros)
     };
     struct Held {
         std::vector<Pending> moves;
