@@ -321,7 +321,8 @@ TEST_CASE("the report counts every G92 that re-zeroes a wound-up turntable, the 
         t.set_lookback(lookback);
         std::string out;
         std::uint64_t n = 0;
-        for (const char* line : {"G28", "G1 C2000 F1000", "G1 X0 Y0 Z10 C-150", "G1 X5 Y0 Z10 C1900", "G1 X5 Y5 Z10 C1900 E1"}) t.feed(line, ++n, out);
+        // The program's angles keep counting across a re-zero (2010: 10 degrees on from 2000).
+        for (const char* line : {"G28", "G1 C2000 F1000", "G1 X0 Y0 Z10 C2010", "G1 X5 Y0 Z10 C4060", "G1 X5 Y5 Z10 C4060 E1"}) t.feed(line, ++n, out);
         t.finish(out);
         CAPTURE(out);
         // Independent: the G92 lines naming C in the output, and the move lines before each.

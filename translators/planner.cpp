@@ -325,15 +325,20 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move
     // (no extrusion), where a G92 cannot disturb a printed line: firmware without wrapping
     // (Marlin, soft endstops) then never runs out of range.
+    // The program's angles are unchanged by it: under G43.4 the image takes the turns removed, so
+    // the next programmed angle is written in the re-zeroed frame (the table turns as programmed).
     int rezeros = 0;
     if (!prints) {  // under absolute E, E0 after E5 extrudes (backwards): only an unchanged E does not
-        for (std::size_t j = 0; j < q_next_.size(); ++j) {
+        const auto& rot = kin_.rotary_joints();
+        for (std::size_t k = 0; k < rot.size(); ++k) {
+            const std::size_t j = std::size_t(rot[k]);
             const Joint& J = machine_.joints[j];
             if (J.rezero_beyond <= 0 || std::abs(q_next_[j]) <= J.rezero_beyond) continue;
             const double turns = std::round(q_next_[j] / 360.0);
             which_.assign(q_next_.size(), false);
             which_[j] = true;
             q_next_[j] -= 360.0 * turns;
+            s.image.shift[k] -= 360.0 * turns;
             send_joints(which_, std::nullopt, q_next_, out);
             ++rezeros;
         }
