@@ -8,6 +8,7 @@
 #include <string>
 
 #include "helpers.hpp"
+#include "translators/error.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/report.hpp"
@@ -339,5 +340,56 @@ TEST_CASE("the report counts every G92 that re-zeroes a wound-up turntable, the 
         for (const auto& mk : report.marks())
             if (mk.kind == DeviationReport::MarkKind::Rezero) marked.push_back(mk.moves_written);
         CHECK(marked == after);
+    }
+}
+
+TEST_CASE("with the look-back a refused line's moves leave the report as its output leaves the file (an arc cut short at a limit)") {
+    // rw2's A stops at +-168. An arc under G43.4 turning A from 100 on is refused at the chord that
+    // passes 168, after the chords before it were measured. A caller that carries on after the
+    // error (the service) gets the output and the report of the program without that line.
+    Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/rw2.toml");
+    REQUIRE(m.joints[std::size_t(m.joint_index('A'))].max == 168);
+    const Kinematics k(m);
+    for (const bool travel_before : {false, true}) {
+        CAPTURE(travel_before);
+        std::vector<std::string> program = {"M83", "G1 X110 Y100 Z10 A0 B30 E0.1 F1200", "G1 X115 Y100 Z10 A100 B30 E0.1", "",
+                                            "G1 X120 Y100 Z10 A120 B30 E0.1", "G1 X120 Y105 Z10 A110 B30 E0.1"};
+        std::string refused = "G2 X125 Y100 I5 J0 A200 E1";  // refused: nothing to unwind on before it
+        if (travel_before) {
+            // Turned back on the travel move, the printing from there still passes a limit.
+            program[2] = "G0 X115 Y100 Z10 A100 B30";
+            refused = "G2 X125 Y100 I5 J0 A520 E1";  // 420 degrees of printing: no solution keeps it within 336
+        }
+        auto run = [&](bool with_refused, std::string& out) {
+            DeviationReport report("t.gcode", "rw2", m.motion.tolerance, m.motion.angle_tolerance);
+            TranslatorOptions o;
+            o.report = &report;
+            o.start_mode = OrientationMode::Angles;
+            Translator t(k, o);
+            t.set_lookback(Translator::kDefaultLookback);
+            std::uint64_t n = 0;
+            bool threw = false;
+            for (const auto& line : program) {
+                ++n;
+                if (!line.empty()) t.feed(line, n, out);
+                else if (with_refused) {
+                    try {
+                        t.feed(refused, n, out);
+                    } catch (const InputError& e) {
+                        threw = true;
+                        CAPTURE(e.message());
+                        CHECK(contains(e.message(), "joint A"));
+                    }
+                }
+            }
+            t.finish(out);
+            CHECK(threw == with_refused);
+            std::size_t marks = report.marks().size();
+            return report.json() + report.svg() + std::to_string(marks);
+        };
+        std::string out_with, out_without;
+        const std::string with = run(true, out_with), without = run(false, out_without);
+        CHECK(out_with == out_without);
+        CHECK(with == without);
     }
 }

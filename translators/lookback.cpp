@@ -35,15 +35,18 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
         if (!run.hit_limit) {
             // A refused line (the service goes on after one typed in a terminal) leaves nothing
             // behind: its output was only held, so what the emitter remembers of the firmware is
-            // restored too, and later lines print as if it never came.
+            // restored too, the report forgets its moves (an arc's chords before the one refused),
+            // and later lines print as if it never came.
             state_ = before_line_;
             held_.resize(held_start);
+            if (log_) log_->drop_held_from(moves_start);
             throw;
         }
         const bool had_checkpoint = have_checkpoint_;
         if (!unwind_before(line, line_no, run)) {
             state_ = before_line_;  // as for any refused line (above)
             held_.resize(held_start);
+            if (log_) log_->drop_held_from(moves_start);
             std::string message = e.message();
             if (had_checkpoint)
                 message += "; turning it back on the travel move at line " + std::to_string(checkpoint_line_) +

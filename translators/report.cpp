@@ -282,6 +282,13 @@ void MoveLog::add_rezeros(std::uint64_t line, std::uint64_t moves_written, int r
     held_.ranges.insert(held_.ranges.end(), 2 * machine_.joints.size(), NAN);
 }
 
+void MoveLog::drop_held_from(std::size_t moves) {
+    if (moves >= held_.moves.size()) return;
+    held_.travel.resize(moves == 0 ? 0 : held_.moves[moves - 1].travel_end);
+    held_.ranges.resize(moves * 2 * machine_.joints.size());
+    held_.moves.resize(moves);
+}
+
 void MoveLog::add_rest(const double* ranges, double minutes, int change) {
     const std::size_t n = machine_.joints.size();
     for (std::size_t j = 0; j < n; ++j)

@@ -132,6 +132,8 @@ public:
         held_.travel.clear();
         held_.ranges.clear();
     }
+    // The held moves from the `moves`-th on are dropped: a refused line's, whose output is dropped.
+    void drop_held_from(std::size_t moves);
 
 private:
     void add_rest(const double* ranges, double minutes, int change);  // ranges: low, high of every joint
