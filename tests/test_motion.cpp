@@ -1059,6 +1059,33 @@ TEST_CASE("re-zero: after G92 C-160 from 2000 a programmed C2010 turns the table
     CHECK(contains(out, "G1 C2000 F3600\nG92 C-160\n"));
 }
 
+TEST_CASE("re-zero: the program's angles go on across a switch to G43.5 and back; a G92 on C sets them afresh") {
+    // Entering G43.4 the programmed angles are the joints as they are, but for the turns the
+    // re-zeros took off: those are the firmware's business.
+    check_turns({"G43.4", "G1 X0 Y0 Z10 B20 C1000 F1000", "G1 X0 Y0 Z10 C2000", "G43.5", "G1 X1", "G43.4", "G1 X1 C2010", "G1 X0 C4000",
+                 "G43.5", "G1 X1", "G43.4", "G1 X0 C4010"},
+                {NAN, 1000, 1000, NAN, 0, NAN, 10, 1990, NAN, 0, NAN, 10}, false, Form::Gcode);
+    // A G92 on C says where the table is in the program's angles: they count from it again.
+    const Machine m = load("koc5");
+    const Kinematics k(m);
+    Translator t(k, {});
+    std::string out;
+    std::uint64_t n = 0;
+    for (const char* l : {"G43.4", "G1 X0 Y0 Z10 B20 C1000 F1000", "G1 X0 Y0 Z10 C2000", "G92 C0", "G1 X1 C10", "G28", "G43.4",
+                          "G1 X0 Y0 Z10 B20 C30"})
+        t.feed(l, ++n, out);
+    CAPTURE(out);
+    CHECK(contains(out, "G92 C-160\nG92 C0\n"));
+    CHECK(contains(out, " C10 "));
+    CHECK(contains(out, "G28\n"));
+    CHECK(contains(out, " C30 "));
+    std::vector<double> fw = m.home_joints();
+    double f = 0;
+    Turns turns;
+    replay(m, out.substr(0, out.find("G28\n")), std::size_t(m.joint_index('C')), fw, f, turns);  // to the homing
+    CHECK(std::abs(turns.path - (2000 + 10)) < 1e-6);
+}
+
 TEST_CASE("re-zero under G43.4: each line turns C by its programmed change, printed, travel, arcs, relative angles") {
     // C 25 degrees on per line to about 5000, every 4th line a travel (re-zeroed there past 1800);
     // an arc and a G91 stretch after the first re-zero.

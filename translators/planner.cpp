@@ -57,6 +57,17 @@ Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter
       motion_(kinematics, emitter),
       q_next_(state.q) {}
 
+void Planner::plain_image() {
+    state_.image = {};
+    for (std::size_t k = 0; k < kin_.rotary_joints().size(); ++k) state_.image.shift[k] = -state_.rezeroed[k];
+}
+
+void Planner::forget_rezeros(const std::vector<bool>& which) {
+    const auto& rot = kin_.rotary_joints();
+    for (std::size_t k = 0; k < rot.size(); ++k)
+        if (which[std::size_t(rot[k])]) state_.rezeroed[k] = 0;
+}
+
 void Planner::map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const {
     const auto& rot = kin_.rotary_joints();
     for (std::size_t k = 0; k < rot.size(); ++k) {
@@ -339,6 +350,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
             which_[j] = true;
             q_next_[j] -= 360.0 * turns;
             s.image.shift[k] -= 360.0 * turns;
+            s.rezeroed[k] += 360.0 * turns;
             send_joints(which_, std::nullopt, q_next_, out);
             ++rezeros;
         }
@@ -374,11 +386,15 @@ void Planner::joint_move(const JointMove& mv, std::string& out) {
 }
 
 void Planner::set_joints(const std::vector<bool>& which, const std::vector<double>& values, bool pose_from_joints) {
+    bool any = false;
     for (std::size_t j = 0; j < which.size(); ++j) {
         if (!which[j]) continue;
         state_.q[j] = values[j];
-        state_.image = {};  // the program and the firmware now agree on the joint
+        any = true;
     }
+    // The program and the firmware now agree on the joints named.
+    forget_rezeros(which);
+    if (any) plain_image();
     // The machine did not move: its true pose follows from the joints it now says it is at.
     if (pose_from_joints) state_.pose = kin_.forward(state_.q);
 }
@@ -390,7 +406,8 @@ void Planner::send_position(const std::vector<bool>& which, const std::optional<
 void Planner::home(const std::vector<bool>& which) {
     for (std::size_t j = 0; j < state_.q.size(); ++j)
         if (which[j]) state_.q[j] = machine_.joints[j].home;
-    state_.image = {};
+    forget_rezeros(which);
+    plain_image();
     state_.tip_known = false;
     state_.pose = kin_.forward(state_.q);
     emitter_.invalidate(state_.q);
