@@ -343,14 +343,16 @@ TEST_CASE("the report counts every G92 that re-zeroes a wound-up turntable, the 
     }
 }
 
-TEST_CASE("with the look-back a refused line's moves leave the report as its output leaves the file (an arc cut short at a limit)") {
+TEST_CASE("a refused line's moves leave the report as its output leaves the file (an arc cut short at a limit), with the look-back or not") {
     // rw2's A stops at +-168. An arc under G43.4 turning A from 100 on is refused at the chord that
     // passes 168, after the chords before it were measured. A caller that carries on after the
     // error (the service) gets the output and the report of the program without that line.
     Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/rw2.toml");
     REQUIRE(m.joints[std::size_t(m.joint_index('A'))].max == 168);
     const Kinematics k(m);
+    for (const std::size_t lookback : {std::size_t(0), Translator::kDefaultLookback})
     for (const bool travel_before : {false, true}) {
+        CAPTURE(lookback);
         CAPTURE(travel_before);
         std::vector<std::string> program = {"M83", "G1 X110 Y100 Z10 A0 B30 E0.1 F1200", "G1 X115 Y100 Z10 A100 B30 E0.1", "",
                                             "G1 X120 Y100 Z10 A120 B30 E0.1", "G1 X120 Y105 Z10 A110 B30 E0.1"};
@@ -366,7 +368,7 @@ TEST_CASE("with the look-back a refused line's moves leave the report as its out
             o.report = &report;
             o.start_mode = OrientationMode::Angles;
             Translator t(k, o);
-            t.set_lookback(Translator::kDefaultLookback);
+            t.set_lookback(lookback);
             std::uint64_t n = 0;
             bool threw = false;
             for (const auto& line : program) {
@@ -389,7 +391,10 @@ TEST_CASE("with the look-back a refused line's moves leave the report as its out
         };
         std::string out_with, out_without;
         const std::string with = run(true, out_with), without = run(false, out_without);
-        CHECK(out_with == out_without);
+        // Without the look-back what the firmware was told of the refused line is not known
+        // (interpreter.cpp): the next line is written with every joint.
+        if (lookback > 0) CHECK(out_with == out_without);
+        else CHECK(out_with.size() > out_without.size());
         CHECK(with == without);
     }
 }

@@ -7,24 +7,27 @@
 namespace xlate5 {
 
 LookBack::LookBack(Interpreter& interpreter, ForwardState& state, MoveLog* log)
-    : interpreter_(interpreter), state_(state), log_(log), before_line_(state), checkpoint_(state) {}
-
-void LookBack::set_lines(std::size_t lines) {
-    lines_ = lines;
-    if (log_) log_->hold(lines > 0);
+    : interpreter_(interpreter), state_(state), log_(log), before_line_(state), checkpoint_(state) {
+    // Moves are held, with look-back or not, at least for their line: a refused line's are dropped with its output.
+    if (log_) log_->hold(true);
 }
+
+void LookBack::set_lines(std::size_t lines) { lines_ = lines; }
 
 void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
     LineRun run;
     run.line_no = line_no;
     if (lines_ == 0) {
+        const std::size_t moves_start = held_moves();
         try {
             interpreter_.feed_line(line, run, out);
         } catch (const InputError& e) {
+            if (log_) log_->drop_held_from(moves_start);
             if (!run.hit_limit) throw;
             throw InputError(e.file(), e.line(), e.column(),
                              e.message() + "; turn the joint back on a travel move before this line, or plan the path within the limits");
         }
+        if (log_) log_->release(held_moves());
         return;
     }
     before_line_ = state_;
