@@ -93,7 +93,8 @@ struct Machine;
 struct MoveResult;
 
 // Measured moves on their way to the report: added at once, or, while the look-back holds the
-// output they belong to, held and released with it (dropped when it translates them again).
+// output they belong to (at least their own line's), held and released with it (dropped when it
+// translates them again or refuses their line).
 class MoveLog {
 public:
     MoveLog(DeviationReport& report, const Machine& machine) : report_(report), machine_(machine) {}
