@@ -10,9 +10,6 @@ namespace xlate5::cli {
 
 namespace {
 
-// A travel move turning a rotary this far is marked as an unwind (onto another turn, or the
-// other branch, as the planner's look-back does before printing that would pass a limit).
-constexpr double kUnwindTurnDeg = 150;
 constexpr int kDeviationSamples = 8;  // interior points per written move
 
 double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
@@ -43,6 +40,8 @@ std::string html_text(const std::string& s) {
 // The page's script: plain JavaScript on a 2D canvas, no library, no network.
 const char* kScript = R"JS(
 const D = JSON.parse(document.getElementById('data').textContent);
+const KIND = {pole: {colour: 'magenta', text: 'pole crossing'}, unwind: {colour: 'darkorange', text: 'unwind (whole turns)'},
+              branch: {colour: 'green', text: 'branch change (the other solution)'}, rezero: {colour: 'grey', text: 're-zero (G92)'}};
 const n = D.q.length, J = D.joints.length;
 const tips = [], axes = [];
 for (const p of D.pose) { tips.push([p[0], p[1], p[2]]); axes.push([p[3], p[4], p[5]]); }
@@ -81,9 +80,9 @@ function draw() {
     const a = project(tips[i - 1]), b = project(tips[i]);
     g.strokeStyle = D.pose[i][7] || framed === tips ? colour(D.pose[i]) : 'rgba(0,0,0,0.15)'; g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke();
   }
-  for (const m of D.marks) {  // pole crossings: magenta rings; unwinds: orange squares
+  for (const m of D.marks) {  // pole crossings: rings; unwinds, branch changes, re-zeros: squares
     const a = project([m[2], m[3], m[4]]);
-    g.lineWidth = 2; g.strokeStyle = m[0] === 'pole' ? 'magenta' : 'darkorange'; g.beginPath();
+    g.lineWidth = 2; g.strokeStyle = KIND[m[0]].colour; g.beginPath();
     if (m[0] === 'pole') g.arc(a[0], a[1], 6, 0, 2 * Math.PI); else g.rect(a[0] - 5, a[1] - 5, 10, 10);
     g.stroke();
   }
@@ -91,7 +90,7 @@ function draw() {
   g.fillText((mode.value === 'dev' ? 'deviation: blue 0 \u2026 red ' + D.tolerance + ' mm (the tolerance) and beyond'
                                    : 'tilt: blue 0\u00b0 \u2026 red ' + D.max_tilt.toFixed(1) + '\u00b0') +
              '; grey: tool axis; faint: travel.', 8, 16);
-  g.fillText('Magenta ring: pole crossing; orange square: unwind. Drag to turn.', 8, 32);
+  g.fillText('Magenta ring: pole crossing; squares: orange unwind, green branch change, grey re-zero. Drag to turn.', 8, 32);
 }
 mode.addEventListener('change', draw);
 let drag = null;
@@ -122,13 +121,13 @@ D.joints.forEach((j, k) => {
   h.fillText(j.low.toFixed(2) + ' \u2026 ' + j.high.toFixed(2), 4, 86);
   for (const m of D.marks) {
     const x = 60 + m[1] * 830;
-    h.strokeStyle = m[0] === 'pole' ? 'magenta' : 'darkorange'; h.beginPath(); h.moveTo(x, 10); h.lineTo(x, 80); h.stroke();
+    h.strokeStyle = KIND[m[0]].colour; h.beginPath(); h.moveTo(x, 10); h.lineTo(x, 80); h.stroke();
   }
 });
 const list = document.getElementById('marks');
 D.marks.slice(0, 100).forEach(m => {
   const li = document.createElement('li'); li.dataset.kind = m[0];
-  li.textContent = (m[0] === 'pole' ? 'pole crossing' : 'unwind') + ' at written move ' + m[5] +
+  li.textContent = KIND[m[0]].text + ' at written move ' + m[5] +
                    ' (tip ' + m.slice(2, 5).map(v => v.toFixed(2)).join(', ') + ')';
   list.appendChild(li);
 });
@@ -136,10 +135,20 @@ if (D.marks.length > 100) { const li = document.createElement('li'); li.textCont
 document.title = document.title + ' (drawn)';
 )JS";
 
+const char* kind_name(DeviationReport::MarkKind kind) {
+    switch (kind) {
+        case DeviationReport::MarkKind::PoleCrossing: return "pole";
+        case DeviationReport::MarkKind::Unwind: return "unwind";
+        case DeviationReport::MarkKind::BranchChange: return "branch";
+        case DeviationReport::MarkKind::Rezero: return "rezero";
+    }
+    return "";
+}
+
 }  // namespace
 
-Preview::Preview(const Kinematics& kinematics)
-    : kin_(kinematics), joints_(kinematics.machine().joints.size()), q_now_(kinematics.machine().home_joints()),
+Preview::Preview(const Kinematics& kinematics, const DeviationReport& events)
+    : kin_(kinematics), events_(events), joints_(kinematics.machine().joints.size()), q_now_(kinematics.machine().home_joints()),
       low_(q_now_), high_(q_now_), q_before_(q_now_) {}
 
 void Preview::scan(std::string_view output) {
@@ -195,32 +204,25 @@ void Preview::line(std::string_view l) {
         for (std::size_t j = 0; j < joints_; ++j)
             if (joints[j].output == letter) q_now_[j] = v;
     }
-    bool turned = false, unwound = false;
-    for (std::size_t j = 0; j < joints_; ++j) {
-        if (!joints[j].rotary || q_now_[j] == q_before_[j]) continue;
-        turned = true;
-        unwound = unwound || std::abs(q_now_[j] - q_before_[j]) >= kUnwindTurnDeg;
-    }
-    if (!move) {
-        // A G92 that renames a rotary's angle: a wound-up turntable re-zeroed.
-        if (turned) mark(MarkKind::Unwind, q_now_);
-        return;
-    }
+    if (!move) return;
+    bool turned = false;
+    for (std::size_t j = 0; j < joints_; ++j) turned = turned || (joints[j].rotary && q_now_[j] != q_before_[j]);
     for (std::size_t j = 0; j < joints_; ++j) low_[j] = std::min(low_[j], q_now_[j]), high_[j] = std::max(high_[j], q_now_[j]);
     if (turned) dev_since_ = std::max(dev_since_, deviation(q_before_, q_now_));
-    if (unwound && !printing_) mark(MarkKind::Unwind, q_now_);
-    // Across a pole the tilting rotary changes sign (the other branch, where the first rotary
-    // lies along the tool at zero): marked where it arrives on the other side.
-    const auto& rot = kin_.rotary_joints();
-    if (rot.size() == 2 && kin_.has_flip()) {
-        const double tilt = q_now_[std::size_t(rot[1])];
-        const int sign = tilt > 0 ? 1 : tilt < 0 ? -1 : 0;
-        if (sign != 0) {
-            if (tilt_sign_ != 0 && sign != tilt_sign_) mark(MarkKind::PoleCrossing, q_now_);
-            tilt_sign_ = sign;
-        }
+    ++moves_;
+    join_marks(moves_);  // the events of the moves that ended on this line
+    if ((moves_ - 1) % every_ == 0) keep();
+}
+
+// The report's events up to the move line numbered `through` (from 1), placed on the written
+// move they ended on: the joints and tip there are what the firmware is told.
+void Preview::join_marks(std::uint64_t through) {
+    const auto& marks = events_.marks();
+    for (; joined_ < marks.size() && marks[joined_].moves_written <= through; ++joined_) {
+        const Eigen::Vector3d tip = kin_.forward(q_now_).tip;
+        const std::uint64_t move = marks[joined_].moves_written > 0 ? marks[joined_].moves_written - 1 : 0;
+        marks_.push_back({marks[joined_].kind, move, {tip.x(), tip.y(), tip.z()}});
     }
-    if (moves_++ % every_ == 0) keep();
 }
 
 double Preview::deviation(const std::vector<double>& from, const std::vector<double>& to) const {
@@ -233,13 +235,6 @@ double Preview::deviation(const std::vector<double>& from, const std::vector<dou
         worst = std::max(worst, segment_distance(kin_.forward(q).tip, a, b));
     }
     return worst;
-}
-
-void Preview::mark(MarkKind kind, const std::vector<double>& q) {
-    ++marks_seen_;
-    if (marks_.size() >= kMaxMarks) return;
-    const Eigen::Vector3d tip = kin_.forward(q).tip;
-    marks_.push_back({kind, moves_, {tip.x(), tip.y(), tip.z()}});
 }
 
 void Preview::keep() {
@@ -285,13 +280,20 @@ std::string Preview::html(const std::string& title) const {
                 num(p.axis.y()) + "," + num(p.axis.z()) + "," + num(tilt) + "," + (prints_[i] ? "1" : "0") + "," + num(dev_[i]) + "]";
     }
     data += "], " + pose + "], \"max_tilt\": " + num(max_tilt) + ", \"tolerance\": " + num(m.motion.tolerance) + ", \"marks\": [";
-    std::size_t poles = 0, unwinds = 0;
-    for (std::size_t i = 0; i < marks_.size(); ++i) {
-        const Mark& k = marks_[i];
-        (k.kind == MarkKind::PoleCrossing ? poles : unwinds) += 1;
-        const double at = moves_ > 1 ? double(std::min(k.move, moves_ - 1)) / double(moves_ - 1) : 0.0;
-        data += std::string(i ? "," : "") + "[\"" + (k.kind == MarkKind::PoleCrossing ? "pole" : "unwind") + "\"," + num(at) + "," +
-                num(k.tip[0]) + "," + num(k.tip[1]) + "," + num(k.tip[2]) + "," + std::to_string(k.move) + "]";
+    // Every mark the report kept (one not yet joined, for a move after the last line read, sits on the last move).
+    const auto& events = events_.marks();
+    std::vector<Mark> marks = marks_;
+    for (std::size_t i = joined_; i < events.size(); ++i) {
+        const Eigen::Vector3d tip = kin_.forward(q_now_).tip;
+        marks.push_back({events[i].kind, moves_ > 0 ? moves_ - 1 : 0, {tip.x(), tip.y(), tip.z()}});
+    }
+    for (std::size_t i = 0; i < marks.size(); ++i) {
+        const Mark& k = marks[i];
+        // Along the joint charts, which draw the kept moves (every every_-th written move from the
+        // first) evenly: a mark sits where its move is, between the kept ones around it.
+        const double at = n > 1 ? std::min(1.0, double(k.move) / double(every_) / double(n - 1)) : 0.0;
+        data += std::string(i ? "," : "") + "[\"" + kind_name(k.kind) + "\"," + num(at) + "," + num(k.tip[0]) + "," + num(k.tip[1]) + "," +
+                num(k.tip[2]) + "," + std::to_string(k.move) + "]";
     }
     data += "], \"joints\": [";
     for (std::size_t j = 0; j < joints_; ++j) {
@@ -301,11 +303,14 @@ std::string Preview::html(const std::string& title) const {
                 ", \"low\": " + num(low_[j]) + ", \"high\": " + num(high_[j]) + "}";
     }
     data += "]}";
+    const std::uint64_t total = events_.pole_crossings() + events_.unwinds() + events_.branch_changes() + events_.rezeros();
     std::string o = "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>xlate5 preview: " + html_text(title) +
                     "</title>\n<style>body{font-family:sans-serif;margin:12px}canvas{display:block;border:1px solid #ccc;margin:4px 0}</style>"
                     "</head>\n<body>\n<h3>" + html_text(title) + "</h3>\n<p>" + std::to_string(moves_) + " moves written, " +
-                    std::to_string(n) + " shown. " + std::to_string(poles) + " pole crossings, " + std::to_string(unwinds) + " unwinds marked" +
-                    (marks_seen_ > marks_.size() ? " (the first " + std::to_string(marks_.size()) + " of " + std::to_string(marks_seen_) + ")" : "") +
+                    std::to_string(n) + " shown. " + std::to_string(events_.pole_crossings()) + " pole crossings, " +
+                    std::to_string(events_.unwinds()) + " unwinds, " + std::to_string(events_.branch_changes()) + " branch changes, " +
+                    std::to_string(events_.rezeros()) + " re-zeros marked" +
+                    (total > marks.size() ? " (the first " + std::to_string(marks.size()) + " of " + std::to_string(total) + ")" : "") +
                     ". Joints over the file below, their limits dashed red.</p>\n"
                     "<p>Colour by <select id=\"colour\"><option value=\"tilt\">tilt</option><option value=\"dev\">deviation</option></select></p>\n"
                     "<canvas id=\"view\" width=\"900\" height=\"600\"></canvas>\n<div id=\"joints\"></div>\n<ul id=\"marks\"></ul>\n"

@@ -18,7 +18,6 @@
 #include "cli/provenance.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
-#include "translators/gcode_lexer.hpp"
 #include "translators/input_front.hpp"
 #include "translators/keep_out.hpp"
 #include "translators/kinematics.hpp"
@@ -76,7 +75,7 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
     app.add_option("--plot", o.plot, "write the tip deviation along the file as an SVG plot to this file")->option_text("FILE");
     app.add_flag("--compact-words", o.compact_words, "the input is written without blanks: X1.5E-05 is X1.5 and E-05 (as the line '; xlate5: compact-words')");
     app.add_option("--preview", o.preview_html,
-                   "write a page to look at before printing: the tip path in 3D coloured by tilt or deviation, the tool axis, pole crossings and unwinds marked, each joint against its limits")
+                   "write a page to look at before printing: the tip path in 3D coloured by tilt or deviation, the tool axis, the pole crossings, unwinds, branch changes and re-zeros --report counts marked, each joint against its limits")
         ->option_text("FILE.html");
     app.add_flag("--no-progress", o.no_progress, "no progress bar on standard error (there is one only when it is a terminal)");
     app.add_option("file", o.file,
@@ -161,13 +160,12 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
             options.keep_out = &*keep_out;
         }
         std::optional<DeviationReport> report;
-        if (!o.report.empty() || !o.plot.empty()) {
+        if (!o.report.empty() || !o.plot.empty() || !o.preview_html.empty()) {  // the preview marks the report's events
             report.emplace(options.input_name, machine->name, machine->motion.tolerance, machine->motion.angle_tolerance);
             options.report = &*report;
         }
+        options.compact_words = o.compact_words;
         Translator translator(kinematics, options);
-        std::string declared;  // the flag is the file's declaration line, read before the file
-        if (o.compact_words) translator.feed("; " + std::string(kCompactDeclaration), 0, declared);
         FrontOptions front_options;
         front_options.format = o.inverse ? InputFormat::GCode : *parse_input_format(o.input_format);
         front_options.input_name = options.input_name;
@@ -183,7 +181,7 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         const bool regular = ::fstat(in_fd, &in_stat) == 0 && S_ISREG(in_stat.st_mode);
         Progress progress(regular ? std::uint64_t(in_stat.st_size) : 0, !o.no_progress && ::isatty(2));
         std::optional<Preview> preview;
-        if (!o.preview_html.empty()) preview.emplace(kinematics);
+        if (!o.preview_html.empty()) preview.emplace(kinematics, *report);
 
         // The first line says what the file is: binary G-code is refused, xlate5's own header
         // of the space this run writes is a second translation (refused unless forced), the

@@ -973,6 +973,54 @@ std::string find_chromium() {
     return "";
 }
 
+// A count the report gives ("name": N).
+long report_count(const std::string& json, const std::string& name) {
+    const auto at = json.find("\"" + name + "\": ");
+    REQUIRE_MESSAGE(at != std::string::npos, name);
+    return std::stol(json.substr(at + name.size() + 4));
+}
+
+// The page's summary of its marks, as the report's counts say it must read.
+std::string marks_summary(const std::string& json) {
+    return std::to_string(report_count(json, "pole_crossings")) + " pole crossings, " + std::to_string(report_count(json, "unwinds")) +
+           " unwinds, " + std::to_string(report_count(json, "branch_changes")) + " branch changes, " +
+           std::to_string(report_count(json, "rezeros")) + " re-zeros marked";
+}
+
+int occurrences(const std::string& hay, const std::string& what) {
+    int c = 0;
+    for (auto at = hay.find(what); at != std::string::npos; at = hay.find(what, at + 1)) ++c;
+    return c;
+}
+
+// The page's DOM once headless Chromium ran its script.
+std::string rendered_dom(const std::string& chromium, const fs::path& profile, const std::string& url) {
+    const std::string cmd = quote(chromium) + " --headless --no-sandbox --disable-gpu --disable-background-networking --disable-component-update "
+                            "--disable-sync --no-first-run --window-size=1000,1400 --user-data-dir=" + quote(profile.string()) +
+                            " --dump-dom " + quote(url) + " 2>/dev/null";
+    std::string dom;
+    if (FILE* p = ::popen(cmd.c_str(), "r")) {
+        char b[4096];
+        for (std::size_t n; (n = std::fread(b, 1, sizeof b, p)) > 0;) dom.append(b, n);
+        ::pclose(p);
+    }
+    return dom;
+}
+
+// The marks listed in the page's data: kind and written move number.
+std::vector<std::pair<std::string, long>> page_marks(const std::string& html) {
+    std::vector<std::pair<std::string, long>> marks;
+    const auto start = html.find("\"marks\": [");
+    REQUIRE(start != std::string::npos);
+    const auto end = html.find("], \"joints\"", start);
+    for (auto at = html.find("[\"", start); at != std::string::npos && at < end; at = html.find("[\"", at + 1)) {
+        const auto q = html.find('"', at + 2), close = html.find(']', at);
+        const auto comma = html.rfind(',', close);
+        marks.emplace_back(html.substr(at + 2, q - at - 2), std::stol(html.substr(comma + 1, close - comma - 1)));
+    }
+    return marks;
+}
+
 }  // namespace
 
 TEST_CASE("cli: --preview writes one self-contained page, bounded in size, that headless Chromium loads and draws") {
@@ -980,10 +1028,31 @@ TEST_CASE("cli: --preview writes one self-contained page, bounded in size, that 
     const fs::path source = fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path();
     const std::string example = (source / "examples/rw2_flared_wall.gcode").string();
     const fs::path page = d.path / "wall.html";
-    const Result r = run(d, "-m rw2 -i " + quote(example) + " -o " + quote((d.path / "out.gcode").string()) + " --preview " + quote(page.string()));
+    const Result r = run(d, "-m rw2 -i " + quote(example) + " -o " + quote((d.path / "out.gcode").string()) + " --preview " + quote(page.string()) +
+                                " --report " + quote((d.path / "wall.json").string()));
     REQUIRE(r.code == 0);
     const std::string html = read(page);
     REQUIRE(!html.empty());
+    // The marks are the report's events: the first travel from home turns A by 150 degrees in one
+    // line but ends where the file put it (A150), so it is no unwind, in the report or on the page.
+    const std::string json = read(d.path / "wall.json");
+    CHECK(contains(html, marks_summary(json)));
+    CHECK(page_marks(html).size() == std::size_t(report_count(json, "pole_crossings") + report_count(json, "unwinds") +
+                                                 report_count(json, "branch_changes") + report_count(json, "rezeros")));
+    double a_before_printing = NAN, largest_turn = 0;  // A where the travel ends, as written; its largest step
+    for (const auto& l : lines_of(read(d.path / "out.gcode"))) {
+        if (l.rfind("G0 ", 0) != 0 && l.rfind("G1 ", 0) != 0) continue;
+        const auto w = words_of(l);
+        if (w.count('E')) break;
+        if (w.count('A')) {
+            if (!std::isnan(a_before_printing)) largest_turn = std::max(largest_turn, std::abs(w.at('A') - a_before_printing));
+            a_before_printing = w.at('A');
+        }
+    }
+    MESSAGE("the travel from home ends at A " << a_before_printing << ", largest step " << largest_turn << " degrees");
+    CHECK(a_before_printing == 150);
+    CHECK(report_count(json, "unwinds") + report_count(json, "branch_changes") == 0);
+    CHECK(page_marks(html).empty());
     // Nothing from the network: no external script, style, image or font.
     CHECK(!contains(html, "http://"));
     CHECK(!contains(html, "https://"));
@@ -1040,6 +1109,7 @@ TEST_CASE("cli: --preview writes one self-contained page, bounded in size, that 
         ::pclose(p);
     }
     CHECK(contains(dom, "(drawn)</title>"));
+    CHECK(occurrences(dom, "data-kind=") == int(page_marks(html).size()));
     // Not blank: a page of the same size with nothing drawn compresses to far fewer bytes.
     const fs::path blank = d.write("blank.html", "<!DOCTYPE html><html><body style=\"margin:0;background:#fff\"></body></html>\n");
     std::string blank_log;
@@ -1049,7 +1119,7 @@ TEST_CASE("cli: --preview writes one self-contained page, bounded in size, that 
     CHECK(drawn > 4 * empty);
 }
 
-TEST_CASE("cli: --preview marks pole crossings and unwinds where the written output has them, and colours by deviation") {
+TEST_CASE("cli: --preview marks pole crossings and re-zeros where the written output has them, as the report counts them, and colours by deviation") {
     // koc5 (B tilts, C turns the table without limit): a printed helix whose tool axis passes the
     // pole twice, then travel moves that wind C past five turns, re-zeroed with G92 by a travel.
     TempDir d;
@@ -1069,26 +1139,46 @@ TEST_CASE("cli: --preview marks pole crossings and unwinds where the written out
         in += "G1 X0 Y0 Z20 I" + fmt(std::sin(tilt) * std::cos(az)) + " J" + fmt(std::sin(tilt) * std::sin(az)) + " K" + fmt(std::cos(tilt)) + "\n";
     }
     const fs::path page = d.path / "marks.html", out = d.path / "marks.gcode";
-    const Result r = run(d, "-m koc5 -o " + quote(out.string()) + " --preview " + quote(page.string()), in);
+    const fs::path report = d.path / "marks.json";
+    const Result r = run(d, "-m koc5 -o " + quote(out.string()) + " --preview " + quote(page.string()) + " --report " + quote(report.string()), in);
     REQUIRE_MESSAGE(r.code == 0, r.err);
     // The reference, from the written lines: B changing sign (the other branch across the pole)
-    // and G92 renaming C.
+    // and G92 renaming C; each mark sits on the written move B arrives on the other side, or
+    // the one the G92 follows.
     int poles = 0, unwinds = 0, sign = 0;
+    long move = -1;
+    std::vector<long> pole_moves, rezero_moves;
     for (const auto& l : lines_of(read(out))) {
         if (l.rfind(';', 0) == 0) continue;  // the output's header
         const auto w = words_of(l);
-        if (l.rfind("G92 ", 0) == 0 && w.count('C')) ++unwinds;
+        if (l.rfind("G92 ", 0) == 0 && w.count('C')) ++unwinds, rezero_moves.push_back(move);
+        if (l.rfind("G1 ", 0) == 0 || l.rfind("G0 ", 0) == 0) ++move;
         if ((l.rfind("G1 ", 0) == 0 || l.rfind("G0 ", 0) == 0) && w.count('B') && w.at('B') != 0) {
             const int now = w.at('B') > 0 ? 1 : -1;
-            if (sign != 0 && now != sign) ++poles;
+            if (sign != 0 && now != sign) ++poles, pole_moves.push_back(move);
             sign = now;
         }
     }
     MESSAGE("written: " << poles << " pole crossings, " << unwinds << " re-zeroes");
     REQUIRE(poles >= 2);
     REQUIRE(unwinds >= 1);
-    const std::string html = read(page);
-    CHECK(contains(html, std::to_string(poles) + " pole crossings, " + std::to_string(unwinds) + " unwinds marked"));
+    const std::string html = read(page), json = read(report);
+    // The page, the report and the written joints agree.
+    CHECK(report_count(json, "pole_crossings") == poles);
+    CHECK(report_count(json, "rezeros") == unwinds);
+    CHECK(contains(html, marks_summary(json)));
+    CHECK(contains(html, std::to_string(poles) + " pole crossings, 0 unwinds, 0 branch changes, " + std::to_string(unwinds) + " re-zeros marked"));
+    std::vector<long> page_poles, page_rezeros, page_others;
+    for (const auto& [kind, at] : page_marks(html)) (kind == "pole" ? page_poles : kind == "rezero" ? page_rezeros : page_others).push_back(at);
+    CHECK(page_poles.size() == std::size_t(poles));
+    CHECK(page_others.empty());
+    CHECK(page_rezeros == rezero_moves);
+    // A pole crossing is marked on the last written piece of the move that crossed: at or after
+    // the line where B arrives on the other side, before the next crossing.
+    for (std::size_t i = 0; i < page_poles.size() && i < pole_moves.size(); ++i) {
+        CHECK(page_poles[i] >= pole_moves[i]);
+        if (i + 1 < pole_moves.size()) CHECK(page_poles[i] < pole_moves[i + 1]);
+    }
     CHECK(contains(html, "<option value=\"dev\">deviation</option>"));
 
     const std::string chromium = find_chromium();
@@ -1097,21 +1187,64 @@ TEST_CASE("cli: --preview marks pole crossings and unwinds where the written out
         return;
     }
     // Opened on the deviation view, the script draws the marks and lists them, and runs to its end.
-    const std::string cmd = quote(chromium) + " --headless --no-sandbox --disable-gpu --disable-background-networking --disable-component-update "
-                            "--disable-sync --no-first-run --window-size=1000,1400 --user-data-dir=" + quote((d.path / "profile").string()) +
-                            " --dump-dom " + quote("file://" + page.string() + "#deviation") + " 2>/dev/null";
-    std::string dom;
-    if (FILE* p = ::popen(cmd.c_str(), "r")) {
-        char b[4096];
-        for (std::size_t n; (n = std::fread(b, 1, sizeof b, p)) > 0;) dom.append(b, n);
-        ::pclose(p);
-    }
+    const std::string dom = rendered_dom(chromium, d.path / "profile", "file://" + page.string() + "#deviation");
     CHECK(contains(dom, "(drawn)</title>"));
-    auto count = [&](const std::string& what) {
-        int c = 0;
-        for (auto at = dom.find(what); at != std::string::npos; at = dom.find(what, at + 1)) ++c;
-        return c;
-    };
-    CHECK(count("data-kind=\"pole\"") == poles);
-    CHECK(count("data-kind=\"unwind\"") == unwinds);
+    CHECK(occurrences(dom, "data-kind=\"pole\"") == poles);
+    CHECK(occurrences(dom, "data-kind=\"rezero\"") == unwinds);
+    CHECK(occurrences(dom, "data-kind=") == poles + unwinds);
+}
+
+TEST_CASE("cli: --preview marks the look-back's unwind that the written lines split into small pieces, as the report counts it") {
+    // rw2 prints round its azimuth past A's limit (168): the layer change at A150 is turned onto
+    // the other branch (A - 180, B -> -B) by the look-back, its rotaries turning over many
+    // written pieces, none 150 degrees.
+    TempDir d;
+    std::string in;
+    for (const auto& l : unwinding_print(false)) in += l + "\n";
+    const fs::path page = d.path / "unwind.html", out = d.path / "unwind.gcode", report = d.path / "unwind.json";
+    const Result r = run(d, "-m rw2 -o " + quote(out.string()) + " --preview " + quote(page.string()) + " --report " + quote(report.string()), in);
+    REQUIRE_MESSAGE(r.code == 0, r.err);
+    // The reference, from the written joints: B changing sign (passing upright does not count),
+    // and the written move the travel ends on (the last before printing starts again).
+    int flips = 0, sign = 0;
+    long move = -1, flip_move = -1, travel_end = -1;
+    double largest_turn = 0, a_before = 0;
+    bool have_a = false;
+    for (const auto& l : lines_of(read(out))) {
+        if (l.rfind("G1 ", 0) != 0 && l.rfind("G0 ", 0) != 0) continue;
+        ++move;
+        const auto w = words_of(l);
+        if (w.count('A')) {
+            if (have_a) largest_turn = std::max(largest_turn, std::abs(w.at('A') - a_before));
+            a_before = w.at('A'), have_a = true;
+        }
+        if (flip_move >= 0 && travel_end < 0 && w.count('E')) travel_end = move - 1;
+        if (w.count('B') && std::abs(w.at('B')) > 1) {
+            const int now = w.at('B') > 0 ? 1 : -1;
+            if (sign != 0 && now != sign) ++flips, flip_move = move;
+            sign = now;
+        }
+    }
+    MESSAGE("written: " << flips << " branch flips, largest turn of A in one line " << largest_turn << " degrees");
+    REQUIRE(flips == 1);
+    CHECK(largest_turn < 150);  // split: no line of it looks like an unwind by itself
+    REQUIRE(travel_end >= flip_move);
+    const std::string html = read(page), json = read(report);
+    CHECK(report_count(json, "branch_changes") == flips);
+    CHECK(report_count(json, "pole_crossings") == 0);
+    CHECK(contains(html, marks_summary(json)));
+    const auto marks = page_marks(html);
+    REQUIRE(marks.size() == 1);
+    CHECK(marks[0].first == "branch");
+    CHECK(marks[0].second == travel_end);
+
+    const std::string chromium = find_chromium();
+    if (chromium.empty()) {
+        MESSAGE("chromium not installed: the page is not rendered (Debian package chromium)");
+        return;
+    }
+    const std::string dom = rendered_dom(chromium, d.path / "profile", "file://" + page.string());
+    CHECK(contains(dom, "(drawn)</title>"));
+    CHECK(occurrences(dom, "data-kind=\"branch\"") == flips);
+    CHECK(occurrences(dom, "data-kind=") == flips);
 }

@@ -34,8 +34,7 @@ struct Run {
     std::string output;
 };
 
-Run translate_file(const std::string& machine, const std::string& path, TranslatorOptions options = {}) {
-    const Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + machine + ".toml");
+Run translate_file(const Machine& m, const std::string& path, TranslatorOptions options = {}) {
     const Kinematics k(m);
     options.input_name = path;
     Translator t(k, options);
@@ -53,6 +52,10 @@ Run translate_file(const std::string& machine, const std::string& path, Translat
         run.error_column = e.column();
     }
     return run;
+}
+
+Run translate_file(const std::string& machine, const std::string& path, TranslatorOptions options = {}) {
+    return translate_file(load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + machine + ".toml"), path, std::move(options));
 }
 
 std::string line_of(const std::string& path, std::uint64_t n) {
@@ -220,6 +223,68 @@ TEST_CASE("joint-space multi-axis files pass through under G49" * doctest::skip(
         return n;
     };
     CHECK(count(run.output, "\nG93\n") == 319);
+}
+
+TEST_CASE("the inverse reads the S3-DeformFDM ring's CNC preamble, G49 included, and stops where the joint-space translation does" *
+          doctest::skip(xlate5::test::corpus_absent())) {
+    // The ring (Zhang et al., SIGGRAPH Asia 2022) starts G21 G40 G49 G80 G90: G49 cancels tool
+    // length compensation, so its X Y Z B C words are the machine's joints, which is what the
+    // inverse reads. Both directions read it as joint space (the extruder on A) on koc5 (B C).
+    const std::string path = corpus("s3deformfdm/ring_Gcode.txt");
+    REQUIRE(line_of(path, 3) == "G49");
+    TranslatorOptions joints, inverse;
+    joints.start_mode = OrientationMode::Joints;
+    joints.extruder_letter = inverse.extruder_letter = 'A';
+    inverse.inverse = true;
+    const Run forward = translate_file("koc5", path, joints), back = translate_file("koc5", path, inverse);
+    CAPTURE(forward.error);
+    CAPTURE(back.error);
+    CHECK(back.ok == forward.ok);
+    CHECK(back.error_line == forward.error_line);  // the same line refused, if any, for the same cause
+    if (!forward.ok) {
+        CHECK(back.error_line > 3);
+        CHECK(back.error.find("outside its limits") != std::string::npos);
+        CHECK(forward.error.find("outside its limits") != std::string::npos);
+    }
+
+    // koc5 with room for the ring's Z250 (its travel height; koc5 stops at 200): the inverse reads
+    // the whole file, and its tool-space output translated forward again (one joint move per
+    // move) gives the joints the joint-space translation wrote, to their last written digit.
+    Machine roomy = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/koc5.toml");
+    roomy.joints[std::size_t(roomy.joint_index('Z'))].max = 300;
+    roomy.motion.segment = false;
+    const Run wide_forward = translate_file(roomy, path, joints), wide_back = translate_file(roomy, path, inverse);
+    REQUIRE_MESSAGE(wide_forward.ok, wide_forward.error);
+    REQUIRE_MESSAGE(wide_back.ok, wide_back.error);
+    // Nothing of G49 reaches the tool-space output (there it would mean joints again).
+    for (const auto& l : xlate5::test::lines_of(wide_back.output)) CHECK(l.rfind("G49", 0) != 0);
+    const Kinematics k(roomy);
+    TranslatorOptions angles;
+    angles.start_mode = OrientationMode::Angles;
+    Translator again(k, angles);
+    std::string round;
+    std::uint64_t n = 0;
+    for (const auto& l : xlate5::test::lines_of(wide_back.output)) again.feed(l, ++n, round);
+    std::vector<double> q1 = roomy.home_joints(), q2 = q1;
+    std::size_t moves = 0;
+    double worst = 0;
+    const auto moves_of = [](const std::string& text) {
+        std::vector<std::string> m;
+        for (const auto& l : xlate5::test::lines_of(text))
+            if (l.rfind("G0 ", 0) == 0 || l.rfind("G1 ", 0) == 0) m.push_back(l);
+        return m;
+    };
+    const auto first = moves_of(wide_forward.output), second = moves_of(round);
+    REQUIRE(first.size() == second.size());
+    for (std::size_t i = 0; i < first.size(); ++i) {
+        xlate5::test::apply_joint_lines(roomy, first[i], q1);
+        xlate5::test::apply_joint_lines(roomy, second[i], q2);
+        for (std::size_t j = 0; j < q1.size(); ++j) worst = std::max(worst, std::abs(q1[j] - q2[j]));
+        ++moves;
+    }
+    MESSAGE("ring: " << moves << " joint moves, inverse and forward again within " << worst << " of the joint-space translation");
+    CHECK(moves > 60000);
+    CHECK(worst <= 1e-3);
 }
 
 TEST_CASE("files xlate5 cannot accept fail at the right line with a cause" * doctest::skip(xlate5::test::corpus_absent())) {

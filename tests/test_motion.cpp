@@ -5,11 +5,14 @@
 
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <random>
+#include <sstream>
 #include <string>
 
 #include "helpers.hpp"
 #include "translators/error.hpp"
+#include "translators/input_front.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/report.hpp"
@@ -916,5 +919,283 @@ TEST_CASE("near the pole over many short moves: the turntable turns only as much
         // Two passages (the path ends outside the region), each turning no more than the reference
         // needs, give or take a degree.
         CHECK(travel_c <= ref_travel + 2.0);
+    }
+}
+
+// ---- re-zero: after a G92 the table turns as programmed ------------------------------------
+
+namespace {
+
+// What the firmware does with translated text, replayed by helpers.hpp's tracker as Marlin reads
+// it: a G0/G1 turns a joint from where the firmware holds it to the value written; a G92 renames
+// where the joint is and turns nothing. Physical turns of joint `j`, and the time at the F written.
+struct Turns {
+    double net = 0, path = 0, minutes = 0;
+    int renames = 0;
+};
+void replay(const Machine& m, const std::string& text, std::size_t j, std::vector<double>& fw, double& f, Turns& t) {
+    for (const auto& l : lines_of(text)) {
+        std::vector<double> cur = fw;
+        apply_joint_lines(m, l, cur);
+        if (l.rfind("G92 ", 0) == 0) {
+            if (words_of(l).count(m.joints[j].output)) ++t.renames;
+        } else if (l.rfind("G0 ", 0) == 0 || l.rfind("G1 ", 0) == 0) {
+            const auto w = words_of(l);
+            if (w.count('F')) f = w.at('F');
+            t.net += cur[j] - fw[j];
+            t.path += std::abs(cur[j] - fw[j]);
+            if (f > 0) t.minutes += firmware_length(m, fw, cur) / f;
+        }
+        fw = cur;
+    }
+}
+
+double json_number(const std::string& json, const std::string& key) {
+    const auto p = json.find("\"" + key + "\": ");
+    REQUIRE(p != std::string::npos);
+    return std::stod(json.substr(p + key.size() + 4));
+}
+
+enum class Form { Gcode, Apt, Waypoints };
+
+struct Run {
+    std::string out;
+    Turns turns;
+};
+
+// Translates `lines` on koc5 (C re-zeroed beyond 1800 degrees) and replays the output. Without the
+// look-back each line's physical C turn is checked against `turn` (NaN: not checked; by size
+// only when `by_size`, for the forms that program a tool axis, whose shortest turn is the
+// reference); the report's C travel and time are checked against the replay either way.
+Run translate_turns(const std::vector<std::string>& lines, const std::vector<double>& turn, bool by_size, Form form, bool segment,
+                    std::size_t lookback, std::optional<OrientationMode> mode) {
+    REQUIRE(lines.size() == turn.size());
+    Machine m = load("koc5");
+    const std::size_t C = std::size_t(m.joint_index('C'));
+    REQUIRE(m.joints[C].rezero_beyond == 1800);
+    m.motion.segment = segment;
+    const Kinematics k(m);
+    DeviationReport report("t", "koc5", m.motion.tolerance, m.motion.angle_tolerance);
+    TranslatorOptions o;
+    o.report = &report;
+    o.start_mode = mode;
+    Translator t(k, o);
+    t.set_lookback(lookback);
+    FrontOptions fo{form == Form::Apt ? InputFormat::Apt : form == Form::Waypoints ? InputFormat::Waypoints : InputFormat::GCode};
+    InputFront front(t, fo);
+    std::vector<double> fw = t.joints();
+    double f = 0;
+    Run run;
+    int checked = 0;
+    for (std::size_t i = 0; i < lines.size(); ++i) {
+        std::string o1;
+        front.feed(lines[i], i + 1, o1);
+        run.out += o1;
+        Turns line;
+        replay(m, o1, C, fw, f, line);
+        run.turns.net += line.net, run.turns.path += line.path, run.turns.minutes += line.minutes, run.turns.renames += line.renames;
+        if (std::isnan(turn[i]) || lookback > 0) continue;
+        CAPTURE(lines[i]);
+        CAPTURE(o1);
+        ++checked;
+        // The line's turn is the programmed one (C printed to 3 decimals), made monotonically.
+        if (by_size) CHECK(std::abs(std::abs(line.net) - std::abs(turn[i])) < 2e-3);
+        else CHECK(std::abs(line.net - turn[i]) < 2e-3);
+        CHECK(std::abs(line.path - std::abs(line.net)) < 2e-3);
+    }
+    std::string rest;
+    front.finish(lines.size(), rest);
+    t.finish(rest);
+    run.out += rest;
+    replay(m, rest, C, fw, f, run.turns);
+    if (lookback == 0) CHECK(checked > 0);
+    // The report measured the same motion: C's travel (from the joints before they are printed to
+    // 3 decimals) and the time (before F is printed to 0.1).
+    const std::string json = report.json();
+    CAPTURE(json);
+    CHECK(json_number(json, "rezeros") == run.turns.renames);
+    const auto travel = json.find("\"rotary_travel_deg\"");
+    REQUIRE(travel != std::string::npos);
+    CHECK(std::abs(json_number(json.substr(travel), "C") - run.turns.path) < 1e-3 * double(lines.size()));
+    CHECK(json_number(json, "estimated_minutes") == doctest::Approx(run.turns.minutes).epsilon(2e-3));
+    return run;
+}
+
+// Each of `lines` turns the table as programmed, with and without splitting; the look-back (which
+// holds lines, so checked as a whole) writes the same turns.
+std::string check_turns(const std::vector<std::string>& lines, const std::vector<double>& turn, bool by_size, Form form,
+                        std::optional<OrientationMode> mode = std::nullopt) {
+    std::string out;
+    for (const bool segment : {true, false}) {
+        CAPTURE(segment);
+        const Run plain = translate_turns(lines, turn, by_size, form, segment, 0, mode);
+        const Run held = translate_turns(lines, turn, by_size, form, segment, Translator::kDefaultLookback, mode);
+        MESSAGE("segment " << segment << ": C turned " << plain.turns.path << " deg, " << plain.turns.renames << " re-zeros, "
+                           << plain.turns.minutes * 60 << " s; with the look-back " << held.turns.path << " deg");
+        CHECK(plain.turns.renames >= 2);
+        CHECK(held.turns.renames == plain.turns.renames);
+        CHECK(std::abs(held.turns.path - plain.turns.path) < 1e-6);
+        CHECK(std::abs(held.turns.net - plain.turns.net) < 1e-6);
+        if (segment) out = plain.out;
+    }
+    return out;
+}
+
+// A tool tilted 30 degrees from vertical at 15 i degrees about Z (C turns 15 per step), at a
+// point of a circle of radius 20: x y z i j k, each before `sep[n]`.
+std::string tilted(int i, const std::vector<std::string>& sep) {
+    const double az = rad(15.0 * i), tilt = rad(30);
+    const double v[6] = {20 * std::cos(az), 20 * std::sin(az), 5, std::sin(tilt) * std::cos(az), std::sin(tilt) * std::sin(az), std::cos(tilt)};
+    std::string s;
+    for (int n = 0; n < 6; ++n) s += sep[std::size_t(n)] + num(v[n], n < 3 ? 6 : 9);
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("re-zero: after G92 C-160 from 2000 a programmed C2010 turns the table 10 degrees, not 2170") {
+    const std::string out = check_turns({"G28", "G1 X0 Y0 Z10 C1000 F1000", "G1 X0 Y0 Z10 C2000", "G1 X1 C2010", "G1 X0 C4000", "G1 X1 C4010"},
+                                        {NAN, 1000, 1000, 10, 1990, 10}, false, Form::Gcode, OrientationMode::Angles);
+    CHECK(contains(out, "G1 C2000 F3600\nG92 C-160\n"));
+}
+
+TEST_CASE("re-zero: the program's angles go on across a switch to G43.5 and back; a G92 on C sets them afresh") {
+    // Entering G43.4 the programmed angles are the joints as they are, but for the turns the
+    // re-zeros took off: those are the firmware's business.
+    check_turns({"G43.4", "G1 X0 Y0 Z10 B20 C1000 F1000", "G1 X0 Y0 Z10 C2000", "G43.5", "G1 X1", "G43.4", "G1 X1 C2010", "G1 X0 C4000",
+                 "G43.5", "G1 X1", "G43.4", "G1 X0 C4010"},
+                {NAN, 1000, 1000, NAN, 0, NAN, 10, 1990, NAN, 0, NAN, 10}, false, Form::Gcode);
+    // A G92 on C says where the table is in the program's angles: they count from it again.
+    const Machine m = load("koc5");
+    const Kinematics k(m);
+    Translator t(k, {});
+    std::string out;
+    std::uint64_t n = 0;
+    for (const char* l : {"G43.4", "G1 X0 Y0 Z10 B20 C1000 F1000", "G1 X0 Y0 Z10 C2000", "G92 C0", "G1 X1 C10", "G28", "G43.4",
+                          "G1 X0 Y0 Z10 B20 C30"})
+        t.feed(l, ++n, out);
+    CAPTURE(out);
+    CHECK(contains(out, "G92 C-160\nG92 C0\n"));
+    CHECK(contains(out, " C10 "));
+    CHECK(contains(out, "G28\n"));
+    CHECK(contains(out, " C30 "));
+    std::vector<double> fw = m.home_joints();
+    double f = 0;
+    Turns turns;
+    replay(m, out.substr(0, out.find("G28\n")), std::size_t(m.joint_index('C')), fw, f, turns);  // to the homing
+    CHECK(std::abs(turns.path - (2000 + 10)) < 1e-6);
+}
+
+TEST_CASE("re-zero under G43.4: each line turns C by its programmed change, printed, travel, arcs, relative angles") {
+    // C 25 degrees on per line to about 5000, every 4th line a travel (re-zeroed there past 1800);
+    // an arc and a G91 stretch after the first re-zero.
+    std::vector<std::string> lines = {"G43.4", "M83", "G1 X10 Y0 Z10 B20 C0 F1000"};
+    std::vector<double> turn = {NAN, NAN, 0};
+    double c = 0;
+    for (int i = 1; i <= 200; ++i) {
+        const double a = rad(5.0 * i);
+        if (i == 100) {
+            // Half a circle and a bit about the origin (radius 10) with C turned by 40 along it,
+            // then straight back with C turned back by 30.
+            lines.push_back("G3 X" + num(10 * std::cos(a + kPi)) + " Y" + num(10 * std::sin(a + kPi)) + " I" + num(-10 * std::cos(a - rad(5))) +
+                            " J" + num(-10 * std::sin(a - rad(5))) + " C" + num(c + 40) + " E0.5");
+            turn.push_back(40), c += 40;
+            lines.push_back("G1 X" + num(10 * std::cos(a)) + " Y" + num(10 * std::sin(a)) + " C" + num(c - 30));
+            turn.push_back(-30), c -= 30;
+            continue;
+        }
+        if (i >= 150 && i < 160) {
+            lines.push_back(i == 150 ? "G91" : "G1 C25" + std::string(i % 4 ? " E0.02" : ""));
+            turn.push_back(i == 150 ? NAN : 25);
+            if (i > 150) c += 25;
+            if (i == 159) lines.push_back("G90"), turn.push_back(NAN);
+            continue;
+        }
+        c += 25;
+        lines.push_back("G1 X" + num(10 * std::cos(a)) + " Y" + num(10 * std::sin(a)) + " C" + num(c) + (i % 4 ? " E0.02" : ""));
+        turn.push_back(25);
+    }
+    check_turns(lines, turn, false, Form::Gcode);
+}
+
+TEST_CASE("re-zero under G43.5, CL data, waypoints and G68.2 planes: the table turns the tool axis's 15 degrees per line") {
+    const int n = 300;  // 12.5 turns
+    std::vector<std::string> lines;
+    std::vector<double> turn;
+    SUBCASE("G43.5") {
+        lines = {"G43.5", "M83"}, turn = {NAN, NAN};
+        for (int i = 0; i < n; ++i) {
+            lines.push_back("G1" + tilted(i, {" X", " Y", " Z", " I", " J", " K"}) + (i % 8 ? " E0.01" : "") + (i == 0 ? " F1200" : ""));
+            turn.push_back(i == 0 ? NAN : 15);
+        }
+        check_turns(lines, turn, true, Form::Gcode);
+    }
+    SUBCASE("CL data") {
+        lines = {"UNITS/MM", "FEDRAT/MMPM,1200"}, turn = {NAN, NAN};
+        for (int i = 0; i < n; ++i) {
+            lines.push_back("GOTO/" + tilted(i, {"", ",", ",", ",", ",", ","}));
+            turn.push_back(i == 0 ? NAN : 15);
+        }
+        check_turns(lines, turn, true, Form::Apt);
+    }
+    SUBCASE("waypoints") {
+        for (int i = 0; i < n; ++i) {
+            lines.push_back(tilted(i, {"", " ", " ", " ", " ", " "}));
+            turn.push_back(i == 0 ? NAN : 15);
+        }
+        check_turns(lines, turn, true, Form::Waypoints);
+    }
+    SUBCASE("G68.2 planes") {
+        // A plane tilted 30 degrees, turned 15 degrees about Z per plane: G53.1 turns the tool
+        // onto it (a travel, re-zeroed after it), a line is printed in it and the tip returns.
+        lines = {"G43.4", "M83", "G1 X0 Y0 Z5 B0 C0 F1200"}, turn = {NAN, NAN, NAN};
+        for (int i = 0; i < n; ++i) {
+            for (const std::string& l : {"G68.2 X0 Y0 Z5 I" + num(std::fmod(15.0 * i, 360.0), 3) + " J30", std::string("G53.1"),
+                                         std::string("G1 X5 Y0 Z0 E0.1"), std::string("G1 X0 Y0 Z0"), std::string("G69")})
+                lines.push_back(l);
+            for (const double v : {double(NAN), i == 0 ? double(NAN) : 15.0, 0.0, 0.0, double(NAN)}) turn.push_back(v);
+        }
+        check_turns(lines, turn, true, Form::Gcode);
+    }
+}
+
+TEST_CASE("re-zero: the output read back through --inverse and translated again turns the table as the first translation did") {
+    Machine m = load("koc5");
+    const Kinematics k(m);
+    const std::size_t C = std::size_t(m.joint_index('C'));
+    std::vector<std::string> lines = {"G43.4", "M83", "G1 X10 Y0 Z10 B20 C0 F1000"};
+    for (int i = 1; i <= 200; ++i)
+        lines.push_back("G1 X" + num(10 * std::cos(rad(5.0 * i))) + " Y" + num(10 * std::sin(rad(5.0 * i))) + " C" + num(25.0 * i) +
+                        (i % 4 ? " E0.02" : ""));
+    auto run = [&](const std::vector<std::string>& in, TranslatorOptions o) {
+        Translator t(k, o);
+        std::string out;
+        std::uint64_t n = 0;
+        for (const auto& l : in) t.feed(l, ++n, out);
+        t.finish(out);
+        return out;
+    };
+    const std::string joints = run(lines, {});
+    TranslatorOptions inv;
+    inv.inverse = true;
+    for (const OrientationMode form : {OrientationMode::Angles, OrientationMode::Vector}) {
+        CAPTURE(int(form));
+        inv.preview_form = form;
+        const std::string tool = run(lines_of(joints), inv);
+        CHECK(contains(tool, "G92 C"));
+        TranslatorOptions back;
+        back.start_mode = form;  // the tool-space file is written without the mode word
+        const std::string again = run(lines_of(tool), back);
+        std::vector<double> fw0 = m.home_joints(), fw1 = fw0;
+        double f0 = 0, f1 = 0;
+        Turns first, second;
+        replay(m, joints, C, fw0, f0, first);
+        replay(m, again, C, fw1, f1, second);
+        MESSAGE("C: " << first.path << " deg, " << first.renames << " re-zeros; read back and translated again: " << second.path << " deg, "
+                      << second.renames << " re-zeros");
+        CHECK(first.renames >= 2);
+        CHECK(std::abs(first.path - 25.0 * 200) < 0.1);
+        CHECK(std::abs(second.path - first.path) < 0.1);
+        CHECK(std::abs(second.net - first.net) < 0.1);
     }
 }

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "helpers.hpp"
+#include "translators/error.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/report.hpp"
@@ -302,5 +303,98 @@ TEST_CASE("the plot's deviation axis is logarithmic with decade ticks written pl
         CAPTURE(label);
         CHECK((std::abs(m - std::round(m)) < 1e-9));
         CHECK(label.find('e') == std::string::npos);
+    }
+}
+
+TEST_CASE("the report counts every G92 that re-zeroes a wound-up turntable, the joint move before the tip is placed included") {
+    // koc5's C re-zeroes beyond 1800 degrees at the end of a travel move. Under G43.4, after G28,
+    // a C-only move is a joint move (the tip is not placed yet), which the report does not
+    // measure; its re-zero is still one.
+    for (const std::size_t lookback : {std::size_t(0), Translator::kDefaultLookback}) {
+        CAPTURE(lookback);
+        Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/koc5.toml");
+        const Kinematics k(m);
+        DeviationReport report("t.gcode", "koc5", m.motion.tolerance, m.motion.angle_tolerance);
+        TranslatorOptions o;
+        o.report = &report;
+        o.start_mode = OrientationMode::Angles;
+        Translator t(k, o);
+        t.set_lookback(lookback);
+        std::string out;
+        std::uint64_t n = 0;
+        // The program's angles keep counting across a re-zero (2010: 10 degrees on from 2000).
+        for (const char* line : {"G28", "G1 C2000 F1000", "G1 X0 Y0 Z10 C2010", "G1 X5 Y0 Z10 C4060", "G1 X5 Y5 Z10 C4060 E1"}) t.feed(line, ++n, out);
+        t.finish(out);
+        CAPTURE(out);
+        // Independent: the G92 lines naming C in the output, and the move lines before each.
+        int written = 0;
+        std::uint64_t moves = 0;
+        std::vector<std::uint64_t> after;
+        for (const auto& l : lines_of(out)) {
+            if (l.rfind("G0 ", 0) == 0 || l.rfind("G1 ", 0) == 0) ++moves;
+            if (l.rfind("G92 ", 0) == 0 && words_of(l).count('C')) ++written, after.push_back(moves);
+        }
+        CHECK(written == 2);
+        CHECK(field(report.json(), "rezeros", "") == written);
+        std::vector<std::uint64_t> marked;
+        for (const auto& mk : report.marks())
+            if (mk.kind == DeviationReport::MarkKind::Rezero) marked.push_back(mk.moves_written);
+        CHECK(marked == after);
+    }
+}
+
+TEST_CASE("a refused line's moves leave the report as its output leaves the file (an arc cut short at a limit), with the look-back or not") {
+    // rw2's A stops at +-168. An arc under G43.4 turning A from 100 on is refused at the chord that
+    // passes 168, after the chords before it were measured. A caller that carries on after the
+    // error (the service) gets the output and the report of the program without that line.
+    Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/rw2.toml");
+    REQUIRE(m.joints[std::size_t(m.joint_index('A'))].max == 168);
+    const Kinematics k(m);
+    for (const std::size_t lookback : {std::size_t(0), Translator::kDefaultLookback})
+    for (const bool travel_before : {false, true}) {
+        CAPTURE(lookback);
+        CAPTURE(travel_before);
+        std::vector<std::string> program = {"M83", "G1 X110 Y100 Z10 A0 B30 E0.1 F1200", "G1 X115 Y100 Z10 A100 B30 E0.1", "",
+                                            "G1 X120 Y100 Z10 A120 B30 E0.1", "G1 X120 Y105 Z10 A110 B30 E0.1"};
+        std::string refused = "G2 X125 Y100 I5 J0 A200 E1";  // refused: nothing to unwind on before it
+        if (travel_before) {
+            // Turned back on the travel move, the printing from there still passes a limit.
+            program[2] = "G0 X115 Y100 Z10 A100 B30";
+            refused = "G2 X125 Y100 I5 J0 A520 E1";  // 420 degrees of printing: no solution keeps it within 336
+        }
+        auto run = [&](bool with_refused, std::string& out) {
+            DeviationReport report("t.gcode", "rw2", m.motion.tolerance, m.motion.angle_tolerance);
+            TranslatorOptions o;
+            o.report = &report;
+            o.start_mode = OrientationMode::Angles;
+            Translator t(k, o);
+            t.set_lookback(lookback);
+            std::uint64_t n = 0;
+            bool threw = false;
+            for (const auto& line : program) {
+                ++n;
+                if (!line.empty()) t.feed(line, n, out);
+                else if (with_refused) {
+                    try {
+                        t.feed(refused, n, out);
+                    } catch (const InputError& e) {
+                        threw = true;
+                        CAPTURE(e.message());
+                        CHECK(contains(e.message(), "joint A"));
+                    }
+                }
+            }
+            t.finish(out);
+            CHECK(threw == with_refused);
+            std::size_t marks = report.marks().size();
+            return report.json() + report.svg() + std::to_string(marks);
+        };
+        std::string out_with, out_without;
+        const std::string with = run(true, out_with), without = run(false, out_without);
+        // Without the look-back what the firmware was told of the refused line is not known
+        // (interpreter.cpp): the next line is written with every joint.
+        if (lookback > 0) CHECK(out_with == out_without);
+        else CHECK(out_with.size() > out_without.size());
+        CHECK(with == without);
     }
 }

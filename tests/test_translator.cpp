@@ -6,6 +6,7 @@
 #include "helpers.hpp"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -848,8 +849,87 @@ TEST_CASE("translator: inverse passes G92 and G28 in tool-space letters") {
     CHECK(inv.q('A') == -168);
     CHECK(inv.feed("G92 E0") == "G92 E0\n");
     CHECK(inv.feed("M104 S200") == "M104 S200\n");
-    // Joint-space input has no G43.4/G43.5/G49.
+    // Joint-space input has no G43.4/G43.5: its words are joints, which is what G49 says, so G49
+    // changes nothing and writes nothing (in the tool-space output it would switch to joints).
     expect_error(inv, "G43.4");
+    expect_error(inv, "G43.5");
+    const std::vector<double> before = inv.tr.joints();
+    CHECK(inv.feed("G49") == "");
+    const std::string preamble = inv.feed("G21 G40 G49 G80 G90");  // the S3-DeformFDM ring's (Zhang et al., SIGGRAPH Asia 2022)
+    CHECK(!contains(preamble, "G49"));
+    CHECK(contains(preamble, "G40\n"));
+    CHECK(contains(preamble, "G80\n"));
+    CHECK(inv.tr.joints() == before);
+    CHECK(inv.tr.mode() == OrientationMode::Joints);
+    CHECK(!inv.feed("G1 X100 Y100 Z10 A30 B10 F1200").empty());
+    CHECK(inv.q('A') == 30);
+}
+
+TEST_CASE("translator: inverse in G43.5 writes the tool vector whole, so translating it again gives the first translation") {
+    // rw2's axis u = (sin B cos A, -sin B sin A, cos B): from B0.01 to B0 at A0 only I changes
+    // in its 7 written decimals (K stays 1.0000000), which a lone I would lose (I0 alone reads
+    // as the vector 0 0 0).
+    const char* lines[] = {"G1 X100 Y100 Z10 A0 B0.01 F1200", "G1 X101 Y100 Z10 A0 B0 E0.1",    "G1 X102 Y101 Z10 A30 B15 E0.1",
+                           "G1 X103 Y102 Z10 A30 B15.001 E0.1", "G1 X104 Y102 Z10 A0 B0.02 E0.1", "G1 X105 Y102 Z10 A0 B0.01 E0.1",
+                           "G0 X105 Y102 Z12 A-40 B20",          "G1 X104 Y103 Z12 A-40.0004 B20 E0.1"};
+    Rig fwd("rw2", {}, true);
+    TranslatorOptions o;
+    o.inverse = true;
+    o.preview_form = OrientationMode::Vector;
+    Rig inv("rw2", o);
+    TranslatorOptions again;
+    again.start_mode = OrientationMode::Vector;
+    Rig fwd2("rw2", again, true);
+    const Machine& m = fwd.machine;
+    std::uint64_t n = 0;
+    for (const char* line : lines) {
+        CAPTURE(std::string(line));
+        ++n;
+        const std::string joints = fwd.feed(line, n);
+        std::string tool;
+        for (const auto& l : lines_of(joints)) tool += inv.feed(l, n);
+        for (const auto& l : lines_of(tool)) {
+            CAPTURE(l);
+            const auto w = words_of(l);
+            CHECK(w.count('I') == w.count('J'));  // all of I J K, or none
+            CHECK(w.count('J') == w.count('K'));
+            fwd2.feed(l, n);
+        }
+        // The second translation ends where the first did: the same tip and tool axis (through
+        // FK of the joints each wrote), within the machine's tolerances.
+        const Pose first = fwd.kin.forward(fwd.tr.joints()), second = fwd2.kin.forward(fwd2.tr.joints());
+        CHECK((first.tip - second.tip).norm() <= m.motion.tolerance);
+        CHECK(std::acos(std::clamp(first.axis.dot(second.axis), -1.0, 1.0)) * 180 / kPi <= m.motion.angle_tolerance);
+    }
+    // Off the pole the joints themselves agree to their written decimals.
+    for (char c : {'X', 'Y', 'Z', 'A', 'B'}) {
+        CAPTURE(c);
+        CHECK(std::abs(fwd2.q(c) - fwd.q(c)) <= 2e-3);
+    }
+}
+
+TEST_CASE("translator: the compact-words option reads the input as its declaration line does, in both directions") {
+    const std::string body[] = {"G49", "G1X100Y100Z10A30B10F1200", "G1X101.5E-05"};
+    for (const bool inverse : {false, true}) {
+        CAPTURE(inverse);
+        TranslatorOptions declared_options, flagged_options;
+        declared_options.inverse = flagged_options.inverse = inverse;
+        flagged_options.compact_words = true;
+        Rig declared("rw2", declared_options), flagged("rw2", flagged_options), plain("rw2", declared_options);
+        declared.feed("; xlate5: compact-words");
+        std::uint64_t n = 1;
+        for (const std::string& line : body) {
+            CAPTURE(line);
+            ++n;
+            CHECK(flagged.feed(line, n) == declared.feed(line, n));
+        }
+        // X101.5 and a 5 mm retract, not X0.001015.
+        CHECK(flagged.q('X') == doctest::Approx(101.5));
+        // Without either, the last line is refused as ambiguous.
+        plain.feed(body[0]);
+        plain.feed(body[1]);
+        CHECK_THROWS_AS(plain.feed(body[2]), InputError);
+    }
 }
 
 TEST_CASE("translator: G43.4 H1 and G43.5 H1 switch the mode; the H register is not used") {

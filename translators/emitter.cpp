@@ -102,6 +102,7 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
         else last_f_ = f_text_;
     }
     finish_move(out, start, empty, e, f);
+    if (out.size() > start) ++moves_written_;
 }
 
 void JointEmitter::set_position(std::string& out, const std::vector<double>& q, const std::vector<double>& sent,

@@ -4,6 +4,7 @@
 // change. May call: number formatting.
 #pragma once
 #include <array>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -60,6 +61,10 @@ public:
     // Appends one joint word (" A12.5") as the emitter would print it.
     void append_joint(std::string& out, std::size_t joint, double value) const;
 
+    // How many move lines (G0/G1) have been written: joins a move's events (report, preview) to
+    // the output lines it produced. Part of the state, so a replayed window counts again from its start.
+    std::uint64_t moves_written() const { return moves_written_; }
+
 private:
     int decimals(std::size_t joint) const;
     void format(std::string& text, std::size_t joint, double value) const;
@@ -75,6 +80,7 @@ private:
     std::array<double, kMaxJoints> believed_{};  // joint values the firmware is believed to be at
     std::string last_f_, f_text_;     // F is modal in the firmware: written only when it changes
     bool inverse_time_ = false;       // the firmware's feed mode as xlate5 last set it
+    std::uint64_t moves_written_ = 0;
 };
 
 }  // namespace xlate5

@@ -53,6 +53,8 @@ public:
     void feed_line(std::string_view line, LineRun& run, std::string& out, const LineState* before = nullptr);
     // Tool moves go through the keep-out stage (which sets R) before the planner, when set.
     void set_keep_out(KeepOutStage* stage) { keep_out_ = stage; }
+    // The input is compact from its first line, as if it began with the compact declaration (gcode_lexer.hpp).
+    void set_compact_words() { block_.compact_words = true; }
 
 private:
     [[noreturn]] void fail(std::uint32_t column, const std::string& message) const;

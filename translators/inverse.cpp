@@ -95,10 +95,15 @@ void InverseTranslator::apply_modal(int code10, std::uint32_t column, const Para
             modes.plane = code10 / 10;
             append_passthrough(out, 'G', code10, {}, false, words);
             return;
+        case 490:
+            // G49 (tool-centre-point control and tool length compensation off) says the words are
+            // joint values: what this input is already. Nothing to change, nothing written (the
+            // output is tool space, where a G49 would switch its reader to joints).
+            return;
         case 434:
         case 435:
-        case 490:
-            fail(column, "joint-space input has no G43.4/G43.5/G49");
+            fail(column, "joint-space input has no G43.4/G43.5: its words are joint values (G49); the inverse reads the "
+                         "firmware's joints, not tool space");
         case 900:
         case 910:
             modes.absolute = code10 == 900;

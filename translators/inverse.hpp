@@ -27,6 +27,8 @@ public:
     // Translates one line (without '\n'), appending its output to `out`. Throws InputError naming
     // the file, line and column; the state is then as before the line.
     void feed(std::string_view line, std::uint64_t line_no, std::string& out);
+    // The input is compact from its first line, as if it began with the compact declaration (gcode_lexer.hpp).
+    void set_compact_words() { block_.compact_words = true; }
 
     const std::vector<double>& joints() const { return state_.q; }  // nominal: measured errors added back
     const Pose& pose() const { return state_.pose; }

@@ -7,25 +7,30 @@
 namespace xlate5 {
 
 LookBack::LookBack(Interpreter& interpreter, ForwardState& state, MoveLog* log)
-    : interpreter_(interpreter), state_(state), log_(log), before_line_(state), checkpoint_(state) {}
+    : interpreter_(interpreter), state_(state), log_(log), before_line_(state), checkpoint_(state) {
+    // Moves are held, with look-back or not, at least for their line: a refused line's are dropped with its output.
+    if (log_) log_->hold(true);
+}
 
 void LookBack::set_lines(std::size_t lines, int candidates) {
     lines_ = lines;
     candidates_ = candidates < 1 ? 1 : candidates > kMaxCandidates ? kMaxCandidates : candidates;
-    if (log_) log_->hold(lines > 0);
 }
 
 void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
     LineRun run;
     run.line_no = line_no;
     if (lines_ == 0) {
+        const std::size_t moves_start = held_moves();
         try {
             interpreter_.feed_line(line, run, out);
         } catch (const InputError& e) {
+            if (log_) log_->drop_held_from(moves_start);
             if (!run.hit_limit) throw;
             throw InputError(e.file(), e.line(), e.column(),
                              e.message() + "; turn the joint back on a travel move before this line, or plan the path within the limits");
         }
+        if (log_) log_->release(held_moves());
         return;
     }
     before_line_ = state_;
@@ -36,15 +41,18 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
         if (!run.hit_limit) {
             // A refused line (the service goes on after one typed in a terminal) leaves nothing
             // behind: its output was only held, so what the emitter remembers of the firmware is
-            // restored too, and later lines print as if it never came.
+            // restored too, the report forgets its moves (an arc's chords before the one refused),
+            // and later lines print as if it never came.
             state_ = before_line_;
             held_.resize(held_start);
+            if (log_) log_->drop_held_from(moves_start);
             throw;
         }
         const bool had_checkpoint = have_checkpoint_;
         if (!unwind_before(line, line_no, run)) {
             state_ = before_line_;  // as for any refused line (above)
             held_.resize(held_start);
+            if (log_) log_->drop_held_from(moves_start);
             std::string message = e.message();
             if (had_checkpoint)
                 message += "; turning it back on the travel move at line " + std::to_string(checkpoint_line_) +

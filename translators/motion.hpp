@@ -4,6 +4,7 @@
 // the tip moves at the programmed speed under the firmware's own feed rule. May call: kinematics,
 // joint_limits (each split point stays inside the limits), the compensation stage, the emitter.
 #pragma once
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -49,6 +50,8 @@ struct MoveResult {
     std::vector<double> low, high;  // each joint's extremes over the move (its start and every piece's end)
     double minutes = 0;          // time the pieces take at the feeds written (no acceleration)
     SolutionChange change = SolutionChange::None;  // set by the planner
+    int rezeros = 0;             // G92s the planner wrote after the move to re-zero a wound-up rotary
+    std::uint64_t moves_written = 0;  // the emitter's count of move lines once the move was written (its output's place)
 };
 
 class MotionStage {

@@ -57,6 +57,17 @@ Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter
       motion_(kinematics, emitter),
       q_next_(state.q) {}
 
+void Planner::plain_image() {
+    state_.image = {};
+    for (std::size_t k = 0; k < kin_.rotary_joints().size(); ++k) state_.image.shift[k] = -state_.rezeroed[k];
+}
+
+void Planner::forget_rezeros(const std::vector<bool>& which) {
+    const auto& rot = kin_.rotary_joints();
+    for (std::size_t k = 0; k < rot.size(); ++k)
+        if (which[std::size_t(rot[k])]) state_.rezeroed[k] = 0;
+}
+
 void Planner::map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const {
     const auto& rot = kin_.rotary_joints();
     for (std::size_t k = 0; k < rot.size(); ++k) {
@@ -313,28 +324,43 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     }
     if (measured) {
         measured->change = change;
+        measured->moves_written = emitter_.moves_written();
         if (passage) {
             // The split measures the tip only in angle form: the axis as checked above.
             measured->angle_error = std::max(measured->angle_error, passage_angle);
             const std::size_t b = std::size_t(kin_.rotary_joints()[1]);
             if (s.q[b] * q_next_[b] < 0) measured->pole_crossings = 1;  // the tilt changed sign: the other branch
         }
-        log_->add(run.line_no, *measured);
     }
     if (spec.mode == OrientationMode::Vector) q_next_ = motion_.final_joints();
     // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move
     // (no extrusion), where a G92 cannot disturb a printed line: firmware without wrapping
     // (Marlin, soft endstops) then never runs out of range.
+    // The program's angles are unchanged by it: under G43.4 the image takes the turns removed, so
+    // the next programmed angle is written in the re-zeroed frame (the table turns as programmed).
+    int rezeros = 0;
     if (!prints) {  // under absolute E, E0 after E5 extrudes (backwards): only an unchanged E does not
-        for (std::size_t j = 0; j < q_next_.size(); ++j) {
+        const auto& rot = kin_.rotary_joints();
+        for (std::size_t k = 0; k < rot.size(); ++k) {
+            const std::size_t j = std::size_t(rot[k]);
             const Joint& J = machine_.joints[j];
             if (J.rezero_beyond <= 0 || std::abs(q_next_[j]) <= J.rezero_beyond) continue;
             const double turns = std::round(q_next_[j] / 360.0);
             which_.assign(q_next_.size(), false);
             which_[j] = true;
             q_next_[j] -= 360.0 * turns;
+            s.image.shift[k] -= 360.0 * turns;
+            s.rezeroed[k] += 360.0 * turns;
             send_joints(which_, std::nullopt, q_next_, out);
+            ++rezeros;
         }
+    }
+    // The move's events are logged whole, with its re-zeros.
+    if (measured) {
+        measured->rezeros = rezeros;
+        log_->add(run.line_no, *measured);
+    } else if (log_ && rezeros > 0) {
+        log_->add_rezeros(run.line_no, emitter_.moves_written(), rezeros);
     }
     s.q.swap(q_next_);
     s.pose = next;
@@ -360,11 +386,15 @@ void Planner::joint_move(const JointMove& mv, std::string& out) {
 }
 
 void Planner::set_joints(const std::vector<bool>& which, const std::vector<double>& values, bool pose_from_joints) {
+    bool any = false;
     for (std::size_t j = 0; j < which.size(); ++j) {
         if (!which[j]) continue;
         state_.q[j] = values[j];
-        state_.image = {};  // the program and the firmware now agree on the joint
+        any = true;
     }
+    // The program and the firmware now agree on the joints named.
+    forget_rezeros(which);
+    if (any) plain_image();
     // The machine did not move: its true pose follows from the joints it now says it is at.
     if (pose_from_joints) state_.pose = kin_.forward(state_.q);
 }
@@ -376,7 +406,8 @@ void Planner::send_position(const std::vector<bool>& which, const std::optional<
 void Planner::home(const std::vector<bool>& which) {
     for (std::size_t j = 0; j < state_.q.size(); ++j)
         if (which[j]) state_.q[j] = machine_.joints[j].home;
-    state_.image = {};
+    forget_rezeros(which);
+    plain_image();
     state_.tip_known = false;
     state_.pose = kin_.forward(state_.q);
     emitter_.invalidate(state_.q);

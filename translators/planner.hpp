@@ -40,6 +40,9 @@ struct PlannerState {
     Pose pose;               // tip and tool axis in the part frame
     bool tip_known = false;  // has the program placed the tip since start or G28?
     AngleImage image;        // G43.4: programmed angles -> joints
+    // Per rotary (rotary_joints() order): the whole turns re-zeros took off the joint since the
+    // program last set it (G92, G28), in degrees. The program's angles go on without them.
+    double rezeroed[2] = {0, 0};
 };
 
 // One input line's dealings with the look-back: what it asks of the line's moves, and what they
@@ -103,8 +106,8 @@ public:
     void position_unknown();
     // A G93/G94 passed on to the firmware as written.
     void feed_mode_sent(bool inverse_time);
-    // A mode switch or G92 on a rotary: the programmed angles mean the joints as they are.
-    void reset_angle_image() { state_.image = {}; }
+    // A mode switch: the programmed angles mean the joints as they are (but for re-zeros).
+    void reset_angle_image() { plain_image(); }
     // G92 X Y Z under tool-centre-point control: the program has placed the tip.
     void tip_placed() { state_.tip_known = true; }
 
@@ -114,6 +117,9 @@ public:
 private:
     void send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
                      std::string& out);
+    // The image with no other turn or branch chosen: identity, but for the turns re-zeros took off.
+    void plain_image();
+    void forget_rezeros(const std::vector<bool>& which);  // joints the program has just set
     void map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const;
     void unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
     void end_candidates(OrientationMode mode, const Pose& end, const std::vector<double>& programmed,

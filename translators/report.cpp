@@ -128,6 +128,17 @@ void DeviationReport::add_joint_range(char joint, double low, double high) {
     ranges_.push_back({joint, low, high});
 }
 
+void DeviationReport::add_marks(std::uint64_t line, std::uint64_t moves_written, int pole_crossings, int change, int rezeros) {
+    rezeros_ += std::uint64_t(std::max(rezeros, 0));
+    const auto keep = [&](MarkKind kind, int times) {
+        for (int i = 0; i < times && marks_.size() < kMaxMarks; ++i) marks_.push_back({kind, line, moves_written});
+    };
+    keep(MarkKind::PoleCrossing, pole_crossings);
+    keep(MarkKind::Unwind, change == int(SolutionChange::Turns));
+    keep(MarkKind::BranchChange, change == int(SolutionChange::Branch));
+    keep(MarkKind::Rezero, rezeros);
+}
+
 std::string DeviationReport::json() const {
     std::string o = "{\n";
     o += "  \"file\": \"" + escape(file_) + "\",\n";
@@ -156,6 +167,7 @@ std::string DeviationReport::json() const {
     // At the feeds written, without acceleration: a lower bound of the print's duration.
     o += "  \"estimated_minutes\": " + num(minutes_) + ",\n";
     o += "  \"unwinds\": " + std::to_string(turns_) + ",\n";
+    o += "  \"rezeros\": " + std::to_string(rezeros_) + ",\n";
     o += "  \"branch_changes\": " + std::to_string(branches_) + "\n}\n";
     return o;
 }
@@ -246,7 +258,8 @@ void MoveLog::add(std::uint64_t line, const MoveResult& m) {
     const std::size_t n = machine_.joints.size();
     const bool ranged = m.low.size() == n && m.high.size() == n;
     if (hold_) {
-        held_.moves.push_back({line, m.tip_error, m.angle_error, m.feed_error, m.pieces, held_.travel.size(), m.minutes, int(m.change), m.pole_crossings, half_turn});
+        held_.moves.push_back({line, m.tip_error, m.angle_error, m.feed_error, m.pieces, held_.travel.size(), m.minutes, int(m.change), m.pole_crossings, half_turn,
+                               m.rezeros, m.moves_written, true});
         for (std::size_t j = 0; j < n; ++j) held_.ranges.push_back(ranged ? m.low[j] : NAN);
         for (std::size_t j = 0; j < n; ++j) held_.ranges.push_back(ranged ? m.high[j] : NAN);
         return;
@@ -257,6 +270,23 @@ void MoveLog::add(std::uint64_t line, const MoveResult& m) {
     for (std::size_t j = 0; j < n; ++j) ranges_.push_back(ranged ? m.high[j] : NAN);
     add_rest(ranges_.data(), m.minutes, int(m.change));
     report_.add_route(m.pole_crossings, half_turn);
+    report_.add_marks(line, m.moves_written, m.pole_crossings, int(m.change), m.rezeros);
+}
+
+void MoveLog::add_rezeros(std::uint64_t line, std::uint64_t moves_written, int rezeros) {
+    if (!hold_) {
+        report_.add_marks(line, moves_written, 0, int(SolutionChange::None), rezeros);
+        return;
+    }
+    held_.moves.push_back({line, 0, 0, 0, 0, held_.travel.size(), 0, int(SolutionChange::None), 0, false, rezeros, moves_written, false});
+    held_.ranges.insert(held_.ranges.end(), 2 * machine_.joints.size(), NAN);
+}
+
+void MoveLog::drop_held_from(std::size_t moves) {
+    if (moves >= held_.moves.size()) return;
+    held_.travel.resize(moves == 0 ? 0 : held_.moves[moves - 1].travel_end);
+    held_.ranges.resize(moves * 2 * machine_.joints.size());
+    held_.moves.resize(moves);
 }
 
 void MoveLog::add_rest(const double* ranges, double minutes, int change) {
@@ -273,9 +303,12 @@ void MoveLog::release(std::size_t moves) {
     const std::size_t n = machine_.joints.size();
     for (std::size_t i = 0, t = 0; i < moves; ++i) {
         const Pending& m = held_.moves[i];
-        report_.add_move(m.line, m.tip, m.angle, m.feed, m.pieces);
-        report_.add_route(m.pole_crossings, m.half_turn);
-        add_rest(&held_.ranges[i * 2 * n], m.minutes, m.change);
+        if (m.measured) {
+            report_.add_move(m.line, m.tip, m.angle, m.feed, m.pieces);
+            report_.add_route(m.pole_crossings, m.half_turn);
+            add_rest(&held_.ranges[i * 2 * n], m.minutes, m.change);
+        }
+        report_.add_marks(m.line, m.moves_written, m.pole_crossings, m.change, m.rezeros);
         for (; t < m.travel_end; ++t) report_.add_rotary_travel(held_.travel[t].first, held_.travel[t].second);
     }
     held_.ranges.erase(held_.ranges.begin(), held_.ranges.begin() + std::ptrdiff_t(moves * 2 * n));

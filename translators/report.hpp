@@ -31,6 +31,23 @@ public:
     void add_solution_change(int turns, int branch) { turns_ += std::uint64_t(turns), branches_ += std::uint64_t(branch); }
     void set_lines(std::uint64_t in, std::uint64_t out) { lines_in_ = in, lines_out_ = out; }
 
+    // Where the counted events happened: each at the input line of its move and at the output's
+    // move lines (the emitter's count once the move was written), so a preview of the output
+    // marks exactly what is counted here. The first kMaxMarks are kept; the counts stay exact.
+    enum class MarkKind { PoleCrossing, Unwind, BranchChange, Rezero };
+    struct Mark {
+        MarkKind kind;
+        std::uint64_t line;
+        std::uint64_t moves_written;
+    };
+    static constexpr std::size_t kMaxMarks = 2000;
+    void add_marks(std::uint64_t line, std::uint64_t moves_written, int pole_crossings, int change, int rezeros);
+    const std::vector<Mark>& marks() const { return marks_; }
+    std::uint64_t pole_crossings() const { return pole_crossings_; }
+    std::uint64_t unwinds() const { return turns_; }
+    std::uint64_t branch_changes() const { return branches_; }
+    std::uint64_t rezeros() const { return rezeros_; }
+
     std::string json() const;
     std::string svg() const;
 
@@ -65,7 +82,8 @@ private:
     };
     std::vector<Range> ranges_;  // one per joint
     double minutes_ = 0;
-    std::uint64_t turns_ = 0, branches_ = 0;
+    std::uint64_t turns_ = 0, branches_ = 0, rezeros_ = 0;
+    std::vector<Mark> marks_;
     std::vector<Point> series_;  // at most kMaxPoints, each the worst of `bucket_` moves
     std::uint64_t bucket_ = 1, in_bucket_ = 0;
     static constexpr std::size_t kMaxPoints = 2000;
@@ -75,13 +93,17 @@ struct Machine;
 struct MoveResult;
 
 // Measured moves on their way to the report: added at once, or, while the look-back holds the
-// output they belong to, held and released with it (dropped when it translates them again).
+// output they belong to (at least their own line's), held and released with it (dropped when it
+// translates them again or refuses their line).
 class MoveLog {
 public:
     MoveLog(DeviationReport& report, const Machine& machine) : report_(report), machine_(machine) {}
 
     void hold(bool on) { hold_ = on; }
     void add(std::uint64_t line, const MoveResult& m);
+    // G92s that re-zeroed a rotary after a move that is not measured (a joint move before the
+    // program placed the tip): counted and marked like a measured move's.
+    void add_rezeros(std::uint64_t line, std::uint64_t moves_written, int rezeros);
 
     // A held move, and the rotary travel of the held moves (each move's ends at travel_end).
     struct Pending {
@@ -93,6 +115,9 @@ public:
         int change;  // SolutionChange
         int pole_crossings;
         bool half_turn;
+        int rezeros;
+        std::uint64_t moves_written;
+        bool measured;  // false: only its re-zeros (add_rezeros)
     };
     struct Held {
         std::vector<Pending> moves;
@@ -108,6 +133,8 @@ public:
         held_.travel.clear();
         held_.ranges.clear();
     }
+    // The held moves from the `moves`-th on are dropped: a refused line's, whose output is dropped.
+    void drop_held_from(std::size_t moves);
 
 private:
     void add_rest(const double* ranges, double minutes, int change);  // ranges: low, high of every joint

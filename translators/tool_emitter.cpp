@@ -40,6 +40,20 @@ void ToolEmitter::move(std::string& out, int gcode, const Eigen::Vector3d& tip, 
     if (moves) {
         for (int i = 0; i < 3; ++i) word(out, char('X' + i), last_xyz_[i], tip[i], lin);
         if (form_ == OrientationMode::Vector) {
+            // The tool vector is written whole whenever any component changes: a reader takes
+            // I J K together as the axis (a lone I0 would read as the vector 0 0 0).
+            bool changed = false;
+            for (int i = 0; i < 3; ++i) {
+                scratch_.clear();
+                try {
+                    append_fixed(scratch_, axis[i], 7);
+                } catch (const UnwritableNumber& e) {
+                    unwritable_word(char('I' + i), e);
+                }
+                changed = changed || scratch_ != last_ijk_[i];
+            }
+            if (changed)
+                for (auto& last : last_ijk_) last.clear();
             for (int i = 0; i < 3; ++i) word(out, char('I' + i), last_ijk_[i], axis[i], 7);
         } else {
             for (std::size_t j = 0; j < q.size(); ++j)

@@ -42,9 +42,11 @@ struct Translator::Forward {
 Translator::Translator(const Kinematics& kinematics, TranslatorOptions options) {
     if (options.inverse) {
         inverse_ = std::make_unique<InverseTranslator>(kinematics, options.input_name, options.extruder_letter, options.preview_form);
+        if (options.compact_words) inverse_->set_compact_words();
         return;
     }
     forward_ = std::make_unique<Forward>(kinematics, options);
+    if (options.compact_words) forward_->interpreter.set_compact_words();
 }
 
 Translator::~Translator() = default;

@@ -30,6 +30,9 @@ struct TranslatorOptions {
     OrientationMode preview_form = OrientationMode::Angles;
     DeviationReport* report = nullptr;  // when set, every tool-space move is measured into it
     const KeepOutItems* keep_out = nullptr;  // when set, R comes from the path and these items (keep_out.hpp)
+    // The input is written without blanks from its first line on: "X1.5E-05" is X1.5 and E-05, as
+    // after the file's own compact declaration (gcode_lexer.hpp).
+    bool compact_words = false;
 };
 
 class InverseTranslator;
