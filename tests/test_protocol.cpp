@@ -459,16 +459,32 @@ std::string joined(const std::vector<std::string>& v, std::size_t from = 0) {
     for (std::size_t i = from; i < v.size(); ++i) out += v[i];
     return out;
 }
+// A ready link with a 64-byte receive buffer and a window of 4, given the twenty long moves:
+// line 2 goes whole, line 3 in two parts.
+struct HalfSent {
+    static FirmwareOptions options() {
+        FirmwareOptions o;
+        o.window = 4;
+        o.rx_bytes = 64;
+        return o;
+    }
+    Script s{options()};
+    std::size_t first = 0;            // the first write after the greeting
+    std::vector<std::string> expect;  // the lines as the firmware must receive them
+    HalfSent() {
+        s.greet();
+        first = s.raw.size();
+        expect = long_moves(s, 2);
+    }
+};
 }  // namespace
 
 TEST_CASE("protocol: a line that does not fit the receive buffer whole goes in two parts, cut before a digit, never over the budget") {
-    FirmwareOptions o;
-    o.window = 4;
-    o.rx_bytes = 64;
-    Script s(o);
-    s.greet();
-    const std::size_t first = s.raw.size();
-    const auto expect = long_moves(s, 2);
+    HalfSent h;
+    auto& s = h.s;
+    const std::size_t first = h.first;
+    const auto& expect = h.expect;
+    const FirmwareOptions o = HalfSent::options();
     // The firmware answers each whole line it has received, in order. What it holds unanswered
     // (received, not yet answered) must never exceed the budget.
     std::size_t answered = 0, answered_bytes = 0;
@@ -497,13 +513,10 @@ TEST_CASE("protocol: a line that does not fit the receive buffer whole goes in t
 }
 
 TEST_CASE("protocol: a refusal while a line is half sent: its rest is never sent; the first part ends as a line Marlin refuses") {
-    FirmwareOptions o;
-    o.window = 4;
-    o.rx_bytes = 64;
-    Script s(o);
-    s.greet();
-    const std::size_t first = s.raw.size();
-    const auto expect = long_moves(s, 2);
+    HalfSent h;
+    auto& s = h.s;
+    const std::size_t first = h.first;
+    const auto& expect = h.expect;
     REQUIRE(s.raw.size() == first + 2);  // line 2 whole, then the first part of line 3
     const std::string head = s.raw.back();
     REQUIRE(head.back() != '\n');
@@ -546,13 +559,9 @@ TEST_CASE("protocol: a refusal while a line is half sent: its rest is never sent
 }
 
 TEST_CASE("protocol: M999 after a stop with a line half sent: the line is ended, M999 waits until its refusal is over") {
-    FirmwareOptions o;
-    o.window = 4;
-    o.rx_bytes = 64;
-    Script s(o);
-    s.greet();
-    const std::size_t first = s.raw.size();
-    long_moves(s, 2);
+    HalfSent h;
+    auto& s = h.s;
+    const std::size_t first = h.first;
     REQUIRE(s.raw.back().back() != '\n');
     s.reply("Error:Printer stopped due to errors. Fix the error and use M999 to restart.");
     REQUIRE(s.faults.size() == 1);
@@ -582,13 +591,10 @@ TEST_CASE("protocol: M108 or M112 while a line is half sent: the line is finishe
     // Ended early, the first part would be refused, and a refusal empties Marlin's buffer: the
     // command behind it with it, on a Marlin without EMERGENCY_PARSER.
     for (const std::string command : {"M108", "M112"}) {
-        FirmwareOptions o;
-        o.window = 4;
-        o.rx_bytes = 64;
-        Script s(o);
-        s.greet();
-        const std::size_t first = s.raw.size();
-        const auto expect = long_moves(s, 2);
+        HalfSent h;
+        auto& s = h.s;
+        const std::size_t first = h.first;
+        const auto& expect = h.expect;
         REQUIRE(s.raw.back().back() != '\n');
         if (command == "M108") s.p.send_unnumbered(command, s.t);
         else s.p.emergency_stop(command, s.t);
