@@ -12,7 +12,8 @@ Usage: soak.py XLATE5 TOTAL_LINES [PRINT_LINES] [MACHINE]
 Settings from the environment (defaults in brackets): SOAK_SETTLE [0.25] and SOAK_TIMEOUT [0.5],
 the service's settle and reply_timeout in seconds; SOAK_CORRUPT [0.01] and SOAK_DROP [0.01],
 the fault rates per line; SOAK_RESET_EVERY, commands between firmware resets [a third of the
-run, at most 2,000,000, at least one and a half prints]; SOAK_NUDGE, the service's firmware.nudge [its default]; SOAK_SEED [5].
+run, at most 2,000,000, at least one and a half prints]; SOAK_NUDGE, the service's firmware.nudge [its default]; SOAK_SEED [5];
+SOAK_MAX_SECONDS, no print started after it [none].
 """
 import os
 import random
@@ -217,7 +218,9 @@ def main():
             sent = complete = cut = 0
             last_sample = 0
             p = 0
-            while p < prints:
+            # SOAK_MAX_SECONDS: no print is started after it (the comparison still runs).
+            max_seconds = setting("SOAK_MAX_SECONDS", 1e12, float, 1, 1e12)
+            while p < prints and time.time() - start < max_seconds:
                 sender.connect()
                 ok, n = stream(sender, program)
                 sent += n
