@@ -4,7 +4,9 @@
 // G43.4 or G43.5 preview). Stage: test harness; may call the front door (translator.hpp).
 //
 // Input: byte 0 picks the machine, byte 1 the configuration (bits 0-2: the mode, 5 choices;
-// bit 3: look-back on; bit 4: deviation report; bit 5: compact words), the rest is the G-code.
+// bit 3: look-back on; bit 4: deviation report; bit 5: compact words; bits 6-7: the input's
+// format: 0 or 1 G-code straight in, 2 APT / NX CLSF records, 3 a waypoint table, both through the
+// input front as `--input-format` reads them), the rest is the input.
 // Refused lines (InputError) are part of the game: the translator promises its state is
 // unchanged by them, so the lines after are fed too. Anything else thrown is a finding.
 #include <cstddef>
@@ -18,6 +20,7 @@
 #include "fuzz/fuzz_common.hpp"
 #include "translators/error.hpp"
 #include "translators/gcode_lexer.hpp"
+#include "translators/input_front.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/report.hpp"
 #include "translators/translator.hpp"
@@ -70,6 +73,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     TranslatorOptions options;
     options.input_name = "fuzz.gcode";
     std::optional<DeviationReport> report;
+    const unsigned format = (config >> 6) & 3u;
     switch ((config & 7u) % 5u) {
     case 0: options.start_mode = OrientationMode::Angles; break;
     case 1: options.start_mode = OrientationMode::Vector; break;
@@ -86,19 +90,26 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     std::string out;
     if (config & 32u) translator.feed("; " + std::string(kCompactDeclaration), 0, out);
 
+    // CL data and waypoint tables go through the input front (records to canonical G-code), with
+    // CL arcs chorded coarser than the command line's 0.005 mm: the same code, fewer chords.
+    std::optional<InputFront> front;
+    if (format >= 2 && !options.inverse)
+        front.emplace(translator, FrontOptions{format == 2 ? InputFormat::Apt : InputFormat::Waypoints, options.input_name, 0.05, 1200, 1.0});
     std::uint64_t line_no = 0;
     for (std::size_t pos = 0; pos <= text.size();) {
         std::size_t end = text.find('\n', pos);
         if (end == std::string_view::npos) end = text.size();
         try {
-            translator.feed(text.substr(pos, end - pos), ++line_no, out);
+            if (front) front->feed(text.substr(pos, end - pos), ++line_no, out);
+            else translator.feed(text.substr(pos, end - pos), ++line_no, out);
         } catch (const InputError&) {
         }
         if (out.size() > (1u << 16)) out.clear();  // the output is not checked here, only produced
         pos = end + 1;
     }
     try {
-        translator.finish(out);
+        if (front) front->finish(line_no, out);
+        else translator.finish(out);
     } catch (const InputError&) {
     }
     if (report) {

@@ -13,7 +13,7 @@ tmp="$(mktemp -d)"; trap 'rm -rf "$tmp"' EXIT
 
 # fuzz_translate: G-code in pieces of about 3 KB (libFuzzer works on short inputs), at most 24
 # pieces a file, each under a different machine and configuration byte.
-gcode=("$root"/examples/*.gcode)
+gcode=("$root"/examples/*.gcode "$root"/examples/*_waypoints.txt)
 [ -d "$corpus" ] && while IFS= read -r -d '' f; do gcode+=("$f"); done \
   < <(find "$corpus" -type f \( -name '*.gcode' -o -name '*.ngc' -o -name '*.txt' -o -name '*.cls' \) -print0)
 n=0
@@ -23,7 +23,9 @@ for f in "${gcode[@]}"; do
   k=0
   for p in "$tmp"/piece.*; do
     [ $k -ge 24 ] && break
-    printf "\\x$(printf %02x $((n % 6)))\\x$(printf %02x $(((n / 6) % 64)))" > "$out/fuzz_translate/seed_$n"
+    # CL files (.cls) as CL data, waypoint tables as such: bits 6-7 of the configuration byte 2, 3.
+    cfg=$(((n / 6) % 64)); case "$f" in *.cls) cfg=$((cfg | 128));; *_waypoints.txt) cfg=$((cfg | 192));; esac
+    printf "\\x$(printf %02x $((n % 6)))\\x$(printf %02x $cfg)" > "$out/fuzz_translate/seed_$n"
     cat "$p" >> "$out/fuzz_translate/seed_$n"
     n=$((n + 1)); k=$((k + 1))
   done
