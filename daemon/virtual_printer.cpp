@@ -136,14 +136,18 @@ void VirtualPrinter::on_line(std::string_view raw) {
         halt("echo:M112 Shutdown");
         return;
     }
+    // One fault a line at most: two can cancel in an XOR checksum (bit 5 flipped in one byte and
+    // a space lost change it by the same 0x20), and no host can see that on Marlin's protocol.
+    bool damaged = false;
     if (f.corrupt > 0 && !line.empty() && uni_(rng_) < f.corrupt) {
         std::uniform_int_distribution<std::size_t> at(0, line.size() - 1);
         std::uniform_int_distribution<int> bit(0, 6);
         line[at(rng_)] ^= char(1 << bit(rng_));
         ++stats_.corrupted;
+        damaged = true;
     }
     bool newline = true;
-    if (f.drop > 0 && !line.empty() && uni_(rng_) < f.drop) {
+    if (!damaged && f.drop > 0 && !line.empty() && uni_(rng_) < f.drop) {
         // One byte lost, or the newline (a single lost byte always changes an XOR checksum).
         std::uniform_int_distribution<std::size_t> at(0, line.size());
         const auto a = at(rng_);
