@@ -15,10 +15,12 @@ the fault rates per line; SOAK_RESET_EVERY, commands between firmware resets [a 
 run, at most 2,000,000, at least one and a half prints]; SOAK_NUDGE, the service's firmware.nudge [its default]; SOAK_SEED [5];
 SOAK_MAX_SECONDS, no print started after it [none].
 """
+import contextlib
 import os
 import random
 import re
 import select
+import shutil
 import signal
 import subprocess
 import sys
@@ -153,6 +155,18 @@ def rss_kib(pid):
     return None
 
 
+@contextlib.contextmanager
+def workdir():
+    """A temporary directory, kept when the soak fails: its record and log are the evidence."""
+    tmp = tempfile.mkdtemp(prefix="xlate5-soak-")
+    try:
+        yield tmp
+    except BaseException:
+        print("soak: its files are kept in %s" % tmp, file=sys.stderr, flush=True)
+        raise
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
 def setting(name, default, kind=float, low=0.0, high=None):
     """A number from the environment, range-checked."""
     text = os.environ.get(name)
@@ -179,7 +193,7 @@ def main():
     print_lines = int(sys.argv[3]) if len(sys.argv) > 3 else 100000
     machine = sys.argv[4] if len(sys.argv) > 4 else "rw2"
     prints = max(1, total // print_lines)
-    with tempfile.TemporaryDirectory(prefix="xlate5-soak-") as tmp:
+    with workdir() as tmp:
         program = make_print(print_lines - 5, 17)
         path = os.path.join(tmp, "print.gcode")
         with open(path, "w") as f:
@@ -260,7 +274,8 @@ def main():
         with open(record, "rb") as f:
             raw = f.read()
         if b"\0" in raw:
-            raise SystemExit("the record file holds NUL bytes")
+            at = raw.index(b"\0")
+            raise SystemExit("the record file holds NUL bytes (the first at byte %d, after %r)" % (at, raw[max(0, at - 80):at]))
         # xlate5's own greeting (M110 N0, M115), probes (M105) and the M999 after the reset are not
         # part of the print.
         executed = [l for l in raw.decode().splitlines() if l not in ("M110 N0", "M115", "M105", "M999")]
