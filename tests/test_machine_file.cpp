@@ -1,6 +1,9 @@
 // Machine files: every error names the file, the line and the key; parameters and overrides.
 #include <doctest/doctest.h>
 
+#include <fstream>
+#include <random>
+#include <sstream>
 #include <string>
 
 #include "translators/error.hpp"
@@ -142,6 +145,39 @@ TEST_CASE("bundled machines all load and name themselves") {
         CHECK_NOTHROW(Kinematics{m});
     }
     CHECK_THROWS_WITH_AS(load_machine("no-such-machine"), doctest::Contains("no machine named 'no-such-machine'"), MachineError);
+}
+
+TEST_CASE("a machine parsed once and built with other parameters is the machine load_machine_text gives") {
+    std::mt19937 rng(19);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (const auto& [name, path] : bundled_machines()) {
+        CAPTURE(name);
+        std::ifstream in(path);
+        std::ostringstream text;
+        text << in.rdbuf();
+        const MachineTemplate file(text.str(), path);
+        const Machine start = load_machine_text(text.str(), path);
+        REQUIRE_FALSE(start.parameters.empty());
+        for (int trial = 0; trial < 4; ++trial) {
+            std::map<std::string, double> values = start.parameters;
+            for (auto& [k, v] : values) v += u(rng) * (1 + std::abs(v)) * 0.01;
+            const Machine a = file.build(values), b = load_machine_text(text.str(), path, values);
+            CHECK(a.parameters == b.parameters);
+            CHECK(a.parameters == values);
+            const Kinematics ka(a), kb(b);
+            std::vector<double> q = a.home_joints();
+            for (std::size_t j = 0; j < q.size(); ++j) q[j] += u(rng) * 10;
+            CHECK((ka.forward(q).tip - kb.forward(q).tip).norm() == 0.0);
+            CHECK((ka.forward(q).axis - kb.forward(q).axis).norm() == 0.0);
+        }
+        // Errors come as from load_machine_text: an unknown parameter names the file.
+        CHECK_THROWS_WITH_AS(file.build({{"no_such_parameter", 1.0}}), doctest::Contains(path.c_str()), MachineError);
+    }
+    // A broken file fails when it is parsed, naming the file and line.
+    CHECK_THROWS_WITH_AS(MachineTemplate(replace(base_text(), "off = 5", "off = = 5"), "mine.toml"),
+                         doctest::Contains("mine.toml:3"), MachineError);
+    CHECK_THROWS_WITH_AS(MachineTemplate(replace(base_text(), "off * 2", "nope * 2"), "mine.toml"),
+                         doctest::Contains("mine.toml"), MachineError);
 }
 
 TEST_CASE("an expression nested deeper than kMaxExpressionDepth is a MachineError naming file, line and key, not a crash") {

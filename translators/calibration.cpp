@@ -87,8 +87,9 @@ ParameterFit fit_parameters(const std::string& text, const std::string& source, 
                             const std::map<std::string, double>& start, const std::vector<std::vector<double>>& joints,
                             const std::vector<Eigen::Vector3d>& tips) {
     std::map<std::string, double> p = start;
+    const MachineTemplate file(text, source);
     auto residuals = [&](const std::map<std::string, double>& values) {
-        const Machine m = load_machine_text(text, source, values);
+        const Machine m = file.build(values);
         const Kinematics k(m);
         Eigen::VectorXd r(static_cast<Eigen::Index>(3 * tips.size()));
         for (std::size_t i = 0; i < tips.size(); ++i) r.segment<3>(Eigen::Index(3 * i)) = k.forward(joints[i]).tip - tips[i];

@@ -6,6 +6,7 @@
 
 #include "translators/compensation.hpp"
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -93,6 +94,20 @@ struct Machine {
 Machine load_machine(const std::string& name_or_path, const std::map<std::string, double>& overrides = {});
 Machine load_machine_text(const std::string& toml_text, const std::string& source_name,
                           const std::map<std::string, double>& overrides = {});
+
+// A machine file parsed once and built many times with different [parameters] values: a fit
+// (`calibrate pivots`) builds the machine for every trial value, and parsing the text each time
+// was most of its cost. Throws MachineError as load_machine_text does.
+struct ParsedMachineFile;
+class MachineTemplate {
+public:
+    MachineTemplate(const std::string& toml_text, const std::string& source_name);
+    Machine build(const std::map<std::string, double>& overrides) const;
+
+private:
+    std::shared_ptr<const ParsedMachineFile> parsed_;
+    std::string source_;
+};
 
 // Reads a compensation file ([[compensation]] terms, as in a machine file) for `machine`,
 // replacing the machine's own. Throws MachineError naming the file, line and key.

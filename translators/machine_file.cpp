@@ -266,15 +266,17 @@ Compensation load_terms(Reader& r, const Machine& m, toml::node_view<const toml:
     return c;
 }
 
-Machine load(const std::string& text, const std::string& path, const std::map<std::string, double>& overrides) {
-    toml::table root;
+toml::table parse(const std::string& text, const std::string& path) {
     try {
-        root = toml::parse(text, path);
+        return toml::parse(text, path);
     } catch (const toml::parse_error& e) {
         std::ostringstream os;
         os << path << ":" << e.source().begin.line << ": " << e.description();
         throw MachineError(os.str());
     }
+}
+
+Machine build(const toml::table& root, const std::string& path, const std::map<std::string, double>& overrides) {
     Reader r(path, root);
     r.only_keys(root, "", {"name", "description", "source", "parameters", "joints", "part_chain", "tool_chain",
                            "tool", "input", "firmware", "motion", "compensation"});
@@ -428,7 +430,20 @@ std::map<std::string, std::string> bundled_machines() {
 
 Machine load_machine_text(const std::string& toml_text, const std::string& source_name,
                           const std::map<std::string, double>& overrides) {
-    return load(toml_text, source_name, overrides);
+    return build(parse(toml_text, source_name), source_name, overrides);
+}
+
+struct ParsedMachineFile {
+    toml::table root;
+};
+
+MachineTemplate::MachineTemplate(const std::string& toml_text, const std::string& source_name)
+    : parsed_(std::make_shared<const ParsedMachineFile>(ParsedMachineFile{parse(toml_text, source_name)})), source_(source_name) {
+    (void)build({});  // a broken file fails here, once, as load_machine_text would
+}
+
+Machine MachineTemplate::build(const std::map<std::string, double>& overrides) const {
+    return xlate5::build(parsed_->root, source_, overrides);
 }
 
 Machine load_machine(const std::string& name_or_path, const std::map<std::string, double>& overrides) {
@@ -449,7 +464,7 @@ Machine load_machine(const std::string& name_or_path, const std::map<std::string
     if (!in) throw MachineError(path + ": cannot open machine file");
     std::ostringstream text;
     text << in.rdbuf();
-    return load(text.str(), path, overrides);
+    return build(parse(text.str(), path), path, overrides);
 }
 
 }  // namespace xlate5
