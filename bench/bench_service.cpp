@@ -239,6 +239,10 @@ int main(int argc, char** argv) {
         if (to <= from) return;
         const double s = std::chrono::duration<double>(to - from).count();
         Gaps& g = phases[phase];
+        if (std::getenv("BENCH_GAPS") && s > 0.005)  // each long gap: where in the print, and xlate5's queue when it ended
+            std::fprintf(stderr, "gap %.1f ms at sender line %zu, %.1f ms after the firmware's ok, %zu lines queued for the firmware\n", s * 1e3,
+                         sender.next, std::chrono::duration<double, std::milli>(to - parts.sim->last_ok()).count(),
+                         parts.service->firmware()->queued());
         const auto ok_at = parts.sim->last_ok();
         if (ok_at >= from) {
             g.add(Gaps::Ok, s);

@@ -196,6 +196,7 @@ void VirtualPrinter::on_bytes(std::size_t n) {
     wire_free_ = std::max(wire_free_, now) + wire_time(n);
     raw_bytes_ += n;
     chunks_.push_back({raw_bytes_, wire_free_});
+    if (chunks_.size() > 4096) chunks_.pop_front();  // reads with no line end among them: memory stays bounded
 }
 
 void VirtualPrinter::pump_wire() {
