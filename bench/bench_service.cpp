@@ -8,6 +8,13 @@
 // machine they explain most of the spread.
 //   bench_service [lines=20000] [baud=0 (unlimited) | 115200 | 250000 ...] [machine=rw2] [rx_bytes=127]
 //                 [travel_every=0 (none: the look-back holds full 2000-line windows) | N: a travel move every N lines]
+//                 [command_ms=0: the firmware's time to parse and queue each command] [two_parts=1 | 0: lines wait whole]
+// With a limited link it also counts the link's idle gaps (on the firmware's side of the wire)
+// by what ended them: an ok the firmware wrote during the gap (split into the firmware's part,
+// last byte to ok, and the round trip through xlate5, ok to the next byte), a line from the
+// sender during the gap (xlate5 had nothing to send, or held it in the look-back window), an ok
+// written while bytes were still crossing that xlate5 answered only after they had (a late
+// wake-up), or none of these (a timer).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -15,6 +22,8 @@
 #include <cstdlib>
 #include <fcntl.h>
 #include <fstream>
+#include <functional>
+#include <iterator>
 #include <sstream>
 #include <random>
 #include <spdlog/spdlog.h>
@@ -128,6 +137,49 @@ struct Sender {
     }
 };
 
+// The link's idle gaps, by what ended them, and by size.
+struct Gaps {
+    static constexpr double kEdges[] = {10e-6, 30e-6, 100e-6, 300e-6, 1e-3, 3e-3, 10e-3, 100e-3, 1.0};
+    static constexpr std::size_t kBuckets = std::size(kEdges) + 1;
+    enum Cause { Ok, LateOk, Sender, Other, kCauses };
+    std::uint64_t count[kCauses] = {};
+    double total[kCauses] = {};                  // seconds idle
+    double firmware = 0, round_trip = 0;         // Ok: last byte -> ok; ok -> next byte (through xlate5)
+    double sender = 0, xlate5 = 0;               // Sender: idle -> sender's line; the line -> its bytes
+    std::uint64_t size_count[kBuckets] = {};
+    double size_total[kBuckets] = {};
+    double idle() const { return total[Ok] + total[LateOk] + total[Sender] + total[Other]; }
+    void add(Cause c, double s) {
+        ++count[c];
+        total[c] += s;
+        std::size_t b = 0;
+        while (b < std::size(kEdges) && s >= kEdges[b]) ++b;
+        ++size_count[b];
+        size_total[b] += s;
+    }
+};
+
+void print_gaps(const char* phase, const Gaps& g) {
+    std::printf("  link idle, %s: %.4f s in %llu gaps; ended by an ok written during the gap %llu (%.4f s: firmware %.4f s,"
+                " round trip through xlate5 %.4f s), by an ok written before it (xlate5's answer later than the bytes in flight)"
+                " %llu (%.4f s), by a line from the sender %llu (%.4f s: idle until its latest line %.4f s, from that line to its bytes %.4f s), by none of these %llu (%.4f s)\n",
+                phase, g.idle(), static_cast<unsigned long long>(g.count[0] + g.count[1] + g.count[2] + g.count[3]),
+                static_cast<unsigned long long>(g.count[Gaps::Ok]), g.total[Gaps::Ok], g.firmware, g.round_trip,
+                static_cast<unsigned long long>(g.count[Gaps::LateOk]), g.total[Gaps::LateOk],
+                static_cast<unsigned long long>(g.count[Gaps::Sender]), g.total[Gaps::Sender], g.sender, g.xlate5,
+                static_cast<unsigned long long>(g.count[Gaps::Other]), g.total[Gaps::Other]);
+}
+
+void print_sizes(const Gaps& g) {
+    std::printf("  idle gaps by size (middle): ");
+    for (std::size_t b = 0; b < Gaps::kBuckets; ++b) {
+        if (!g.size_count[b]) continue;
+        if (b < std::size(Gaps::kEdges)) std::printf("<%.0f us: %llu (%.4f s)  ", Gaps::kEdges[b] * 1e6, static_cast<unsigned long long>(g.size_count[b]), g.size_total[b]);
+        else std::printf(">=1 s: %llu (%.4f s)  ", static_cast<unsigned long long>(g.size_count[b]), g.size_total[b]);
+    }
+    std::printf("\n");
+}
+
 bool run(asio::io_context& io, const std::function<bool()>& done, double seconds) {
     const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
     while (!done()) {
@@ -145,6 +197,12 @@ int main(int argc, char** argv) {
     const std::string machine_name = argc > 3 ? argv[3] : "rw2";
     const long rx_arg = argc > 4 ? std::atol(argv[4]) : 0;
     travel_every = argc > 5 ? std::size_t(std::max(0L, std::atol(argv[5]))) : 0;
+    const double command_ms = argc > 6 ? std::atof(argv[6]) : 0;
+    const bool two_parts = argc > 7 ? std::atoi(argv[7]) != 0 : true;
+    if (!(command_ms >= 0 && command_ms <= 10000)) {
+        std::fprintf(stderr, "bench_service: command_ms must be from 0 to 10000\n");
+        return 2;
+    }
     spdlog::set_level(spdlog::level::warn);
     std::setvbuf(stdout, nullptr, _IOLBF, 0);
     const std::size_t total = kStart + n;
@@ -159,6 +217,8 @@ int main(int argc, char** argv) {
     cfg.pty = std::string(dir) + "/printer";
     cfg.sim.baud = baud;
     cfg.firmware.boot_wait = 0.1;
+    cfg.sim.faults.command_ms = command_ms;
+    cfg.firmware.two_parts = two_parts;
     if (rx_arg >= 64 && rx_arg <= (1 << 20)) {
         cfg.firmware.rx_bytes = std::size_t(rx_arg);
         cfg.sim.rx_size = std::max(cfg.sim.rx_size, cfg.firmware.rx_bytes + 1);  // a board built with that buffer
@@ -172,23 +232,55 @@ int main(int argc, char** argv) {
     const std::string load_before = Host::load();
     const Host host0 = Host::now();
     const auto t0 = Clock::now();
+    Gaps phases[3];  // start (to a tenth of the lines), middle, end
+    int phase = 0;
+    parts.sim->on_wire_gap([&](Clock::time_point from, Clock::time_point to, Clock::time_point bytes_before) {
+        from = std::max(from, t0);
+        if (to <= from) return;
+        const double s = std::chrono::duration<double>(to - from).count();
+        Gaps& g = phases[phase];
+        if (std::getenv("BENCH_GAPS") && s > 0.005)  // each long gap: where in the print, and xlate5's queue when it ended
+            std::fprintf(stderr, "gap %.1f ms at sender line %zu, %.1f ms after the firmware's ok, %zu lines queued for the firmware\n", s * 1e3,
+                         sender.next, std::chrono::duration<double, std::milli>(to - parts.sim->last_ok()).count(),
+                         parts.service->firmware()->queued());
+        const auto ok_at = parts.sim->last_ok();
+        if (ok_at >= from) {
+            g.add(Gaps::Ok, s);
+            g.firmware += std::chrono::duration<double>(ok_at - from).count();
+            g.round_trip += std::chrono::duration<double>(to - ok_at).count();
+        } else if (sender.sent_at >= from) {
+            g.add(Gaps::Sender, s);
+            g.sender += std::chrono::duration<double>(sender.sent_at - from).count();
+            g.xlate5 += std::chrono::duration<double>(to - sender.sent_at).count();
+        } else if (ok_at > bytes_before) {
+            g.add(Gaps::LateOk, s);  // the ok came while bytes were still crossing; xlate5 answered after they had
+        } else {
+            g.add(Gaps::Other, s);
+        }
+    });
     sender.send();
     // The link in the middle of the print (from a tenth of the lines to nine tenths), apart from
     // its start (the look-back holds the first window until it is decided) and its end (held
     // output goes after hold_seconds of silence from the sender): both happen once per print.
     run(io, [&] { return sender.next >= total / 10; }, 3600);
     const auto mid0 = std::make_pair(Clock::now(), parts.sim->stats().bytes);
+    phase = 1;
     run(io, [&] { return sender.next >= total * 9 / 10; }, 3600);
     const auto mid1 = std::make_pair(Clock::now(), parts.sim->stats().bytes);
+    phase = 2;
     const bool ok = run(io, [&] { return sender.done && parts.service->idle(); }, 3600);
-    const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    const auto t_end = Clock::now();
+    const double seconds = std::chrono::duration<double>(t_end - t0).count();
+    // The last idle stretch, after the last byte crossed, ends the run rather than a gap.
+    const double tail = baud > 0 && parts.sim->wire_free() < t_end ? std::chrono::duration<double>(t_end - parts.sim->wire_free()).count() : 0;
     const Host host1 = Host::now();
     const double steal = host1.total > host0.total ? 100.0 * double(host1.steal - host0.steal) / double(host1.total - host0.total) : 0;
     const auto executed = parts.sim->stats().executed;
     const auto bytes = parts.sim->stats().bytes;
     const double wire_capacity = baud > 0 ? double(baud) / 10.0 * seconds : 0;  // bytes the link could carry
-    std::printf("through xlate5 (%s, %s, receive-buffer budget %zu bytes):\n", machine_name.c_str(),
-                baud > 0 ? (std::to_string(baud) + " baud").c_str() : "unlimited link", cfg.firmware.rx_bytes);
+    std::printf("through xlate5 (%s, %s, receive-buffer budget %zu bytes, lines in two parts %s, firmware's time per command %.3f ms):\n",
+                machine_name.c_str(), baud > 0 ? (std::to_string(baud) + " baud").c_str() : "unlimited link", cfg.firmware.rx_bytes,
+                two_parts ? "on" : "off", command_ms);
     std::printf("  %zu sender lines in %.2f s: %.0f lines/s in, %.0f lines/s to the firmware (%llu executed)%s\n", total,
                 seconds, double(total) / seconds, double(executed) / seconds, static_cast<unsigned long long>(executed),
                 ok ? "" : "  (DID NOT FINISH)");
@@ -197,6 +289,13 @@ int main(int argc, char** argv) {
         const double mid = double(mid1.second - mid0.second) / (double(baud) / 10.0 * mid_s);
         std::printf("  firmware link busy %.1f%% in the middle of the print (lines %zu to %zu, %.2f s): %s\n", 100.0 * mid, total / 10,
                     total * 9 / 10, mid_s, mid >= 0.98 ? "target >= 98% met" : "below the 98% target");
+    }
+    if (baud > 0) {
+        print_gaps("start (to a tenth of the lines)", phases[0]);
+        print_gaps("middle", phases[1]);
+        print_sizes(phases[1]);
+        print_gaps("end (from nine tenths)", phases[2]);
+        std::printf("  link idle after the last byte until xlate5 was idle: %.4f s\n", tail);
     }
     if (baud > 0)
         std::printf("  firmware link busy %.1f%% of the whole run (%llu bytes of %.0f it could carry), %s\n", 100.0 * double(bytes) / wire_capacity,

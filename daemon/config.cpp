@@ -293,6 +293,10 @@ void set_sim_fault(SimFaults& f, const std::string& k, double d) {
     else if (k == "busy_interval") seconds(f.busy_interval);
     else if (k == "move_ms") seconds(f.move_ms);
     else if (k == "slow_seconds") seconds(f.slow_seconds);
+    else if (k == "command_ms") {
+        if (d > 10000) throw std::invalid_argument("must be at most 10000 ms");
+        f.command_ms = d;
+    }
     else if (k == "reset_after") count(f.reset_after);
     else if (k == "reset_every") count(f.reset_every);
     else if (k == "kill_after") count(f.kill_after);

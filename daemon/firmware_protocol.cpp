@@ -260,7 +260,7 @@ void FirmwareProtocol::transmit(Time now) {
         // first bytes keep the link busy while the ok for the line before is on its way. Not for
         // RepRapFirmware, which drops a damaged line whole.
         const std::size_t room = fits_whole ? SIZE_MAX : opt_.rx_bytes - std::min(opt_.rx_bytes, bytes_in_flight_);
-        if (!fits_whole && (opt_.reprap || room == 0)) break;  // the firmware's receive buffer is full
+        if (!fits_whole && (opt_.reprap || !opt_.two_parts || room == 0)) break;  // the firmware's receive buffer is full
         const bool anchor = !opt_.reprap && proto::command_code(item.command).is('M', 105);
         Entry e{next_n_++, std::move(unsent_.front().command), item.tag, 0, anchor, false};
         unsent_.pop_front();

@@ -49,6 +49,7 @@ struct FirmwareOptions {
     int window = 0;                 // lines in flight; 0: 2, or learned from ADVANCED_OK's B
     std::size_t rx_bytes = marlin::kRxBufferSize - 1;  // bytes in flight at most (the firmware's serial receive buffer)
     std::size_t max_line = marlin::kMaxCmdSize;        // the firmware's line buffer, terminator included
+    bool two_parts = true;          // Marlin: a line that does not fit rx_bytes whole goes in two parts (off: it waits whole; the bench compares)
     double reply_timeout = 5.0;     // seconds without a protocol reply while lines are in flight: probe
     double long_timeout = 900;      // RepRapFirmware only (it sends no keepalives): the same after homing, heating, dwelling
     double boot_wait = 2.0;         // seconds to wait for "start" after opening the port

@@ -42,6 +42,9 @@ void Link::read() {
             return;
         }
         hung_up_ = false;
+        if (on_bytes) on_bytes(n);
+        const std::uint64_t base = bytes_read_;
+        bytes_read_ += n;
         std::size_t begin = 0;
         for (std::size_t i = 0; i < n; ++i) {
             if (buffer_[i] != '\n') continue;
@@ -51,6 +54,7 @@ void Link::read() {
             if (!overlong_ && !partial_.empty() && partial_.back() == '\r') partial_.pop_back();
             cut_ = overlong_;
             overlong_ = false;
+            line_end_ = base + i + 1;
             std::string line;
             line.swap(partial_);
             on_line_(line);

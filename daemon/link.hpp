@@ -4,6 +4,7 @@
 // service's transport; may call Asio only.
 #pragma once
 #include <array>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -43,6 +44,11 @@ public:
     asio::any_io_executor stream_executor() { return executor(); }
     std::size_t max_line = 1 << 16;  // docs/limits.md
     bool line_cut() const { return cut_; }
+    // Raw bytes: called with each read's byte count before its lines are handed on (the virtual
+    // printer times its wire by the byte, so a line sent in two parts crosses in two parts).
+    std::function<void(std::size_t)> on_bytes;
+    // While a line is handled: the count of bytes read up to and including its '\n'.
+    std::uint64_t line_end() const { return line_end_; }
 
 protected:
     explicit Link(std::string name) : name_(std::move(name)) {}
@@ -69,6 +75,7 @@ private:
     bool open_ = true;
     bool overlong_ = false;
     bool cut_ = false;
+    std::uint64_t bytes_read_ = 0, line_end_ = 0;
     bool paused_ = false, reading_ = false, hung_up_ = false;
     std::function<void()> on_hangup_;
     std::unique_ptr<asio::steady_timer> retry_;

@@ -469,7 +469,9 @@ void Service::process(const Pending& p) {
             refuse_line(p, e.message());
             return;
         }
-        holding_ = true;
+        // Held only while a look-back window is open: with none, there is nothing undecided to
+        // wait for (no hold_seconds at the end of a print whose last window has closed).
+        holding_ = translator_->holding();
         proto::append_commands(out_, commands);
     }
     std::vector<std::string> lines;

@@ -71,6 +71,10 @@ void VirtualPrinter::start() {
     // Weak: the link must not keep its owner alive (the record file is flushed when the
     // printer goes away); the same guard as every other handler of the service.
     std::weak_ptr<VirtualPrinter> weak = shared_from_this();
+    if (opt_.baud > 0)
+        link_->on_bytes = [weak](std::size_t n) {
+            if (auto self = weak.lock()) self->on_bytes(n);
+        };
     link_->start([weak](std::string_view line) {
         if (auto self = weak.lock()) self->on_line(line);
     }, [](const std::string&) {});
@@ -83,6 +87,8 @@ void VirtualPrinter::boot() {
     line_.clear();
     ring_.clear();
     planner_.clear();
+    front_ready_.reset();
+    processing_ = false;
     halted_ = stopped_ = false;
     run_timer_.cancel();
     busy_timer_.cancel();
@@ -107,6 +113,8 @@ void VirtualPrinter::unplug() {
 void VirtualPrinter::halt(const std::string& why) {
     halted_ = true;
     ring_.clear();
+    front_ready_.reset();
+    processing_ = false;
     rx_.clear();
     line_.clear();
     if (!why.empty()) reply(why);
@@ -121,6 +129,7 @@ void VirtualPrinter::reply(std::string line) {
         line[at(rng_)] ^= char(1 << bit(rng_));  // "ok" may become "oo", "Resend: 41" "Resend: 45"
         ++stats_.garbled;
     }
+    if (line.rfind("ok", 0) == 0) last_ok_ = Clock::now();
     line += '\n';
     link_->send(line);
 }
@@ -164,12 +173,30 @@ void VirtualPrinter::on_line(std::string_view raw) {
         arrive(line);
         return;
     }
-    // The wire: bytes are there only after they have crossed at baud/10 bytes per second.
-    const auto now = Clock::now();
-    if (wire_free_ < now) wire_free_ = now;
-    wire_free_ += std::chrono::microseconds(std::int64_t(double(line.size()) * 10.0 * 1e6 / opt_.baud));
-    wire_.emplace_back(wire_free_, std::move(line));
+    // The wire: a line is there once its last byte has crossed (on_bytes timed every byte as it
+    // came from the host: the first part of a line sent in two parts crosses while the host waits).
+    const std::uint64_t end = link_->line_end();
+    while (!chunks_.empty() && chunks_.front().end < end) chunks_.pop_front();
+    const auto at = chunks_.empty() ? Clock::now() : chunks_.front().done - wire_time(chunks_.front().end - end);
+    wire_.emplace_back(at, std::move(line));
     pump_wire();
+}
+
+Clock::duration VirtualPrinter::wire_time(std::uint64_t bytes) const {
+    // Ten bits a byte (start, 8 data, stop).
+    return std::chrono::nanoseconds(std::int64_t(double(bytes) * 1e10 / double(opt_.baud)));
+}
+
+void VirtualPrinter::on_bytes(std::size_t n) {
+    // Bytes cross at baud/10 a second, in the order they came, starting when they came or when
+    // the wire is free.
+    const auto now = Clock::now();
+    if (raw_bytes_ > 0 && wire_free_ < now && on_gap_) on_gap_(wire_free_, now, bytes_at_);
+    bytes_at_ = now;
+    wire_free_ = std::max(wire_free_, now) + wire_time(n);
+    raw_bytes_ += n;
+    chunks_.push_back({raw_bytes_, wire_free_});
+    if (chunks_.size() > 4096) chunks_.pop_front();  // reads with no line end among them: memory stays bounded
 }
 
 void VirtualPrinter::pump_wire() {
@@ -212,7 +239,7 @@ void VirtualPrinter::schedule() {
         auto self = weak.lock();
         if (!self) return;
         self->scheduled_ = false;
-        self->read_serial();
+        if (!self->processing_) self->read_serial();  // a main loop busy with a command reads nothing
         self->run_queue();
     });
 }
@@ -314,6 +341,15 @@ void VirtualPrinter::run_queue() {
         read_serial();
         if (ring_.empty()) return;
         const auto now = Clock::now();
+        if (opt_.faults.command_ms > 0) {
+            // The command in front is parsed and queued first; its ok waits for that.
+            if (!front_ready_) front_ready_ = now + ms(opt_.faults.command_ms);
+            processing_ = now < *front_ready_;
+            if (processing_) {
+                wait(run_timer_, *front_ready_);
+                return;
+            }
+        }
         const auto code = proto::command_code(ring_.front().text);
         if (is_move(code) && !stopped_) {
             while (!planner_.empty() && planner_.front() <= now) planner_.pop_front();
@@ -352,6 +388,7 @@ void VirtualPrinter::run_queue() {
                     if (self->ring_.empty()) return;
                     const auto c = self->ring_.front();
                     self->ring_.pop_front();
+                    self->front_ready_.reset();
                     self->execute(c);
                     self->run_queue();
                     return;
@@ -366,6 +403,7 @@ void VirtualPrinter::run_queue() {
         }
         const auto c = ring_.front();
         ring_.pop_front();
+        front_ready_.reset();
         execute(c);
     }
 }

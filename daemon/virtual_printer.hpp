@@ -23,6 +23,8 @@
 #include <cstdint>
 #include <deque>
 #include <fstream>
+#include <functional>
+#include <optional>
 #include <memory>
 #include <random>
 #include <string>
@@ -49,6 +51,10 @@ struct SimFaults {
     double busy_seconds = 3;
     double busy_interval = marlin::kKeepaliveSeconds;  // seconds between keepalives
     double move_ms = 0;          // time each planned move takes: a slow planner holds oks back when full
+    // Time each command takes to parse and queue before its ok (an AVR Marlin's main loop: its
+    // `advance()` runs one command at a time, and the receive buffer is not read meanwhile, so
+    // bytes keep arriving into it). Milliseconds, 0 to 10000.
+    double command_ms = 0;
     double slow_seconds = 0;     // G28, G4, M109, M190, M400 take this long (Marlin: with keepalives; RRF: silent)
     std::uint64_t reset_after = 0;   // after executing this many lines: reboot ("start", state lost)
     std::uint64_t reset_every = 0;   // each time the lines executed reach a multiple of this: reboot
@@ -89,10 +95,20 @@ public:
     const std::vector<std::string>& executed() const { return executed_; }  // with keep_executed
     const SimStats& stats() const { return stats_; }
     bool halted() const { return halted_; }
+    // Baud-limited link only: called when bytes arrive after the wire stood idle, with the time
+    // the last byte before finished crossing, the time the new ones came, and the time the bytes
+    // before them came (a bench's count of gaps and their causes).
+    using Clock = std::chrono::steady_clock;
+    using GapHandler = std::function<void(Clock::time_point idle_from, Clock::time_point resumed, Clock::time_point bytes_before)>;
+    void on_wire_gap(GapHandler f) { on_gap_ = std::move(f); }
+    Clock::time_point last_ok() const { return last_ok_; }      // when the latest ok was written
+    Clock::time_point wire_free() const { return wire_free_; }  // when the last byte sent finishes crossing
 
 private:
     struct Command { std::string text; std::int64_t n; };
     void on_line(std::string_view raw);
+    void on_bytes(std::size_t n);
+    std::chrono::steady_clock::duration wire_time(std::uint64_t bytes) const;
     void arrive(const std::string& bytes);
     void schedule();
     void read_serial();
@@ -118,6 +134,15 @@ private:
     asio::steady_timer run_timer_, wire_timer_, busy_timer_;
     std::deque<std::pair<std::chrono::steady_clock::time_point, std::string>> wire_;  // baud-limited arrival
     std::chrono::steady_clock::time_point wire_free_{};
+    // The wire by the byte: each read's bytes, as the count read so far and when its last byte is across.
+    struct Chunk { std::uint64_t end; std::chrono::steady_clock::time_point done; };
+    std::deque<Chunk> chunks_;
+    std::uint64_t raw_bytes_ = 0;
+    GapHandler on_gap_;
+    Clock::time_point bytes_at_{};  // when the latest bytes came from the host
+    Clock::time_point last_ok_{};
+    std::optional<Clock::time_point> front_ready_;  // command_ms: when the command in front is parsed
+    bool processing_ = false;                        // command_ms: the main loop is busy with a command
     std::chrono::steady_clock::time_point blocked_since_{}, last_keepalive_{};
     bool wire_armed_ = false;
     bool scheduled_ = false;

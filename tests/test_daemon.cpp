@@ -584,3 +584,26 @@ TEST_CASE("M73 progress from the sender passes through to the firmware in its pl
     CHECK(at("M73 P0 R12") < at("M73 P50 R6"));
     CHECK(at("M73 P100 R0") == std::ptrdiff_t(executed.size()) - 1);
 }
+
+TEST_CASE("output is held only while a look-back window is open: a print whose last window closed is done without hold_seconds") {
+    // rw2_print's travel move at line 5 opens a window of 2000 lines; 2100 moves close it, so
+    // nothing is undecided at the end. Ending on a travel move and a few printing moves leaves a
+    // window open: that output waits for hold_seconds of silence, as before.
+    const auto run = [](const std::vector<std::string>& lines) {
+        Rig rig("rw2", [](ServeConfig& c) { c.hold_seconds = 3; });
+        REQUIRE(rig.ready());
+        TestSender sender(rig.io, rig.config.pty, true);
+        sender.stream(lines);
+        REQUIRE(rig.run_until([&] { return sender.done(); }, 120));
+        const auto t0 = std::chrono::steady_clock::now();
+        REQUIRE(rig.run_until([&] { return rig.service().idle(); }, 20));
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        CHECK(rig.executed_after_hello() == offline(rig.machine, lines));
+        return s;
+    };
+    auto lines = rw2_print(2100);
+    CHECK(run(lines) < 1.5);
+    lines.push_back("G1 X110 Y110 Z20 A10 B5");  // a travel move: a new window opens
+    for (int i = 0; i < 5; ++i) lines.push_back("G1 X" + std::to_string(111 + i) + " Y110 Z20 A10 B5 E0.02");
+    CHECK(run(lines) >= 2.5);
+}

@@ -189,6 +189,82 @@ TEST_CASE("the virtual printer skips an empty line without a reply, as Marlin do
     ::close(fd);
 }
 
+namespace {
+// A virtual printer on a pseudo-terminal, and its far end opened as xlate5 would open it.
+struct SimEnd {
+    asio::io_context io;
+    Pty port;
+    std::shared_ptr<VirtualPrinter> sim;
+    int fd = -1;
+    std::string got;
+    explicit SimEnd(SimOptions so) {
+        sim = std::make_shared<VirtualPrinter>(io, port.release_master(), so);
+        fd = ::open(port.path().c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC | O_NONBLOCK);
+        REQUIRE(fd >= 0);
+        make_raw(fd);
+        sim->start();
+        pump(100);
+        REQUIRE(got.find("start\n") != std::string::npos);
+        got.clear();
+    }
+    ~SimEnd() { ::close(fd); }
+    void pump(int ms) {
+        const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(ms);
+        while (std::chrono::steady_clock::now() < end) {
+            io.run_for(std::chrono::milliseconds(2));
+            char buf[512];
+            for (ssize_t n; (n = ::read(fd, buf, sizeof buf)) > 0;) got.append(buf, std::size_t(n));
+        }
+    }
+    // Seconds until the count of oks received reaches `oks` (at most `limit`).
+    double until_oks(std::size_t oks, double limit) {
+        const auto t0 = std::chrono::steady_clock::now();
+        while (true) {
+            std::size_t n = 0;
+            for (std::size_t p = 0; (p = got.find("ok", p)) != std::string::npos; p += 2) ++n;
+            const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            if (n >= oks || s > limit) return s;
+            pump(1);
+        }
+    }
+    void send(const std::string& text) { REQUIRE(::write(fd, text.data(), text.size()) == ssize_t(text.size())); }
+};
+}  // namespace
+
+TEST_CASE("the virtual printer's wire carries bytes as they come: a line's first part crosses while the host still holds its rest") {
+    // At 300 baud a byte takes 1/30 s. A whole line is taken only once its last byte has crossed;
+    // a line whose first part went earlier is taken as soon as its rest has crossed.
+    SimOptions so;
+    so.baud = 300;
+    SimEnd e(so);
+    const double byte = 10.0 / 300;
+    const std::string first = proto::numbered(1, "M117 the first part crosses early") + "\n";
+    e.send(first);
+    CHECK(e.until_oks(1, 5) >= 0.95 * byte * double(first.size()));
+    e.got.clear();
+    const std::string second = proto::numbered(2, "M117 the first part crosses early") + "\n";
+    e.send(second.substr(0, second.size() - 2));
+    e.pump(int(1000 * byte * double(second.size())) + 300);  // the first part has crossed meanwhile
+    CHECK(e.got.empty());                                     // and waits for its rest
+    e.send(second.substr(second.size() - 2));
+    const double after_rest = e.until_oks(1, 5);
+    CHECK(after_rest >= 0.95 * byte * 2);
+    CHECK(after_rest < 0.5 * byte * double(second.size()));  // not the whole line's time again
+}
+
+TEST_CASE("the virtual printer's command_ms: each command is parsed and queued in turn before its ok") {
+    SimOptions so;
+    so.faults.command_ms = 150;
+    SimEnd e(so);
+    std::string three;
+    for (int i = 1; i <= 3; ++i) three += proto::numbered(i, "G1 X" + std::to_string(i)) + "\n";
+    e.send(three);
+    CHECK(e.until_oks(1, 5) >= 0.149);
+    CHECK(e.until_oks(3, 5) >= 0.299);  // two more commands, one after the other (0.45 s from the start)
+    CHECK(e.got == "ok\nok\nok\n");
+    CHECK(e.sim->stats().executed == 3);
+}
+
 TEST_CASE("a lost newline on the last line in flight: one empty line after a short silence saves the reply timeout") {
     // Only the last line in flight waits for silence (a line sent after it joins it and is
     // refused); that is every lost newline when the firmware's receive buffer takes one line at

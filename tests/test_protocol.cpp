@@ -512,6 +512,28 @@ TEST_CASE("protocol: a line that does not fit the receive buffer whole goes in t
     CHECK(heads >= 10);
 }
 
+TEST_CASE("protocol: with two_parts off, a line that does not fit the receive buffer whole waits whole for room") {
+    FirmwareOptions o = HalfSent::options();
+    o.two_parts = false;
+    Script s(o);
+    s.greet();
+    const std::size_t first = s.raw.size();
+    const auto expect = long_moves(s, 2);
+    std::size_t answered = 0, answered_bytes = 0;
+    while (answered < expect.size()) {
+        const std::string sent = joined(s.raw, first);
+        CHECK(sent.size() - answered_bytes <= o.rx_bytes);
+        REQUIRE(sent.size() > answered_bytes);  // something is in flight: the link never stalls
+        answered_bytes += expect[answered++].size();
+        s.reply("ok");
+    }
+    CHECK(joined(s.raw, first) == joined(expect));
+    // Every write is a whole line: one line in flight at a time, as two never fit 64 bytes.
+    for (std::size_t i = first; i < s.raw.size(); ++i) CHECK(s.raw[i].back() == '\n');
+    CHECK(s.raw.size() - first == expect.size());
+    CHECK(s.p.idle());
+}
+
 TEST_CASE("protocol: a refusal while a line is half sent: its rest is never sent; the first part ends as a line Marlin refuses") {
     HalfSent h;
     auto& s = h.s;

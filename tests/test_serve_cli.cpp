@@ -87,6 +87,8 @@ TEST_CASE("serve: flags are checked by the configuration's own bounds (no flag r
              {"--sim-fault reset_after=1e999", "is not a number"},
              {"--sim-fault reset_every=2.5", "2^53"},
              {"--sim-fault reset_every=-1", "must not be negative"},
+             {"--sim-fault command_ms=10001", "at most 10000 ms"},
+             {"--sim-fault command_ms=-0.5", "must not be negative"},
              {"--nudge 61", "from 0 to 60 (s)"},
              {"--tcp 127.0.0.1:99999", "'99999' in '127.0.0.1:99999' is not a port number from 0 to 65535"},
              {"--tcp 127.0.0.1:abc", "'abc' in '127.0.0.1:abc' is not a port number"},

@@ -43,6 +43,9 @@ public:
     void set_lines(std::size_t lines, int candidates = kMaxCandidates);
     void feed(std::string_view line, std::uint64_t line_no, std::string& out);
     void finish(std::string& out);
+    // Whether a window is open (output held, or a travel move that may yet be translated again):
+    // false, finish() would release nothing and change nothing.
+    bool holding() const { return have_checkpoint_ || !held_.empty(); }
 
 private:
     bool unwind_before(std::string_view line, std::uint64_t line_no, LineRun& last);

@@ -60,6 +60,8 @@ void Translator::set_lookback(std::size_t lines, int candidates) {
     if (forward_) forward_->lookback.set_lines(lines, candidates);
 }
 
+bool Translator::holding() const { return forward_ && forward_->lookback.holding(); }
+
 void Translator::finish(std::string& out) {
     if (forward_) forward_->lookback.finish(out);
 }

@@ -57,6 +57,7 @@ public:
     // number of end solutions tried at a travel move (the fuzz harness bounds its work with it).
     void set_lookback(std::size_t lines, int candidates = 64);
     void finish(std::string& out);
+    bool holding() const;  // a look-back window is open: finish() would end it
     static constexpr std::size_t kDefaultLookback = 2000;
 
     const std::vector<double>& joints() const;
