@@ -273,6 +273,10 @@ void set_sim_fault(SimFaults& f, const std::string& k, double d) {
         if (d > 3600) throw std::invalid_argument("must be at most 3600 seconds");
         out = d;
     };
+    const auto milliseconds = [&](double& out, double most) {
+        if (d > most) throw std::invalid_argument("must be at most " + std::to_string(int(most)) + " ms");
+        out = d;
+    };
     // Counts: whole numbers up to 2^53, where a double still holds every integer.
     const auto count = [&](std::uint64_t& out) {
         if (d != std::floor(d) || d > 9007199254740992.0) throw std::invalid_argument("expected a whole number up to 2^53");
@@ -291,12 +295,9 @@ void set_sim_fault(SimFaults& f, const std::string& k, double d) {
     else if (k == "busy") probability(f.busy);
     else if (k == "busy_seconds") seconds(f.busy_seconds);
     else if (k == "busy_interval") seconds(f.busy_interval);
-    else if (k == "move_ms") seconds(f.move_ms);
+    else if (k == "move_ms") milliseconds(f.move_ms, 3600);
     else if (k == "slow_seconds") seconds(f.slow_seconds);
-    else if (k == "command_ms") {
-        if (d > 10000) throw std::invalid_argument("must be at most 10000 ms");
-        f.command_ms = d;
-    }
+    else if (k == "command_ms") milliseconds(f.command_ms, 10000);
     else if (k == "reset_after") count(f.reset_after);
     else if (k == "reset_every") count(f.reset_every);
     else if (k == "kill_after") count(f.kill_after);

@@ -89,6 +89,7 @@ TEST_CASE("serve: flags are checked by the configuration's own bounds (no flag r
              {"--sim-fault reset_every=-1", "must not be negative"},
              {"--sim-fault command_ms=10001", "at most 10000 ms"},
              {"--sim-fault command_ms=-0.5", "must not be negative"},
+             {"--sim-fault move_ms=3601", "at most 3600 ms"},
              {"--nudge 61", "from 0 to 60 (s)"},
              {"--tcp 127.0.0.1:99999", "'99999' in '127.0.0.1:99999' is not a port number from 0 to 65535"},
              {"--tcp 127.0.0.1:abc", "'abc' in '127.0.0.1:abc' is not a port number"},
