@@ -266,9 +266,10 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
     if (mv.mode != OrientationMode::Vector) return true;
     // The tool axis against the great-circle arc from sa to sb: both lie near the chords between
     // their ends (the arc within phi^2 / 8 of its own), and those chords within the ends' gaps.
-    const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : slerp(mv.p0.axis, mv.p1.axis, sa);
-    const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : slerp(mv.p0.axis, mv.p1.axis, sb);
-    const double phi = (sb - sa) * std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
+    const GreatArc arc(mv.p0.axis, mv.p1.axis);
+    const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
+    const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);
+    const double phi = (sb - sa) * arc.angle;
     const double chord = b.axis + std::max((pa.axis - ia).norm(), (pb.axis - ib).norm()) + phi * phi / 8.0;
     if (!(chord < 2.0)) return false;
     return 2.0 * std::asin(0.5 * chord) * kDegPerRad <= atol - 1e-6;

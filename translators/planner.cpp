@@ -37,13 +37,18 @@ double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
     return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * kDegPerRad;
 }
 
-// Great-circle interpolation of unit vectors (the programmed axis along a move).
-Eigen::Vector3d great_circle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) {
-    const double angle = std::acos(std::clamp(a.dot(b), -1.0, 1.0));
-    if (angle < 1e-12) return a;
-    const double sn = std::sin(angle);
-    return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
-}
+// Great-circle interpolation of unit vectors (the programmed axis along a move); the arc's angle
+// is found once for the many points taken along one move.
+struct GreatCircle {
+    GreatCircle(const Eigen::Vector3d& from, const Eigen::Vector3d& to)
+        : a(from), b(to), angle(std::acos(std::clamp(a.dot(b), -1.0, 1.0))), sn(angle < 1e-12 ? 0.0 : std::sin(angle)) {}
+    Eigen::Vector3d at(double s) const {
+        if (angle < 1e-12) return a;
+        return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
+    }
+    Eigen::Vector3d a, b;
+    double angle, sn;
+};
 
 }  // namespace
 
@@ -215,10 +220,11 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
     // The joint-linear turn from the start against the programmed axis's great circle.
     worst = 0;
     std::vector<double>& lerp = probe;
+    const GreatCircle arc(from.axis, to.axis);
     for (int i = 0; i <= kPoleSamples; ++i) {
         const double t = double(i) / kPoleSamples;
         for (std::size_t j = 0; j < q.size(); ++j) lerp[j] = q0[j] + t * (q[j] - q0[j]);
-        worst = std::max(worst, angle_between(kin_.forward(lerp).axis, great_circle(from.axis, to.axis, t)));
+        worst = std::max(worst, angle_between(kin_.forward(lerp).axis, arc.at(t)));
     }
     return worst <= kPoleMargin * tolerance;
 }
