@@ -217,16 +217,20 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
         // The usual end from an exact start: nothing to choose (planar files, exact on the pole).
         if (start_exact && std::abs(q[c] - q_next_[c]) < kSameAngle && std::abs(q[b] - q_next_[b]) < kSameAngle) return false;
     }
-    // The joint-linear turn from the start against the programmed axis's great circle.
+    // The joint-linear turn from the start against the programmed axis's great circle. The first
+    // point past the margin decides (worst is used only when the passage is taken, and then every
+    // point was measured).
     worst = 0;
     std::vector<double>& lerp = probe;
     const GreatCircle arc(from.axis, to.axis);
+    const double limit = kPoleMargin * tolerance;
     for (int i = 0; i <= kPoleSamples; ++i) {
         const double t = double(i) / kPoleSamples;
         for (std::size_t j = 0; j < q.size(); ++j) lerp[j] = q0[j] + t * (q[j] - q0[j]);
         worst = std::max(worst, angle_between(kin_.forward(lerp).axis, arc.at(t)));
+        if (!(worst <= limit)) return false;
     }
-    return worst <= kPoleMargin * tolerance;
+    return true;
 }
 
 void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
