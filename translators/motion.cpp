@@ -236,6 +236,16 @@ const Kinematics::Solutions& MotionStage::solutions_of(const Eigen::Vector3d& ax
     return c.solutions;
 }
 
+void MotionStage::remember_solutions(const Kinematics::Solutions& solutions) const {
+    for (const CachedSolutions& c : solved_)
+        if (c.valid && std::memcmp(c.axis.data(), solutions.axis.data(), sizeof(double) * 3) == 0) return;
+    CachedSolutions& c = solved_[solved_next_];
+    solved_next_ = 1 - solved_next_;
+    c.axis = solutions.axis;
+    c.solutions = solutions;
+    c.valid = true;
+}
+
 const Kinematics::PathEnd& MotionStage::path_end(const double* q) const {
     const std::size_t n = machine_.joints.size();
     for (CachedEnd& c : ends_)

@@ -238,7 +238,11 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     q_next_ = s.q;
     if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
     IkResult r;
-    if (mv.any_ijk) r = orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(mv.axis), s.q, s.q, q_next_);
+    if (mv.any_ijk) {
+        const auto solutions = kin_.orientation_solutions(mv.axis);
+        motion_.remember_solutions(solutions);  // the move's end axis: the motion stage asks for it again
+        r = orient_within_limits(machine_, kin_.rotary_joints(), solutions, s.q, s.q, q_next_);
+    }
     Pose next = s.pose;
     if (r.ok()) {
         if (!mv.any_xyz && !s.tip_known) {
