@@ -488,7 +488,7 @@ TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit o
                 }
                 const Pose p = k.forward(q);
                 const auto end = k.path_end(q.data());
-                if (!same_bits(p.tip, tip) || !same_bits(p.axis, axis) || !same_bits(end.pose.tip, tip) ||
+                if (!same_bits(p.tip, tip) || !same_bits(p.axis, axis) || !same_bits(k.tool_axis(q), axis) || !same_bits(end.pose.tip, tip) ||
                     std::memcmp(&end.lever_arm, &lever, sizeof lever) != 0)
                     ++differ;
             }

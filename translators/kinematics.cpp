@@ -182,6 +182,15 @@ void walk(const std::vector<ChainElement>& chain, const double* q, M3& R, V3& t,
     }
 }
 
+// walk's rotation alone: the same products in the same order, so R is the same to the last bit.
+void walk_rotation(const std::vector<ChainElement>& chain, const double* q, M3& R) {
+    R = M3{1, 0, 0, 0, 1, 0, 0, 0, 1};
+    for (const auto& e : chain) {
+        if (e.kind == ChainElement::Kind::Fixed) R = R * m3(e.fixed.linear());
+        else if (e.kind == ChainElement::Kind::Rotary) R = R * rot(v3(e.axis), q[e.joint]);
+    }
+}
+
 // R^T v, as Eigen sums a transposed product: every row (a0 + a1) + a2.
 inline V3 transposed_times(const M3& m, const V3& v) {
     return {(m.xx * v.x + m.yx * v.y) + m.zx * v.z, (m.xy * v.x + m.yy * v.y) + m.zy * v.z, (m.xz * v.x + m.yz * v.y) + m.zz * v.z};
@@ -207,6 +216,14 @@ void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, E
 }
 
 Pose Kinematics::forward(const std::vector<double>& q) const { return forward(q.data(), nullptr); }
+
+Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
+    M3 Rp, Rt;
+    walk_rotation(machine_.part_chain, q.data(), Rp);
+    walk_rotation(machine_.tool_chain, q.data(), Rt);
+    const V3 axis = normalized(transposed_times(Rp, Rt * v3(machine_.tool_axis)));
+    return Eigen::Vector3d(axis.x, axis.y, axis.z);
+}
 
 // With `lever_arm`: also the tip's largest distance from a rotary joint's axis.
 Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const {

@@ -25,6 +25,8 @@ public:
 
     // Joint values (mm, degrees) -> tip and tool axis in the part frame.
     Pose forward(const std::vector<double>& q) const;
+    // forward(q).axis to the last bit, without the tip's translations (the pole checks ask only that).
+    Eigen::Vector3d tool_axis(const std::vector<double>& q) const;
 
     // The firmware's path from joints qa to qb (every joint at a constant rate): its end poses,
     // and upper bounds on how far, anywhere along it, the tip (mm) and the tool axis (a unit

@@ -531,7 +531,7 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
         for (int i = 1; i < kAxisSamples; ++i) {
             const double t = double(i) / kAxisSamples;
             for (std::size_t j = 0; j < q.size(); ++j) qq[j] = q0[j] + t * (q[j] - q0[j]);
-            const Eigen::Vector3d axis = kin_.forward(qq).axis;
+            const Eigen::Vector3d axis = kin_.tool_axis(qq);
             worst = std::max(worst, std::acos(std::clamp(axis.dot(arc.at(t)), -1.0, 1.0)) * kDegPerRad);
         }
         if (worst > kSampleMargin * machine_.motion.angle_tolerance) continue;

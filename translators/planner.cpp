@@ -171,14 +171,14 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
     const std::vector<double>& q0 = state_.q;
     const double tolerance = machine_.motion.angle_tolerance;
     const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
-    const bool start_exact = angle_between(kin_.forward(q0).axis, from.axis) < 1e-6;
+    const bool start_exact = angle_between(kin_.tool_axis(q0), from.axis) < 1e-6;
     // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
     // files under G43.5: the axis stays on the pole).
     if (start_exact && q_next_[c] == q0[c] && q_next_[b] == q0[b]) return false;
     std::vector<double>& probe = pole_probe_;
     probe = q0;
     probe[b] = 0;
-    const Eigen::Vector3d pole = kin_.forward(probe).axis;
+    const Eigen::Vector3d pole = kin_.tool_axis(probe);
     const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
     // Only a move turning the tool axis by less than the tolerance may end off its axis: a
     // passage made of such moves cannot cross in any one of them. A longer move ends exactly
@@ -227,7 +227,7 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
     for (int i = 0; i <= kPoleSamples; ++i) {
         const double t = double(i) / kPoleSamples;
         for (std::size_t j = 0; j < q.size(); ++j) lerp[j] = q0[j] + t * (q[j] - q0[j]);
-        worst = std::max(worst, angle_between(kin_.forward(lerp).axis, arc.at(t)));
+        worst = std::max(worst, angle_between(kin_.tool_axis(lerp), arc.at(t)));
         if (!(worst <= limit)) return false;
     }
     return true;
