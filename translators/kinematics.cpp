@@ -117,6 +117,28 @@ Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
     // R(w1, 180) fixes p (p along w1) and turns w2 into -w2 (w2 normal to w1), so
     // R(w1, t1 + 180) R(w2, -t2) p = R(w1, t1) R(w2, t2) R(w1, 180) p = R(w1, t1) R(w2, t2) p.
     flip_ = rotary_.size() == 2 && std::abs(w_[0].dot(w_[1])) < 1e-9 && w_[0].cross(p_).norm() < 1e-9;
+
+    // The bound's terms (see joint_path_bound): the part chain from the part back to the base,
+    // then the tool chain. Each rotary element's arm index is its place in forward()'s walk (part
+    // chain from the base, then the tool chain).
+    int part_rotaries = 0;
+    for (const auto& e : machine.part_chain) part_rotaries += e.kind == ChainElement::Kind::Rotary;
+    int before = part_rotaries;  // rotary elements of the part chain ahead of the current one in the walk
+    for (auto it = machine.part_chain.rbegin(); it != machine.part_chain.rend(); ++it) {
+        if (it->kind == ChainElement::Kind::Fixed) continue;
+        if (it->kind == ChainElement::Kind::Rotary) --before;
+        terms_.push_back({it->joint, it->kind == ChainElement::Kind::Rotary, it->axis.norm(), before});
+    }
+    int arm = part_rotaries;
+    for (const auto& e : machine.tool_chain) {
+        if (e.kind == ChainElement::Kind::Fixed) continue;
+        terms_.push_back({e.joint, e.kind == ChainElement::Kind::Rotary, e.axis.norm(), e.kind == ChainElement::Kind::Rotary ? arm++ : 0});
+    }
+    // Linear joints ahead of every rotary move the rest of the chain rigidly at a constant rate:
+    // they bend nothing (see joint_path_bound).
+    std::size_t lead = 0;
+    while (lead < terms_.size() && !terms_[lead].rotary) ++lead;
+    terms_.erase(terms_.begin(), terms_.begin() + std::ptrdiff_t(lead));
 }
 
 namespace {
@@ -160,6 +182,15 @@ void walk(const std::vector<ChainElement>& chain, const double* q, M3& R, V3& t,
     }
 }
 
+// walk's rotation alone: the same products in the same order, so R is the same to the last bit.
+void walk_rotation(const std::vector<ChainElement>& chain, const double* q, M3& R) {
+    R = M3{1, 0, 0, 0, 1, 0, 0, 0, 1};
+    for (const auto& e : chain) {
+        if (e.kind == ChainElement::Kind::Fixed) R = R * m3(e.fixed.linear());
+        else if (e.kind == ChainElement::Kind::Rotary) R = R * rot(v3(e.axis), q[e.joint]);
+    }
+}
+
 // R^T v, as Eigen sums a transposed product: every row (a0 + a1) + a2.
 inline V3 transposed_times(const M3& m, const V3& v) {
     return {(m.xx * v.x + m.yx * v.y) + m.zx * v.z, (m.xy * v.x + m.yy * v.y) + m.zy * v.z, (m.xz * v.x + m.yz * v.y) + m.zz * v.z};
@@ -186,8 +217,16 @@ void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, E
 
 Pose Kinematics::forward(const std::vector<double>& q) const { return forward(q.data(), nullptr); }
 
+Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
+    M3 Rp, Rt;
+    walk_rotation(machine_.part_chain, q.data(), Rp);
+    walk_rotation(machine_.tool_chain, q.data(), Rt);
+    const V3 axis = normalized(transposed_times(Rp, Rt * v3(machine_.tool_axis)));
+    return Eigen::Vector3d(axis.x, axis.y, axis.z);
+}
+
 // With `lever_arm`: also the tip's largest distance from a rotary joint's axis.
-Pose Kinematics::forward(const double* q, double* lever_arm) const {
+Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const {
     M3 Rp, Rt;
     V3 tp, tt;
     AxisLine lines[8];  // at most 5 joints (the loader checks)
@@ -205,7 +244,9 @@ Pose Kinematics::forward(const double* q, double* lever_arm) const {
         const Eigen::Vector3d end(tt.x, tt.y, tt.z);
         for (int i = 0; i < count; ++i) {
             const Eigen::Vector3d d = end - lines[i].point;
-            *lever_arm = std::max(*lever_arm, (d - lines[i].dir * lines[i].dir.dot(d)).norm());
+            const double arm = (d - lines[i].dir * lines[i].dir.dot(d)).norm();
+            if (arms) arms[i] = arm;
+            *lever_arm = std::max(*lever_arm, arm);
         }
     }
     return pose;
@@ -216,40 +257,59 @@ Pose Kinematics::forward(const double* q, double* lever_arm) const {
 // rate w_i (radians over the whole path), a linear joint at speed v_k. With V_i the velocity field
 // of joint i (its axis carried by the joints before it), x' = sum V_i x and
 // x'' = sum_i (V_i x' + sum_{j<i} [V_j, V_i] x), where for these affine fields
-// |[V_j, V_i] x| <= |w_j| |V_i x| + |w_i| |V_j x|, |V_i x| <= |w_i| r (r: the largest distance of
-// x from a rotary axis along the path) or v_k. Summed: with W = sum |w_i|, S = sum w_i^2 and
-// L = sum |v_k|, |x''| <= (2 W^2 - S) r + 2 W L. The distance from the chord of a curve whose
-// second derivative stays below a is at most a / 8. Along the path the distance from an axis
-// changes at most by the speed of x relative to it, W r + L, so r <= (r0 + L) / (1 - W) from its
-// value r0 at qa (W < 1 rad). The tool axis is a unit vector turned by the same rotations: r = 1,
-// L = 0.
+// |[V_j, V_i] x| <= |w_j| |V_i x| + |w_i| |V_j x|, |V_i x| <= |w_i| r_i (r_i: x's distance from
+// rotary i's axis) or v_k, and the derivative of a rotary field along x' is at most |w_i| |x'|
+// (zero for a linear one). Summed, with W = sum |w_i| and L = sum |v_k|:
+//   |x''| <= sum_i |w_i| r_i (2 W - |w_i|) + 2 W L,
+// (with one r for every axis: (2 W^2 - S) r + 2 W L, S = sum w_i^2).
+// Linear joints ahead of every rotary in that chain (rw2's X Y Z carrying the head) add a
+// translation at constant velocity to the whole rest of the chain: no second derivative and no
+// change of any distance, so they are left out of L altogether. The distance from the chord of a
+// curve whose second derivative stays below a is at most a t (1 - t) / 2 at parameter t, a / 8 at
+// the middle. Along the path r_i changes at most by the speed of x relative to axis i, which only
+// the joints after i give: r_i <= r_i(qa) + W_after R + L_after, with R the largest distance
+// anywhere, R <= (r0 + L) / (1 - W) from the largest r0 at qa (W < 1 rad). The tool axis is a
+// unit vector turned by the same rotations: r = 1, L = 0, (2 W^2 - S) / 8 with S = sum w_i^2.
 Kinematics::PathEnd Kinematics::path_end(const double* q) const {
     PathEnd end;
-    end.pose = forward(q, &end.lever_arm);
+    end.pose = forward(q, &end.lever_arm, end.arm);
     return end;
 }
 
 Kinematics::PathBound Kinematics::joint_path_bound(const PathEnd& a, const double* qa, const double* qb) const {
     PathBound out;
-    const double r0 = a.lever_arm;
+    double rate[8];  // each term's w_i (radians) or v_k (mm); the loader allows at most 5 joints, two rotary
+    const std::size_t n = terms_.size();
     double w = 0, s = 0, l = 0;
-    for (const auto* chain : {&machine_.part_chain, &machine_.tool_chain})
-        for (const auto& e : *chain) {
-            if (e.kind == ChainElement::Kind::Fixed) continue;
-            const double d = std::abs(qb[e.joint] - qa[e.joint]) * e.axis.norm();
-            if (e.kind == ChainElement::Kind::Rotary) {
-                w += d * kDeg;
-                s += d * kDeg * d * kDeg;
-            } else {
-                l += d;
-            }
+    for (std::size_t k = 0; k < n; ++k) {
+        const BoundTerm& e = terms_[k];
+        const double d = std::abs(qb[e.joint] - qa[e.joint]) * e.scale;
+        if (e.rotary) {
+            rate[k] = d * kDeg;
+            w += rate[k];
+            s += rate[k] * rate[k];
+        } else {
+            rate[k] = d;
+            l += d;
         }
+    }
     if (!(w < 0.5)) {  // no useful bound for such a turn (and none at all past 1 rad)
         out.tip = out.axis = std::numeric_limits<double>::infinity();
         return out;
     }
-    const double r = (r0 + l) / (1.0 - w);
-    out.tip = ((2 * w * w - s) * r + 2 * w * l) / 8.0;
+    const double r = (a.lever_arm + l) / (1.0 - w);
+    double curve = 2 * w * l, w_after = 0, l_after = 0;
+    for (std::size_t k = n; k-- > 0;) {
+        const BoundTerm& e = terms_[k];
+        if (e.rotary) {
+            const double ri = std::min(r, a.arm[e.arm] + w_after * r + l_after);
+            curve += rate[k] * ri * (2 * w - rate[k]);
+            w_after += rate[k];
+        } else {
+            l_after += rate[k];
+        }
+    }
+    out.tip = curve / 8.0;
     out.axis = (2 * w * w - s) / 8.0;
     return out;
 }

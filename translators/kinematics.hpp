@@ -25,6 +25,8 @@ public:
 
     // Joint values (mm, degrees) -> tip and tool axis in the part frame.
     Pose forward(const std::vector<double>& q) const;
+    // forward(q).axis to the last bit, without the tip's translations (the pole checks ask only that).
+    Eigen::Vector3d tool_axis(const std::vector<double>& q) const;
 
     // The firmware's path from joints qa to qb (every joint at a constant rate): its end poses,
     // and upper bounds on how far, anywhere along it, the tip (mm) and the tool axis (a unit
@@ -33,7 +35,8 @@ public:
     // An end of such a path: its pose, and the tip's largest distance from a rotary joint's axis.
     struct PathEnd {
         Pose pose;
-        double lever_arm = 0;
+        double lever_arm = 0;  // the largest of `arm`
+        double arm[8] = {};    // the distance from each rotary element's axis, in chain order (part chain, then tool chain)
     };
     PathEnd path_end(const double* q) const;
     struct PathBound {
@@ -67,7 +70,17 @@ private:
     // joint's direction.
     void eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
               Eigen::Vector3d* linear_dirs) const;
-    Pose forward(const double* q, double* lever_arm) const;
+    Pose forward(const double* q, double* lever_arm, double* arms = nullptr) const;
+
+    // The moving elements of the chain seen from the part (the part chain inverted, then the tool
+    // chain), in that order, for the bound; linear joints ahead of every rotary are left out.
+    struct BoundTerm {
+        int joint = 0;
+        bool rotary = false;
+        double scale = 1;  // the axis's length as written
+        int arm = 0;       // rotary: its index in PathEnd::arm
+    };
+    std::vector<BoundTerm> terms_;
 
     Machine machine_;
     std::vector<int> rotary_;          // rotary joint indices in the order of the orientation product

@@ -173,14 +173,52 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
     std::vector<double>& q = sample_;
     q.resize(machine_.joints.size());
     const GreatArc arc(mv.p0.axis, mv.p1.axis);
+    // Once the middle point has passed, the other points are checked against kinematics' bound
+    // first, and computed only where it does not clear them. At parameter t the path lies within
+    // 4 t (1 - t) of the middle's bound of the chord between its ends (kinematics.cpp: a t (1 - t)
+    // / 2 with a / 8 at the middle), a point of that chord within the farther end's distance of
+    // the programmed segment (distance to a segment is convex), and for the tool axis the
+    // great-circle arc within 4 t (1 - t) phi^2 / 8 of its own chord. A point so cleared is
+    // within the tolerance, so it would have passed: the verdict is the same.
+    constexpr double kSlack = 1e-9;  // as bounded_within's
+    bool bounded = false;
+    double curve = 0, ends = 0, axis_curve = 0, axis_ends = 0, arc_curve = 0;
     for (const int i : kOrder) {
         const double t = double(i) / double(kCheckSamples + 1);
+        if (bounded) {
+            const double f = 4 * t * (1 - t);
+            bool clear = curve * f + ends <= tol - kSlack;
+            if (clear && mv.mode == OrientationMode::Vector) {
+                const double chord = (axis_curve + arc_curve) * f + axis_ends;
+                clear = chord < 2.0 && 2.0 * std::asin(0.5 * chord) * kDegPerRad <= atol - 1e-6;
+            }
+            if (clear) continue;
+        }
         for (std::size_t j = 0; j < q.size(); ++j) q[j] = qa[j] + t * (qb[j] - qa[j]);
         const Pose fw = kin_.forward(q);
         if (segment_distance(fw.tip, mv.p0.tip, mv.p1.tip) > tol) return false;
         if (mv.mode == OrientationMode::Vector) {
             const Eigen::Vector3d ideal = arc.at(sa + t * (sb - sa));
             if (std::acos(std::clamp(fw.axis.dot(ideal), -1.0, 1.0)) * kDegPerRad > atol) return false;
+        }
+        if (i == kOrder[0]) {
+            // The ends' FK: qb's is kept for the next piece, which starts there when this one passes.
+            const Kinematics::PathEnd& ea = path_end(qa);
+            const Kinematics::PathBound b = kin_.joint_path_bound(ea, qa, qb);
+            if (!std::isfinite(b.tip)) continue;
+            const Pose pa = ea.pose;  // a copy: the next call may reuse the slot
+            const Pose pb = path_end(qb).pose;
+            curve = b.tip;
+            ends = std::max(segment_distance(pa.tip, mv.p0.tip, mv.p1.tip), segment_distance(pb.tip, mv.p0.tip, mv.p1.tip));
+            if (mv.mode == OrientationMode::Vector) {
+                const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
+                const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);
+                const double phi = (sb - sa) * arc.angle;
+                axis_curve = b.axis;
+                axis_ends = std::max((pa.axis - ia).norm(), (pb.axis - ib).norm());
+                arc_curve = phi * phi / 8.0;
+            }
+            bounded = true;
         }
     }
     return true;
@@ -196,6 +234,16 @@ const Kinematics::Solutions& MotionStage::solutions_of(const Eigen::Vector3d& ax
     c.solutions = kin_.orientation_solutions(axis);
     c.valid = true;
     return c.solutions;
+}
+
+void MotionStage::remember_solutions(const Kinematics::Solutions& solutions) const {
+    for (const CachedSolutions& c : solved_)
+        if (c.valid && std::memcmp(c.axis.data(), solutions.axis.data(), sizeof(double) * 3) == 0) return;
+    CachedSolutions& c = solved_[solved_next_];
+    solved_next_ = 1 - solved_next_;
+    c.axis = solutions.axis;
+    c.solutions = solutions;
+    c.valid = true;
 }
 
 const Kinematics::PathEnd& MotionStage::path_end(const double* q) const {
@@ -228,9 +276,10 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
     if (mv.mode != OrientationMode::Vector) return true;
     // The tool axis against the great-circle arc from sa to sb: both lie near the chords between
     // their ends (the arc within phi^2 / 8 of its own), and those chords within the ends' gaps.
-    const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : slerp(mv.p0.axis, mv.p1.axis, sa);
-    const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : slerp(mv.p0.axis, mv.p1.axis, sb);
-    const double phi = (sb - sa) * std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
+    const GreatArc arc(mv.p0.axis, mv.p1.axis);
+    const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
+    const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);
+    const double phi = (sb - sa) * arc.angle;
     const double chord = b.axis + std::max((pa.axis - ia).norm(), (pb.axis - ib).norm()) + phi * phi / 8.0;
     if (!(chord < 2.0)) return false;
     return 2.0 * std::asin(0.5 * chord) * kDegPerRad <= atol - 1e-6;
@@ -482,7 +531,7 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
         for (int i = 1; i < kAxisSamples; ++i) {
             const double t = double(i) / kAxisSamples;
             for (std::size_t j = 0; j < q.size(); ++j) qq[j] = q0[j] + t * (q[j] - q0[j]);
-            const Eigen::Vector3d axis = kin_.forward(qq).axis;
+            const Eigen::Vector3d axis = kin_.tool_axis(qq);
             worst = std::max(worst, std::acos(std::clamp(axis.dot(arc.at(t)), -1.0, 1.0)) * kDegPerRad);
         }
         if (worst > kSampleMargin * machine_.motion.angle_tolerance) continue;

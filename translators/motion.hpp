@@ -72,6 +72,10 @@ public:
     // (As solved: the printed ones are rounded to the dialect's decimals.)
     const std::vector<double>& final_joints() const { return final_exact_; }
 
+    // The orientation solutions of an axis the caller has already solved (the planner, for a move's
+    // end): kept so the stage does not solve that axis again.
+    void remember_solutions(const Kinematics::Solutions& solutions) const;
+
     // The split of the last move: parameter s at each piece's end and its joints.
     const std::vector<double>& split_params() const { return s_; }
     const std::vector<double>& split_joints() const { return qs_; }  // pieces x joints

@@ -37,13 +37,18 @@ double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
     return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * kDegPerRad;
 }
 
-// Great-circle interpolation of unit vectors (the programmed axis along a move).
-Eigen::Vector3d great_circle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) {
-    const double angle = std::acos(std::clamp(a.dot(b), -1.0, 1.0));
-    if (angle < 1e-12) return a;
-    const double sn = std::sin(angle);
-    return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
-}
+// Great-circle interpolation of unit vectors (the programmed axis along a move); the arc's angle
+// is found once for the many points taken along one move.
+struct GreatCircle {
+    GreatCircle(const Eigen::Vector3d& from, const Eigen::Vector3d& to)
+        : a(from), b(to), angle(std::acos(std::clamp(a.dot(b), -1.0, 1.0))), sn(angle < 1e-12 ? 0.0 : std::sin(angle)) {}
+    Eigen::Vector3d at(double s) const {
+        if (angle < 1e-12) return a;
+        return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
+    }
+    Eigen::Vector3d a, b;
+    double angle, sn;
+};
 
 }  // namespace
 
@@ -166,14 +171,14 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
     const std::vector<double>& q0 = state_.q;
     const double tolerance = machine_.motion.angle_tolerance;
     const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
-    const bool start_exact = angle_between(kin_.forward(q0).axis, from.axis) < 1e-6;
+    const bool start_exact = angle_between(kin_.tool_axis(q0), from.axis) < 1e-6;
     // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
     // files under G43.5: the axis stays on the pole).
     if (start_exact && q_next_[c] == q0[c] && q_next_[b] == q0[b]) return false;
     std::vector<double>& probe = pole_probe_;
     probe = q0;
     probe[b] = 0;
-    const Eigen::Vector3d pole = kin_.forward(probe).axis;
+    const Eigen::Vector3d pole = kin_.tool_axis(probe);
     const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
     // Only a move turning the tool axis by less than the tolerance may end off its axis: a
     // passage made of such moves cannot cross in any one of them. A longer move ends exactly
@@ -212,15 +217,20 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
         // The usual end from an exact start: nothing to choose (planar files, exact on the pole).
         if (start_exact && std::abs(q[c] - q_next_[c]) < kSameAngle && std::abs(q[b] - q_next_[b]) < kSameAngle) return false;
     }
-    // The joint-linear turn from the start against the programmed axis's great circle.
+    // The joint-linear turn from the start against the programmed axis's great circle. The first
+    // point past the margin decides (worst is used only when the passage is taken, and then every
+    // point was measured).
     worst = 0;
     std::vector<double>& lerp = probe;
+    const GreatCircle arc(from.axis, to.axis);
+    const double limit = kPoleMargin * tolerance;
     for (int i = 0; i <= kPoleSamples; ++i) {
         const double t = double(i) / kPoleSamples;
         for (std::size_t j = 0; j < q.size(); ++j) lerp[j] = q0[j] + t * (q[j] - q0[j]);
-        worst = std::max(worst, angle_between(kin_.forward(lerp).axis, great_circle(from.axis, to.axis, t)));
+        worst = std::max(worst, angle_between(kin_.tool_axis(lerp), arc.at(t)));
+        if (!(worst <= limit)) return false;
     }
-    return worst <= kPoleMargin * tolerance;
+    return true;
 }
 
 void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
@@ -228,7 +238,11 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     q_next_ = s.q;
     if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
     IkResult r;
-    if (mv.any_ijk) r = orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(mv.axis), s.q, s.q, q_next_);
+    if (mv.any_ijk) {
+        const auto solutions = kin_.orientation_solutions(mv.axis);
+        motion_.remember_solutions(solutions);  // the move's end axis: the motion stage asks for it again
+        r = orient_within_limits(machine_, kin_.rotary_joints(), solutions, s.q, s.q, q_next_);
+    }
     Pose next = s.pose;
     if (r.ok()) {
         if (!mv.any_xyz && !s.tip_known) {
