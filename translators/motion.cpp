@@ -9,6 +9,7 @@
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
+#include "translators/great_arc.hpp"
 #include "translators/joint_limits.hpp"
 #include "translators/number.hpp"
 
@@ -20,19 +21,6 @@ constexpr int kCheckSamples = 7;     // interior points checked per piece (see p
 // The error between two of those samples can exceed both by a little (the tests measure it
 // against 400-point sampling: under 1%); a piece passes only with this much room left.
 constexpr double kSampleMargin = 0.97;
-
-// Great-circle interpolation of unit vectors; antipodal ends have no unique arc. The arc's
-// angle is found once for the many points taken along one move.
-struct GreatArc {
-    GreatArc(const Eigen::Vector3d& from, const Eigen::Vector3d& to)
-        : a(from), b(to), angle(std::acos(std::clamp(a.dot(b), -1.0, 1.0))), sn(angle < 1e-12 ? 0.0 : std::sin(angle)) {}
-    Eigen::Vector3d at(double s) const {
-        if (angle < 1e-12) return a;
-        return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
-    }
-    Eigen::Vector3d a, b;
-    double angle, sn;
-};
 
 Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) { return GreatArc(a, b).at(s); }
 

@@ -7,6 +7,7 @@
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
+#include "translators/great_arc.hpp"
 #include "translators/joint_limits.hpp"
 #include "translators/report.hpp"
 
@@ -36,19 +37,6 @@ constexpr double kPoleMargin = 0.97;  // as the motion stage's sampling margin
 double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
     return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * kDegPerRad;
 }
-
-// Great-circle interpolation of unit vectors (the programmed axis along a move); the arc's angle
-// is found once for the many points taken along one move.
-struct GreatCircle {
-    GreatCircle(const Eigen::Vector3d& from, const Eigen::Vector3d& to)
-        : a(from), b(to), angle(std::acos(std::clamp(a.dot(b), -1.0, 1.0))), sn(angle < 1e-12 ? 0.0 : std::sin(angle)) {}
-    Eigen::Vector3d at(double s) const {
-        if (angle < 1e-12) return a;
-        return ((std::sin((1 - s) * angle) / sn) * a + (std::sin(s * angle) / sn) * b).normalized();
-    }
-    Eigen::Vector3d a, b;
-    double angle, sn;
-};
 
 }  // namespace
 
@@ -222,7 +210,7 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
     // point was measured).
     worst = 0;
     std::vector<double>& lerp = probe;
-    const GreatCircle arc(from.axis, to.axis);
+    const GreatArc arc(from.axis, to.axis);
     const double limit = kPoleMargin * tolerance;
     for (int i = 0; i <= kPoleSamples; ++i) {
         const double t = double(i) / kPoleSamples;
