@@ -204,6 +204,12 @@ inline V3 normalized(const V3& v) {
     return {v.x / r, v.y / r, v.z / r};
 }
 
+// The tool axis in the part frame from the two chains' rotations (forward and tool_axis alike).
+inline Eigen::Vector3d part_axis(const M3& Rp, const M3& Rt, const Eigen::Vector3d& tool) {
+    const V3 axis = normalized(transposed_times(Rp, Rt * v3(tool)));
+    return Eigen::Vector3d(axis.x, axis.y, axis.z);
+}
+
 }  // namespace
 
 void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R_out, Eigen::Vector3d& t_out,
@@ -221,8 +227,7 @@ Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
     M3 Rp, Rt;
     walk_rotation(machine_.part_chain, q.data(), Rp);
     walk_rotation(machine_.tool_chain, q.data(), Rt);
-    const V3 axis = normalized(transposed_times(Rp, Rt * v3(machine_.tool_axis)));
-    return Eigen::Vector3d(axis.x, axis.y, axis.z);
+    return part_axis(Rp, Rt, machine_.tool_axis);
 }
 
 // With `lever_arm`: also the tip's largest distance from a rotary joint's axis.
@@ -235,9 +240,8 @@ Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const
     walk(machine_.tool_chain, q, Rt, tt, nullptr, lever_arm ? lines : nullptr, &count);
     Pose pose;
     const V3 tip = transposed_times(Rp, tt - tp);
-    const V3 axis = normalized(transposed_times(Rp, Rt * v3(machine_.tool_axis)));
     pose.tip = Eigen::Vector3d(tip.x, tip.y, tip.z);
-    pose.axis = Eigen::Vector3d(axis.x, axis.y, axis.z);
+    pose.axis = part_axis(Rp, Rt, machine_.tool_axis);
     if (lever_arm) {
         // Distances are the same in every frame: measured in the base frame, the tip at tt.
         *lever_arm = 0;

@@ -24,6 +24,11 @@ constexpr double kSampleMargin = 0.97;
 
 Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) { return GreatArc(a, b).at(s); }
 
+// A unit vector within `chord` of the programmed axis is within the angle 2 asin(chord / 2).
+bool axis_chord_within(double chord, double atol) {
+    return chord < 2.0 && 2.0 * std::asin(0.5 * chord) * kDegPerRad <= atol - 1e-6;
+}
+
 double printed(const Machine& m, std::size_t j, double v) {
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
     const int d = m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals;
@@ -177,8 +182,7 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
             const double f = 4 * t * (1 - t);
             bool clear = curve * f + ends <= tol - kSlack;
             if (clear && mv.mode == OrientationMode::Vector) {
-                const double chord = (axis_curve + arc_curve) * f + axis_ends;
-                clear = chord < 2.0 && 2.0 * std::asin(0.5 * chord) * kDegPerRad <= atol - 1e-6;
+                clear = axis_chord_within((axis_curve + arc_curve) * f + axis_ends, atol);
             }
             if (clear) continue;
         }
@@ -212,26 +216,29 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
     return true;
 }
 
-const Kinematics::Solutions& MotionStage::solutions_of(const Eigen::Vector3d& axis) const {
+const MotionStage::CachedSolutions* MotionStage::cached_solutions(const Eigen::Vector3d& axis) const {
     // Bit for bit the same axis (a signed zero counts: the solutions' angles can depend on it).
     for (const CachedSolutions& c : solved_)
-        if (c.valid && std::memcmp(c.axis.data(), axis.data(), sizeof(double) * 3) == 0) return c.solutions;
+        if (c.valid && std::memcmp(c.axis.data(), axis.data(), sizeof(double) * 3) == 0) return &c;
+    return nullptr;
+}
+
+const Kinematics::Solutions& MotionStage::cache_solutions(const Eigen::Vector3d& axis, Kinematics::Solutions solutions) const {
     CachedSolutions& c = solved_[solved_next_];
     solved_next_ = 1 - solved_next_;
     c.axis = axis;
-    c.solutions = kin_.orientation_solutions(axis);
+    c.solutions = std::move(solutions);
     c.valid = true;
     return c.solutions;
 }
 
+const Kinematics::Solutions& MotionStage::solutions_of(const Eigen::Vector3d& axis) const {
+    if (const CachedSolutions* c = cached_solutions(axis)) return c->solutions;
+    return cache_solutions(axis, kin_.orientation_solutions(axis));
+}
+
 void MotionStage::remember_solutions(const Kinematics::Solutions& solutions) const {
-    for (const CachedSolutions& c : solved_)
-        if (c.valid && std::memcmp(c.axis.data(), solutions.axis.data(), sizeof(double) * 3) == 0) return;
-    CachedSolutions& c = solved_[solved_next_];
-    solved_next_ = 1 - solved_next_;
-    c.axis = solutions.axis;
-    c.solutions = solutions;
-    c.valid = true;
+    if (!cached_solutions(solutions.axis)) cache_solutions(solutions.axis, solutions);
 }
 
 const Kinematics::PathEnd& MotionStage::path_end(const double* q) const {
@@ -268,9 +275,7 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
     const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
     const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);
     const double phi = (sb - sa) * arc.angle;
-    const double chord = b.axis + std::max((pa.axis - ia).norm(), (pb.axis - ib).norm()) + phi * phi / 8.0;
-    if (!(chord < 2.0)) return false;
-    return 2.0 * std::asin(0.5 * chord) * kDegPerRad <= atol - 1e-6;
+    return axis_chord_within(b.axis + std::max((pa.axis - ia).norm(), (pb.axis - ib).norm()) + phi * phi / 8.0, atol);
 }
 
 IkResult MotionStage::split(const MoveSpec& mv) {

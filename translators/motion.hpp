@@ -116,6 +116,9 @@ private:
         Eigen::Vector3d axis;
         Kinematics::Solutions solutions;
     };
+    // The slot holding `axis` (bit for bit), or null; and the slot a new axis goes into.
+    const CachedSolutions* cached_solutions(const Eigen::Vector3d& axis) const;
+    const Kinematics::Solutions& cache_solutions(const Eigen::Vector3d& axis, Kinematics::Solutions solutions) const;
     mutable CachedSolutions solved_[2];
     mutable int solved_next_ = 0;
     mutable int ends_next_ = 0;
