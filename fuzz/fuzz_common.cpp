@@ -13,13 +13,22 @@ namespace xlate5::fuzz {
 
 const std::vector<Machine>& bundled() {
     static const std::vector<Machine> machines = [] {
+        // Read from the source tree the target was built in: without it there is nothing to fuzz
+        // against, and that is the harness's setup, not a finding, so say so plainly and stop.
+        const auto missing = [] {
+            std::fprintf(stderr, "fuzz: no machine files in %s (the source tree this target was built from)\n", XLATE5_SOURCE_MACHINES);
+            std::abort();
+        };
+        std::error_code ec;
+        std::filesystem::directory_iterator dir(XLATE5_SOURCE_MACHINES, ec);
+        if (ec) missing();
         std::vector<std::string> paths;
-        for (const auto& e : std::filesystem::directory_iterator(XLATE5_SOURCE_MACHINES))
+        for (const auto& e : dir)
             if (e.path().extension() == ".toml") paths.push_back(e.path().string());
         std::sort(paths.begin(), paths.end());
         std::vector<Machine> out;
         for (const auto& p : paths) out.push_back(load_machine(p));
-        if (out.empty()) std::abort();  // nothing to fuzz against: the source tree is not where it was built from
+        if (out.empty()) missing();
         return out;
     }();
     return machines;
