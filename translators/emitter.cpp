@@ -2,6 +2,7 @@
 #include "translators/emitter.hpp"
 
 #include <algorithm>
+#include <cstring>
 #include <limits>
 
 #include "translators/error.hpp"
@@ -71,11 +72,14 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
     if (inverse_time != inverse_time_) {
         out += inverse_time ? "G93\n" : "G94\n";
         inverse_time_ = inverse_time;
-        last_f_.clear();
+        last_f_size_ = 0;
     }
     const std::size_t start = out.size();
     out += gcode == 0 ? "G0" : "G1";
     const std::size_t empty = out.size();
+    // The joint words go into a buffer first and to the output in one piece.
+    char words[kMaxJoints * (2 + kUnitsChars)];
+    char* p = words;
     for (std::size_t j = 0; j < q.size(); ++j) {
         long long units = 0;
         const int d = decimals(j);
@@ -86,22 +90,43 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
         if (!write) continue;
         last_[j] = units;
         known_[j] = true;
-        out += ' ';
-        out += machine_->joints[j].output;
-        if (fast) append_units(out, units, d);
-        else format(out, j, sent[j]);
-    }
-    if (f && !inverse_time_) {  // under G93 every move carries its own F
-        f_text_.clear();
-        try {
-            append_passed(f_text_, *f);
-        } catch (const UnwritableNumber& e) {
-            unwritable_word('F', e);
+        *p++ = ' ';
+        *p++ = machine_->joints[j].output;
+        if (fast) {
+            p = write_units(p, units, d);
+        } else {
+            out.append(words, p);
+            p = words;
+            format(out, j, sent[j]);
         }
-        if (f_text_ == last_f_) f.reset();
-        else last_f_ = f_text_;
     }
-    finish_move(out, start, empty, e, f);
+    out.append(words, p);
+    if (e) append_word(out, 'E', *e);
+    if (f) {
+        // F is modal in the firmware: written when its text changes (under G93 every move carries its own).
+        char text[kFText];
+        std::size_t size = 0;
+        long long units = 0;
+        if (!f->text.empty()) {
+            size = f->text.size() <= kFText ? f->text.size() : 0;
+            if (size) std::memcpy(text, f->text.data(), size);
+        } else if (f->decimals >= 0 && to_units(f->value, f->decimals, units)) {
+            size = std::size_t(write_units(text, units, f->decimals) - text);
+        }
+        if (size == 0) {  // a text too long to remember, or a value off the fast path: written, and nothing remembered
+            last_f_size_ = 0;
+            append_word(out, 'F', *f);
+        } else if (inverse_time_ || size != last_f_size_ || std::memcmp(text, last_f_.data(), size) != 0) {
+            if (!inverse_time_) {
+                std::memcpy(last_f_.data(), text, size);
+                last_f_size_ = size;
+            }
+            out += " F";
+            out.append(text, size);
+        }
+    }
+    if (out.size() == empty) out.resize(start);
+    else out += '\n';
     if (out.size() > start) ++moves_written_;
 }
 

@@ -55,7 +55,7 @@ public:
     // time and written on every move (or feed per minute and written when it changes).
     void feed_mode_sent(bool inverse_time) {
         inverse_time_ = inverse_time;
-        last_f_.clear();
+        last_f_size_ = 0;
     }
 
     // Appends one joint word (" A12.5") as the emitter would print it.
@@ -78,7 +78,11 @@ private:
     std::array<long long, kMaxJoints> last_{};
     std::array<bool, kMaxJoints> known_{};       // false: not sent since start, homing or probing
     std::array<double, kMaxJoints> believed_{};  // joint values the firmware is believed to be at
-    std::string last_f_, f_text_;     // F is modal in the firmware: written only when it changes
+    // F is modal in the firmware: written only when its text changes. The text last written (up
+    // to kFText characters; 0: none known, so the next F is written).
+    static constexpr std::size_t kFText = 32;
+    std::array<char, kFText> last_f_{};
+    std::size_t last_f_size_ = 0;
     bool inverse_time_ = false;       // the firmware's feed mode as xlate5 last set it
     std::uint64_t moves_written_ = 0;
 };

@@ -139,12 +139,51 @@ Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
     std::size_t lead = 0;
     while (lead < terms_.size() && !terms_[lead].rotary) ++lead;
     terms_.erase(terms_.begin(), terms_.begin() + std::ptrdiff_t(lead));
+
+    // The position solve's Jacobian (the linear joints' directions seen from the part) depends on
+    // the rotaries only through the rotations ahead of the linear joints. With none there (a part
+    // chain without rotaries, no rotary before a linear joint in the tool chain: rw2's X Y Z
+    // carrying the head) it is the same matrix for every pose: inverted once here, the same
+    // numbers the per-call inverse would give.
+    for (std::size_t j = 0; j < machine.joints.size() && linear_.size() < 3; ++j)
+        if (!machine.joints[j].rotary) linear_.push_back(int(j));
+    bool varies = linear_.size() < 3;
+    for (const auto& e : machine.part_chain) varies = varies || e.kind == ChainElement::Kind::Rotary;
+    bool rotary_seen = false;
+    for (const auto& e : machine.tool_chain) {
+        if (e.kind == ChainElement::Kind::Rotary) rotary_seen = true;
+        else if (e.kind == ChainElement::Kind::Linear && rotary_seen) varies = true;
+    }
+    if (!varies) {
+        const std::vector<double> zero(machine.joints.size(), 0.0);
+        Eigen::Vector3d part_dirs[8], tool_dirs[8];
+        for (std::size_t j = 0; j < machine.joints.size(); ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();
+        Eigen::Matrix3d Rp, Rt, J;
+        Eigen::Vector3d tp, tt;
+        eval(machine.part_chain, zero.data(), Rp, tp, part_dirs);
+        eval(machine.tool_chain, zero.data(), Rt, tt, tool_dirs);
+        if (linear_jacobian(Rp, part_dirs, tool_dirs, J)) {
+            jacobian_inverse_ = J.inverse();
+            constant_jacobian_ = true;
+        }
+    }
 }
 
 namespace {
 
+
+// Eigen's normalized(): v / |v|, the squares summed (a0 + a1) + a2; a zero vector is returned as is.
+inline V3 normalized(const V3& v) {
+    const double n = (v.x * v.x + v.y * v.y) + v.z * v.z;
+    if (!(n > 0)) return v;
+    const double r = std::sqrt(n);
+    return {v.x / r, v.y / r, v.z / r};
+}
+
+// A rotary joint's axis in the base frame (dir unit); only the bound's lever arms use it, so it
+// need not match Eigen's rounding (the bound keeps a slack).
 struct AxisLine {
-    Eigen::Vector3d point, dir;  // a rotary joint's axis in the base frame (dir unit)
+    V3 point, dir;
 };
 
 // Base -> the chain's end: rotation R and translation t. `linear_dirs`, when given, receives each
@@ -167,11 +206,7 @@ void walk(const std::vector<ChainElement>& chain, const double* q, M3& R, V3& t,
             }
             case ChainElement::Kind::Rotary: {
                 // Trans(point) * Rot(axis, q) * Trans(-point)
-                if (lines) {
-                    Eigen::Matrix3d Re;
-                    Re << R.xx, R.xy, R.xz, R.yx, R.yy, R.yz, R.zx, R.zy, R.zz;
-                    lines[(*line_count)++] = {Eigen::Vector3d(t.x, t.y, t.z) + Re * e.point, (Re * e.axis).normalized()};
-                }
+                if (lines) lines[(*line_count)++] = {t + R * v3(e.point), normalized(R * v3(e.axis))};
                 const V3 point = v3(e.point);
                 const M3 Rj = rot(v3(e.axis), q[e.joint]);
                 t = t + R * (point - Rj * point);
@@ -196,13 +231,6 @@ inline V3 transposed_times(const M3& m, const V3& v) {
     return {(m.xx * v.x + m.yx * v.y) + m.zx * v.z, (m.xy * v.x + m.yy * v.y) + m.zy * v.z, (m.xz * v.x + m.yz * v.y) + m.zz * v.z};
 }
 
-// Eigen's normalized(): v / |v|, the squares summed (a0 + a1) + a2; a zero vector is returned as is.
-inline V3 normalized(const V3& v) {
-    const double n = (v.x * v.x + v.y * v.y) + v.z * v.z;
-    if (!(n > 0)) return v;
-    const double r = std::sqrt(n);
-    return {v.x / r, v.y / r, v.z / r};
-}
 
 // The tool axis in the part frame from the two chains' rotations (forward and tool_axis alike).
 inline Eigen::Vector3d part_axis(const M3& Rp, const M3& Rt, const Eigen::Vector3d& tool) {
@@ -245,10 +273,10 @@ Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const
     if (lever_arm) {
         // Distances are the same in every frame: measured in the base frame, the tip at tt.
         *lever_arm = 0;
-        const Eigen::Vector3d end(tt.x, tt.y, tt.z);
         for (int i = 0; i < count; ++i) {
-            const Eigen::Vector3d d = end - lines[i].point;
-            const double arm = (d - lines[i].dir * lines[i].dir.dot(d)).norm();
+            const V3 d = tt - lines[i].point, u = lines[i].dir;
+            const V3 off = d - u * (u.x * d.x + u.y * d.y + u.z * d.z);
+            const double arm = std::sqrt(off.x * off.x + off.y * off.y + off.z * off.z);
             if (arms) arms[i] = arm;
             *lever_arm = std::max(*lever_arm, arm);
         }
@@ -325,23 +353,32 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
     for (std::size_t j = 0; j < n; ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();
     Eigen::Matrix3d Rp, Rt;
     Eigen::Vector3d tp, tt;
-    eval(machine_.part_chain, q.data(), Rp, tp, part_dirs);
-    eval(machine_.tool_chain, q.data(), Rt, tt, tool_dirs);
+    eval(machine_.part_chain, q.data(), Rp, tp, constant_jacobian_ ? nullptr : part_dirs);
+    eval(machine_.tool_chain, q.data(), Rt, tt, constant_jacobian_ ? nullptr : tool_dirs);
     if (axis) *axis = (Rp.transpose() * (Rt * machine_.tool_axis)).normalized();
     const Eigen::Vector3d current = Rp.transpose() * (tt - tp);
-    Eigen::Matrix3d J;
-    int lin[3];
-    int k = 0;
-    for (std::size_t j = 0; j < n && k < 3; ++j) {
-        if (machine_.joints[j].rotary) continue;
-        lin[k] = int(j);
-        J.col(k++) = Rp.transpose() * (tool_dirs[j] - part_dirs[j]);
+    Eigen::Matrix3d J_inverse;
+    if (constant_jacobian_) {
+        J_inverse = jacobian_inverse_;
+    } else {
+        Eigen::Matrix3d J;
+        if (!linear_jacobian(Rp, part_dirs, tool_dirs, J))
+            return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+        J_inverse = J.inverse();  // closed-form 3x3 inverse
     }
-    const double det = J.determinant();
-    if (!(std::abs(det) > 1e-9)) return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
-    const Eigen::Vector3d dq = J.inverse() * (tip - current);  // closed-form 3x3 inverse
-    for (int i = 0; i < 3; ++i) q[std::size_t(lin[i])] += dq[i];
+    const Eigen::Vector3d dq = J_inverse * (tip - current);
+    for (int i = 0; i < 3; ++i) q[std::size_t(linear_[std::size_t(i)])] += dq[i];
     return {};
+}
+
+bool Kinematics::linear_jacobian(const Eigen::Matrix3d& Rp, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,
+                                 Eigen::Matrix3d& J) const {
+    if (linear_.size() < 3) return false;  // the loader requires three; a machine built by hand may not have them
+    for (int k = 0; k < 3; ++k) {
+        const std::size_t j = std::size_t(linear_[std::size_t(k)]);
+        J.col(k) = Rp.transpose() * (tool_dirs[j] - part_dirs[j]);
+    }
+    return std::abs(J.determinant()) > 1e-9;
 }
 
 Kinematics::Solutions Kinematics::orientation_solutions(const Eigen::Vector3d& axis) const {

@@ -71,6 +71,9 @@ private:
     void eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
               Eigen::Vector3d* linear_dirs) const;
     Pose forward(const double* q, double* lever_arm, double* arms = nullptr) const;
+    // The position solve's 3x3 Jacobian from the chains' linear directions; false when singular.
+    bool linear_jacobian(const Eigen::Matrix3d& Rp, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,
+                         Eigen::Matrix3d& J) const;
 
     // The moving elements of the chain seen from the part (the part chain inverted, then the tool
     // chain), in that order, for the bound; linear joints ahead of every rotary are left out.
@@ -89,6 +92,9 @@ private:
     Eigen::Matrix3d g0_ = Eigen::Matrix3d::Identity();
     Eigen::Vector3d p_ = Eigen::Vector3d::UnitZ();
     bool flip_ = false;
+    std::vector<int> linear_;               // the first three linear joints: the position solve's unknowns
+    bool constant_jacobian_ = false;        // no rotation ahead of a linear joint: its inverse is fixed
+    Eigen::Matrix3d jacobian_inverse_ = Eigen::Matrix3d::Identity();
 };
 
 }  // namespace xlate5

@@ -2,6 +2,7 @@
 #include "translators/number.hpp"
 
 #include <charconv>
+#include <cstring>
 #include <cmath>
 #include <string>
 
@@ -20,9 +21,14 @@ void trim_zeros(std::string& out, std::size_t start) {
 }  // namespace
 
 void append_units(std::string& out, long long units, int decimals) {
+    char buf[kUnitsChars];
+    out.append(buf, write_units(buf, units, decimals));
+}
+
+char* write_units(char* out, long long units, int decimals) {
     if (units == 0) {
-        out += '0';
-        return;
+        *out = '0';
+        return out + 1;
     }
     const bool negative = units < 0;
     unsigned long long u = negative ? 0ull - static_cast<unsigned long long>(units) : static_cast<unsigned long long>(units);
@@ -67,7 +73,10 @@ void append_units(std::string& out, long long units, int decimals) {
         *--p = char('0' + u);
     }
     if (negative) *--p = '-';
-    out.append(p, end);
+    // At most 19 digits, a point and a sign: within kUnitsChars.
+    const std::size_t n = std::size_t(end - p);
+    std::memcpy(out, p, n);
+    return out + n;
 }
 
 namespace {

@@ -46,7 +46,10 @@ inline bool to_units(double v, int decimals, long long& units) {
     units = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
     return true;
 }
-// Appends units * 10^-decimals with trailing fraction zeros removed.
+// Writes units * 10^-decimals with trailing fraction zeros removed at p (at most kUnitsChars
+// characters, no terminator); returns the end. append_units appends the same to a string.
+inline constexpr std::size_t kUnitsChars = 24;
+char* write_units(char* p, long long units, int decimals);
 void append_units(std::string& out, long long units, int decimals);
 
 }  // namespace xlate5
