@@ -21,6 +21,8 @@ constexpr int kCheckSamples = 7;     // interior points checked per piece (see p
 // The error between two of those samples can exceed both by a little (the tests measure it
 // against 400-point sampling: under 1%); a piece passes only with this much room left.
 constexpr double kSampleMargin = 0.97;
+// A piece's length predicted from a failing try's error aims this far short of the limit.
+constexpr double kPredictAim = 0.98;
 
 Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) { return GreatArc(a, b).at(s); }
 
@@ -158,7 +160,7 @@ void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const do
 }
 
 bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol,
-                               double atol) const {
+                               double atol, double* middle_ratio) const {
     // The same points as piece_error's, the middle first (where a chord's error is largest): a
     // piece that fails usually fails there, and the other six are not computed. A piece passes
     // exactly when piece_error's largest values would pass.
@@ -188,12 +190,19 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
         }
         for (std::size_t j = 0; j < q.size(); ++j) q[j] = qa[j] + t * (qb[j] - qa[j]);
         const Pose fw = kin_.forward(q);
-        if (segment_distance(fw.tip, mv.p0.tip, mv.p1.tip) > tol) return false;
+        const bool middle = i == kOrder[0];
+        if (const double d = segment_distance(fw.tip, mv.p0.tip, mv.p1.tip); d > tol) {
+            if (middle && middle_ratio) *middle_ratio = d / tol;
+            return false;
+        }
         if (mv.mode == OrientationMode::Vector) {
             const Eigen::Vector3d ideal = arc.at(sa + t * (sb - sa));
-            if (std::acos(std::clamp(fw.axis.dot(ideal), -1.0, 1.0)) * kDegPerRad > atol) return false;
+            if (const double a = std::acos(std::clamp(fw.axis.dot(ideal), -1.0, 1.0)) * kDegPerRad; a > atol) {
+                if (middle && middle_ratio) *middle_ratio = a / atol;
+                return false;
+            }
         }
-        if (i == kOrder[0]) {
+        if (middle) {
             // The ends' FK: qb's is kept for the next piece, which starts there when this one passes.
             const Kinematics::PathEnd& ea = path_end(qa);
             const Kinematics::PathBound b = kin_.joint_path_bound(ea, qa, qb);
@@ -280,10 +289,17 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
 
 IkResult MotionStage::split(const MoveSpec& mv) {
     const std::size_t n = machine_.joints.size();
-    q0_printed_ = *mv.q0;
-    round_printed(machine_, q0_printed_);
+    // A move usually starts where the one before ended: its start as printed is known then.
+    if (*mv.q0 == rounded_from_) {
+        q0_printed_ = rounded_;
+    } else {
+        q0_printed_ = *mv.q0;
+        round_printed(machine_, q0_printed_);
+    }
     q1_printed_ = *mv.q1;
     round_printed(machine_, q1_printed_);
+    rounded_from_ = *mv.q1;
+    rounded_ = q1_printed_;
     final_exact_ = *mv.q1;
     const auto& q0 = q0_printed_;
     const auto& q1 = q1_printed_;
@@ -321,6 +337,8 @@ IkResult MotionStage::split(const MoveSpec& mv) {
         double ok_len = 0, bad_len = 0;
         std::vector<double>& qok = scratch_a_;
         double len = std::min(1.0 - sa, step);
+        bool predicted = false;  // this try's length came from the error measured on a failing one
+        int predictions = 0;
         for (int refine = 0;;) {
             const double sb = sa + len;
             IkResult r;
@@ -333,8 +351,9 @@ IkResult MotionStage::split(const MoveSpec& mv) {
             if (sb >= 1.0 && mv.mode == OrientationMode::Angles) exact_b_ = *mv.q1;
             else exact_b_ = qb;
             round_printed(machine_, qb);
+            double middle_ratio = 0;  // the failing middle sample's error over the tolerance (0: not known)
             bool pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, atol);
-            if (!pass) pass = piece_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, atol);
+            if (!pass) pass = piece_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, atol, &middle_ratio);
             if (!pass && mv.mode == OrientationMode::Vector) {
                 // Near a pole the continuous branch swings a joint round; the other branch may
                 // cut across within the tolerance (a tilt through zero instead of a half turn).
@@ -367,8 +386,20 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                     return {IkStatus::Singular, "the tool axis passes a pole here: a rotary joint would have to turn instantly"};
                 }
             }
-            if (ok_len > 0 && (bad_len == 0 || ++refine >= 4 || bad_len - ok_len < 0.02 * ok_len)) break;
-            len = ok_len > 0 ? 0.5 * (ok_len + bad_len) : 0.5 * len;
+            if (ok_len > 0 && (bad_len == 0 || (pass && predicted) || ++refine >= 4 || bad_len - ok_len < 0.02 * ok_len)) break;
+            // A chord's error grows with the square of the piece's length: a try that failed at
+            // its middle point (where that error is largest) by the ratio r gives the length that
+            // just passes, len / sqrt(r); aimed a little short of it (the ends' rounding adds an
+            // error that does not shrink with the piece), that try usually passes and is taken.
+            // Twice wrong (a path that does not follow the rule), the search halves as before.
+            predicted = !pass && middle_ratio > 1 && predictions < 2;
+            if (predicted) {
+                ++predictions;
+                len = len / std::sqrt(middle_ratio) * kPredictAim;
+                if (len <= ok_len) break;  // the longest passing try is already as long
+            } else {
+                len = ok_len > 0 ? 0.5 * (ok_len + bad_len) : 0.5 * len;
+            }
         }
         const double sb = std::min(1.0, sa + ok_len);
         qb = qok;

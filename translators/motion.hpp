@@ -86,8 +86,10 @@ private:
     bool bounded_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
                         double atol) const;
     // piece_error's verdict against `tol` and `atol`, stopping at the first point outside them.
+    // `middle_ratio`, when given, receives the error over its tolerance when the verdict is no at
+    // the middle point (left as it is otherwise).
     bool piece_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
-                      double atol) const;
+                      double atol, double* middle_ratio = nullptr) const;
     IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
     // Across a pole: the end on the other branch, reached with the rotaries turning linearly,
     // when that stays within the angle tolerance and turns the rotaries less than the
@@ -131,6 +133,7 @@ private:
     std::vector<double> s_, qs_;                 // the pieces, joints as printed
     std::vector<double> qs_exact_;               // the pieces' ends as solved
     std::vector<double> q0_printed_, q1_printed_;  // the move's ends as printed
+    std::vector<double> rounded_from_, rounded_;   // the last end rounded, and its printed value
     std::vector<double> final_exact_, exact_b_, ok_exact_, cross_end_;
     double cross_angle_ = 0;  // the axis deviation of the last crossing found  // the last piece's end as solved (unrounded)
     // Scratch space reused move after move (no allocation on the hot path).
