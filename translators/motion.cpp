@@ -396,6 +396,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
             if (predicted) {
                 ++predictions;
                 len = len / std::sqrt(middle_ratio) * kPredictAim;
+                if (len >= kPredictAim * (1.0 - sa)) len = 1.0 - sa;  // the rest of the move looks within reach: no sliver left at the end
                 if (len <= ok_len) break;  // the longest passing try is already as long
             } else {
                 len = ok_len > 0 ? 0.5 * (ok_len + bad_len) : 0.5 * len;
