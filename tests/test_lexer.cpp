@@ -207,6 +207,9 @@ TEST_CASE("lexer: number forms .5, -.309, +3, 5., 007 and a space after the lett
     // Largest accepted magnitude.
     check_words(lex("G1 X1000000000"), {{'G', 1}, {'X', 1e9}});
     check_words(lex("G1 X-1000000000"), {{'G', 1}, {'X', -1e9}});
+    check_words(lex("G1 X1000000000.00000"), {{'G', 1}, {'X', 1e9}});
+    check_words(lex("G1 X999999999.99999"), {{'G', 1}, {'X', 999999999.99999}});
+    check_words(lex("G1 X999999999.9999999"), {{'G', 1}, {'X', 999999999.9999999}});  // 16 digits: the slow path
     // Decimal commands.
     check_words(lex("G43.4"), {{'G', 43.4}});
 }
@@ -364,6 +367,14 @@ TEST_CASE("lexer error: NaN and infinity are not numbers") {
 TEST_CASE("lexer error: a number beyond 1e9 is out of range") {
     lex_error("G1 X12345678901", 4, 5, "out of range");
     lex_error("G1 Y-1000000000.5", 4, 5, "out of range");
+    // Just past the limit, at every count of decimals the range check sees before dividing.
+    lex_error("G1 X1000000001", 4, 5, "out of range");
+    lex_error("G1 X1000000000.1", 4, 5, "out of range");
+    lex_error("G1 X1000000000.01", 4, 5, "out of range");
+    lex_error("G1 X1000000000.001", 4, 5, "out of range");
+    lex_error("G1 X1000000000.0001", 4, 5, "out of range");
+    lex_error("G1 X1000000000.00001", 4, 5, "out of range");
+    lex_error("G1 X-1000000000.00001", 4, 5, "out of range");
 }
 
 TEST_CASE("lexer error: bytes that are not text") {

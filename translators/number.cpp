@@ -43,8 +43,8 @@ char* write_units(char* out, long long units, int decimals) {
         "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
         "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
         "8081828384858687888990919293949596979899";
-    char buf[32];
-    char* const end = buf + sizeof buf;
+    char buf[24 + kUnitsChars];
+    char* const end = buf + 24;
     char* p = end;
     if (d > 0) {
         int k = d;
@@ -73,10 +73,10 @@ char* write_units(char* out, long long units, int decimals) {
         *--p = char('0' + u);
     }
     if (negative) *--p = '-';
-    // At most 19 digits, a point and a sign: within kUnitsChars.
-    const std::size_t n = std::size_t(end - p);
-    std::memcpy(out, p, n);
-    return out + n;
+    // At most 19 digits, a point and a sign, at the end of buf: the kUnitsChars bytes from p stay
+    // inside it, and are copied whole.
+    std::memcpy(out, p, kUnitsChars);
+    return out + (end - p);
 }
 
 namespace {
