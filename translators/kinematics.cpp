@@ -346,6 +346,19 @@ Kinematics::PathBound Kinematics::joint_path_bound(const PathEnd& a, const doubl
     return out;
 }
 
+double Kinematics::axis_path_bound(const double* qa, const double* qb) const {
+    // A unit vector is at most 1 from any axis through the origin and no linear joint moves it:
+    // r = 1, L = 0 for every turn, with no condition on its size (the tip's needs W < 1).
+    double w = 0, s = 0;
+    for (const BoundTerm& e : terms_) {
+        if (!e.rotary) continue;
+        const double rate = std::abs(qb[e.joint] - qa[e.joint]) * e.scale * kDeg;
+        w += rate;
+        s += rate * rate;
+    }
+    return (2 * w * w - s) / 8.0;
+}
+
 IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis) const {
     // With the rotary joints fixed the tip is affine in the linear joints: one 3x3 solve is exact.
     const std::size_t n = machine_.joints.size();  // at most 5 (the loader checks)

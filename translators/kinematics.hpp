@@ -43,6 +43,8 @@ public:
         double tip = 0, axis = 0;
     };
     PathBound joint_path_bound(const PathEnd& a, const double* qa, const double* qb) const;
+    // joint_path_bound's bound for the tool axis alone, for a turn of any size.
+    double axis_path_bound(const double* qa, const double* qb) const;
 
     // Joints reaching `pose`: of its solutions (both orientation branches, their 360-degree
     // turns), the one inside the joint limits nearest `previous`. A joint whose axis is parallel to

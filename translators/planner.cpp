@@ -150,7 +150,7 @@ void Planner::end_candidates(OrientationMode mode, const Pose& end, const std::v
     std::stable_sort(candidates_.begin(), candidates_.end(), [&](const Candidate& a, const Candidate& b) { return distance(a) < distance(b); });
 }
 
-bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>& q, double& worst) {
+bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>& q, double& worst, bool need_worst) {
     const auto& rot = kin_.rotary_joints();
     // Machines whose tool axis at zero lies along the first rotary (has_flip): there the pole is
     // that rotary's axis and the second tilts the tool along a great circle through it.
@@ -212,11 +212,38 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
     std::vector<double>& lerp = probe;
     const GreatArc arc(from.axis, to.axis);
     const double limit = kPoleMargin * tolerance;
-    for (int i = 0; i <= kPoleSamples; ++i) {
+    auto deviation = [&](int i, double* chord) {
         const double t = double(i) / kPoleSamples;
         for (std::size_t j = 0; j < q.size(); ++j) lerp[j] = q0[j] + t * (q[j] - q0[j]);
-        worst = std::max(worst, angle_between(kin_.tool_axis(lerp), arc.at(t)));
-        if (!(worst <= limit)) return false;
+        const Eigen::Vector3d axis = kin_.tool_axis(lerp), ideal = arc.at(t);
+        if (chord) *chord = (axis - ideal).norm();
+        return angle_between(axis, ideal);
+    };
+    if (need_worst) {
+        for (int i = 0; i <= kPoleSamples; ++i) {
+            worst = std::max(worst, deviation(i, nullptr));
+            if (!(worst <= limit)) return false;
+        }
+        return true;
+    }
+    // Without a report the verdict alone is wanted, and it is the same with fewer points: every
+    // kStride-th point is measured; between two of them the gap between the two curves (the
+    // joint-linear axis u and the great circle g, unit vectors) stays within the larger of its
+    // ends' plus M h^2 / 8, with h the interval and M a bound on |u'' - g''|: kinematics' bound
+    // on the axis path's bend (8 times its chord distance) plus g's, the arc angle squared. An
+    // interval so cleared has every point inside the margin; any other is measured point by point.
+    constexpr int kStride = 8;
+    constexpr double kSlack = 1e-9;  // degrees: rounding in the two computations
+    const double bend = 8.0 * kin_.axis_path_bound(q0.data(), q.data()) + arc.angle * arc.angle;
+    const double h = double(kStride) / kPoleSamples;
+    double chord[kPoleSamples / kStride + 1];
+    for (int k = 0; k <= kPoleSamples / kStride; ++k)
+        if (!(deviation(k * kStride, &chord[k]) <= limit)) return false;
+    for (int k = 0; k < kPoleSamples / kStride; ++k) {
+        const double gap = std::max(chord[k], chord[k + 1]) + bend * h * h / 8.0;
+        if (gap < 2.0 && 2.0 * std::asin(0.5 * gap) * kDegPerRad <= limit - kSlack) continue;
+        for (int i = k * kStride + 1; i < (k + 1) * kStride; ++i)
+            if (!(deviation(i, nullptr) <= limit)) return false;
     }
     return true;
 }
@@ -283,7 +310,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // Near a pole the end may be chosen across moves (see pole_passage): rotaries turn linearly.
     bool passage = false;
     double passage_angle = 0;
-    if (!unwind && mv.mode == OrientationMode::Vector && (mv.any_xyz || s.tip_known) && pole_passage(s.pose, next, pole_q_, passage_angle)) {
+    if (!unwind && mv.mode == OrientationMode::Vector && (mv.any_xyz || s.tip_known) && pole_passage(s.pose, next, pole_q_, passage_angle, log_ != nullptr)) {
         passage = true;
         q_next_ = pole_q_;
     }

@@ -126,9 +126,10 @@ private:
                         const std::vector<double>& usual);
     // Near a pole, across moves: the end of a tool-vector move from `from` to `to` with the
     // turntable turned no more than the angle tolerance needs (see planner.cpp). Returns true, with
-    // the end joints in `q` (linear joints solved) and the worst axis deviation of the joint-linear
-    // turn in `worst`, when the move is to be made that way (rotaries linear, angle form).
-    bool pole_passage(const Pose& from, const Pose& to, std::vector<double>& q, double& worst);
+    // the end joints in `q` (linear joints solved) and, with `need_worst`, the worst axis deviation
+    // of the joint-linear turn in `worst`, when the move is to be made that way (rotaries linear,
+    // angle form).
+    bool pole_passage(const Pose& from, const Pose& to, std::vector<double>& q, double& worst, bool need_worst);
 
     struct Candidate {
         std::vector<double> q;
