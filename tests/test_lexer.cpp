@@ -2,7 +2,9 @@
 // conventions (RS274/NIST, Marlin host protocol, RepRapFirmware strings), not from lexer output.
 #include <doctest/doctest.h>
 
+#include <charconv>
 #include <cmath>
+#include <random>
 #include <limits>
 #include <string>
 #include <string_view>
@@ -81,6 +83,42 @@ TEST_CASE("lexer: a plain move gives letters, values and 1-based columns") {
     CHECK_FALSE(b.has_comment);
     CHECK_FALSE(b.percent);
     CHECK_FALSE(b.text_argument);
+}
+
+TEST_CASE("lexer: every number reads as std::from_chars reads it, whatever its length and place in the line") {
+    // The lexer reads digits eight at a time where the line has eight more bytes, one at a time
+    // near its end: numbers of 1 to 24 digits, with and without a point and sign, leading zeros,
+    // at the end of the line or followed by another word, against from_chars as the reference.
+    std::mt19937_64 rng(3);
+    int checked = 0;
+    for (int i = 0; i < 60000; ++i) {
+        const int int_digits = int(rng() % 14), frac_digits = int(rng() % 12);
+        std::string text;
+        if (rng() % 3 == 0) text += '-';
+        for (int k = 0; k < int_digits; ++k) text += char('0' + (k == 0 && rng() % 4 ? 1 + rng() % 9 : rng() % 10));
+        if (frac_digits > 0 || rng() % 5 == 0) text += '.';
+        for (int k = 0; k < frac_digits; ++k) text += char('0' + rng() % 10);
+        const std::string digits = text[0] == '-' ? text.substr(1) : text;
+        if (digits.find_first_of("0123456789") == std::string::npos) continue;
+        double ref = 0;
+        const auto r = std::from_chars(digits.data(), digits.data() + digits.size(), ref, std::chars_format::fixed);
+        REQUIRE(r.ec == std::errc{});
+        if (text[0] == '-') ref = -ref;
+        const std::string tail = rng() % 2 ? "" : (rng() % 2 ? " Y7" : " E0.01230 ; c");
+        const std::string line = "G1 X" + text + tail;
+        CAPTURE(line);
+        if (std::abs(ref) > 1e9) {
+            CHECK_THROWS_AS(lex(line), LineError);
+            continue;
+        }
+        const Block b = lex(line);
+        REQUIRE(b.words.size() >= 2);
+        CHECK(b.words[1].value == ref);
+        CHECK(std::signbit(b.words[1].value) == std::signbit(ref));
+        CHECK(b.words[1].text == text);
+        ++checked;
+    }
+    CHECK(checked > 30000);
 }
 
 TEST_CASE("lexer: ';' comments end the words; the body keeps the comment text") {

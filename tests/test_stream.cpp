@@ -129,6 +129,47 @@ TEST_CASE("append_fixed prints what std::to_chars prints at the same precision")
     CHECK(checked == 1000000);
 }
 
+TEST_CASE("write_units writes the integer's digits with the point placed and trailing fraction zeros dropped") {
+    // Reference: the integer's decimal text from std::to_string, the point inserted by hand.
+    auto reference = [](long long units, int d) {
+        const bool negative = units < 0;
+        std::string digits = std::to_string(units);
+        if (negative) digits.erase(0, 1);
+        if (d > 0) {
+            if (digits.size() <= std::size_t(d)) digits = std::string(std::size_t(d) + 1 - digits.size(), '0') + digits;
+            const std::size_t point = digits.size() - std::size_t(d);
+            digits = digits.substr(0, point) + "." + digits.substr(point);
+            while (digits.back() == '0') digits.pop_back();
+            if (digits.back() == '.') digits.pop_back();
+        }
+        if (digits == "0") return digits;
+        return (negative ? "-" : "") + digits;
+    };
+    std::mt19937_64 rng(11);
+    int checked = 0;
+    for (int d = 0; d <= 12; ++d) {
+        std::vector<long long> values = {0, 1, -1, 5, 10, 100, 1000, 1001, 999999999, 1000000000, -1000000000,
+                                         std::numeric_limits<long long>::max(), std::numeric_limits<long long>::min(),
+                                         std::numeric_limits<long long>::max() / 10 * 10, 9000000000000000000ll};
+        for (int i = 0; i < 20000; ++i) {
+            // Every size of number: random digits, a random count of trailing zeros, either sign.
+            long long v = (long long)(rng() >> (1 + rng() % 63));
+            for (int z = int(rng() % 6); z > 0 && v < std::numeric_limits<long long>::max() / 10; --z) v *= 10;
+            values.push_back(rng() % 2 ? -v : v);
+        }
+        for (const long long v : values) {
+            char buf[kUnitsChars + 8];
+            const std::string mine(buf, write_units(buf, v, d));
+            CHECK_MESSAGE(mine == reference(v, d), v << " at " << d << " decimals");
+            std::string appended = "x";
+            append_units(appended, v, d);
+            CHECK(appended == "x" + mine);
+            ++checked;
+        }
+    }
+    CHECK(checked > 250000);
+}
+
 TEST_CASE("a number that is not finite or beyond 1e9 is never written: UnwritableNumber, and nothing appended") {
     // std::to_chars fails for |v| >~ 1e61 at 3 decimals in 64 bytes; its buffer must not be written.
     for (const double v : {1e61, -1e200, 1e300, 1e9 * (1 + 1e-15), -2e9, 1e12, std::numeric_limits<double>::infinity(),

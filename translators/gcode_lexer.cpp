@@ -2,6 +2,7 @@
 #include "translators/gcode_lexer.hpp"
 
 #include <charconv>
+#include <cstring>
 #include <cmath>
 #include <limits>
 #include <cstdio>
@@ -68,6 +69,14 @@ void check_exponent_like(std::string_view s, std::size_t i, char letter, std::si
                 "' at its top (or the command line's --compact-words)");
 }
 
+// The run of decimal digits at `i`, appended to `mantissa` (which wraps past 19 digits: the
+// caller then does not use it), their count added to `count`. (Eight bytes at a time with
+// integer tricks was tried: more instructions, G-code's runs being one to five digits.)
+inline void read_digits(std::string_view s, std::size_t& i, std::uint64_t& mantissa, int& count) {
+    const std::size_t from = i;
+    while (i < s.size() && is_digit(s[i])) mantissa = mantissa * 10 + std::uint64_t(s[i++] - '0');
+    count += int(i - from);
+}
 // Reads "[+-]digits[.digits]" or "[+-].digits" at `i`; G-code has no exponent (E is a word).
 // A letter followed by no number is a flag (has_value false); whether a flag is allowed is the
 // interpreter's call, since it depends on the command.
@@ -82,22 +91,15 @@ double read_number(std::string_view s, std::size_t& i, char letter, std::size_t 
     const std::size_t digits_start = i;
     // Fast path: up to 15 significant digits as an integer, then one division by a power of
     // ten; both are exact in a double, and IEEE division rounds correctly, so this is the same
-    // value std::from_chars gives. Longer numbers take from_chars below.
+    // value std::from_chars gives. Longer numbers (more than 19 digits written, or 16 significant
+    // ones) take from_chars below, which gives the same value for any of them.
     std::uint64_t mantissa = 0;
-    int n_digits = 0, decimals = 0, total = 0;
-    while (i < s.size() && is_digit(s[i])) {
-        mantissa = mantissa * 10 + std::uint64_t(s[i++] - '0');
-        n_digits += (mantissa != 0);
-        ++total;
-    }
+    int decimals = 0, total = 0;
+    read_digits(s, i, mantissa, total);
     if (i < s.size() && s[i] == '.') {
         ++i;
-        while (i < s.size() && is_digit(s[i])) {
-            mantissa = mantissa * 10 + std::uint64_t(s[i++] - '0');
-            n_digits += (mantissa != 0);
-            ++decimals;
-            ++total;
-        }
+        read_digits(s, i, mantissa, decimals);
+        total += decimals;
     }
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
                                         1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
@@ -106,7 +108,7 @@ double read_number(std::string_view s, std::size_t& i, char letter, std::size_t 
     // <= 1e9 (a quotient above 1e9 is so by at least 10^-decimals, more than half its ulp).
     static constexpr std::uint64_t kLimit[] = {1000000000ull, 10000000000ull, 100000000000ull, 1000000000000ull,
                                                10000000000000ull, 100000000000000ull};
-    if (total > 0 && n_digits <= 15 && decimals <= 22) {
+    if (total > 0 && total <= 19 && mantissa < 1000000000000000ull) {
         if (decimals < 6 && mantissa > kLimit[decimals]) fail(start, std::string("number of word ") + letter + " is out of range (limit 1e9)");
         const double v = double(mantissa) / kPow10[decimals];
         return negative ? -v : v;

@@ -25,10 +25,84 @@ void append_units(std::string& out, long long units, int decimals) {
     out.append(buf, write_units(buf, units, decimals));
 }
 
+namespace {
+
+constexpr char kPairs[] =
+    "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
+    "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
+    "8081828384858687888990919293949596979899";
+
+// The digits of v at p, left to right.
+inline char* write_integer(char* p, unsigned long long v) {
+    int n = 1;
+    for (unsigned long long t = 10; n < 20 && v >= t; t *= 10) ++n;
+    char* q = p + n;
+    while (v >= 100) {
+        const unsigned r = unsigned(v % 100);
+        v /= 100;
+        *--q = kPairs[2 * r + 1];
+        *--q = kPairs[2 * r];
+    }
+    if (v >= 10) {
+        *--q = kPairs[2 * v + 1];
+        *--q = kPairs[2 * v];
+    } else {
+        *--q = char('0' + v);
+    }
+    return p + n;
+}
+
+// write_units for D decimals (1 to 9), which the compiler divides by multiplying: the integer
+// part and the fraction split once, the fraction's trailing zeros dropped on a 32-bit value.
+template <int D>
+char* write_decimals(char* p, unsigned long long u) {
+    constexpr unsigned long long kScale = [] {
+        unsigned long long s = 1;
+        for (int i = 0; i < D; ++i) s *= 10;
+        return s;
+    }();
+    unsigned frac = unsigned(u % kScale);
+    p = write_integer(p, u / kScale);
+    if (frac == 0) return p;
+    int d = D;
+    while (frac % 10 == 0) {
+        frac /= 10;
+        --d;
+    }
+    *p++ = '.';
+    char* q = p + d;  // d digits, leading zeros included (0.05)
+    for (; q - p >= 2;) {
+        const unsigned r = frac % 100;
+        frac /= 100;
+        *--q = kPairs[2 * r + 1];
+        *--q = kPairs[2 * r];
+    }
+    if (q > p) *--q = char('0' + frac);
+    return p + d;
+}
+
+}  // namespace
+
 char* write_units(char* out, long long units, int decimals) {
     if (units == 0) {
         *out = '0';
         return out + 1;
+    }
+    if (decimals >= 1 && decimals <= 9) {
+        char* p = out;
+        if (units < 0) *p++ = '-';
+        const unsigned long long u = units < 0 ? 0ull - static_cast<unsigned long long>(units) : static_cast<unsigned long long>(units);
+        switch (decimals) {
+            case 1: return write_decimals<1>(p, u);
+            case 2: return write_decimals<2>(p, u);
+            case 3: return write_decimals<3>(p, u);
+            case 4: return write_decimals<4>(p, u);
+            case 5: return write_decimals<5>(p, u);
+            case 6: return write_decimals<6>(p, u);
+            case 7: return write_decimals<7>(p, u);
+            case 8: return write_decimals<8>(p, u);
+            default: return write_decimals<9>(p, u);
+        }
     }
     const bool negative = units < 0;
     unsigned long long u = negative ? 0ull - static_cast<unsigned long long>(units) : static_cast<unsigned long long>(units);
@@ -37,12 +111,8 @@ char* write_units(char* out, long long units, int decimals) {
         u /= 10;
         --d;
     }
-    // Written right to left into a small buffer, appended once: the d fraction digits (leading
-    // zeros included: 0.05), the point, then the integer part two digits at a time.
-    static constexpr char kPairs[] =
-        "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
-        "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
-        "8081828384858687888990919293949596979899";
+    // Other decimals: written right to left into a small buffer, then copied: the d fraction
+    // digits (leading zeros included: 0.05), the point, then the integer part two digits at a time.
     char buf[24 + kUnitsChars];
     char* const end = buf + 24;
     char* p = end;
