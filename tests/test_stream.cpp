@@ -1,6 +1,7 @@
 // Line reader and output sink: chunk boundaries, long lines, atomic output; number formatting.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <limits>
@@ -13,7 +14,10 @@
 
 #include "translators/error.hpp"
 #include "translators/number.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
 #include "translators/stream.hpp"
+#include "translators/translator.hpp"
 
 using namespace xlate5;
 namespace fs = std::filesystem;
@@ -97,6 +101,43 @@ TEST_CASE("an output file appears only on commit; without it nothing is left beh
     std::ifstream in2(out);
     std::string content2((std::istreambuf_iterator<char>(in2)), {});
     CHECK(content2 == "new\n");
+    fs::remove_all(dir);
+}
+
+TEST_CASE("the stream's counts of lines and bytes out are those of the output written") {
+    // A split rw2 wall (pieces of different lengths, lines of every length), read back from the
+    // file the sink wrote: the counts must match it exactly, across the sink's blocks.
+    const Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/rw2.toml");
+    const Kinematics k(m);
+    const fs::path dir = fs::temp_directory_path() / ("xlate5-counts-" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    const fs::path in = dir / "in.gcode", out = dir / "out.gcode";
+    {
+        std::ofstream o(in);
+        o << "G21\nG90\nM83\n";
+        for (int i = 0; i < 20000; ++i) {
+            const double t = i * 0.01;
+            o << "G1 X" << 60 + 30 * std::cos(t) << " Y" << 60 + 30 * std::sin(t) << " Z" << 1 + 0.0002 * i << " A"
+              << std::fmod(t * 57.3, 300.0) - 150.0 << " B" << 20 * std::sin(t * 0.1) << " E0.0123" << (i % 7 ? "" : " ; note") << "\n";
+        }
+    }
+    FILE* f = std::fopen(in.c_str(), "rb");
+    REQUIRE(f);
+    LineReader reader(::fileno(f), in.string());
+    Translator translator(k, {});
+    StreamStats stats;
+    {
+        OutputSink sink(out.string());
+        stats = translate_stream(reader, translator, sink);
+        sink.commit();
+    }
+    std::fclose(f);
+    std::ifstream o(out, std::ios::binary);
+    const std::string text((std::istreambuf_iterator<char>(o)), {});
+    CHECK(stats.lines_in == 20003);
+    CHECK(stats.bytes_out == text.size());
+    CHECK(stats.lines_out == std::uint64_t(std::count(text.begin(), text.end(), '\n')));
+    CHECK(stats.lines_out > 20003);  // the 300-degree turns were split
     fs::remove_all(dir);
 }
 

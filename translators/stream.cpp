@@ -3,6 +3,8 @@
 #include "translators/stream.hpp"
 
 #include <algorithm>
+#include <bit>
+#include <cstring>
 
 #include "translators/input_front.hpp"
 #include "translators/translator.hpp"
@@ -11,6 +13,24 @@ namespace xlate5 {
 
 namespace {
 constexpr std::size_t kFlushAt = 1u << 18;
+
+// Line ends in a block of output, eight bytes at a time: a byte equal to '\n' is a zero byte of
+// the word XOR '\n' repeated, and (v & 0x7F) + 0x7F sets a byte's high bit exactly when v's
+// low seven bits are not all zero (no carry leaves the byte), so zero bytes are the ones with
+// the high bit clear in that or v. (std::count did one byte per step.)
+std::uint64_t count_newlines(std::string_view text) {
+    std::uint64_t n = 0;
+    std::size_t i = 0;
+    for (; i + 8 <= text.size(); i += 8) {
+        std::uint64_t w;
+        std::memcpy(&w, text.data() + i, 8);
+        const std::uint64_t v = w ^ 0x0A0A0A0A0A0A0A0Aull;
+        const std::uint64_t t = ((v & 0x7F7F7F7F7F7F7F7Full) + 0x7F7F7F7F7F7F7F7Full) | v;
+        n += std::uint64_t(std::popcount(~t & 0x8080808080808080ull));
+    }
+    for (; i < text.size(); ++i) n += text[i] == '\n';
+    return n;
+}
 }  // namespace
 
 StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink, bool streaming,
@@ -36,7 +56,7 @@ StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& 
         if (on_write) on_write(out);
         sink.write(out);
         stats.bytes_out += out.size();
-        stats.lines_out += std::uint64_t(std::count(out.begin(), out.end(), '\n'));
+        stats.lines_out += count_newlines(out);
         out.clear();
     };
     translator.set_lookback(Translator::kDefaultLookback);  // a limit further on can be unwound on an earlier travel move
