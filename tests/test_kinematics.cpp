@@ -37,6 +37,24 @@ double angle_diff(double a, double b) { return std::abs(wrap180(a - b)); }
 
 }  // namespace
 
+TEST_CASE("wrap180 gives (-180, 180], as the remainder of a division by 360 defines it") {
+    // The definition, written out: fmod's exact remainder, then one turn added or taken.
+    auto reference = [](double d) {
+        double r = std::fmod(d, 360.0);
+        if (r <= -180.0) r += 360.0;
+        if (r > 180.0) r -= 360.0;
+        return r;
+    };
+    std::mt19937_64 rng(9);
+    std::uniform_real_distribution<double> U(-1, 1);
+    std::vector<double> values = {0.0, -0.0, 180.0, -180.0, 360.0, -360.0, 359.99999999999994, -359.99999999999994, 540.0, 1e9, -1e9};
+    for (int i = 0; i < 200000; ++i) values.push_back(U(rng) * std::pow(10.0, 4 * std::abs(U(rng))));
+    for (const double d : values) {
+        const double mine = wrap180(d), ref = reference(d);
+        CHECK(std::memcmp(&mine, &ref, sizeof mine) == 0);
+    }
+}
+
 TEST_CASE("rw2 equals Andersons (Twente 2023) eq. 4.5 over a grid of poses") {
     const Machine m = machine("rw2");
     const Kinematics k(m);

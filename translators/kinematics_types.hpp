@@ -35,7 +35,8 @@ struct OrientationSolutions {
 
 // Wraps an angle in degrees to (-180, 180].
 inline double wrap180(double degrees) {
-    double r = std::fmod(degrees, 360.0);
+    // fmod returns an |x| < 360 as it is (exactly): the call only where it can change something.
+    double r = std::abs(degrees) < 360.0 ? degrees : std::fmod(degrees, 360.0);
     if (r <= -180.0) r += 360.0;
     if (r > 180.0) r -= 360.0;
     return r;
