@@ -49,14 +49,14 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
                 continue;
             }
             // Of sol + 360 k, the turn nearest the previous angle that is inside the limits.
+            // `nearest` is within 180 degrees of it and every other turn 360 degrees from it:
+            // when it is inside and clearly nearer than half a turn, it is the answer (the turns
+            // below would not be kept). Only at a half turn can rounding decide between two.
             const double nearest = prev + wrap180(sol - prev);
             double chosen = std::numeric_limits<double>::quiet_NaN();
-            for (int turn : {0, 1, -1, 2, -2}) {
+            if (!limited || (inside_limits(J, nearest) && std::abs(nearest - prev) < 179.0)) chosen = nearest;
+            else for (int turn : {0, 1, -1, 2, -2}) {
                 const double v = nearest + 360.0 * turn;
-                if (!limited) {
-                    chosen = nearest;
-                    break;
-                }
                 if (inside_limits(J, v) && (std::isnan(chosen) || std::abs(v - prev) < std::abs(chosen - prev))) chosen = v;
             }
             if (std::isnan(chosen)) {
