@@ -345,6 +345,48 @@ TEST_CASE("rotary choice: nearest the previous angle, 360-degree turns on unboun
     CHECK((kr.forward(q).axis - u2).norm() < 1e-9);
 }
 
+TEST_CASE("the machine's reach bounds every lever arm and every shift inside the limits, on every shipped machine") {
+    // The motion stage clears whole moves with the reach and no FK: it must hold wherever the
+    // joints can be (linear joints inside their limits, rotaries anywhere), tilted plates too.
+    const std::map<std::string, std::map<std::string, double>> tilted = {
+        {"wpi5", {{"rho", 1.7}, {"psi", -2.3}, {"sx", 0.4}, {"sy", -1.1}, {"sz", 0.7}}},
+        {"pentarod", {{"a_offset", 2.9}, {"cx", 1.3}, {"cy", -0.8}}},
+    };
+    for (const auto& [name, path] : bundled_machines()) {
+        for (const int variant : {0, 1}) {
+            if (variant == 1 && !tilted.count(name)) continue;
+            CAPTURE(name);
+            const Machine m = variant == 1 ? load_machine(path, tilted.at(name)) : load_machine(path);
+            const Kinematics k(m);
+            REQUIRE(k.has_reach());
+            std::mt19937 rng(std::hash<std::string>{}(name) & 0xff);
+            std::uniform_real_distribution<double> U(0, 1);
+            double tightest = 0;  // the largest arm found over its reach
+            for (int i = 0; i < 20000; ++i) {
+                std::vector<double> qa(m.joints.size()), qb(m.joints.size());
+                for (std::size_t j = 0; j < qa.size(); ++j) {
+                    const Joint& J = m.joints[j];
+                    const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
+                    qa[j] = lo + (hi - lo) * U(rng);
+                    // A rounding-sized step, or a larger one, kept inside the limits.
+                    qb[j] = std::clamp(qa[j] + (2 * U(rng) - 1) * (i % 2 ? 0.0005 : 0.5), lo, hi);
+                }
+                const auto end = k.path_end(qa.data());
+                for (int a = 0; a < 8; ++a) {
+                    CHECK(end.arm[a] <= k.reach().arm[a] + 1e-9);
+                    if (k.reach().arm[a] > 0) tightest = std::max(tightest, end.arm[a] / k.reach().arm[a]);
+                }
+                CHECK(end.lever_arm <= k.reach().lever_arm + 1e-9);
+                CHECK((k.forward(qb).tip - end.pose.tip).norm() <= k.reach_shift(qa.data(), qb.data()) + 1e-9);
+            }
+            // A bound that is not far out, where the tip is off the rotary axes at all (addin4's
+            // nozzle turns about its own tip).
+            if (k.reach().lever_arm > 1 && tightest > 0) CHECK(tightest > 0.3);
+            MESSAGE(name << ": reach " << k.reach().lever_arm << " mm, largest arm found " << tightest << " of it");
+        }
+    }
+}
+
 TEST_CASE("the tool axis's bound holds for turns of any size on every shipped machine") {
     // The planner's pole check clears a stretch of a joint-linear turn with it, where the
     // turntable may swing by a half turn or more: sampled at 400 points, the axis stays within

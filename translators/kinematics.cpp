@@ -140,6 +140,58 @@ Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
     while (lead < terms_.size() && !terms_[lead].rotary) ++lead;
     terms_.erase(terms_.begin(), terms_.begin() + std::ptrdiff_t(lead));
 
+    // The machine's reach, for a bound that needs no FK (reach()): how far the tip can be from
+    // each rotary element's axis, for any joint values inside the limits (rotaries at any
+    // angle). An element moves a point by at most: a fixed one its translation, a linear one its
+    // axis times the joint's largest value (and a millimetre of slack past the limits), a rotary
+    // one twice its point's distance from the origin. The tip seen from a tool-chain rotary is
+    // the rest of the tool chain applied to the origin, less that element's point; from a
+    // part-chain rotary, the whole tool chain's reach plus the part chain's up to its point.
+    {
+        const double inf = std::numeric_limits<double>::infinity();
+        auto moves = [&](const ChainElement& e) {
+            switch (e.kind) {
+                case ChainElement::Kind::Fixed: return e.fixed.translation().norm();
+                case ChainElement::Kind::Linear: {
+                    const Joint& J = machine.joints[std::size_t(e.joint)];
+                    if (!(J.min > -1e299 && J.max < 1e299)) return inf;
+                    return e.axis.norm() * (std::max(std::abs(J.min), std::abs(J.max)) + 1.0);
+                }
+                case ChainElement::Kind::Rotary: return 2.0 * e.point.norm();
+            }
+            return inf;
+        };
+        double tool_total = 0;
+        for (const auto& e : machine.tool_chain) tool_total += moves(e);
+        int arm = 0;
+        double before = 0;
+        bool fits = true;
+        for (const auto& e : machine.part_chain) {
+            if (e.kind == ChainElement::Kind::Rotary) {
+                if (arm < 8) reach_.arm[arm] = e.point.norm() + before + tool_total;
+                fits = fits && ++arm <= 8;
+            }
+            before += moves(e);
+        }
+        for (std::size_t k = 0; k < machine.tool_chain.size(); ++k) {
+            const ChainElement& e = machine.tool_chain[k];
+            if (e.kind != ChainElement::Kind::Rotary) continue;
+            double after = 0;
+            for (std::size_t m = k + 1; m < machine.tool_chain.size(); ++m) after += moves(machine.tool_chain[m]);
+            if (arm < 8) reach_.arm[arm] = e.point.norm() + after;
+            fits = fits && ++arm <= 8;
+        }
+        for (int i = 0; i < arm && i < 8; ++i) reach_.lever_arm = std::max(reach_.lever_arm, reach_.arm[i]);
+        has_reach_ = fits && std::isfinite(reach_.lever_arm);
+        // Per joint: how far the tip moves per unit of it at most (mm per mm, mm per degree).
+        shift_per_unit_.assign(machine.joints.size(), 0.0);
+        for (const auto* chain : {&machine.part_chain, &machine.tool_chain})
+            for (const auto& e : *chain) {
+                if (e.kind == ChainElement::Kind::Linear) shift_per_unit_[std::size_t(e.joint)] += e.axis.norm();
+                else if (e.kind == ChainElement::Kind::Rotary) shift_per_unit_[std::size_t(e.joint)] += kDeg * reach_.lever_arm;
+            }
+    }
+
     // The position solve's Jacobian (the linear joints' directions seen from the part) depends on
     // the rotaries only through the rotations ahead of the linear joints. With none there (a part
     // chain without rotaries, no rotary before a linear joint in the tool chain: rw2's X Y Z
@@ -344,6 +396,12 @@ Kinematics::PathBound Kinematics::joint_path_bound(const PathEnd& a, const doubl
     out.tip = curve / 8.0;
     out.axis = (2 * w * w - s) / 8.0;
     return out;
+}
+
+double Kinematics::reach_shift(const double* qa, const double* qb) const {
+    double shift = 0;
+    for (std::size_t j = 0; j < shift_per_unit_.size(); ++j) shift += std::abs(qb[j] - qa[j]) * shift_per_unit_[j];
+    return shift;
 }
 
 double Kinematics::axis_path_bound(const double* qa, const double* qb) const {

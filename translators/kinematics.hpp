@@ -45,6 +45,15 @@ public:
     PathBound joint_path_bound(const PathEnd& a, const double* qa, const double* qb) const;
     // joint_path_bound's bound for the tool axis alone, for a turn of any size.
     double axis_path_bound(const double* qa, const double* qb) const;
+    // The machine's reach as a path end (lever arms only, no pose): the tip's largest distance
+    // from each rotary axis anywhere inside the joint limits. joint_path_bound(reach(), qa, qb)
+    // bounds a path between joints inside the limits without an FK; has_reach() is false when a
+    // linear joint has no limits.
+    bool has_reach() const { return has_reach_; }
+    const PathEnd& reach() const { return reach_; }
+    // How far the tip can move between joints qa and qb (each joint on its own, added): an upper
+    // bound by the reach, for joints inside the limits.
+    double reach_shift(const double* qa, const double* qb) const;
 
     // Joints reaching `pose`: of its solutions (both orientation branches, their 360-degree
     // turns), the one inside the joint limits nearest `previous`. A joint whose axis is parallel to
@@ -96,6 +105,9 @@ private:
     bool flip_ = false;
     std::vector<int> linear_;               // the first three linear joints: the position solve's unknowns
     bool constant_jacobian_ = false;        // no rotation ahead of a linear joint: its inverse is fixed
+    PathEnd reach_;                         // see reach()
+    bool has_reach_ = false;
+    std::vector<double> shift_per_unit_;    // per joint: mm of tip per unit of the joint, at most
     Eigen::Matrix3d jacobian_inverse_ = Eigen::Matrix3d::Identity();
 };
 

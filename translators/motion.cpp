@@ -261,6 +261,19 @@ const Kinematics::PathEnd& MotionStage::path_end(const double* q) const {
     return c.end;
 }
 
+bool MotionStage::reach_clears(const MoveSpec& mv, double tol) const {
+    // The whole move under the angle form, with no FK: kinematics' bound from the machine's
+    // reach (it holds anywhere inside the limits), and the printed ends' distance from the line
+    // at most how far rounding moves the tip from the exact ends, which are on it. A pass here
+    // is a pass of the bound below and of the samples; a fail decides nothing (they run).
+    if (mv.mode != OrientationMode::Angles || !kin_.has_reach()) return false;
+    constexpr double kSlack = 1e-9;  // as bounded_within's
+    const Kinematics::PathBound b = kin_.joint_path_bound(kin_.reach(), q0_printed_.data(), q1_printed_.data());
+    if (!(b.tip <= tol - kSlack)) return false;
+    const double ends = std::max(kin_.reach_shift(mv.q0->data(), q0_printed_.data()), kin_.reach_shift(mv.q1->data(), q1_printed_.data()));
+    return b.tip + ends <= tol - kSlack;
+}
+
 bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol,
                                  double atol) const {
     // Sampling finds at most the true deviation, and the bound is at least that: when the bound
@@ -300,6 +313,11 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     round_printed(machine_, q1_printed_);
     rounded_from_ = *mv.q1;
     rounded_ = q1_printed_;
+    // Every move ends exactly on its programmed tip (the planner solves the linear joints for
+    // it): a move that starts at the last one's end, joints and tip, starts exactly on its line.
+    const bool start_on_line = *mv.q0 == line_end_q_ && mv.p0.tip == line_end_tip_;
+    line_end_q_ = *mv.q1;
+    line_end_tip_ = mv.p1.tip;
     final_exact_ = *mv.q1;
     const auto& q0 = q0_printed_;
     const auto& q1 = q1_printed_;
@@ -313,6 +331,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
 
     const double tol = kSampleMargin * machine_.motion.tolerance, atol = kSampleMargin * machine_.motion.angle_tolerance;
     double tip = 0, ang = 0;
+    if (start_on_line && reach_clears(mv, tol)) return {};
     if (bounded_within(mv, 0, 1, q0.data(), q1.data(), tol, atol)) return {};
     piece_error(mv, 0, 1, q0.data(), q1.data(), kCheckSamples, tip, ang);
     const double ratio = std::max(tip / tol, ang / atol);

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <limits>
 #include <vector>
 
 #include "translators/compensation.hpp"
@@ -85,6 +86,8 @@ private:
     // `tol` (mm) and `atol` (degrees) by kinematics' bound, without sampling it.
     bool bounded_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
                         double atol) const;
+    // The same for the whole move under the angle form, from the machine's reach: no FK at all.
+    bool reach_clears(const MoveSpec& move, double tol) const;
     // piece_error's verdict against `tol` and `atol`, stopping at the first point outside them.
     // `middle_ratio`, when given, receives the error over its tolerance when the verdict is no at
     // the middle point (left as it is otherwise).
@@ -134,6 +137,8 @@ private:
     std::vector<double> qs_exact_;               // the pieces' ends as solved
     std::vector<double> q0_printed_, q1_printed_;  // the move's ends as printed
     std::vector<double> rounded_from_, rounded_;   // the last end rounded, and its printed value
+    std::vector<double> line_end_q_;               // the last move's end (joints, tip): on its line
+    Eigen::Vector3d line_end_tip_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
     std::vector<double> final_exact_, exact_b_, ok_exact_, cross_end_;
     double cross_angle_ = 0;  // the axis deviation of the last crossing found  // the last piece's end as solved (unrounded)
     // Scratch space reused move after move (no allocation on the hot path).
