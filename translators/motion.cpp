@@ -315,9 +315,12 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     rounded_ = q1_printed_;
     // Every move ends exactly on its programmed tip (the planner solves the linear joints for
     // it): a move that starts at the last one's end, joints and tip, starts exactly on its line.
-    const bool start_on_line = *mv.q0 == line_end_q_ && mv.p0.tip == line_end_tip_;
-    line_end_q_ = *mv.q1;
-    line_end_tip_ = mv.p1.tip;
+    bool start_on_line = false;
+    if (machine_.motion.segment) {  // only the split asks
+        start_on_line = *mv.q0 == line_end_q_ && mv.p0.tip == line_end_tip_;
+        line_end_q_ = *mv.q1;
+        line_end_tip_ = mv.p1.tip;
+    }
     final_exact_ = *mv.q1;
     const auto& q0 = q0_printed_;
     const auto& q1 = q1_printed_;
