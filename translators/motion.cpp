@@ -303,24 +303,21 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
 IkResult MotionStage::split(const MoveSpec& mv) {
     const std::size_t n = machine_.joints.size();
     // A move usually starts where the one before ended: its start as printed is known then.
-    if (*mv.q0 == rounded_from_) {
-        q0_printed_ = rounded_;
+    // And every move ends exactly on its programmed tip (the planner solves the linear joints
+    // for it): a move that starts at the last one's end, joints and tip, starts on its line.
+    const bool from_last = *mv.q0 == last_end_q_;
+    const bool start_on_line = from_last && mv.p0.tip == last_end_tip_;
+    if (from_last) {
+        q0_printed_ = last_end_printed_;
     } else {
         q0_printed_ = *mv.q0;
         round_printed(machine_, q0_printed_);
     }
     q1_printed_ = *mv.q1;
     round_printed(machine_, q1_printed_);
-    rounded_from_ = *mv.q1;
-    rounded_ = q1_printed_;
-    // Every move ends exactly on its programmed tip (the planner solves the linear joints for
-    // it): a move that starts at the last one's end, joints and tip, starts exactly on its line.
-    bool start_on_line = false;
-    if (machine_.motion.segment) {  // only the split asks
-        start_on_line = *mv.q0 == line_end_q_ && mv.p0.tip == line_end_tip_;
-        line_end_q_ = *mv.q1;
-        line_end_tip_ = mv.p1.tip;
-    }
+    last_end_q_ = *mv.q1;
+    last_end_printed_ = q1_printed_;
+    last_end_tip_ = mv.p1.tip;
     final_exact_ = *mv.q1;
     const auto& q0 = q0_printed_;
     const auto& q1 = q1_printed_;

@@ -6,8 +6,8 @@
 #pragma once
 #include <cstdint>
 #include <optional>
-#include <string>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include "translators/compensation.hpp"
@@ -136,9 +136,9 @@ private:
     std::vector<double> s_, qs_;                 // the pieces, joints as printed
     std::vector<double> qs_exact_;               // the pieces' ends as solved
     std::vector<double> q0_printed_, q1_printed_;  // the move's ends as printed
-    std::vector<double> rounded_from_, rounded_;   // the last end rounded, and its printed value
-    std::vector<double> line_end_q_;               // the last move's end (joints, tip): on its line
-    Eigen::Vector3d line_end_tip_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+    // The last move's end: its joints as solved and as printed, and its tip (which they reach).
+    std::vector<double> last_end_q_, last_end_printed_;
+    Eigen::Vector3d last_end_tip_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
     std::vector<double> final_exact_, exact_b_, ok_exact_, cross_end_;
     double cross_angle_ = 0;  // the axis deviation of the last crossing found  // the last piece's end as solved (unrounded)
     // Scratch space reused move after move (no allocation on the hot path).
