@@ -101,32 +101,30 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
         }
     }
     out.append(words, p);
-    if (e) append_word(out, 'E', *e);
+    char text[kFText];
     if (f) {
-        // F is modal in the firmware: written when its text changes (under G93 every move carries its own).
-        char text[kFText];
-        std::size_t size = 0;
+        // F is modal in the firmware: written when its text changes (under G93 every move carries
+        // its own). The text as it will be written, formatted once.
+        std::string_view written;
         long long units = 0;
         if (!f->text.empty()) {
-            size = f->text.size() <= kFText ? f->text.size() : 0;
-            if (size) std::memcpy(text, f->text.data(), size);
+            if (f->text.size() <= kFText) written = f->text;
         } else if (f->decimals >= 0 && to_units(f->value, f->decimals, units)) {
-            size = std::size_t(write_units(text, units, f->decimals) - text);
+            written = std::string_view(text, std::size_t(write_units(text, units, f->decimals) - text));
         }
-        if (size == 0) {  // a text too long to remember, or a value off the fast path: written, and nothing remembered
+        if (written.empty()) {  // a text too long to remember, or a value off the fast path: written, nothing remembered
             last_f_size_ = 0;
-            append_word(out, 'F', *f);
-        } else if (inverse_time_ || size != last_f_size_ || std::memcmp(text, last_f_.data(), size) != 0) {
+        } else if (!inverse_time_ && written == std::string_view(last_f_.data(), last_f_size_)) {
+            f.reset();
+        } else {
             if (!inverse_time_) {
-                std::memcpy(last_f_.data(), text, size);
-                last_f_size_ = size;
+                std::memcpy(last_f_.data(), written.data(), written.size());
+                last_f_size_ = written.size();
             }
-            out += " F";
-            out.append(text, size);
+            f->text = written;
         }
     }
-    if (out.size() == empty) out.resize(start);
-    else out += '\n';
+    finish_move(out, start, empty, e, f);
     if (out.size() > start) ++moves_written_;
 }
 
