@@ -2,7 +2,6 @@
 #include "translators/number.hpp"
 
 #include <charconv>
-#include <cstring>
 #include <cmath>
 #include <string>
 
@@ -52,8 +51,28 @@ inline char* write_integer(char* p, unsigned long long v) {
     return p + n;
 }
 
-// write_units for D decimals (1 to 9), which the compiler divides by multiplying: the integer
-// part and the fraction split once, the fraction's trailing zeros dropped on a 32-bit value.
+// A point and the fraction's `digits` digits (leading zeros included: 0.05), its trailing
+// zeros dropped; nothing at all for a zero fraction.
+inline char* write_fraction(char* p, unsigned long long frac, int digits) {
+    if (frac == 0) return p;
+    while (frac % 10 == 0) {
+        frac /= 10;
+        --digits;
+    }
+    *p++ = '.';
+    char* q = p + digits;
+    while (q - p >= 2) {
+        const unsigned r = unsigned(frac % 100);
+        frac /= 100;
+        *--q = kPairs[2 * r + 1];
+        *--q = kPairs[2 * r];
+    }
+    if (q > p) *--q = char('0' + frac);
+    return p + digits;
+}
+
+// The integer part and the fraction split once; for D decimals known here (1 to 9: what
+// to_units gives) the compiler divides by multiplying.
 template <int D>
 char* write_decimals(char* p, unsigned long long u) {
     constexpr unsigned long long kScale = [] {
@@ -61,24 +80,7 @@ char* write_decimals(char* p, unsigned long long u) {
         for (int i = 0; i < D; ++i) s *= 10;
         return s;
     }();
-    unsigned frac = unsigned(u % kScale);
-    p = write_integer(p, u / kScale);
-    if (frac == 0) return p;
-    int d = D;
-    while (frac % 10 == 0) {
-        frac /= 10;
-        --d;
-    }
-    *p++ = '.';
-    char* q = p + d;  // d digits, leading zeros included (0.05)
-    for (; q - p >= 2;) {
-        const unsigned r = frac % 100;
-        frac /= 100;
-        *--q = kPairs[2 * r + 1];
-        *--q = kPairs[2 * r];
-    }
-    if (q > p) *--q = char('0' + frac);
-    return p + d;
+    return write_fraction(write_integer(p, u / kScale), u % kScale, D);
 }
 
 }  // namespace
@@ -88,65 +90,26 @@ char* write_units(char* out, long long units, int decimals) {
         *out = '0';
         return out + 1;
     }
-    if (decimals >= 1 && decimals <= 9) {
-        char* p = out;
-        if (units < 0) *p++ = '-';
-        const unsigned long long u = units < 0 ? 0ull - static_cast<unsigned long long>(units) : static_cast<unsigned long long>(units);
-        switch (decimals) {
-            case 1: return write_decimals<1>(p, u);
-            case 2: return write_decimals<2>(p, u);
-            case 3: return write_decimals<3>(p, u);
-            case 4: return write_decimals<4>(p, u);
-            case 5: return write_decimals<5>(p, u);
-            case 6: return write_decimals<6>(p, u);
-            case 7: return write_decimals<7>(p, u);
-            case 8: return write_decimals<8>(p, u);
-            default: return write_decimals<9>(p, u);
+    char* p = out;
+    if (units < 0) *p++ = '-';
+    const unsigned long long u = units < 0 ? 0ull - static_cast<unsigned long long>(units) : static_cast<unsigned long long>(units);
+    switch (decimals) {
+        case 0: return write_integer(p, u);
+        case 1: return write_decimals<1>(p, u);
+        case 2: return write_decimals<2>(p, u);
+        case 3: return write_decimals<3>(p, u);
+        case 4: return write_decimals<4>(p, u);
+        case 5: return write_decimals<5>(p, u);
+        case 6: return write_decimals<6>(p, u);
+        case 7: return write_decimals<7>(p, u);
+        case 8: return write_decimals<8>(p, u);
+        case 9: return write_decimals<9>(p, u);
+        default: {  // 10 to 18
+            unsigned long long scale = 1;
+            for (int i = 0; i < decimals; ++i) scale *= 10;
+            return write_fraction(write_integer(p, u / scale), u % scale, decimals);
         }
     }
-    const bool negative = units < 0;
-    unsigned long long u = negative ? 0ull - static_cast<unsigned long long>(units) : static_cast<unsigned long long>(units);
-    int d = decimals;
-    while (d > 0 && u % 10 == 0) {  // trailing zeros of the fraction are not printed
-        u /= 10;
-        --d;
-    }
-    // Other decimals: written right to left into a small buffer, then copied: the d fraction
-    // digits (leading zeros included: 0.05), the point, then the integer part two digits at a time.
-    char buf[24 + kUnitsChars];
-    char* const end = buf + 24;
-    char* p = end;
-    if (d > 0) {
-        int k = d;
-        for (; k >= 2; k -= 2) {
-            const unsigned r = unsigned(u % 100);
-            u /= 100;
-            *--p = kPairs[2 * r + 1];
-            *--p = kPairs[2 * r];
-        }
-        if (k == 1) {
-            *--p = char('0' + u % 10);
-            u /= 10;
-        }
-        *--p = '.';
-    }
-    while (u >= 100) {
-        const unsigned r = unsigned(u % 100);
-        u /= 100;
-        *--p = kPairs[2 * r + 1];
-        *--p = kPairs[2 * r];
-    }
-    if (u >= 10) {
-        *--p = kPairs[2 * u + 1];
-        *--p = kPairs[2 * u];
-    } else {
-        *--p = char('0' + u);
-    }
-    if (negative) *--p = '-';
-    // At most 19 digits, a point and a sign, at the end of buf: the kUnitsChars bytes from p stay
-    // inside it, and are copied whole.
-    std::memcpy(out, p, kUnitsChars);
-    return out + (end - p);
 }
 
 namespace {

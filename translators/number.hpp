@@ -46,10 +46,9 @@ inline bool to_units(double v, int decimals, long long& units) {
     units = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
     return true;
 }
-// Writes units * 10^-decimals with trailing fraction zeros removed at p and returns the end of
-// the text (at most 21 characters, no terminator). It may store up to kUnitsChars bytes at p
-// whatever the text's length (one fixed-size copy): p needs that much room. append_units appends
-// the same to a string.
+// Writes units * 10^-decimals (decimals 0 to 18) with trailing fraction zeros removed at p and
+// returns the end of the text: at most 21 characters, no terminator (kUnitsChars is room
+// enough). append_units appends the same to a string.
 inline constexpr std::size_t kUnitsChars = 24;
 char* write_units(char* p, long long units, int decimals);
 void append_units(std::string& out, long long units, int decimals);
