@@ -2,7 +2,6 @@
 #include "translators/gcode_lexer.hpp"
 
 #include <charconv>
-#include <cstring>
 #include <cmath>
 #include <limits>
 #include <cstdio>

@@ -223,7 +223,6 @@ Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
 
 namespace {
 
-
 // Eigen's normalized(): v / |v|, the squares summed (a0 + a1) + a2; a zero vector is returned as is.
 inline V3 normalized(const V3& v) {
     const double n = (v.x * v.x + v.y * v.y) + v.z * v.z;
