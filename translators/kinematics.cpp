@@ -71,9 +71,53 @@ double subproblem1(const Eigen::Vector3d& w, const Eigen::Vector3d& p, const Eig
     return std::atan2(w.dot(pp.cross(qq)), pp.dot(qq));
 }
 
+// The walk's form of a chain (see ChainLink and walk below).
+std::vector<ChainLink> compile_chain(const std::vector<ChainElement>& chain) {
+    std::vector<ChainLink> links;
+    bool fresh = true;
+    for (const auto& e : chain) {
+        ChainLink l;
+        l.fresh = fresh;
+        l.joint = e.joint;
+        for (int i = 0; i < 3; ++i) l.axis[i] = e.axis[i], l.point[i] = e.point[i];
+        switch (e.kind) {
+            case ChainElement::Kind::Fixed: {
+                const Eigen::Matrix3d F = e.fixed.linear();
+                for (int i = 0; i < 3; ++i) {
+                    l.shift[i] = e.fixed.translation()[i];
+                    for (int j = 0; j < 3; ++j) l.rot[i * 3 + j] = F(i, j);
+                }
+                const bool turns = F != Eigen::Matrix3d::Identity();
+                l.shifts = e.fixed.translation() != Eigen::Vector3d::Zero();
+                if (!turns && !l.shifts) continue;  // the identity (a calibration offset of 0): R, t as they are
+                l.kind = turns ? ChainLink::Kind::Fixed : ChainLink::Kind::Shift;
+                fresh = fresh && !turns;
+                break;
+            }
+            case ChainElement::Kind::Linear: l.kind = ChainLink::Kind::Linear; break;
+            case ChainElement::Kind::Rotary: {
+                l.kind = ChainLink::Kind::Rotary;
+                l.shifts = e.point != Eigen::Vector3d::Zero();  // an axis through the origin moves no point of it
+                for (int k = 0; k < 3; ++k) {
+                    const int i = (k + 1) % 3, j = (k + 2) % 3;
+                    if (e.axis[i] == 0 && e.axis[j] == 0 && std::abs(e.axis[k]) == 1) {
+                        l.kind = k == 0 ? ChainLink::Kind::RotaryX : k == 1 ? ChainLink::Kind::RotaryY : ChainLink::Kind::RotaryZ;
+                        l.sign = e.axis[k];
+                    }
+                }
+                fresh = false;
+                break;
+            }
+        }
+        links.push_back(l);
+    }
+    return links;
+}
+
 }  // namespace
 
-Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
+Kinematics::Kinematics(const Machine& machine)
+    : machine_(machine), part_links_(compile_chain(machine.part_chain)), tool_links_(compile_chain(machine.tool_chain)) {
     // Orientation: u = R_part^T R_tool u0. Write it as one product of fixed rotations and joint
     // rotations, then fold the fixed ones into the axes: u' = G0^T u = R(w1,s1 q1) R(w2,s2 q2) p.
     struct Step {
@@ -212,10 +256,12 @@ Kinematics::Kinematics(const Machine& machine) : machine_(machine) {
         for (std::size_t j = 0; j < machine.joints.size(); ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();
         Eigen::Matrix3d Rp, Rt, J;
         Eigen::Vector3d tp, tt;
-        eval(machine.part_chain, zero.data(), Rp, tp, part_dirs);
-        eval(machine.tool_chain, zero.data(), Rt, tt, tool_dirs);
+        eval(part_links_, zero.data(), Rp, tp, part_dirs);
+        eval(tool_links_, zero.data(), Rt, tt, tool_dirs);
         if (linear_jacobian(Rp, part_dirs, tool_dirs, J)) {
-            jacobian_inverse_ = J.inverse();
+            const Eigen::Matrix3d Ji = J.inverse();
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j) jacobian_inverse_[i * 3 + j] = Ji(i, j);
             constant_jacobian_ = true;
         }
     }
@@ -239,42 +285,112 @@ struct AxisLine {
 
 // Base -> the chain's end: rotation R and translation t. `linear_dirs`, when given, receives each
 // linear joint's direction (indexed by joint); `lines` each rotary joint's axis.
-void walk(const std::vector<ChainElement>& chain, const double* q, M3& R, V3& t, Eigen::Vector3d* linear_dirs,
-          AxisLine* lines = nullptr, int* line_count = nullptr) {
+//
+// The shortcuts (see compile_chain) give the general products' results to the last bit: with R
+// the identity, R v sums v's entries with terms 1 * v and 0 * w, which are v and zeros; a joint
+// turning about +-1 times a coordinate axis k has (Eigen's formula) the rotation with c, -+s, +-s,
+// c in the plane of the other two axes i, j and (1 - c) + c at (k, k), zeros elsewhere, so every
+// product with it has one term that is an exact zero, and x + 0 is x. (Only the sign of a zero
+// result could differ: nothing downstream divides by one or prints its sign.)
+template <int k, bool kShift>
+inline void turn_about_axis(double sign, double degrees, const double* point, M3& R, V3& t, bool fresh) {
+    const double angle = degrees * kDeg;
+    const double s = std::sin(angle), c = std::cos(angle);
+    const double ss = sign * s, d = (1.0 - c) + c;
+    constexpr int i = (k + 1) % 3, j = (k + 2) % 3;
+    // v = point - Rj point (a point on the axis at the origin: no shift, see compile_chain)
+    double v[3] = {0, 0, 0};
+    if (kShift) {
+        v[i] = point[i] - (c * point[i] - ss * point[j]);
+        v[j] = point[j] - (ss * point[i] + c * point[j]);
+        v[k] = point[k] - d * point[k];
+    }
+    const V3 vv{v[0], v[1], v[2]};
+    if (fresh) {
+        if (kShift) t = t + vv;
+        double m[9] = {};
+        m[i * 3 + i] = c, m[i * 3 + j] = -ss, m[j * 3 + i] = ss, m[j * 3 + j] = c, m[k * 3 + k] = d;
+        R = {m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]};
+        return;
+    }
+    if (kShift) t = t + R * vv;
+    // Columns of R Rj: R's column i times c plus column j times s, and so on.
+    double r[9] = {R.xx, R.xy, R.xz, R.yx, R.yy, R.yz, R.zx, R.zy, R.zz};
+    for (int row = 0; row < 3; ++row) {
+        const double a = r[row * 3 + i], b = r[row * 3 + j];
+        r[row * 3 + i] = a * c + b * ss;
+        r[row * 3 + j] = a * -ss + b * c;
+        r[row * 3 + k] *= d;
+    }
+    R = {r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]};
+}
+
+// kShift false: the rotation alone (tool_axis), the same products in the same order, so R is the
+// same to the last bit.
+template <bool kShift>
+void walk_links(const std::vector<ChainLink>& chain, const double* q, M3& R, V3& t, Eigen::Vector3d* linear_dirs,
+                AxisLine* lines, int* line_count) {
+    using K = ChainLink::Kind;
     R = M3{1, 0, 0, 0, 1, 0, 0, 0, 1};
     t = V3{0, 0, 0};
     for (const auto& e : chain) {
+        const V3 axis{e.axis[0], e.axis[1], e.axis[2]};
+        const V3 point{e.point[0], e.point[1], e.point[2]};
+        const bool shifts = kShift && e.shifts;
         switch (e.kind) {
-            case ChainElement::Kind::Fixed:
-                t = t + R * v3(e.fixed.translation());
-                R = R * m3(e.fixed.linear());
+            case K::Fixed: {
+                const V3 shift{e.shift[0], e.shift[1], e.shift[2]};
+                const M3 F{e.rot[0], e.rot[1], e.rot[2], e.rot[3], e.rot[4], e.rot[5], e.rot[6], e.rot[7], e.rot[8]};
+                if (shifts) t = t + (e.fresh ? shift : R * shift);
+                R = e.fresh ? F : R * F;
                 break;
-            case ChainElement::Kind::Linear: {
-                const V3 d = R * v3(e.axis);
+            }
+            case K::Shift: {
+                const V3 shift{e.shift[0], e.shift[1], e.shift[2]};
+                if (kShift) t = t + (e.fresh ? shift : R * shift);
+                break;
+            }
+            case K::Linear: {
+                if (!kShift) break;
+                const V3 d = e.fresh ? axis : R * axis;
                 if (linear_dirs) linear_dirs[e.joint] = Eigen::Vector3d(d.x, d.y, d.z);
                 t = t + d * q[e.joint];
                 break;
             }
-            case ChainElement::Kind::Rotary: {
-                // Trans(point) * Rot(axis, q) * Trans(-point)
-                if (lines) lines[(*line_count)++] = {t + R * v3(e.point), normalized(R * v3(e.axis))};
-                const V3 point = v3(e.point);
-                const M3 Rj = rot(v3(e.axis), q[e.joint]);
-                t = t + R * (point - Rj * point);
-                R = R * Rj;
+            case K::Rotary:
+            case K::RotaryX:
+            case K::RotaryY:
+            case K::RotaryZ: {
+                if (kShift && lines) lines[(*line_count)++] = {t + R * point, normalized(R * axis)};
+                if (e.kind == K::RotaryX) {
+                    if (shifts) turn_about_axis<0, true>(e.sign, q[e.joint], e.point, R, t, e.fresh);
+                    else turn_about_axis<0, false>(e.sign, q[e.joint], e.point, R, t, e.fresh);
+                } else if (e.kind == K::RotaryY) {
+                    if (shifts) turn_about_axis<1, true>(e.sign, q[e.joint], e.point, R, t, e.fresh);
+                    else turn_about_axis<1, false>(e.sign, q[e.joint], e.point, R, t, e.fresh);
+                } else if (e.kind == K::RotaryZ) {
+                    if (shifts) turn_about_axis<2, true>(e.sign, q[e.joint], e.point, R, t, e.fresh);
+                    else turn_about_axis<2, false>(e.sign, q[e.joint], e.point, R, t, e.fresh);
+                } else {
+                    // Trans(point) * Rot(axis, q) * Trans(-point)
+                    const M3 Rj = rot(axis, q[e.joint]);
+                    if (shifts) t = t + (e.fresh ? point - Rj * point : R * (point - Rj * point));
+                    R = e.fresh ? Rj : R * Rj;
+                }
                 break;
             }
         }
     }
 }
 
-// walk's rotation alone: the same products in the same order, so R is the same to the last bit.
-void walk_rotation(const std::vector<ChainElement>& chain, const double* q, M3& R) {
-    R = M3{1, 0, 0, 0, 1, 0, 0, 0, 1};
-    for (const auto& e : chain) {
-        if (e.kind == ChainElement::Kind::Fixed) R = R * m3(e.fixed.linear());
-        else if (e.kind == ChainElement::Kind::Rotary) R = R * rot(v3(e.axis), q[e.joint]);
-    }
+void walk(const std::vector<ChainLink>& chain, const double* q, M3& R, V3& t, Eigen::Vector3d* linear_dirs,
+          AxisLine* lines = nullptr, int* line_count = nullptr) {
+    walk_links<true>(chain, q, R, t, linear_dirs, lines, line_count);
+}
+
+void walk_rotation(const std::vector<ChainLink>& chain, const double* q, M3& R) {
+    V3 t;
+    walk_links<false>(chain, q, R, t, nullptr, nullptr, nullptr);
 }
 
 // R^T v, as Eigen sums a transposed product: every row (a0 + a1) + a2.
@@ -291,7 +407,7 @@ inline Eigen::Vector3d part_axis(const M3& Rp, const M3& Rt, const Eigen::Vector
 
 }  // namespace
 
-void Kinematics::eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R_out, Eigen::Vector3d& t_out,
+void Kinematics::eval(const std::vector<ChainLink>& chain, const double* q, Eigen::Matrix3d& R_out, Eigen::Vector3d& t_out,
                       Eigen::Vector3d* linear_dirs) const {
     M3 R;
     V3 t;
@@ -304,8 +420,8 @@ Pose Kinematics::forward(const std::vector<double>& q) const { return forward(q.
 
 Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
     M3 Rp, Rt;
-    walk_rotation(machine_.part_chain, q.data(), Rp);
-    walk_rotation(machine_.tool_chain, q.data(), Rt);
+    walk_rotation(part_links_, q.data(), Rp);
+    walk_rotation(tool_links_, q.data(), Rt);
     return part_axis(Rp, Rt, machine_.tool_axis);
 }
 
@@ -315,8 +431,8 @@ Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const
     V3 tp, tt;
     AxisLine lines[8];  // at most 5 joints (the loader checks)
     int count = 0;
-    walk(machine_.part_chain, q, Rp, tp, nullptr, lever_arm ? lines : nullptr, &count);
-    walk(machine_.tool_chain, q, Rt, tt, nullptr, lever_arm ? lines : nullptr, &count);
+    walk(part_links_, q, Rp, tp, nullptr, lever_arm ? lines : nullptr, &count);
+    walk(tool_links_, q, Rt, tt, nullptr, lever_arm ? lines : nullptr, &count);
     Pose pose;
     const V3 tip = transposed_times(Rp, tt - tp);
     pose.tip = Eigen::Vector3d(tip.x, tip.y, tip.z);
@@ -418,25 +534,35 @@ double Kinematics::axis_path_bound(const double* qa, const double* qb) const {
 
 IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis) const {
     // With the rotary joints fixed the tip is affine in the linear joints: one 3x3 solve is exact.
+    if (constant_jacobian_) {
+        // The same products as below in the walk's scalars (forward's tip and axis, Eigen's
+        // matrix times a column), without the round trip through Eigen's matrices.
+        M3 Rp, Rt;
+        V3 tp, tt;
+        walk(part_links_, q.data(), Rp, tp, nullptr);
+        walk(tool_links_, q.data(), Rt, tt, nullptr);
+        if (axis) *axis = part_axis(Rp, Rt, machine_.tool_axis);
+        const V3 current = transposed_times(Rp, tt - tp);
+        const double* Ji = jacobian_inverse_;
+        const V3 dq = M3{Ji[0], Ji[1], Ji[2], Ji[3], Ji[4], Ji[5], Ji[6], Ji[7], Ji[8]} * (v3(tip) - current);
+        q[std::size_t(linear_[0])] += dq.x;
+        q[std::size_t(linear_[1])] += dq.y;
+        q[std::size_t(linear_[2])] += dq.z;
+        return {};
+    }
     const std::size_t n = machine_.joints.size();  // at most 5 (the loader checks)
     Eigen::Vector3d part_dirs[8], tool_dirs[8];
     for (std::size_t j = 0; j < n; ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();
     Eigen::Matrix3d Rp, Rt;
     Eigen::Vector3d tp, tt;
-    eval(machine_.part_chain, q.data(), Rp, tp, constant_jacobian_ ? nullptr : part_dirs);
-    eval(machine_.tool_chain, q.data(), Rt, tt, constant_jacobian_ ? nullptr : tool_dirs);
+    eval(part_links_, q.data(), Rp, tp, part_dirs);
+    eval(tool_links_, q.data(), Rt, tt, tool_dirs);
     if (axis) *axis = (Rp.transpose() * (Rt * machine_.tool_axis)).normalized();
     const Eigen::Vector3d current = Rp.transpose() * (tt - tp);
-    Eigen::Matrix3d J_inverse;
-    if (constant_jacobian_) {
-        J_inverse = jacobian_inverse_;
-    } else {
-        Eigen::Matrix3d J;
-        if (!linear_jacobian(Rp, part_dirs, tool_dirs, J))
-            return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
-        J_inverse = J.inverse();  // closed-form 3x3 inverse
-    }
-    const Eigen::Vector3d dq = J_inverse * (tip - current);
+    Eigen::Matrix3d J;
+    if (!linear_jacobian(Rp, part_dirs, tool_dirs, J))
+        return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+    const Eigen::Vector3d dq = J.inverse() * (tip - current);  // closed-form 3x3 inverse
     for (int i = 0; i < 3; ++i) q[std::size_t(linear_[std::size_t(i)])] += dq[i];
     return {};
 }

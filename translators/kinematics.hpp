@@ -16,6 +16,20 @@
 
 namespace xlate5 {
 
+// A chain element compiled for the walk in kinematics.cpp: the loader's element with the
+// shortcuts its numbers allow, which give the same results to the last bit, up to the sign of a
+// zero (a product term that is an exact zero left out, a product with the identity skipped, an
+// element that changes nothing dropped).
+struct ChainLink {
+    enum class Kind : unsigned char { Fixed, Shift, Linear, Rotary, RotaryX, RotaryY, RotaryZ } kind = Kind::Fixed;
+    bool fresh = false;  // nothing ahead of it in its chain rotates: the walk's rotation is still the identity
+    bool shifts = true;  // Fixed: a translation; Rotary: its axis misses the origin (else t is left as it is)
+    int joint = -1;
+    double sign = 1;     // RotaryX/Y/Z: the axis is +1 or -1 times that coordinate axis, exactly
+    double axis[3] = {}, point[3] = {}, shift[3] = {};
+    double rot[9] = {};  // Fixed: its rotation, row by row (Shift: the identity, not stored)
+};
+
 class Kinematics {
 public:
     // Precomputes the orientation structure; throws MachineError for a layout outside the family.
@@ -79,7 +93,7 @@ private:
     struct Factor;
     // Base -> a chain's end (rotation, translation); `linear_dirs`, when given, receives each linear
     // joint's direction.
-    void eval(const std::vector<ChainElement>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
+    void eval(const std::vector<ChainLink>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
               Eigen::Vector3d* linear_dirs) const;
     Pose forward(const double* q, double* lever_arm, double* arms = nullptr) const;
     // The position solve's 3x3 Jacobian from the chains' linear directions; false when singular.
@@ -97,6 +111,7 @@ private:
     std::vector<BoundTerm> terms_;
 
     Machine machine_;
+    std::vector<ChainLink> part_links_, tool_links_;  // machine_'s chains, compiled for the walk
     std::vector<int> rotary_;          // rotary joint indices in the order of the orientation product
     std::vector<double> sign_;         // +1 tool chain, -1 part chain (the part rotation enters inverted)
     std::vector<Eigen::Vector3d> w_;   // rotation axes in the frame of u' = G0^T u
@@ -108,7 +123,7 @@ private:
     PathEnd reach_;                         // see reach()
     bool has_reach_ = false;
     std::vector<double> shift_per_unit_;    // per joint: mm of tip per unit of the joint, at most
-    Eigen::Matrix3d jacobian_inverse_ = Eigen::Matrix3d::Identity();
+    double jacobian_inverse_[9] = {};       // that inverse, row by row (constant_jacobian_)
 };
 
 }  // namespace xlate5
