@@ -49,6 +49,13 @@ TEST_CASE("wrap180 gives (-180, 180], as the remainder of a division by 360 defi
     std::uniform_real_distribution<double> U(-1, 1);
     std::vector<double> values = {0.0, -0.0, 180.0, -180.0, 360.0, -360.0, 359.99999999999994, -359.99999999999994, 540.0, 1e9, -1e9};
     for (int i = 0; i < 200000; ++i) values.push_back(U(rng) * std::pow(10.0, 4 * std::abs(U(rng))));
+    // Past the library call's shortcut (2^40) and on both sides of multiples of 180 and 360, where
+    // a quotient one off shows.
+    for (int i = 0; i < 100000; ++i) {
+        const double d = U(rng) * std::pow(10.0, 15 * std::abs(U(rng)));
+        for (const double m : {360.0 * std::round(d / 360), 180.0 * std::round(d / 180)})
+            values.insert(values.end(), {d, m, std::nextafter(m, 1e300), std::nextafter(m, -1e300)});
+    }
     for (const double d : values) {
         const double mine = wrap180(d), ref = reference(d);
         CHECK(std::memcmp(&mine, &ref, sizeof mine) == 0);

@@ -35,8 +35,26 @@ struct OrientationSolutions {
 
 // Wraps an angle in degrees to (-180, 180].
 inline double wrap180(double degrees) {
-    // fmod returns an |x| < 360 as it is (exactly): the call only where it can change something.
-    double r = std::abs(degrees) < 360.0 ? degrees : std::fmod(degrees, 360.0);
+    // fmod(degrees, 360), exact, without the library call below 2^40 degrees: with n the
+    // quotient truncated (one off at most), 360 n is exact, and degrees - 360 n is a multiple of
+    // degrees's ulp no larger than degrees, so the subtraction is exact too; one step of 360
+    // (exact for the same reason) brings it into fmod's range, the sign of degrees.
+    double r = degrees;
+    if (!(std::abs(degrees) < 360.0)) {
+        if (std::abs(degrees) < 1099511627776.0) {
+            r = degrees - std::trunc(degrees / 360.0) * 360.0;
+            if (degrees > 0) {
+                if (r < 0) r += 360.0;
+                else if (r >= 360.0) r -= 360.0;
+            } else {
+                if (r > 0) r -= 360.0;
+                else if (r <= -360.0) r += 360.0;
+            }
+            if (r == 0) r = std::copysign(0.0, degrees);
+        } else {
+            r = std::fmod(degrees, 360.0);  // NaN and infinities too
+        }
+    }
     if (r <= -180.0) r += 360.0;
     if (r > 180.0) r -= 360.0;
     return r;
