@@ -669,6 +669,24 @@ TEST_CASE("translator: errors name the input, line and column") {
     CHECK(contains(e2.message(), "twice"));
 }
 
+TEST_CASE("translator: a command's code has at most one decimal (G43.4), read to the nearest tenth") {
+    // RS274: G codes such as G43.4 and G61.1 carry one decimal; a value off a tenth (G1.25, or
+    // G0.95 read as neither G0.9 nor G1) is not a code.
+    for (const char* line : {"G1.25 X1", "G0.95", "M104.05 S200", "G90.15", "G-0.05"}) {
+        CAPTURE(line);
+        Rig r("rw2");
+        const InputError e = expect_error(r, line);
+        CHECK(contains(e.message(), "more than one decimal"));
+        CHECK(e.column() == 1);
+    }
+    // Within 1e-6 of a tenth is that tenth: G90.0000001 is G90, G91.00000001 G91 (relative).
+    Rig r("rw2");
+    for (const char* line : {"G90.0000001", "G91.00000001", "G90.0", "M82.0000000001", "G-0.0"}) {
+        CAPTURE(line);
+        CHECK_NOTHROW(r.feed(line));
+    }
+}
+
 TEST_CASE("translator: a failing line leaves output and state unchanged") {
     Rig r("rw2");
     place_rw2(r);

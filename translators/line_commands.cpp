@@ -3,6 +3,7 @@
 #include "translators/line_commands.hpp"
 
 #include <cmath>
+#include <cstdint>
 #include <utility>
 
 #include "translators/error.hpp"
@@ -161,18 +162,18 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
     out.count = 0;
     out.params.clear();
     out.has_owner = false;
-    auto find = [&](char letter) {
-        for (const auto& p : out.params)
-            if (p.letter == letter) return true;
-        return false;
-    };
+    // Letters seen so far, one bit each (the lexer gives upper case A to Z).
+    std::uint32_t seen = 0;
     bool tool_word_is_param = false;
     for (const Word& w : block.words) {
         if (w.letter == 'G' || w.letter == 'M' || (w.letter == 'T' && !tool_word_is_param)) {
             if (out.count == LineCommands::kMax) throw LineError(w.column, "more than 16 commands on one line");
+            // The code times ten, rounded half away from zero (the lexer keeps codes below 1e5,
+            // so the sum is exact); a value off a tenth by more than 1e-6 is refused either way.
             const double scaled = w.value * 10.0;
-            if (std::abs(scaled - std::round(scaled)) > 1e-6) throw LineError(w.column, std::string("command ") + w.letter + " has more than one decimal");
-            out.commands[out.count++] = {w.letter, int(std::lround(scaled)), w.column};
+            const long long code10 = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
+            if (std::abs(scaled - double(code10)) > 1e-6) throw LineError(w.column, std::string("command ") + w.letter + " has more than one decimal");
+            out.commands[out.count++] = {w.letter, int(code10), w.column};
             tool_word_is_param = w.letter == 'M' && m_takes_tool(out.commands[out.count - 1].code10);
             continue;
         }
@@ -180,7 +181,15 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
         if (letter == extruder_letter) letter = 'E';
         else if (letter == 'E' && extruder_letter != 'E')
             throw LineError(w.column, std::string("word E on a file whose extrusion letter is ") + extruder_letter);
-        if (find(letter)) throw LineError(w.column, std::string("word ") + w.letter + " appears twice on this line");
+        bool twice = false;
+        if (letter >= 'A' && letter <= 'Z') {
+            const std::uint32_t bit = 1u << (letter - 'A');
+            twice = (seen & bit) != 0;
+            seen |= bit;
+        } else {
+            for (const auto& p : out.params) twice = twice || p.letter == letter;
+        }
+        if (twice) throw LineError(w.column, std::string("word ") + w.letter + " appears twice on this line");
         out.params.push_back({letter, w.value, w.column, w.has_value, w.text});
     }
 
