@@ -47,8 +47,9 @@ inline bool to_units(double v, int decimals, long long& units) {
     return true;
 }
 // Writes units * 10^-decimals (decimals 0 to 18) with trailing fraction zeros removed at p and
-// returns the end of the text: at most 21 characters, no terminator (kUnitsChars is room
-// enough). append_units appends the same to a string.
+// returns the end of the text: at most 21 characters, no terminator. It may write scratch bytes
+// past that end, never past p + kUnitsChars: give it that much room. append_units appends the
+// same to a string.
 inline constexpr std::size_t kUnitsChars = 24;
 char* write_units(char* p, long long units, int decimals);
 void append_units(std::string& out, long long units, int decimals);
