@@ -234,7 +234,7 @@ void plan_line(const LineCommands& line, int motion, std::string_view move_lette
 
     // A lone S (spindle speed, laser power) is passed on as written.
     bool all_speed = line.count == 0 && !words.empty();
-    for (const auto& p : words) all_speed = all_speed && p.letter == 'S';
+    for (std::size_t k = 0; all_speed && k < words.size(); ++k) all_speed = words[k].letter == 'S';
     if (all_speed) {
         add_step(out, {'S', 0, words.front().column}, words, true);
         return;
@@ -257,12 +257,11 @@ void plan_line(const LineCommands& line, int motion, std::string_view move_lette
     const int arc_motion = motion_cmd >= 0 ? line.commands[motion_cmd].code10 / 10 : motion;
     const bool arc = arc_motion == 2 || arc_motion == 3;
     auto is_move_word = [&](char c) { return has_letter(move_letters, c) || (arc && (c == 'R' || c == 'P')); };
-    bool any_move_word = false, any_speed = false;
-    for (const auto& p : words) {
-        any_move_word = any_move_word || is_move_word(p.letter);
-        any_speed = any_speed || p.letter == 'S';
-    }
-    const bool moves = motion_cmd >= 0 || any_move_word;
+    bool any_speed = false;
+    for (const auto& p : words) any_speed = any_speed || p.letter == 'S';
+    // A motion command moves whatever its words; the letters are looked up only without one.
+    bool moves = motion_cmd >= 0;
+    for (std::size_t k = 0; !moves && k < words.size(); ++k) moves = is_move_word(words[k].letter);
     const bool split = all_leave && !other_owner && ((codes >= 1 && moves) || codes >= 2 || (codes == 0 && any_speed && moves));
 
     if (!split) {
