@@ -2,7 +2,9 @@
 // MB/s, lines out per line in and peak memory. Run it at two sizes to see that memory does not
 // grow with the file; with and without splitting to see what the motion stage costs. Wall time
 // and the process's CPU time are both given: on a shared machine the CPU figure is the steadier.
-//   bench_translate [lines=1000000] [machine=rw2|pentarod|...] [tolerance mm, 0 = no splitting]
+//   bench_translate [lines=1000000] [machine=rw2|pentarod|...] [tolerance mm, 0 = no splitting] [keep=FILE]
+// With a fourth argument the generated input is written to FILE and left there (for bench_floor,
+// or to run xlate5 itself on it); otherwise it is a temporary file, removed at the end.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -59,7 +61,8 @@ int main(int argc, char** argv) {
         else m.motion.segment = false;
     }
     const xlate5::Kinematics k(m);
-    const std::string path = "/tmp/xlate5-bench-" + std::to_string(::getpid()) + ".gcode";
+    const bool keep = argc > 4;
+    const std::string path = keep ? std::string(argv[4]) : "/tmp/xlate5-bench-" + std::to_string(::getpid()) + ".gcode";
     generate(path, lines, m);
 
     const int fd = ::open(path.c_str(), O_RDONLY);
@@ -81,7 +84,7 @@ int main(int argc, char** argv) {
     const double cpu = cpu_now() - c0;
     ::close(fd);
     ::close(null_fd);
-    ::unlink(path.c_str());
+    if (!keep) ::unlink(path.c_str());
 
     rusage ru{};
     ::getrusage(RUSAGE_SELF, &ru);

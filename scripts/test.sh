@@ -18,7 +18,10 @@ ctest --test-dir build --output-on-failure -j"$test_jobs"
 echo "--- benchmarks (figures only; see bench/)"
 ./build/bench/bench_translate 100000 rw2 0.01
 ./build/bench/bench_translate 100000 pentarod 0.01
-./build/bench/bench_translate 100000 rw2 0
+floor_input=$(mktemp --suffix=.gcode)
+./build/bench/bench_translate 100000 rw2 0 "$floor_input"  # keeps its input for the floor below
+./build/bench/bench_floor "$floor_input" rw2
+rm -f "$floor_input"
 ./build/bench/bench_service 5000 0
 
 # -O1 without debug info: the sanitizer build is about finding bugs, and compiles much faster.
