@@ -48,7 +48,18 @@ Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter
       log_(log),
       compensation_(kinematics.machine().compensation),
       motion_(kinematics, emitter),
-      q_next_(state.q) {}
+      q_next_(state.q) {
+    // The pole of a has_flip machine (pole_passage): the tool axis with the tilting rotary at 0,
+    // which the first rotary then turns about itself (has_flip: within 1e-9 of its axis), so it is
+    // the same for every joint value; computed per move before, the same to rounding (every
+    // output of the comparison runs identical).
+    const auto& rot = kin_.rotary_joints();
+    if (rot.size() == 2 && kin_.has_flip()) {
+        std::vector<double> q = machine_.home_joints();
+        q[std::size_t(rot[1])] = 0;
+        pole_ = kin_.tool_axis(q);
+    }
+}
 
 void Planner::plain_image() {
     state_.image = {};
@@ -163,10 +174,7 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
     // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
     // files under G43.5: the axis stays on the pole).
     if (start_exact && q_next_[c] == q0[c] && q_next_[b] == q0[b]) return false;
-    std::vector<double>& probe = pole_probe_;
-    probe = q0;
-    probe[b] = 0;
-    const Eigen::Vector3d pole = kin_.tool_axis(probe);
+    const Eigen::Vector3d& pole = pole_;
     const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
     // Only a move turning the tool axis by less than the tolerance may end off its axis: a
     // passage made of such moves cannot cross in any one of them. A longer move ends exactly
@@ -209,7 +217,8 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>
     // point past the margin decides (worst is used only when the passage is taken, and then every
     // point was measured).
     worst = 0;
-    std::vector<double>& lerp = probe;
+    std::vector<double>& lerp = pole_probe_;
+    lerp.resize(q0.size());
     const GreatArc arc(from.axis, to.axis);
     const double limit = kPoleMargin * tolerance;
     auto deviation = [&](int i, double* chord) {

@@ -148,6 +148,7 @@ private:
     std::vector<bool> which_;       // scratch: joints a re-zero tells the firmware about
     std::vector<Candidate> candidates_;
     std::vector<double> pole_q_, pole_probe_;  // scratch for pole_passage
+    Eigen::Vector3d pole_ = Eigen::Vector3d::UnitZ();  // pole_passage's pole (has_flip machines; see the constructor)
 };
 
 }  // namespace xlate5
