@@ -54,7 +54,8 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
             // below would not be kept). Only at a half turn can rounding decide between two.
             const double nearest = prev + wrap180(sol - prev);
             double chosen = std::numeric_limits<double>::quiet_NaN();
-            if (!limited || (inside_limits(J, nearest) && std::abs(nearest - prev) < 179.0)) chosen = nearest;
+            // An unbounded joint takes `nearest` too: every turn is inside, and none is nearer.
+            if (!limited || !J.bounded() || (inside_limits(J, nearest) && std::abs(nearest - prev) < 179.0)) chosen = nearest;
             else for (int turn : {0, 1, -1, 2, -2}) {
                 const double v = nearest + 360.0 * turn;
                 if (inside_limits(J, v) && (std::isnan(chosen) || std::abs(v - prev) < std::abs(chosen - prev))) chosen = v;
