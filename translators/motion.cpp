@@ -24,8 +24,6 @@ constexpr double kSampleMargin = 0.97;
 // A piece's length predicted from a failing try's error aims this far short of the limit.
 constexpr double kPredictAim = 0.98;
 
-Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) { return GreatArc(a, b).at(s); }
-
 // A unit vector within `chord` of the programmed axis is within the angle 2 asin(chord / 2).
 bool axis_chord_within(double chord, double atol) {
     return chord < 2.0 && 2.0 * std::asin(0.5 * chord) * kDegPerRad <= atol - 1e-6;
@@ -91,10 +89,15 @@ double firmware_length(const Machine& m, const std::vector<double>& q0, const st
 MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
     : kin_(kinematics), machine_(kinematics.machine()), compensation_(kinematics.machine().compensation), emitter_(emitter) {}
 
+const GreatArc& MotionStage::arc_of(const MoveSpec& mv) const {
+    if (!(mv.p0.axis == arc_.a && mv.p1.axis == arc_.b)) arc_ = GreatArc(mv.p0.axis, mv.p1.axis);
+    return arc_;
+}
+
 Pose MotionStage::pose_at(const MoveSpec& mv, double s) const {
     Pose p;
     p.tip = mv.p0.tip + s * (mv.p1.tip - mv.p0.tip);
-    p.axis = slerp(mv.p0.axis, mv.p1.axis, s);
+    p.axis = arc_of(mv).at(s);
     return p;
 }
 
@@ -146,7 +149,7 @@ void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const do
     angle = 0;
     std::vector<double>& q = sample_;
     q.resize(machine_.joints.size());
-    const GreatArc arc(mv.p0.axis, mv.p1.axis);
+    const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
     for (int i = 1; i <= samples; ++i) {
         const double t = double(i) / double(samples + 1);
         for (std::size_t j = 0; j < q.size(); ++j) q[j] = qa[j] + t * (qb[j] - qa[j]);
@@ -167,7 +170,7 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
     static constexpr int kOrder[kCheckSamples] = {4, 2, 6, 1, 3, 5, 7};
     std::vector<double>& q = sample_;
     q.resize(machine_.joints.size());
-    const GreatArc arc(mv.p0.axis, mv.p1.axis);
+    const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
     // Once the middle point has passed, the other points are checked against kinematics' bound
     // first, and computed only where it does not clear them. At parameter t the path lies within
     // 4 t (1 - t) of the middle's bound of the chord between its ends (kinematics.cpp: a t (1 - t)
@@ -293,7 +296,7 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
     if (mv.mode != OrientationMode::Vector) return true;
     // The tool axis against the great-circle arc from sa to sb: both lie near the chords between
     // their ends (the arc within phi^2 / 8 of its own), and those chords within the ends' gaps.
-    const GreatArc arc(mv.p0.axis, mv.p1.axis);
+    const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
     const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
     const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);
     const double phi = (sb - sa) * arc.angle;
@@ -552,7 +555,7 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
     std::vector<double>& cur = march_b_;
     prev = q0;
     cur = q0;
-    const GreatArc arc(mv.p0.axis, mv.p1.axis);
+    const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
     double stay = 0;
     for (int i = 1; i <= kEstimate; ++i) {
         if (!orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(arc.at(double(i) / kEstimate)), prev, prev, cur).ok())

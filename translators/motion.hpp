@@ -12,6 +12,7 @@
 
 #include "translators/compensation.hpp"
 #include "translators/emitter.hpp"
+#include "translators/great_arc.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 
@@ -114,6 +115,10 @@ private:
         Kinematics::PathEnd end;
     };
     mutable CachedEnd ends_[2];
+    // The programmed axis's great circle of the move being split: its angle (an acos and a sine)
+    // once per move, not once per try and sample point. Keyed by the two axes.
+    const GreatArc& arc_of(const MoveSpec& mv) const;
+    mutable GreatArc arc_{Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitZ()};
     // The orientation solutions of the axes met last: one move's end axis is the next one's start.
     const Kinematics::Solutions& solutions_of(const Eigen::Vector3d& axis) const;
     struct CachedSolutions {
