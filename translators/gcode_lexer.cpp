@@ -199,10 +199,12 @@ void lex_line(std::string_view line, Block& out) {
             bool has_value = true;
             const std::size_t number_start = i;
             const double value = read_number(line, i, letter, letter_index, has_value);
-            if (has_value && !out.compact_words) check_exponent_like(line, i, letter, letter_index);
-            if ((letter == 'G' || letter == 'M' || letter == 'T' || letter == 'N') && !has_value)
-                fail(letter_index, std::string("word ") + letter + " has no number");
-            if ((letter == 'G' || letter == 'M' || letter == 'T') && !(std::abs(value) < kMaxCode))
+            // Only an E right after the number can make it ambiguous (the common case: a blank).
+            if (has_value && !out.compact_words && i < line.size() && (line[i] == 'E' || line[i] == 'e'))
+                check_exponent_like(line, i, letter, letter_index);
+            const bool code = letter == 'G' || letter == 'M' || letter == 'T';
+            if ((code || letter == 'N') && !has_value) fail(letter_index, std::string("word ") + letter + " has no number");
+            if (code && !(std::abs(value) < kMaxCode))
                 fail(letter_index, std::string("word ") + letter + " is a code, and codes are below 100000");
             if (letter == 'N' && first_word) {
                 // A leading line number belongs to the transport, not to the command.
@@ -213,7 +215,7 @@ void lex_line(std::string_view line, Block& out) {
             if (body_begin == std::string_view::npos) body_begin = letter_index;
             body_end = i;
             out.words.push_back(Word{letter, value, std::uint32_t(letter_index + 1), has_value, line.substr(number_start, i - number_start)});
-            if (takes_text(letter, value)) {
+            if (letter == 'M' && takes_text(letter, value)) {
                 // The rest of the line is the argument, passed on as it is; only a trailing
                 // *checksum still belongs to the transport.
                 out.text_argument = true;
