@@ -304,7 +304,6 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
 }
 
 IkResult MotionStage::split(const MoveSpec& mv) {
-    const std::size_t n = machine_.joints.size();
     // A move usually starts where the one before ended: its start as printed is known then.
     // And every move ends exactly on its programmed tip (the planner solves the linear joints
     // for it): a move that starts at the last one's end, joints and tip, starts on its line.
@@ -328,7 +327,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     qs_.assign(q1.begin(), q1.end());
     qs_exact_.assign(mv.q1->begin(), mv.q1->end());
     bool rotates = false;
-    for (std::size_t j = 0; j < n; ++j) rotates = rotates || (machine_.joints[j].rotary && q1[j] != q0[j]);
+    for (const int j : kin_.rotary_joints()) rotates = rotates || q1[std::size_t(j)] != q0[std::size_t(j)];
     // With the rotaries still the tip is affine in the linear joints: the firmware's line is exact.
     if (!rotates || mv.mode == OrientationMode::Joints || !machine_.motion.segment) return {};
 
