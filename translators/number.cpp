@@ -2,10 +2,9 @@
 #include "translators/number.hpp"
 
 #include <array>
-#include <cstring>
-
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 namespace xlate5 {
@@ -34,13 +33,22 @@ constexpr char kPairs[] =
     "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
     "8081828384858687888990919293949596979899";
 
-// The text of 0 to 999 (a joint's integer part, mostly), four bytes each with its length.
-struct SmallText {
+// A short text of at most four bytes and its length: an entry of the tables below.
+struct ShortText {
     char text[4];
     unsigned char size;
 };
+
+// The text at p: four bytes copied at once (the caller's buffer has room, see kUnitsChars in
+// write_units: the bytes past size are scratch), the length added.
+inline char* put_short(char* p, const ShortText& t) {
+    std::memcpy(p, t.text, 4);
+    return p + t.size;
+}
+
+// The text of 0 to 999 (a joint's integer part, mostly).
 constexpr auto kSmall = [] {
-    std::array<SmallText, 1000> t{};
+    std::array<ShortText, 1000> t{};
     for (int v = 0; v < 1000; ++v) {
         const int n = v >= 100 ? 3 : v >= 10 ? 2 : 1;
         for (int k = n - 1, x = v; k >= 0; --k, x /= 10) t[std::size_t(v)].text[k] = char('0' + x % 10);
@@ -49,13 +57,9 @@ constexpr auto kSmall = [] {
     return t;
 }();
 
-// The digits of v at p, left to right. Below 1000 from the table: four bytes copied (the
-// caller's room, see write_units), the length added.
+// The digits of v at p, left to right; below 1000 from the table.
 inline char* write_integer(char* p, unsigned long long v) {
-    if (v < 1000) {
-        std::memcpy(p, kSmall[v].text, 4);
-        return p + kSmall[v].size;
-    }
+    if (v < 1000) return put_short(p, kSmall[v]);
     int n = 1;
     for (unsigned long long t = 10; n < 20 && v >= t; t *= 10) ++n;
     char* q = p + n;
@@ -107,17 +111,13 @@ char* write_decimals(char* p, unsigned long long u) {
 }
 
 // Three decimals, the joints' usual count: each fraction's text (point, digits without the
-// trailing zeros; nothing for 0) from a table, four bytes copied at once and the length added.
-struct Fraction3 {
-    char text[4];
-    unsigned char size;
-};
+// trailing zeros; nothing for 0) from a table.
 constexpr auto kFraction3 = [] {
-    std::array<Fraction3, 1000> t{};
+    std::array<ShortText, 1000> t{};
     for (int f = 1; f < 1000; ++f) {
         int digits = 3, v = f;
         while (v % 10 == 0) v /= 10, --digits;
-        Fraction3& e = t[std::size_t(f)];
+        ShortText& e = t[std::size_t(f)];
         e.text[0] = '.';
         for (int k = digits; k >= 1; --k, v /= 10) e.text[k] = char('0' + v % 10);
         e.size = static_cast<unsigned char>(digits + 1);
@@ -128,9 +128,7 @@ constexpr auto kFraction3 = [] {
 template <>
 char* write_decimals<3>(char* p, unsigned long long u) {
     p = write_integer(p, u / 1000);
-    const Fraction3& f = kFraction3[u % 1000];
-    std::memcpy(p, f.text, 4);  // the caller's buffer has room (kUnitsChars): bytes past size are scratch
-    return p + f.size;
+    return put_short(p, kFraction3[u % 1000]);
 }
 
 }  // namespace
