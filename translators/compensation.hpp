@@ -4,6 +4,7 @@
 // emitter: nominal joints in, the joints the firmware is sent out, or why not. May call: nothing
 // but its own tables. (The series `calibrate fit` prints is fitted in calibration.hpp.)
 #pragma once
+#include <span>
 #include <string>
 #include <vector>
 
@@ -42,14 +43,14 @@ public:
     explicit CompensationStage(const Compensation& compensation) : compensation_(&compensation) {}
 
     struct Result {
-        const std::vector<double>& sent;  // q itself when there is nothing to correct
+        std::span<const double> sent;  // q itself when there is nothing to correct
         std::string why;                  // empty, or why the joints cannot be corrected
         bool ok() const { return why.empty(); }
     };
     // Nominal joints -> what the firmware is sent (valid until the next call).
-    Result apply(const std::vector<double>& q) {
+    Result apply(std::span<const double> q) {
         if (compensation_->empty()) return {q, {}};
-        sent_ = q;
+        sent_.assign(q.begin(), q.end());
         std::string why = compensation_->apply(sent_);
         return {sent_, std::move(why)};
     }

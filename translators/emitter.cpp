@@ -66,7 +66,7 @@ void JointEmitter::invalidate(const std::vector<double>& q) {
     std::copy(q.begin(), q.begin() + std::ptrdiff_t(std::min(q.size(), joints_)), believed_.begin());
 }
 
-void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<double>& sent,
+void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, std::span<const double> sent,
                         const std::vector<bool>& commanded, std::optional<PassedNumber> e, std::optional<PassedNumber> f,
                         bool inverse_time) {
     if (inverse_time != inverse_time_) {
@@ -128,7 +128,7 @@ void JointEmitter::move(std::string& out, int gcode, const std::vector<double>& 
     if (out.size() > start) ++moves_written_;
 }
 
-void JointEmitter::set_position(std::string& out, const std::vector<double>& q, const std::vector<double>& sent,
+void JointEmitter::set_position(std::string& out, std::span<const double> q, std::span<const double> sent,
                                 const std::vector<bool>& which, std::optional<PassedNumber> e) {
     const std::size_t start = out.size();
     out += "G92";

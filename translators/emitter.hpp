@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -38,12 +39,12 @@ public:
     // firmware between G93 and G94 as needed. `q` are the nominal joints (what the firmware is
     // believed to be at), `sent` the values written (after the compensation stage; `q` itself
     // when there is none).
-    void move(std::string& out, int gcode, const std::vector<double>& q, const std::vector<double>& sent,
+    void move(std::string& out, int gcode, std::span<const double> q, std::span<const double> sent,
               const std::vector<bool>& commanded, std::optional<PassedNumber> e, std::optional<PassedNumber> f,
               bool inverse_time = false);
 
     // "G92" for the joints in `which` (the firmware is told where they are) and E when given.
-    void set_position(std::string& out, const std::vector<double>& q, const std::vector<double>& sent,
+    void set_position(std::string& out, std::span<const double> q, std::span<const double> sent,
                       const std::vector<bool>& which, std::optional<PassedNumber> e);
 
     // The firmware's position is not exactly known (start, homing, probing): xlate5 believes it

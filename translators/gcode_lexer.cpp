@@ -73,7 +73,11 @@ void check_exponent_like(std::string_view s, std::size_t i, char letter, std::si
 // integer tricks was tried: more instructions, G-code's runs being one to five digits.)
 inline void read_digits(std::string_view s, std::size_t& i, std::uint64_t& mantissa, int& count) {
     const std::size_t from = i;
-    while (i < s.size() && is_digit(s[i])) mantissa = mantissa * 10 + std::uint64_t(s[i++] - '0');
+    for (; i < s.size(); ++i) {
+        const unsigned digit = unsigned(static_cast<unsigned char>(s[i])) - unsigned('0');  // one test: '0'..'9' only
+        if (digit > 9) break;
+        mantissa = mantissa * 10 + digit;
+    }
     count += int(i - from);
 }
 // Reads "[+-]digits[.digits]" or "[+-].digits" at `i`; G-code has no exponent (E is a word).

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <span>
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
@@ -57,7 +58,7 @@ double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, cons
 namespace {
 // The dialect's rule; `round` false when both ends are already as printed (rounding is idempotent:
 // a printed value scaled back differs from its integer units by far less than half a unit).
-double dialect_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1, bool round) {
+double dialect_length(const Machine& m, std::span<const double> q0, std::span<const double> q1, bool round) {
     double lin2 = 0, rot2 = 0, rot_max = 0;
     for (std::size_t j = 0; j < q0.size(); ++j) {
         const double d = round ? printed(m, j, q1[j]) - printed(m, j, q0[j]) : q1[j] - q0[j];
@@ -310,17 +311,18 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     const bool from_last = *mv.q0 == last_end_q_;
     const bool start_on_line = from_last && mv.p0.tip == last_end_tip_;
     if (from_last) {
-        q0_printed_ = last_end_printed_;
+        q0_printed_.swap(last_end_printed_);  // refilled below
     } else {
         q0_printed_ = *mv.q0;
         round_printed(machine_, q0_printed_);
     }
-    q1_printed_ = *mv.q1;
-    round_printed(machine_, q1_printed_);
+    const std::size_t n = mv.q1->size();
+    q1_printed_.resize(n);
+    for (std::size_t j = 0; j < n; ++j) q1_printed_[j] = printed(machine_, j, (*mv.q1)[j]);
     last_end_q_ = *mv.q1;
     last_end_printed_ = q1_printed_;
     last_end_tip_ = mv.p1.tip;
-    final_exact_ = *mv.q1;
+    final_moved_ = false;
     const auto& q0 = q0_printed_;
     const auto& q1 = q1_printed_;
     s_.assign(1, 1.0);
@@ -425,7 +427,10 @@ IkResult MotionStage::split(const MoveSpec& mv) {
         }
         const double sb = std::min(1.0, sa + ok_len);
         qb = qok;
-        if (sb >= 1.0) final_exact_ = ok_exact_;
+        if (sb >= 1.0) {
+            final_exact_ = ok_exact_;
+            final_moved_ = true;
+        }
         step = std::max(sb - sa, 1e-9) * 1.25;  // the next piece is likely about as long: start a bit farther
         s_.push_back(sb);
         qs_.insert(qs_.end(), qb.begin(), qb.end());
@@ -508,6 +513,7 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
         const std::vector<double> end = cross_end_;
         if (auto r = emit_one(across, out, result); !r.ok()) return r;
         final_exact_ = end;
+        final_moved_ = true;
         if (result) {
             result->pole_crossings = 1;
             result->angle_error = std::max(result->angle_error, cross_angle_);
@@ -629,15 +635,12 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     const double escale = ed >= 0 && ed <= 9 ? kPow10[ed] : std::pow(10.0, ed);
     // Inverse-time output where the firmware takes it, for tool-space moves that have a duration.
     const bool inverse_time_out = machine_.dialect.inverse_time && mv.mode != OrientationMode::Joints && (total_time > 0 || mv.feed > 0);
-    std::vector<double>& qprev = piece_prev_;
-    std::vector<double>& qk = piece_q_;
-    exact_b_.resize(n);
     piece_time_.assign(std::size_t(pieces), 0.0);
-    qprev = q0;
-    qk.resize(n);
+    // Each piece's ends are read where the split left them (no copies).
+    std::span<const double> qprev(q0);
     for (int k = 0; k < pieces; ++k) {
         const double s = s_[std::size_t(k)];
-        std::copy(qs_.begin() + std::ptrdiff_t(std::size_t(k) * n), qs_.begin() + std::ptrdiff_t(std::size_t(k + 1) * n), qk.begin());
+        const std::span<const double> qk(&qs_[std::size_t(k) * n], n);
         const double share = s;  // the tip moves uniformly in s along the straight programmed line
         const bool last = k + 1 == pieces;
 
@@ -694,9 +697,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         // corrected and nothing upstream sees anything but nominal joints.
         // Compensated from the joints as solved: the emitter rounds once (without compensation
         // that gives exactly the rounded joints checked above).
-        std::copy(qs_exact_.begin() + std::ptrdiff_t(std::size_t(k) * n), qs_exact_.begin() + std::ptrdiff_t(std::size_t(k + 1) * n),
-                  exact_b_.begin());
-        const auto sent = compensation_.apply(exact_b_);
+        const auto sent = compensation_.apply(std::span<const double>(&qs_exact_[std::size_t(k) * n], n));
         if (!sent.ok()) throw LineError(1, sent.why);
         emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, inverse_time_out);
         prev_share = share;

@@ -71,8 +71,9 @@ public:
 
     // Where the last move ended: its end joints can differ from the ones asked for when a tool
     // vector's continuous solution arrives on the other branch or another turn.
-    // (As solved: the printed ones are rounded to the dialect's decimals.)
-    const std::vector<double>& final_joints() const { return final_exact_; }
+    // (As solved: the printed ones are rounded to the dialect's decimals.) Null when they are the
+    // end asked for (nearly always: then nothing is copied).
+    const std::vector<double>* final_joints_moved() const { return final_moved_ ? &final_exact_ : nullptr; }
 
     // The orientation solutions of an axis the caller has already solved (the planner, for a move's
     // end): kept so the stage does not solve that axis again.
@@ -145,9 +146,10 @@ private:
     std::vector<double> last_end_q_, last_end_printed_;
     Eigen::Vector3d last_end_tip_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
     std::vector<double> final_exact_, exact_b_, ok_exact_, cross_end_;
+    bool final_moved_ = false;  // final_exact_ holds the last move's end (else it is the end asked for)
     double cross_angle_ = 0;  // the axis deviation of the last crossing found  // the last piece's end as solved (unrounded)
     // Scratch space reused move after move (no allocation on the hot path).
-    std::vector<double> scratch_a_, scratch_b_, alt_exact_, lerp_, march_a_, march_b_, piece_prev_, piece_q_;
+    std::vector<double> scratch_a_, scratch_b_, alt_exact_, lerp_, march_a_, march_b_;
     mutable std::vector<double> sample_;
     std::vector<double> piece_time_;  // minutes each piece of the last move takes
 };
