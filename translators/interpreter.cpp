@@ -41,10 +41,7 @@ Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner
 
 void Interpreter::fail(std::uint32_t column, const std::string& message) const { throw LineError(column, message); }
 
-double Interpreter::number(const Param& p) const {
-    if (!p.has_value) fail(p.column, std::string("word ") + p.letter + " has no number");
-    return p.value;
-}
+void Interpreter::no_number(const Param& p) const { fail(p.column, std::string("word ") + p.letter + " has no number"); }
 
 PassedNumber Interpreter::passed(const Param& p, bool inches) const {
     const double v = number(p);

@@ -58,7 +58,12 @@ public:
 
 private:
     [[noreturn]] void fail(std::uint32_t column, const std::string& message) const;
-    double number(const Param& p) const;                   // the value, or an error if it is a flag
+    // The value, or an error if it is a flag. Inline: several words a line.
+    double number(const Param& p) const {
+        if (!p.has_value) no_number(p);
+        return p.value;
+    }
+    [[noreturn]] void no_number(const Param& p) const;
     PassedNumber passed(const Param& p, bool inches) const;  // E or F, in mm
     bool is_axis_letter(char c) const;
     void apply_modal(int code10, const Params& words, std::string& out);

@@ -116,7 +116,6 @@ int execution_rank(const CommandWord& c) {
     }
 }
 
-bool CommandWord::modal_only() const { return letter == 'G' && is_modal_only(code10); }
 
 void append_code(std::string& out, char letter, int code10) {
     out += letter;

@@ -24,12 +24,17 @@ struct Param {
 };
 using Params = std::vector<Param>;
 
+// G codes that only set a mode and take no words.
+bool is_modal_only(int code10);
+
 // A command word: letter and code times ten (G43.4 -> 434).
 struct CommandWord {
     char letter;
     int code10;
     std::uint32_t column;
-    bool modal_only() const;  // a G code that only sets a mode and takes no words
+    // A G code that only sets a mode and takes no words. Inline, and G0 to G3 (below G17) at once:
+    // asked of every command.
+    bool modal_only() const { return letter == 'G' && code10 >= 170 && is_modal_only(code10); }
 };
 
 struct LineCommands {
@@ -73,9 +78,6 @@ struct LinePlan {
 // a move (X Y Z I J K E F and the machine's joints); `position_letters` those that place a
 // joint. Throws LineError(column, cause) for words no command can take.
 void plan_line(const LineCommands& line, int motion, std::string_view move_letters, std::string_view position_letters, LinePlan& out);
-
-// G codes that only set a mode and take no words.
-bool is_modal_only(int code10);
 
 // "G1", "G43.4", "M104".
 void append_code(std::string& out, char letter, int code10);

@@ -533,13 +533,19 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
         return d;
     };
     constexpr double kClearlyLess = 1.0;  // degrees: another way only when it turns clearly less
-    const auto solutions = solutions_of(mv.p1.axis);
-    std::vector<double>& q = scratch_a_;
     // The way across is taken only when it turns the rotaries clearly less than the continuous
     // branch's split (measured at the end below). When no end on another branch is that much
     // nearer, the answer is no whatever the estimate says: the split is made first, then, and
-    // kept for emit_one, and the estimate is skipped (most moves, far from a pole).
-    if (split(mv).ok()) {
+    // kept for emit_one, and the estimate is skipped (most moves, far from a pole). No end at
+    // all is clearly nearer than a split that turns the rotaries less than the margin.
+    const bool split_ok = split(mv).ok();
+    if (split_ok && split_rotary_travel() <= kClearlyLess) {
+        split_for_ = &mv;
+        return false;
+    }
+    const auto solutions = solutions_of(mv.p1.axis);
+    std::vector<double>& q = scratch_a_;
+    if (split_ok) {
         const double measured = split_rotary_travel();
         bool nearer = false;
         for (int b = 0; b < solutions.count && !nearer; ++b) {
