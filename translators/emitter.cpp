@@ -17,6 +17,13 @@ void append_passed(std::string& out, const PassedNumber& n) {
 }
 
 namespace {
+// The line buffer of JointEmitter::move: the command, every joint word, E and F with texts up to
+// kPassedChars each (longer ones are appended directly, as are numbers off the fast path), the
+// line end. write_units needs kUnitsChars of room wherever it writes.
+constexpr std::size_t kPassedChars = 40;
+constexpr std::size_t kMaxLineJoints = 8;
+constexpr std::size_t kLineChars = 2 + kMaxLineJoints * (2 + kUnitsChars) + 2 * (2 + std::max(kPassedChars, kUnitsChars)) + 1;
+
 void append_word(std::string& out, char letter, const PassedNumber& n) {
     out += ' ';
     out += letter;
@@ -74,12 +81,16 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         inverse_time_ = inverse_time;
         last_f_size_ = 0;
     }
+    // The whole line goes into a buffer first and to the output in one piece. A word off the
+    // fast path (a joint beyond to_units' range, a long or computed E or F) flushes the buffer
+    // and is appended by the general code, so `out` grows in the same order either way.
+    static_assert(kMaxLineJoints >= kMaxJoints);
+    char line[kLineChars];
+    char* p = line;
     const std::size_t start = out.size();
-    out += gcode == 0 ? "G0" : "G1";
-    const std::size_t empty = out.size();
-    // The joint words go into a buffer first and to the output in one piece.
-    char words[kMaxJoints * (2 + kUnitsChars)];
-    char* p = words;
+    *p++ = 'G';
+    *p++ = gcode == 0 ? '0' : '1';
+    bool wrote = false;  // a word after the command
     for (std::size_t j = 0; j < q.size(); ++j) {
         long long units = 0;
         const int d = decimals(j);
@@ -90,17 +101,17 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         if (!write) continue;
         last_[j] = units;
         known_[j] = true;
+        wrote = true;
         *p++ = ' ';
         *p++ = machine_->joints[j].output;
         if (fast) {
             p = write_units(p, units, d);
         } else {
-            out.append(words, p);
-            p = words;
+            out.append(line, p);
+            p = line;
             format(out, j, sent[j]);
         }
     }
-    out.append(words, p);
     char text[kFText];
     if (f) {
         // F is modal in the firmware: written when its text changes (under G93 every move carries
@@ -124,8 +135,35 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
             f->text = written;
         }
     }
-    finish_move(out, start, empty, e, f);
-    if (out.size() > start) ++moves_written_;
+    // E and F: their text copied when short (always, for F, after the above), else appended.
+    for (const auto* n : {&e, &f}) {
+        if (!*n) continue;
+        const char letter = n == &e ? 'E' : 'F';
+        const PassedNumber& v = **n;
+        wrote = true;
+        long long units = 0;
+        if (!v.text.empty() && v.text.size() <= kPassedChars) {
+            *p++ = ' ';
+            *p++ = letter;
+            std::memcpy(p, v.text.data(), v.text.size());
+            p += v.text.size();
+        } else if (v.text.empty() && v.decimals >= 0 && to_units(v.value, v.decimals, units)) {
+            *p++ = ' ';
+            *p++ = letter;
+            p = write_units(p, units, v.decimals);  // what append_fixed writes
+        } else {
+            out.append(line, p);
+            p = line;
+            append_word(out, letter, v);
+        }
+    }
+    if (!wrote) {
+        out.resize(start);  // nothing changed: no line (only a slow-path word has reached out)
+        return;
+    }
+    *p++ = '\n';
+    out.append(line, p);
+    ++moves_written_;
 }
 
 void JointEmitter::set_position(std::string& out, std::span<const double> q, std::span<const double> sent,

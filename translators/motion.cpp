@@ -641,7 +641,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     const double escale = ed >= 0 && ed <= 9 ? kPow10[ed] : std::pow(10.0, ed);
     // Inverse-time output where the firmware takes it, for tool-space moves that have a duration.
     const bool inverse_time_out = machine_.dialect.inverse_time && mv.mode != OrientationMode::Joints && (total_time > 0 || mv.feed > 0);
-    piece_time_.assign(std::size_t(pieces), 0.0);
+    piece_time_.resize(std::size_t(pieces));  // each piece's set below
     // Each piece's ends are read where the split left them (no copies).
     std::span<const double> qprev(q0);
     for (int k = 0; k < pieces; ++k) {
@@ -676,6 +676,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         std::optional<PassedNumber> f;
         if (mv.mode == OrientationMode::Joints) {
             f = mv.f;  // joint space: the firmware's own F, as given
+            piece_time_[std::size_t(k)] = 0;   // not known
         } else {
             double t = total_time * (share - prev_share);
             // Per-axis limits slow the piece down, never change its path; a pure turn runs at
