@@ -44,7 +44,7 @@ public:
 
     struct Result {
         std::span<const double> sent;  // q itself when there is nothing to correct
-        std::string why;                  // empty, or why the joints cannot be corrected
+        std::string why;               // empty, or why the joints cannot be corrected
         bool ok() const { return why.empty(); }
     };
     // Nominal joints -> what the firmware is sent (valid until the next call).

@@ -17,13 +17,6 @@ void append_passed(std::string& out, const PassedNumber& n) {
 }
 
 namespace {
-// The line buffer of JointEmitter::move: the command, every joint word, E and F with texts up to
-// kPassedChars each (longer ones are appended directly, as are numbers off the fast path), the
-// line end. write_units needs kUnitsChars of room wherever it writes.
-constexpr std::size_t kPassedChars = 40;
-constexpr std::size_t kMaxLineJoints = 8;
-constexpr std::size_t kLineChars = 2 + kMaxLineJoints * (2 + kUnitsChars) + 2 * (2 + std::max(kPassedChars, kUnitsChars)) + 1;
-
 void append_word(std::string& out, char letter, const PassedNumber& n) {
     out += ' ';
     out += letter;
@@ -32,6 +25,23 @@ void append_word(std::string& out, char letter, const PassedNumber& n) {
     } catch (const UnwritableNumber& e) {
         unwritable_word(letter, e);
     }
+}
+
+// Longest passed text JointEmitter::move copies into its line buffer; a longer one is appended.
+constexpr std::size_t kPassedChars = 40;
+
+// The word append_word would write, into a buffer at p (room: 2 + max(kPassedChars,
+// kUnitsChars)): a passed text up to kPassedChars, or a computed value on to_units' path (what
+// append_fixed writes). Null, with nothing written, for any other: append_word's to write.
+char* put_passed_word(char* p, char letter, const PassedNumber& n) {
+    long long units = 0;
+    const bool text = !n.text.empty() && n.text.size() <= kPassedChars;
+    if (!text && !(n.text.empty() && n.decimals >= 0 && to_units(n.value, n.decimals, units))) return nullptr;
+    *p++ = ' ';
+    *p++ = letter;
+    if (!text) return write_units(p, units, n.decimals);
+    std::memcpy(p, n.text.data(), n.text.size());
+    return p + n.text.size();
 }
 }  // namespace
 
@@ -82,15 +92,15 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         last_f_size_ = 0;
     }
     // The whole line goes into a buffer first and to the output in one piece. A word off the
-    // fast path (a joint beyond to_units' range, a long or computed E or F) flushes the buffer
+    // fast path (a joint beyond to_units' range, a long or unusual E or F) flushes the buffer
     // and is appended by the general code, so `out` grows in the same order either way.
-    static_assert(kMaxLineJoints >= kMaxJoints);
+    // Room: the command, every joint word, E and F, the line end.
+    constexpr std::size_t kLineChars = 2 + kMaxJoints * (2 + kUnitsChars) + 2 * (2 + std::max(kPassedChars, kUnitsChars)) + 1;
     char line[kLineChars];
     char* p = line;
     const std::size_t start = out.size();
     *p++ = 'G';
     *p++ = gcode == 0 ? '0' : '1';
-    bool wrote = false;  // a word after the command
     for (std::size_t j = 0; j < q.size(); ++j) {
         long long units = 0;
         const int d = decimals(j);
@@ -101,7 +111,6 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         if (!write) continue;
         last_[j] = units;
         known_[j] = true;
-        wrote = true;
         *p++ = ' ';
         *p++ = machine_->joints[j].output;
         if (fast) {
@@ -135,32 +144,21 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
             f->text = written;
         }
     }
-    // E and F: their text copied when short (always, for F, after the above), else appended.
-    for (const auto* n : {&e, &f}) {
-        if (!*n) continue;
-        const char letter = n == &e ? 'E' : 'F';
-        const PassedNumber& v = **n;
-        wrote = true;
-        long long units = 0;
-        if (!v.text.empty() && v.text.size() <= kPassedChars) {
-            *p++ = ' ';
-            *p++ = letter;
-            std::memcpy(p, v.text.data(), v.text.size());
-            p += v.text.size();
-        } else if (v.text.empty() && v.decimals >= 0 && to_units(v.value, v.decimals, units)) {
-            *p++ = ' ';
-            *p++ = letter;
-            p = write_units(p, units, v.decimals);  // what append_fixed writes
+    // E and F end the line, as finish_move ends it elsewhere.
+    auto passed_word = [&](char letter, const std::optional<PassedNumber>& n) {
+        if (!n) return;
+        if (char* q = put_passed_word(p, letter, *n)) {
+            p = q;
         } else {
             out.append(line, p);
             p = line;
-            append_word(out, letter, v);
+            append_word(out, letter, *n);
         }
-    }
-    if (!wrote) {
-        out.resize(start);  // nothing changed: no line (only a slow-path word has reached out)
-        return;
-    }
+    };
+    passed_word('E', e);
+    passed_word('F', f);
+    // Nothing changed (no word after the command, none flushed to `out` either): no line.
+    if (p == line + 2 && out.size() == start) return;
     *p++ = '\n';
     out.append(line, p);
     ++moves_written_;

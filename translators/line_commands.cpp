@@ -116,7 +116,6 @@ int execution_rank(const CommandWord& c) {
     }
 }
 
-
 void append_code(std::string& out, char letter, int code10) {
     out += letter;
     append_fixed(out, code10 / 10.0, 1);

@@ -43,6 +43,11 @@ double printed(const Machine& m, std::size_t j, double v) {
 void round_printed(const Machine& m, std::vector<double>& q) {
     for (std::size_t j = 0; j < q.size(); ++j) q[j] = printed(m, j, q[j]);
 }
+// The same of `from`, written to `to` (no copy first).
+void round_printed(const Machine& m, const std::vector<double>& from, std::vector<double>& to) {
+    to.resize(from.size());
+    for (std::size_t j = 0; j < from.size(); ++j) to[j] = printed(m, j, from[j]);
+}
 
 // Distance from p to the segment ab.
 double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
@@ -313,12 +318,9 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     if (from_last) {
         q0_printed_.swap(last_end_printed_);  // refilled below
     } else {
-        q0_printed_ = *mv.q0;
-        round_printed(machine_, q0_printed_);
+        round_printed(machine_, *mv.q0, q0_printed_);
     }
-    const std::size_t n = mv.q1->size();
-    q1_printed_.resize(n);
-    for (std::size_t j = 0; j < n; ++j) q1_printed_[j] = printed(machine_, j, (*mv.q1)[j]);
+    round_printed(machine_, *mv.q1, q1_printed_);
     last_end_q_ = *mv.q1;
     last_end_printed_ = q1_printed_;
     last_end_tip_ = mv.p1.tip;
@@ -539,14 +541,14 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
     // kept for emit_one, and the estimate is skipped (most moves, far from a pole). No end at
     // all is clearly nearer than a split that turns the rotaries less than the margin.
     const bool split_ok = split(mv).ok();
-    if (split_ok && split_rotary_travel() <= kClearlyLess) {
+    const double measured = split_ok ? split_rotary_travel() : 0.0;
+    if (split_ok && measured <= kClearlyLess) {
         split_for_ = &mv;
         return false;
     }
     const auto solutions = solutions_of(mv.p1.axis);
     std::vector<double>& q = scratch_a_;
     if (split_ok) {
-        const double measured = split_rotary_travel();
         bool nearer = false;
         for (int b = 0; b < solutions.count && !nearer; ++b) {
             q = q0;

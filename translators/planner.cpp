@@ -370,8 +370,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
             if (s.q[b] * q_next_[b] < 0) measured->pole_crossings = 1;  // the tilt changed sign: the other branch
         }
     }
-    if (spec.mode == OrientationMode::Vector)
-        if (const std::vector<double>* moved = motion_.final_joints_moved()) q_next_ = *moved;
+    if (const std::vector<double>* moved = motion_.final_joints_moved(); moved && spec.mode == OrientationMode::Vector) q_next_ = *moved;
     // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move
     // (no extrusion), where a G92 cannot disturb a printed line: firmware without wrapping
     // (Marlin, soft endstops) then never runs out of range.
