@@ -58,10 +58,10 @@ JointEmitter::JointEmitter(const Machine& machine) : machine_(&machine), joints_
     if (joints_ > kMaxJoints) throw MachineError(machine.source_path + ": more joints than the emitter holds (" + std::to_string(kMaxJoints) + ")");
     const std::vector<double> home = machine.home_joints();
     std::copy(home.begin(), home.end(), believed_.begin());
-}
-
-int JointEmitter::decimals(std::size_t joint) const {
-    return machine_->joints[joint].rotary ? machine_->dialect.rotary_decimals : machine_->dialect.linear_decimals;
+    for (std::size_t j = 0; j < joints_; ++j) {
+        letter_[j] = machine.joints[j].output;
+        decimals_[j] = machine.joints[j].rotary ? machine.dialect.rotary_decimals : machine.dialect.linear_decimals;
+    }
 }
 
 void JointEmitter::format(std::string& text, std::size_t joint, double value) const {
@@ -112,7 +112,7 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         last_[j] = units;
         known_[j] = true;
         *p++ = ' ';
-        *p++ = machine_->joints[j].output;
+        *p++ = letter_[j];
         if (fast) {
             p = write_units(p, units, d);
         } else {

@@ -67,7 +67,7 @@ public:
     std::uint64_t moves_written() const { return moves_written_; }
 
 private:
-    int decimals(std::size_t joint) const;
+    int decimals(std::size_t joint) const { return decimals_[joint]; }
     void format(std::string& text, std::size_t joint, double value) const;
 
     // Fixed arrays, not vectors: the look-back copies the emitter with every line, and a copy of
@@ -75,6 +75,9 @@ private:
     static constexpr std::size_t kMaxJoints = 8;
     const Machine* machine_;  // a pointer, so a copy of the emitter is its whole state (the translator's snapshots)
     std::size_t joints_ = 0;
+    // Per joint, from the machine: its output letter and printed decimals (read on every move).
+    std::array<char, kMaxJoints> letter_{};
+    std::array<int, kMaxJoints> decimals_{};
     // What the firmware was last sent per joint, in units of its last printed digit.
     std::array<long long, kMaxJoints> last_{};
     std::array<bool, kMaxJoints> known_{};       // false: not sent since start, homing or probing

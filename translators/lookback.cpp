@@ -34,9 +34,14 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
         return;
     }
     before_line_ = state_;
-    const std::size_t held_start = held_.size(), moves_start = held_moves();
+    // With no window open nothing is held (held_ is empty): the line's output goes straight to
+    // `out`, where only a travel move's has to be taken back into held_ (below). One copy of the
+    // output fewer on most lines.
+    const bool direct = !have_checkpoint_;
+    std::string& to = direct ? out : held_;
+    const std::size_t held_start = to.size(), moves_start = held_moves();
     try {
-        interpreter_.feed_line(line, run, held_, &before_line_.line);  // one copy of the state per line, not two
+        interpreter_.feed_line(line, run, to, &before_line_.line);  // one copy of the state per line, not two
     } catch (const InputError& e) {
         if (!run.hit_limit) {
             // A refused line (the service goes on after one typed in a terminal) leaves nothing
@@ -44,14 +49,16 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
             // restored too, the report forgets its moves (an arc's chords before the one refused),
             // and later lines print as if it never came.
             state_ = before_line_;
-            held_.resize(held_start);
+            to.resize(held_start);
             if (log_) log_->drop_held_from(moves_start);
             throw;
         }
         const bool had_checkpoint = have_checkpoint_;
+        // Without a window there is nothing to unwind (unwind_before refuses at once), so `to` is
+        // still the one written to.
         if (!unwind_before(line, line_no, run)) {
             state_ = before_line_;  // as for any refused line (above)
-            held_.resize(held_start);
+            to.resize(held_start);
             if (log_) log_->drop_held_from(moves_start);
             std::string message = e.message();
             if (had_checkpoint)
@@ -65,9 +72,14 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
             throw InputError(e.file(), e.line(), e.column(), message);
         }
     }
+    if (direct && run.travels) {
+        // The travel move's own output starts the window: held, not yet final.
+        held_.assign(out, held_start, std::string::npos);
+        out.resize(held_start);
+    }
     if (run.travels) {
         // A travel move: the next checkpoint. What came before it is final.
-        release(held_start, moves_start, out);
+        release(direct ? 0 : held_start, moves_start, out);
         checkpoint_ = before_line_;
         have_checkpoint_ = true;
         checkpoint_line_ = line_no;
@@ -147,8 +159,10 @@ bool LookBack::unwind_before(std::string_view line, std::uint64_t line_no, LineR
 }
 
 void LookBack::release(std::size_t bytes, std::size_t moves, std::string& out) {
-    out.append(held_, 0, bytes);
-    held_.erase(0, bytes);
+    if (bytes > 0) {  // none on most lines (nothing held: see feed)
+        out.append(held_, 0, bytes);
+        held_.erase(0, bytes);
+    }
     if (log_) log_->release(moves);
 }
 
