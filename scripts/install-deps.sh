@@ -10,8 +10,9 @@ pkgs=(build-essential cmake pkg-config
       chromium      # the --preview test loads the page in headless Chromium (skipped without it)
       prusa-slicer) # the post-processing test slices with xlate5 as its script (skipped without it)
 # `install-deps.sh fuzz` adds what the fuzz targets need (scripts/fuzz.sh): clang, libFuzzer and
-# the sanitizer runtimes. The test suite does not need them.
-if [ "${1:-}" = fuzz ]; then pkgs+=(clang libclang-rt-14-dev); fi
+# the sanitizer runtimes; and valgrind, for the benchmark's instruction counts (bench/instructions.sh).
+# The test suite itself does not need them.
+if [ "${1:-}" = fuzz ]; then pkgs+=(clang libclang-rt-14-dev valgrind); fi
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

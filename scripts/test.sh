@@ -23,6 +23,7 @@ floor_input=$(mktemp --suffix=.gcode)
 ./build/bench/bench_floor "$floor_input" rw2
 rm -f "$floor_input"
 ./build/bench/bench_service 5000 0
+bench/instructions.sh build 20000  # exact counts: the steady figure where times move with the machine
 
 # -O1 without debug info: the sanitizer build is about finding bugs, and compiles much faster.
 # The packaging tests (manual page, completion, .deb) check files, not memory: release only.
