@@ -591,8 +591,49 @@ TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit o
                 if (!same_bits(p.tip, tip) || !same_bits(p.axis, axis) || !same_bits(k.tool_axis(q), axis) || !same_bits(end.pose.tip, tip) ||
                     std::memcmp(&end.lever_arm, &lever, sizeof lever) != 0)
                     ++differ;
+                // The position solve's tool axis (the planner keeps it for the next move's pole
+                // check): the same bits; it moves only the linear joints.
+                std::vector<double> solved = q;
+                Eigen::Vector3d solved_axis;
+                if (k.solve_position(tip + Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5), solved, &solved_axis).ok() &&
+                    !same_bits(solved_axis, axis))
+                    ++differ;
             }
             CHECK(differ == 0);
         }
+    }
+}
+
+TEST_CASE("AngleLimit's verdicts are the acos's own, near the limit and far from it") {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> U(0, 1);
+    const double limits[] = {1e-6, 1e-3, 0.485, 0.5, 0.97, 1.0, 2.0, 45.0, 90.0, 179.9, 0.0, -1.0, 180.0, 200.0};
+    for (const double limit : limits) {
+        CAPTURE(limit);
+        const AngleLimit test(limit);
+        const double c = std::cos(rad(limit));
+        std::vector<double> dots = {1.0, -1.0, 0.0, 1.0 + 1e-15, -1.0 - 1e-15, std::nan(""), c};
+        for (int i = 0; i < 20000; ++i) {
+            dots.push_back(2 * U(rng) - 1);
+            dots.push_back(c + (2 * U(rng) - 1) * 1e-11);  // in the window and just outside it
+            dots.push_back(c + (2 * U(rng) - 1) * 1e-15);
+            dots.push_back(1.0 - std::ldexp(double(i % 64), -53));  // the last doubles below 1
+            double d = c;
+            for (int k = 0; k < i % 40; ++k) d = std::nextafter(d, i % 2 ? 2.0 : -2.0);  // ulps from the cosine
+            dots.push_back(d);
+        }
+        // Unit vectors at angles near the limit, as the planner compares them.
+        for (int i = 0; i < 20000; ++i) {
+            const Eigen::Vector3d a = Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized();
+            const Eigen::Vector3d n = a.cross(Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5)).normalized();
+            const double angle = rad(limit + (2 * U(rng) - 1) * 1e-9);
+            dots.push_back(a.dot((std::cos(angle) * a + std::sin(angle) * n).normalized()));
+        }
+        int differ = 0;
+        for (const double d : dots) {
+            const double exact = angle_of_dot(d);
+            if (test.below(d) != (exact < limit) || test.above(d) != (exact > limit)) ++differ;
+        }
+        CHECK(differ == 0);
     }
 }

@@ -116,6 +116,17 @@ std::vector<ChainLink> compile_chain(const std::vector<ChainElement>& chain) {
 
 }  // namespace
 
+double angle_of_dot(double dot) { return std::acos(std::clamp(dot, -1.0, 1.0)) * kDegPerRad; }
+
+AngleLimit::AngleLimit(double degrees) : degrees_(degrees) {
+    constexpr double kWindow = 1e-12;
+    if (degrees > 0 && degrees < 180) {
+        const double c = std::cos(degrees * kRadPerDeg);
+        low_ = c - kWindow;
+        high_ = c + kWindow;
+    }
+}
+
 Kinematics::Kinematics(const Machine& machine)
     : machine_(machine), part_links_(compile_chain(machine.part_chain)), tool_links_(compile_chain(machine.tool_chain)) {
     // Orientation: u = R_part^T R_tool u0. Write it as one product of fixed rotations and joint

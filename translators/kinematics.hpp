@@ -8,6 +8,7 @@
 // solve for given rotaries.
 #pragma once
 #include <Eigen/Core>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,36 @@ struct ChainLink {
     double sign = 1;     // RotaryX/Y/Z: the axis is +1 or -1 times that coordinate axis, exactly
     double axis[3] = {}, point[3] = {}, shift[3] = {};
     double rot[9] = {};  // Fixed: its rotation, row by row (Shift: the identity, not stored)
+};
+
+// The angle (degrees) between two unit vectors, from their dot product.
+double angle_of_dot(double dot);
+
+// angle_of_dot(dot) compared with a fixed limit: the same verdict, with the acos only when dot is
+// within 1e-12 of the limit's cosine. Outside that window the angle is more than 1e-12 radians
+// from the limit (|d acos / d dot| >= 1), far more than the few ulps by which acos, the product
+// with kDegPerRad and the limit's cosine can be off. A limit outside (0, 180) degrees always
+// takes the acos.
+class AngleLimit {
+public:
+    explicit AngleLimit(double degrees);
+    double degrees() const { return degrees_; }
+    // angle_of_dot(dot) < degrees()
+    bool below(double dot) const {
+        if (dot > high_) return true;
+        if (dot < low_) return false;
+        return angle_of_dot(dot) < degrees_;
+    }
+    // angle_of_dot(dot) > degrees()
+    bool above(double dot) const {
+        if (dot > high_) return false;
+        if (dot < low_) return true;
+        return angle_of_dot(dot) > degrees_;
+    }
+
+private:
+    double degrees_;
+    double low_ = -std::numeric_limits<double>::infinity(), high_ = std::numeric_limits<double>::infinity();
 };
 
 class Kinematics {

@@ -455,13 +455,13 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
         // Turn it first, with the tip and the tool axis held (a re-index about the pole), then
         // make the move; never a jump inside one joint move.
         std::vector<double>& q_eps = scratch_b_;
-        // Probe just off the start, far enough (1e-4 rad) that the joint is no longer free.
-        const double turn_angle = std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
-        const double probe = turn_angle > 1e-4 ? 1e-4 / turn_angle : 1.0;
         const auto& at_start = solutions_of(mv.p0.axis);
         bool on_pole = false;
         for (int b = 0; b < at_start.count; ++b)
             for (std::size_t k = 0; k < kin_.rotary_joints().size(); ++k) on_pole = on_pole || std::isnan(at_start.angle[b][k]);
+        // Probe just off the start, far enough (1e-4 rad) that the joint is no longer free.
+        const double turn_angle = on_pole ? std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0)) : 0.0;
+        const double probe = turn_angle > 1e-4 ? 1e-4 / turn_angle : 1.0;
         // The probe's IK only where it matters: at a pole, on a move that turns.
         if (on_pole && turn_angle > 0 && solve_at(mv, probe, *mv.q0, q_eps).ok()) {
             double jump = 0;

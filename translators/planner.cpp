@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
@@ -34,9 +35,7 @@ constexpr double kPoleHold = 0.5;
 constexpr int kPoleSamples = 64;
 constexpr double kPoleMargin = 0.97;  // as the motion stage's sampling margin
 
-double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-    return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * kDegPerRad;
-}
+double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return angle_of_dot(a.dot(b)); }
 
 }  // namespace
 
@@ -48,7 +47,10 @@ Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter
       log_(log),
       compensation_(kinematics.machine().compensation),
       motion_(kinematics, emitter),
-      q_next_(state.q) {
+      q_next_(state.q),
+      exact_start_(1e-6),
+      pole_region_(kPoleRegion * kinematics.machine().motion.angle_tolerance),
+      short_turn_(kinematics.machine().motion.angle_tolerance) {
     // The pole of a has_flip machine (pole_passage): the tool axis with the tilting rotary at 0,
     // which the first rotary then turns about itself (has_flip: within 1e-9 of its axis), so it is
     // the same for every joint value; computed per move before, the same to rounding (every
@@ -59,6 +61,31 @@ Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter
         q[std::size_t(rot[1])] = 0;
         pole_ = kin_.tool_axis(q);
     }
+    pole_checks_ = rot.size() == 2 && kin_.has_flip() && machine_.motion.segment;
+}
+
+Eigen::Vector3d Planner::axis_at(const std::vector<double>& q) const {
+    for (const KnownAxis& k : known_axes_)
+        if (k.valid && k.holds(kin_.rotary_joints(), q)) return k.axis;
+    return kin_.tool_axis(q);
+}
+
+void Planner::remember_axis(const std::vector<double>& q, const Eigen::Vector3d& axis) {
+    // Two slots: a move's end is remembered before the pole check asks for its start (the end
+    // of the move before).
+    KnownAxis& k = known_axes_[known_next_];
+    known_next_ = 1 - known_next_;
+    const auto& rot = kin_.rotary_joints();
+    for (std::size_t i = 0; i < rot.size(); ++i) k.rotary[i] = q[std::size_t(rot[i])];
+    k.axis = axis;
+    k.valid = true;
+}
+
+bool Planner::KnownAxis::holds(const std::vector<int>& rot, const std::vector<double>& q) const {
+    // Bit for bit (a signed zero counts: the sine of the angle keeps its sign).
+    for (std::size_t k = 0; k < rot.size(); ++k)
+        if (std::memcmp(&rotary[k], &q[std::size_t(rot[k])], sizeof(double)) != 0) return false;
+    return true;
 }
 
 void Planner::plain_image() {
@@ -161,33 +188,37 @@ void Planner::end_candidates(OrientationMode mode, const Pose& end, const std::v
     std::stable_sort(candidates_.begin(), candidates_.end(), [&](const Candidate& a, const Candidate& b) { return distance(a) < distance(b); });
 }
 
-bool Planner::pole_passage(const Pose& from, const Pose& to, std::vector<double>& q, double& worst, bool need_worst) {
+bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
+                           double& worst, bool need_worst) {
     const auto& rot = kin_.rotary_joints();
     // Machines whose tool axis at zero lies along the first rotary (has_flip): there the pole is
     // that rotary's axis and the second tilts the tool along a great circle through it.
-    if (rot.size() != 2 || !kin_.has_flip() || !machine_.motion.segment) return false;
+    if (!pole_checks_) return false;
     const std::size_t c = std::size_t(rot[0]), b = std::size_t(rot[1]);
     const std::vector<double>& q0 = state_.q;
     const double tolerance = machine_.motion.angle_tolerance;
     const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
-    const bool start_exact = angle_between(kin_.tool_axis(q0), from.axis) < 1e-6;
+    const bool start_exact = exact_start_.below(axis_at(q0).dot(from.axis));
     // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
     // files under G43.5: the axis stays on the pole).
     if (start_exact && q_next_[c] == q0[c] && q_next_[b] == q0[b]) return false;
     const Eigen::Vector3d& pole = pole_;
-    const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
+    // The tilt from the pole (the nearer of its two ends) is below the region; its value is
+    // needed only then.
+    const bool near_pole = pole_region_.below(to.axis.dot(pole)) || pole_region_.below(to.axis.dot(-pole));
     // Only a move turning the tool axis by less than the tolerance may end off its axis: a
     // passage made of such moves cannot cross in any one of them. A longer move ends exactly
     // where it was programmed (a crossing within it is the motion stage's).
-    const bool short_move = angle_between(from.axis, to.axis) < tolerance;
-    if (start_exact && (tilt >= region || !short_move)) return false;
+    const bool short_move = short_turn_.below(from.axis.dot(to.axis));
+    if (start_exact && (!near_pole || !short_move)) return false;
     q = q_next_;  // as solved: the continuous end (exact)
-    if (tilt < region && short_move) {
+    if (near_pole && short_move) {
+        const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
         const double budget = tilt <= hold ? hold : hold * (region - tilt) / (region - hold);
         // The turntable may stay this far off an exact solution's angle.
         const double st = std::sin(tilt / kDegPerRad), sb = std::sin(budget / kDegPerRad);
         const double off = st > sb ? std::asin(sb / st) * kDegPerRad : 180.0;
-        const auto solutions = kin_.orientation_solutions(to.axis);
+        const Kinematics::Solutions solutions = at_end ? *at_end : kin_.orientation_solutions(to.axis);
         double best = q0[c], least = 1e300;
         for (int k = 0; k < solutions.count; ++k) {
             const double exact = solutions.angle[k][0];
@@ -263,9 +294,9 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
     IkResult r;
     if (mv.any_ijk) {
-        const auto solutions = kin_.orientation_solutions(mv.axis);
-        motion_.remember_solutions(solutions);  // the move's end axis: the motion stage asks for it again
-        r = orient_within_limits(machine_, kin_.rotary_joints(), solutions, s.q, s.q, q_next_);
+        end_solutions_ = kin_.orientation_solutions(mv.axis);
+        motion_.remember_solutions(end_solutions_);  // the move's end axis: the motion stage asks for it again
+        r = orient_within_limits(machine_, kin_.rotary_joints(), end_solutions_, s.q, s.q, q_next_);
     }
     Pose next = s.pose;
     if (r.ok()) {
@@ -275,7 +306,16 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
             next = kin_.forward(q_next_);
         } else {
             next.tip = mv.tip;
-            r = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr);
+            if (mv.mode == OrientationMode::Vector && pole_checks_) {
+                // The tool axis of the end comes with the solve at little cost: the pole check
+                // asks for it at the next move's start.
+                Eigen::Vector3d at_end;
+                r = kin_.solve_position(next.tip, q_next_, &at_end);
+                if (mv.any_rotary) next.axis = at_end;
+                if (r.ok()) remember_axis(q_next_, at_end);
+            } else {
+                r = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr);
+            }
             if (mv.any_ijk) next.axis = mv.axis;
         }
     }
@@ -319,7 +359,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // Near a pole the end may be chosen across moves (see pole_passage): rotaries turn linearly.
     bool passage = false;
     double passage_angle = 0;
-    if (!unwind && mv.mode == OrientationMode::Vector && (mv.any_xyz || s.tip_known) && pole_passage(s.pose, next, pole_q_, passage_angle, log_ != nullptr)) {
+    if (!unwind && mv.mode == OrientationMode::Vector && (mv.any_xyz || s.tip_known) && pole_passage(s.pose, next, mv.any_ijk ? &end_solutions_ : nullptr, pole_q_, passage_angle, log_ != nullptr)) {
         passage = true;
         q_next_ = pole_q_;
     }

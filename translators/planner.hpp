@@ -129,7 +129,13 @@ private:
     // the end joints in `q` (linear joints solved) and, with `need_worst`, the worst axis deviation
     // of the joint-linear turn in `worst`, when the move is to be made that way (rotaries linear,
     // angle form).
-    bool pole_passage(const Pose& from, const Pose& to, std::vector<double>& q, double& worst, bool need_worst);
+    // `at_end`, when given, holds the orientation solutions of to.axis.
+    bool pole_passage(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
+                      double& worst, bool need_worst);
+    // The tool axis at q's rotaries: a remembered one when they are the same to the bit (a move's
+    // end is the next one's start), else tool_axis(q).
+    Eigen::Vector3d axis_at(const std::vector<double>& q) const;
+    void remember_axis(const std::vector<double>& q, const Eigen::Vector3d& axis);
 
     struct Candidate {
         std::vector<double> q;
@@ -149,6 +155,17 @@ private:
     std::vector<Candidate> candidates_;
     std::vector<double> pole_q_, pole_probe_;  // scratch for pole_passage
     Eigen::Vector3d pole_ = Eigen::Vector3d::UnitZ();  // pole_passage's pole (has_flip machines; see the constructor)
+    bool pole_checks_ = false;                         // pole_passage applies to this machine
+    AngleLimit exact_start_, pole_region_, short_turn_;  // pole_passage's tests of the angles it compares
+    struct KnownAxis {
+        bool valid = false;
+        double rotary[2] = {};  // rotary_joints() order
+        Eigen::Vector3d axis;
+        bool holds(const std::vector<int>& rot, const std::vector<double>& q) const;
+    };
+    Kinematics::Solutions end_solutions_;  // of the move's end axis (G43.5 with I J K)
+    KnownAxis known_axes_[2];  // see axis_at
+    int known_next_ = 0;
 };
 
 }  // namespace xlate5
