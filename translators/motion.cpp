@@ -93,7 +93,11 @@ double firmware_length(const Machine& m, const std::vector<double>& q0, const st
 }
 
 MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
-    : kin_(kinematics), machine_(kinematics.machine()), compensation_(kinematics.machine().compensation), emitter_(emitter) {}
+    : sample_angle_(kSampleMargin * kinematics.machine().motion.angle_tolerance),
+      kin_(kinematics),
+      machine_(kinematics.machine()),
+      compensation_(kinematics.machine().compensation),
+      emitter_(emitter) {}
 
 const GreatArc& MotionStage::arc_of(const MoveSpec& mv) const {
     if (!(mv.p0.axis == arc_.a && mv.p1.axis == arc_.b)) arc_ = GreatArc(mv.p0.axis, mv.p1.axis);
@@ -206,8 +210,10 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
         }
         if (mv.mode == OrientationMode::Vector) {
             const Eigen::Vector3d ideal = arc.at(sa + t * (sb - sa));
-            if (const double a = std::acos(std::clamp(fw.axis.dot(ideal), -1.0, 1.0)) * kDegPerRad; a > atol) {
-                if (middle && middle_ratio) *middle_ratio = a / atol;
+            // The split's own limit is tested on the dot product (the acos only near it).
+            const double dot = fw.axis.dot(ideal);
+            if (atol == sample_angle_.degrees() ? sample_angle_.above(dot) : angle_of_dot(dot) > atol) {
+                if (middle && middle_ratio) *middle_ratio = angle_of_dot(dot) / atol;
                 return false;
             }
         }
@@ -302,6 +308,12 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
     if (mv.mode != OrientationMode::Vector) return true;
     // The tool axis against the great-circle arc from sa to sb: both lie near the chords between
     // their ends (the arc within phi^2 / 8 of its own), and those chords within the ends' gaps.
+    if (sa == 0.0 && sb == 1.0) {
+        // The whole move (most moves pass here): the arc's angle alone, its sine not needed.
+        const double phi = mv.p0.axis == arc_.a && mv.p1.axis == arc_.b ? arc_.angle
+                                                                        : std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
+        return axis_chord_within(b.axis + std::max((pa.axis - mv.p0.axis).norm(), (pb.axis - mv.p1.axis).norm()) + phi * phi / 8.0, atol);
+    }
     const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
     const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
     const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);

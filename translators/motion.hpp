@@ -134,6 +134,7 @@ private:
     mutable int solved_next_ = 0;
     mutable int ends_next_ = 0;
     const MoveSpec* split_for_ = nullptr;  // the move whose split s_, qs_ hold already (cross_pole made it)
+    AngleLimit sample_angle_;  // the split's angle limit (the angle tolerance with its sampling margin)
 
     const Kinematics& kin_;
     const Machine& machine_;
