@@ -637,3 +637,24 @@ TEST_CASE("AngleLimit's verdicts are the acos's own, near the limit and far from
         CHECK(differ == 0);
     }
 }
+
+TEST_CASE("atan2 is odd in y to the last bit, as the orientation solve's second tilt assumes") {
+    // orientation_solutions takes the second solution's tilt as the first's negated when its
+    // atan2 terms are the first's with y negated.
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> U(-1, 1);
+    std::uniform_int_distribution<int> E(-60, 60);
+    int differ = 0;
+    auto check = [&](double y, double x) {
+        const double a = std::atan2(y, x), b = -std::atan2(-y, x);
+        if (std::memcmp(&a, &b, sizeof a) != 0) ++differ;
+    };
+    for (int i = 0; i < 400000; ++i) {
+        check(U(rng), U(rng));  // unit vectors' terms
+        check(std::ldexp(U(rng), E(rng)), std::ldexp(U(rng), E(rng)));
+        check(std::ldexp(U(rng), -1070), U(rng));  // subnormal y
+    }
+    for (const double x : {1.0, -1.0, 0.0, -0.0, 1e-300, -1e-300})
+        for (const double y : {0.0, -0.0, 1.0, 1e-300, 5e-324}) check(y, x);
+    CHECK(differ == 0);
+}

@@ -63,12 +63,21 @@ inline M3 rot(const V3& axis, double degrees) {
             xz - sa.y, yz + sa.x, ca.z * axis.z + c};
 }
 
-// Paden-Kahan subproblem 1: the angle (radians) about unit w that takes p to q; NaN if free.
-double subproblem1(const Eigen::Vector3d& w, const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
+// Paden-Kahan subproblem 1: the angle (radians) about unit w that takes p to q is atan2(y, x)
+// of these; NaN if free.
+struct Subproblem1 {
+    double y, x;
+    bool free;
+};
+Subproblem1 subproblem1_terms(const Eigen::Vector3d& w, const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
     const Eigen::Vector3d pp = p - w * w.dot(p);
     const Eigen::Vector3d qq = q - w * w.dot(q);
-    if (pp.norm() < kFreeEps || qq.norm() < kFreeEps) return std::numeric_limits<double>::quiet_NaN();
-    return std::atan2(w.dot(pp.cross(qq)), pp.dot(qq));
+    if (pp.norm() < kFreeEps || qq.norm() < kFreeEps) return {0, 0, true};
+    return {w.dot(pp.cross(qq)), pp.dot(qq), false};
+}
+double angle_of(const Subproblem1& t) { return t.free ? std::numeric_limits<double>::quiet_NaN() : std::atan2(t.y, t.x); }
+double subproblem1(const Eigen::Vector3d& w, const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
+    return angle_of(subproblem1_terms(w, p, q));
 }
 
 // The walk's form of a chain (see ChainLink and walk below).
@@ -614,9 +623,24 @@ Kinematics::Solutions Kinematics::orientation_solutions(const Eigen::Vector3d& a
     const double gamma2 = (p_.squaredNorm() - alpha * alpha - beta * beta - 2.0 * alpha * beta * a) / n.squaredNorm();
     if (gamma2 < -kReachEps * kReachEps) return out;
     const double gamma = std::sqrt(std::max(gamma2, 0.0));
+    Subproblem1 first{};
+    double first_phi2 = 0;
     for (double s : {1.0, -1.0}) {
         const Eigen::Vector3d c = alpha * w1 + beta * w2 + s * gamma * n;
-        const double phi2 = subproblem1(w2, p_, c);
+        // The second solution's tilt: when its terms are the first one's with y negated, bit for
+        // bit (the machine's axes put exact zeros in the right places, as pentarod's A/C table
+        // does), it is the first's negated, since atan2(-y, x) = -atan2(y, x) exactly (glibc
+        // works on |y| and copies y's sign onto the result; test_kinematics holds it on random
+        // values). No atan2 then.
+        const Subproblem1 terms2 = subproblem1_terms(w2, p_, c);
+        double phi2;
+        if (s < 0 && !terms2.free && !first.free && terms2.x == first.x && std::signbit(terms2.x) == std::signbit(first.x) &&
+            -terms2.y == first.y && std::signbit(terms2.y) != std::signbit(first.y))
+            phi2 = -first_phi2;
+        else
+            phi2 = angle_of(terms2);
+        first = terms2;
+        first_phi2 = phi2;
         const double phi1 = subproblem1(w1, c, u);
         out.angle[out.count][0] = std::isnan(phi1) ? nan : sign_[0] * phi1 / kDeg;
         out.angle[out.count][1] = std::isnan(phi2) ? nan : sign_[1] * phi2 / kDeg;
