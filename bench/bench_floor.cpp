@@ -71,13 +71,13 @@ int main(int argc, char** argv) {
         } catch (const xlate5::LineError&) {
             continue;
         }
-        if (block.words.empty() || block.words[0].letter != 'G' || block.words[0].value != 1) {
+        if (block.words().empty() || block.words()[0].letter != 'G' || block.words()[0].value != 1) {
             out.append(line);
             out += '\n';
             continue;
         }
         std::string_view e;
-        for (const auto& w : block.words) {
+        for (const auto& w : block.words()) {
             if (w.letter >= 'X' && w.letter <= 'Z') tip[w.letter - 'X'] = w.value;
             else if (w.letter == 'E') e = w.text;
             else

@@ -77,7 +77,7 @@ double total_extrusion(const std::string& text) {
         lex_line(line, b);
         int g = -1, m = -1;
         const Word* e = nullptr;
-        for (const auto& w : b.words) {
+        for (const auto& w : b.words()) {
             if (w.letter == 'G') g = int(std::lround(w.value * 10));
             else if (w.letter == 'M') m = int(std::lround(w.value * 10));
             else if (w.letter == 'E') e = &w;
@@ -174,7 +174,7 @@ TEST_CASE("planar tool-space moves land where FK says: the inverse of the output
         while (std::getline(s, l)) {
             lex_line(l, b);
             bool move = false, xyz = false;
-            for (const auto& w : b.words) {
+            for (const auto& w : b.words()) {
                 if (w.letter == 'G' && (w.value == 0 || w.value == 1)) move = true;
                 if (w.letter >= 'X' && w.letter <= 'Z') {
                     p[std::size_t(w.letter - 'X')] = w.value;

@@ -32,16 +32,16 @@ struct Expected {
 };
 
 void check_words(const Block& b, std::initializer_list<Expected> expected) {
-    REQUIRE(b.words.size() == expected.size());
+    REQUIRE(b.words().size() == expected.size());
     std::size_t i = 0;
     for (const Expected& e : expected) {
         CAPTURE(i);
-        CHECK(b.words[i].letter == e.letter);
+        CHECK(b.words()[i].letter == e.letter);
         if (std::isnan(e.value)) {
-            CHECK_FALSE(b.words[i].has_value);
+            CHECK_FALSE(b.words()[i].has_value);
         } else {
-            CHECK(b.words[i].has_value);
-            CHECK(b.words[i].value == e.value);
+            CHECK(b.words()[i].has_value);
+            CHECK(b.words()[i].value == e.value);
         }
         ++i;
     }
@@ -74,11 +74,11 @@ LineError lex_error(std::string_view line, std::uint32_t first_col, std::uint32_
 TEST_CASE("lexer: a plain move gives letters, values and 1-based columns") {
     const Block b = lex("G1 X10 Y-2.5 E0.25 F1200");
     check_words(b, {{'G', 1}, {'X', 10}, {'Y', -2.5}, {'E', 0.25}, {'F', 1200}});
-    CHECK(b.words[0].column == 1);
-    CHECK(b.words[1].column == 4);
-    CHECK(b.words[2].column == 8);
-    CHECK(b.words[3].column == 14);
-    CHECK(b.words[4].column == 20);
+    CHECK(b.words()[0].column == 1);
+    CHECK(b.words()[1].column == 4);
+    CHECK(b.words()[2].column == 8);
+    CHECK(b.words()[3].column == 14);
+    CHECK(b.words()[4].column == 20);
     CHECK(b.body == "G1 X10 Y-2.5 E0.25 F1200");
     CHECK_FALSE(b.has_comment);
     CHECK_FALSE(b.percent);
@@ -86,9 +86,10 @@ TEST_CASE("lexer: a plain move gives letters, values and 1-based columns") {
 }
 
 TEST_CASE("lexer: every number reads as std::from_chars reads it, whatever its length and place in the line") {
-    // The lexer reads digits eight at a time where the line has eight more bytes, one at a time
-    // near its end: numbers of 1 to 24 digits, with and without a point and sign, leading zeros,
-    // at the end of the line or followed by another word, against from_chars as the reference.
+    // The lexer reads numbers of up to 19 digits itself and longer ones with from_chars: numbers
+    // of 1 to 24 digits, with and without a point and sign, leading zeros, at the end of the line
+    // (where the scan stops at the NUL after the lexer's copy) or followed by another word,
+    // against from_chars as the reference.
     std::mt19937_64 rng(3);
     int checked = 0;
     for (int i = 0; i < 60000; ++i) {
@@ -112,13 +113,71 @@ TEST_CASE("lexer: every number reads as std::from_chars reads it, whatever its l
             continue;
         }
         const Block b = lex(line);
-        REQUIRE(b.words.size() >= 2);
-        CHECK(b.words[1].value == ref);
-        CHECK(std::signbit(b.words[1].value) == std::signbit(ref));
-        CHECK(b.words[1].text == text);
+        REQUIRE(b.words().size() >= 2);
+        CHECK(b.words()[1].value == ref);
+        CHECK(std::signbit(b.words()[1].value) == std::signbit(ref));
+        CHECK(b.words()[1].text == text);
         ++checked;
     }
     CHECK(checked > 30000);
+}
+
+TEST_CASE("lexer: at the range limit, with every count of decimals, numbers read as from_chars reads them") {
+    // The lexer's own reading takes a number up to 1e9 and 15 significant digits; longer ones
+    // and the limit's other side go to from_chars. Both sides of each bound, against it.
+    for (const char* text : {"1000000000", "1000000000.0", "1000000000.000000", "1000000000.0000000000", "999999999.999999",
+                             "999999999.9999999", "999999999999999", "99999999.99999999", "0.000000000000001",
+                             "0.0000000000000000001", "123456789012345", "1234567.89012345", "-1000000000.00000",
+                             "00000000000000000001", "0000000000000000000.5"}) {
+        const std::string number(text);
+        CAPTURE(number);
+        const std::string digits = number[0] == '-' ? number.substr(1) : number;
+        double ref = 0;
+        std::from_chars(digits.data(), digits.data() + digits.size(), ref, std::chars_format::fixed);
+        if (number[0] == '-') ref = -ref;
+        if (std::abs(ref) > 1e9) {
+            lex_error("G1 X" + number, 4, 5, "out of range");
+            continue;
+        }
+        const Block b = lex("G1 X" + number);
+        REQUIRE(b.words().size() == 2);
+        CHECK(b.words()[1].value == ref);
+    }
+}
+
+TEST_CASE("lexer: a line is read up to its end only, and its words and body point into it") {
+    // The view ends inside a number: the digits after it are not the line's.
+    const std::string text = "G1 X12345 Y6";
+    const std::string_view line(text.data(), 6);
+    const Block b = lex(line);
+    check_words(b, {{'G', 1}, {'X', 12}});
+    CHECK(b.words()[1].text.data() == text.data() + 4);
+    CHECK(b.words()[1].text == "12");
+    CHECK(b.body.data() == text.data());
+    CHECK(b.body == "G1 X12");
+    // A blank, a flag and a sign at the very end.
+    check_words(lex("G1 X5 "), {{'G', 1}, {'X', 5}});
+    check_words(lex("G28 X"), {{'G', 28}, {'X', kFlag}});
+    lex_error("G1 X-", 4, 5, "sign");
+}
+
+TEST_CASE("lexer: a line of many words (more than the block had room for) keeps them all in order") {
+    Block b;
+    lex_line("G1 X1", b);
+    std::string line = "G1";
+    for (int k = 0; k < 300; ++k) line += " X" + std::to_string(k) + ".5";
+    lex_line(line, b);
+    REQUIRE(b.words().size() == 301);
+    std::uint32_t column = 4;
+    for (int k = 0; k < 300; ++k) {
+        CAPTURE(k);
+        CHECK(b.words()[std::size_t(k) + 1].value == k + 0.5);
+        CHECK(b.words()[std::size_t(k) + 1].column == column);
+        column += std::uint32_t(std::to_string(k).size() + 4);
+    }
+    CHECK(b.body == line);
+    lex_line("G0 Y2", b);
+    check_words(b, {{'G', 0}, {'Y', 2}});
 }
 
 TEST_CASE("lexer: ';' comments end the words; the body keeps the comment text") {
@@ -128,7 +187,7 @@ TEST_CASE("lexer: ';' comments end the words; the body keeps the comment text") 
     CHECK(b.body == "G1 X1 ; move Y9 here");
 
     const Block c = lex(";LAYER:3");
-    CHECK(c.words.empty());
+    CHECK(c.words().empty());
     CHECK(c.has_comment);
     CHECK(c.body == ";LAYER:3");
 }
@@ -136,12 +195,12 @@ TEST_CASE("lexer: ';' comments end the words; the body keeps the comment text") 
 TEST_CASE("lexer: '( )' comments mid-line are skipped and the words after them are read") {
     const Block b = lex("G1 X1 (tilt Y7 first) Y2 (end)");
     check_words(b, {{'G', 1}, {'X', 1}, {'Y', 2}});
-    CHECK(b.words[2].column == 23);
+    CHECK(b.words()[2].column == 23);
     CHECK(b.has_comment);
     CHECK(b.body == "G1 X1 (tilt Y7 first) Y2 (end)");
 
     const Block c = lex("(only a comment)");
-    CHECK(c.words.empty());
+    CHECK(c.words().empty());
     CHECK(c.has_comment);
     CHECK(c.body == "(only a comment)");
 }
@@ -149,7 +208,7 @@ TEST_CASE("lexer: '( )' comments mid-line are skipped and the words after them a
 TEST_CASE("lexer: a leading N line number and a trailing *checksum are not words and not in the body") {
     const Block b = lex("N123 G1 X5*71");
     check_words(b, {{'G', 1}, {'X', 5}});
-    CHECK(b.words[0].column == 6);
+    CHECK(b.words()[0].column == 6);
     CHECK(b.body == "G1 X5");
 
     const Block c = lex("N7 M105*36  ");
@@ -175,9 +234,9 @@ TEST_CASE("lexer: words need no spaces between them") {
     lex_line("; xlate5: compact-words", b);
     lex_line("G1X10Y2Z-.3E+1F600", b);
     check_words(b, {{'G', 1}, {'X', 10}, {'Y', 2}, {'Z', -0.3}, {'E', 1}, {'F', 600}});
-    CHECK(b.words[1].column == 3);
-    CHECK(b.words[2].column == 6);
-    CHECK(b.words[3].column == 8);
+    CHECK(b.words()[1].column == 3);
+    CHECK(b.words()[2].column == 6);
+    CHECK(b.words()[3].column == 8);
     const Block c = lex("G1X10Y2Z-.3E+1.0F600");
     check_words(c, {{'G', 1}, {'X', 10}, {'Y', 2}, {'Z', -0.3}, {'E', 1}, {'F', 600}});
 }
@@ -214,10 +273,10 @@ TEST_CASE("lexer: the compact declaration reads X1.5E-05 as X1.5 and E-05, from 
         CHECK_FALSE(b.compact_words);
         lex_line(declaration, b);
         CHECK(b.compact_words);
-        CHECK(b.words.empty());
+        CHECK(b.words().empty());
         lex_line("G1 X1.5E-05", b);
         check_words(b, {{'G', 1}, {'X', 1.5}, {'E', -5}});
-        CHECK(b.words[2].text == "-05");
+        CHECK(b.words()[2].text == "-05");
         lex_line("G1 X1e308", b);  // kept for every later line
         check_words(b, {{'G', 1}, {'X', 1}, {'E', 308}});
     }
@@ -240,8 +299,8 @@ TEST_CASE("lexer: number forms .5, -.309, +3, 5., 007 and a space after the lett
     check_words(lex("G1 X007"), {{'G', 1}, {'X', 7}});
     const Block b = lex("G1 X 10 Y  -2");  // RS274: blanks inside a word are allowed
     check_words(b, {{'G', 1}, {'X', 10}, {'Y', -2}});
-    CHECK(b.words[1].column == 4);
-    CHECK(b.words[2].column == 9);
+    CHECK(b.words()[1].column == 4);
+    CHECK(b.words()[2].column == 9);
     // Largest accepted magnitude.
     check_words(lex("G1 X1000000000"), {{'G', 1}, {'X', 1e9}});
     check_words(lex("G1 X-1000000000"), {{'G', 1}, {'X', -1e9}});
@@ -263,7 +322,7 @@ TEST_CASE("lexer: CRLF line ends and blank lines") {
     for (std::string_view blank : {"", "   ", "\t", "\r", "  \t \r"}) {
         CAPTURE(std::string(blank));
         const Block e = lex(blank);
-        CHECK(e.words.empty());
+        CHECK(e.words().empty());
         CHECK(e.empty());
         CHECK(e.body.empty());
         CHECK_FALSE(e.has_comment);
@@ -287,13 +346,13 @@ TEST_CASE("lexer: a 1 MB comment on a line is accepted") {
 TEST_CASE("lexer: a lone '%' is a program delimiter, not an error") {
     const Block b = lex("%");
     CHECK(b.percent);
-    CHECK(b.words.empty());
+    CHECK(b.words().empty());
     CHECK(b.body == "%");
     const Block c = lex("  %  ");
     CHECK(c.percent);
     const Block d = lex("% (program start)");
     CHECK(d.percent);
-    CHECK(d.words.empty());
+    CHECK(d.words().empty());
 }
 
 TEST_CASE("lexer: M117 takes the rest of the line as text; a checksum still ends it") {
@@ -337,7 +396,7 @@ TEST_CASE("lexer: reusing a Block resets every flag of the previous line") {
 TEST_CASE("lexer: RepRapFirmware quoted strings, with \"\" as an embedded quote") {
     const Block b = lex(R"(M291 P"hi ""there""" S1)");
     check_words(b, {{'M', 291}, {'P', kFlag}, {'S', 1}});
-    CHECK(b.words[2].column == 22);
+    CHECK(b.words()[2].column == 22);
     // Letters, digits and ';' inside the string are not words and not a comment.
     const Block c = lex(R"(M98 P"config; X1 Y2.g")");
     check_words(c, {{'M', 98}, {'P', kFlag}});
@@ -347,8 +406,8 @@ TEST_CASE("lexer: RepRapFirmware quoted strings, with \"\" as an embedded quote"
 TEST_CASE("lexer: valueless flags such as G28 X and M84 E") {
     const Block a = lex("G28 X");
     check_words(a, {{'G', 28}, {'X', kFlag}});
-    CHECK(std::isnan(a.words[1].value));
-    CHECK(a.words[1].column == 5);
+    CHECK(std::isnan(a.words()[1].value));
+    CHECK(a.words()[1].column == 5);
     check_words(lex("M84 E"), {{'M', 84}, {'E', kFlag}});
     check_words(lex("G28 X ; home x"), {{'G', 28}, {'X', kFlag}});
     check_words(lex("G28 X0 Y0"), {{'G', 28}, {'X', 0}, {'Y', 0}});
@@ -359,14 +418,14 @@ TEST_CASE("lexer: several valueless flags in a row (G28 X Y)") {
     // "X Y": Marlin's own "G28 X Y" and "M84 X Y E" (this once failed).
     Block b;
     CHECK_NOTHROW(lex_line("G28 X Y", b));
-    if (b.words.size() == 3) {
+    if (b.words().size() == 3) {
         check_words(b, {{'G', 28}, {'X', kFlag}, {'Y', kFlag}});
-        CHECK(b.words[1].column == 5);
-        CHECK(b.words[2].column == 7);
+        CHECK(b.words()[1].column == 5);
+        CHECK(b.words()[2].column == 7);
     }
     Block c;
     CHECK_NOTHROW(lex_line("M84 X Y E", c));
-    if (c.words.size() == 4) check_words(c, {{'M', 84}, {'X', kFlag}, {'Y', kFlag}, {'E', kFlag}});
+    if (c.words().size() == 4) check_words(c, {{'M', 84}, {'X', kFlag}, {'Y', kFlag}, {'E', kFlag}});
 }
 
 // ---- errors ------------------------------------------------------------------------------

@@ -1,10 +1,12 @@
 // The lexer stage: one line -> words. What it may call: see gcode_lexer.hpp.
 #include "translators/gcode_lexer.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
-#include <limits>
 #include <cstdio>
+#include <cstring>
+#include <limits>
 #include <string>
 
 #include "translators/error.hpp"
@@ -38,10 +40,9 @@ void check_text(std::string_view line, std::size_t from) {
 }
 
 // Commands whose argument is free text (messages, file names), not words.
-bool takes_text(char letter, double value) {
-    if (letter != 'M') return false;
+bool takes_text(double m_value) {
     for (int m : {23, 28, 30, 32, 117, 118, 928})
-        if (value == m) return true;
+        if (m_value == m) return true;
     return false;
 }
 
@@ -68,22 +69,53 @@ void check_exponent_like(std::string_view s, std::size_t i, char letter, std::si
                 "' at its top (or the command line's --compact-words)");
 }
 
-// The run of decimal digits at `i`, appended to `mantissa` (which wraps past 19 digits: the
-// caller then does not use it), their count added to `count`. (Eight bytes at a time with
-// integer tricks was tried: more instructions, G-code's runs being one to five digits.)
-inline void read_digits(std::string_view s, std::size_t& i, std::uint64_t& mantissa, int& count) {
-    const std::size_t from = i;
-    for (; i < s.size(); ++i) {
-        const unsigned digit = unsigned(static_cast<unsigned char>(s[i])) - unsigned('0');  // one test: '0'..'9' only
-        if (digit > 9) break;
-        mantissa = mantissa * 10 + digit;
+// The value of a decimal digit, or more than 9 for any other byte (one test: '0'..'9' only).
+inline unsigned digit_value(char c) { return unsigned(static_cast<unsigned char>(c)) - unsigned('0'); }
+
+// The common number, "[+-]digits[.digits]" with 1 to 19 digits and within the range limit, read
+// at `i` of `s`, which must end with a NUL (the lexer's copy of the line): the digit loops stop
+// there. False, `i` unchanged, for any other form; read_other_number then reads it.
+// Up to 15 significant digits as an integer, then one division by a power of ten: both are
+// exact in a double, and IEEE division rounds correctly, so this is the same value std::from_chars
+// gives. (Eight bytes at a time with integer tricks was tried: more instructions, G-code's runs
+// being one to five digits.)
+inline bool read_plain_number(const char* s, std::size_t& i, double& value) {
+    std::size_t k = i;
+    const bool negative = s[k] == '-';
+    if (negative || s[k] == '+') ++k;
+    std::uint64_t mantissa = 0;  // wraps past 19 digits, which are not read here
+    const std::size_t int_start = k;
+    for (unsigned d; (d = digit_value(s[k])) <= 9; ++k) mantissa = mantissa * 10 + d;
+    std::size_t digits = k - int_start, decimals = 0;
+    if (s[k] == '.') {
+        const std::size_t frac_start = ++k;
+        for (unsigned d; (d = digit_value(s[k])) <= 9; ++k) mantissa = mantissa * 10 + d;
+        decimals = k - frac_start;
+        digits += decimals;
     }
-    count += int(i - from);
+    static constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,
+                                        1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19};
+    // The largest mantissa read here for each count of decimals: below 1e15 (exact), and at most
+    // 1e9 * 10^decimals, which holds exactly when the rounded quotient is at most 1e9 (a quotient
+    // above 1e9 is so by at least 10^-decimals, more than half its ulp). The check is on the
+    // integers, so no branch waits for the division.
+    static constexpr std::uint64_t kMost[] = {
+        1000000000ull,      10000000000ull,     100000000000ull,    1000000000000ull,   10000000000000ull,
+        100000000000000ull, 999999999999999ull, 999999999999999ull, 999999999999999ull, 999999999999999ull,
+        999999999999999ull, 999999999999999ull, 999999999999999ull, 999999999999999ull, 999999999999999ull,
+        999999999999999ull, 999999999999999ull, 999999999999999ull, 999999999999999ull, 999999999999999ull};
+    if (digits - 1 >= 19 || mantissa > kMost[decimals]) return false;  // (digits 0 wraps: not read here)
+    const double v = double(std::int64_t(mantissa)) / kPow10[decimals];  // (signed: one instruction)
+    value = negative ? -v : v;
+    i = k;
+    return true;
 }
-// Reads "[+-]digits[.digits]" or "[+-].digits" at `i`; G-code has no exponent (E is a word).
-// A letter followed by no number is a flag (has_value false); whether a flag is allowed is the
-// interpreter's call, since it depends on the command.
-double read_number(std::string_view s, std::size_t& i, char letter, std::size_t letter_index, bool& has_value) {
+
+// Any other number at `i`: "[+-]digits[.digits]" or "[+-].digits" of any length (std::from_chars),
+// out of range, or no number at all. G-code has no exponent (E is a word). A letter followed by
+// no number is a flag (has_value false); whether a flag is allowed is the interpreter's call,
+// since it depends on the command.
+double read_other_number(std::string_view s, std::size_t& i, char letter, std::size_t letter_index, bool& has_value) {
     has_value = true;
     const std::size_t start = i;
     bool negative = false;
@@ -92,29 +124,10 @@ double read_number(std::string_view s, std::size_t& i, char letter, std::size_t 
         ++i;
     }
     const std::size_t digits_start = i;
-    // Fast path: up to 15 significant digits as an integer, then one division by a power of
-    // ten; both are exact in a double, and IEEE division rounds correctly, so this is the same
-    // value std::from_chars gives. Longer numbers (more than 19 digits written, or 16 significant
-    // ones) take from_chars below, which gives the same value for any of them.
-    std::uint64_t mantissa = 0;
-    int decimals = 0, total = 0;
-    read_digits(s, i, mantissa, total);
+    while (i < s.size() && is_digit(s[i])) ++i;
     if (i < s.size() && s[i] == '.') {
         ++i;
-        read_digits(s, i, mantissa, decimals);
-        total += decimals;
-    }
-    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
-                                        1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
-    // The range check on the integers, not on the quotient, so no branch waits for the division:
-    // with at most 15 digits, mantissa <= 1e9 * 10^decimals exactly when the rounded quotient is
-    // <= 1e9 (a quotient above 1e9 is so by at least 10^-decimals, more than half its ulp).
-    static constexpr std::uint64_t kLimit[] = {1000000000ull, 10000000000ull, 100000000000ull, 1000000000000ull,
-                                               10000000000000ull, 100000000000000ull};
-    if (total > 0 && total <= 19 && mantissa < 1000000000000000ull) {
-        if (decimals < 6 && mantissa > kLimit[decimals]) fail(start, std::string("number of word ") + letter + " is out of range (limit 1e9)");
-        const double v = double(mantissa) / kPow10[decimals];
-        return negative ? -v : v;
+        while (i < s.size() && is_digit(s[i])) ++i;
     }
     const std::string_view digits = s.substr(digits_start, i - digits_start);
     if (digits.empty() || digits == ".") {
@@ -175,79 +188,106 @@ void skip_paren_comment(std::string_view s, std::size_t& i) {
     ++i;
 }
 
+// Room for more words: the room doubles, the words so far kept. `next` and `room_end` follow.
+void grow_words(Block& out, Word*& next, Word*& room_end) {
+    const std::size_t used = std::size_t(next - out.word_room.data());
+    out.word_room.resize(std::max<std::size_t>(16, 2 * out.word_room.size()));
+    next = out.word_room.data() + used;
+    room_end = out.word_room.data() + out.word_room.size();
+}
+
+constexpr std::uint32_t letter_bit(char upper_case) { return 1u << (upper_case - 'A'); }
+// Letters with checks of their own after the number: G M T are codes, N a line number.
+constexpr std::uint32_t kCheckedLetters = letter_bit('G') | letter_bit('M') | letter_bit('T') | letter_bit('N');
+
 }  // namespace
 
 void lex_line(std::string_view line, Block& out) {
-    out.words.clear();
+    out.word_count = 0;
     out.has_comment = false;
     out.percent = false;
     out.text_argument = false;
     // Non-text bytes are caught where each part of the line is read (one pass over the line).
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
 
-    std::size_t body_begin = std::string_view::npos;
-    std::size_t body_end = 0;
+    // The line is read from a copy with a NUL after it (Block::text): the scans of digits and
+    // blanks stop there, with no test of the line's end at every character. A NUL inside the line
+    // stops them too, and is then refused as a non-text byte where the line's end is tested.
+    // Words and body point into `line` itself, which outlives the copy's next use.
+    const std::size_t n = line.size();
+    if (out.text.size() < n + 1) out.text.resize(n + 1);
+    if (n > 0) std::memcpy(out.text.data(), line.data(), n);
+    out.text[n] = '\0';
+    const std::string_view s(out.text.data(), n);
+
+    Word* next = out.word_room.data();
+    Word* room_end = next + out.word_room.size();
+    std::size_t body_begin = std::string_view::npos;  // of a comment or '%' before the first word
+    std::size_t body_end = 0;                         // of a comment or '%' after the last word
     std::size_t checksum_at = std::string_view::npos;
-    bool first_word = true;
+    bool line_number_read = false;
     std::size_t i = 0;
-    while (i < line.size()) {
-        const char c = line[i];
+    for (;;) {
+        const char c = s[i];
+        if (unsigned((c | 0x20) - 'a') < 26u) {  // a letter: the common case first, a word
+            const char letter = char(c & ~0x20);  // upper case
+            const std::size_t letter_index = i++;
+            while (is_blank(s[i])) ++i;  // RS274 allows "X 10"
+            const std::size_t number_start = i;
+            bool has_value = true;
+            double value;
+            if (!read_plain_number(s.data(), i, value)) value = read_other_number(s, i, letter, letter_index, has_value);
+            // Only an E right after the number can make it ambiguous (the common case: a blank).
+            if ((s[i] | 0x20) == 'e' && has_value && !out.compact_words) check_exponent_like(s, i, letter, letter_index);
+            if (kCheckedLetters & letter_bit(letter)) {
+                if (!has_value) fail(letter_index, std::string("word ") + letter + " has no number");
+                if (letter != 'N' && !(std::abs(value) < kMaxCode))
+                    fail(letter_index, std::string("word ") + letter + " is a code, and codes are below 100000");
+                if (letter == 'N' && next == out.word_room.data() && !line_number_read) {
+                    // A leading line number belongs to the transport, not to the command.
+                    line_number_read = true;
+                    continue;
+                }
+            }
+            // (The body's end after words is found from the last word, once, at the end.)
+            if (next == room_end) grow_words(out, next, room_end);
+            *next++ = Word{.value = value, .text = std::string_view(line.data() + number_start, i - number_start),
+                           .column = std::uint32_t(letter_index + 1), .letter = letter, .has_value = has_value};
+            if (letter == 'M' && takes_text(value)) {
+                // The rest of the line is the argument, passed on as it is; only a trailing
+                // *checksum still belongs to the transport.
+                out.text_argument = true;
+                body_end = n;
+                check_text(s, i);
+                const std::size_t star = s.rfind('*');
+                if (star != std::string_view::npos && star >= i) {
+                    std::size_t k = star + 1;
+                    while (k < n && is_digit(s[k])) ++k;
+                    const bool digits = k > star + 1;
+                    while (k < n && is_blank(s[k])) ++k;
+                    if (digits && k == n) checksum_at = star;
+                }
+                break;
+            }
+            if (s[i] == ' ') ++i;  // the common separator, skipped at once
+            continue;
+        }
         if (is_blank(c)) {
             ++i;
             continue;
         }
-        if (is_alpha(c)) {  // the common case first: a word
-            const char letter = upper(c);
-            const std::size_t letter_index = i++;
-            while (i < line.size() && is_blank(line[i])) ++i;  // RS274 allows "X 10"
-            bool has_value = true;
-            const std::size_t number_start = i;
-            const double value = read_number(line, i, letter, letter_index, has_value);
-            // Only an E right after the number can make it ambiguous (the common case: a blank).
-            if (has_value && !out.compact_words && i < line.size() && (line[i] == 'E' || line[i] == 'e'))
-                check_exponent_like(line, i, letter, letter_index);
-            const bool code = letter == 'G' || letter == 'M' || letter == 'T';
-            if ((code || letter == 'N') && !has_value) fail(letter_index, std::string("word ") + letter + " has no number");
-            if (code && !(std::abs(value) < kMaxCode))
-                fail(letter_index, std::string("word ") + letter + " is a code, and codes are below 100000");
-            if (letter == 'N' && first_word) {
-                // A leading line number belongs to the transport, not to the command.
-                first_word = false;
-                continue;
-            }
-            first_word = false;
-            if (body_begin == std::string_view::npos) body_begin = letter_index;
-            body_end = i;
-            out.words.push_back(Word{letter, value, std::uint32_t(letter_index + 1), has_value, line.substr(number_start, i - number_start)});
-            if (letter == 'M' && takes_text(letter, value)) {
-                // The rest of the line is the argument, passed on as it is; only a trailing
-                // *checksum still belongs to the transport.
-                out.text_argument = true;
-                body_end = line.size();
-                check_text(line, i);
-                const std::size_t star = line.rfind('*');
-                if (star != std::string_view::npos && star >= i) {
-                    std::size_t k = star + 1;
-                    while (k < line.size() && is_digit(line[k])) ++k;
-                    const bool digits = k > star + 1;
-                    while (k < line.size() && is_blank(line[k])) ++k;
-                    if (digits && k == line.size()) checksum_at = star;
-                }
-                break;
-            }
-            continue;
-        }
+        if (i >= n) break;  // the NUL after the line
         if (c == ';') {
             out.has_comment = true;
             if (body_begin == std::string_view::npos) body_begin = i;
-            body_end = line.size();
-            check_text(line, i);
+            body_end = n;
+            check_text(s, i);
             break;
         }
         if (c == '(') {
             out.has_comment = true;
             if (body_begin == std::string_view::npos) body_begin = i;
-            skip_paren_comment(line, i);
+            skip_paren_comment(s, i);
             body_end = i;
             continue;
         }
@@ -258,18 +298,18 @@ void lex_line(std::string_view line, Block& out) {
             const std::size_t star = i++;
             checksum_at = star;
             const std::size_t digits = i;
-            while (i < line.size() && is_digit(line[i])) ++i;
+            while (i < n && is_digit(s[i])) ++i;
             if (i == digits) fail(star, "checksum '*' has no number");
-            while (i < line.size() && is_blank(line[i])) ++i;
-            check_text(line, i);
-            if (i < line.size() && line[i] != ';' && line[i] != '(') fail(i, "text after the checksum");
+            while (i < n && is_blank(s[i])) ++i;
+            check_text(s, i);
+            if (i < n && s[i] != ';' && s[i] != '(') fail(i, "text after the checksum");
             continue;
         }
-        if (c == '%' && out.words.empty()) {
+        if (c == '%' && next == out.word_room.data()) {
             std::size_t j = i + 1;
-            while (j < line.size() && is_blank(line[j])) ++j;
-            if (j == line.size() || line[j] == ';' || line[j] == '(') {
-                check_text(line, j);
+            while (j < n && is_blank(s[j])) ++j;
+            if (j == n || s[j] == ';' || s[j] == '(') {
+                check_text(s, j);
                 out.percent = true;
                 if (body_begin == std::string_view::npos) body_begin = i;
                 body_end = i + 1;
@@ -280,6 +320,13 @@ void lex_line(std::string_view line, Block& out) {
         if (c == '#' || c == '[' || c == ']' || c == '=' || c == '<' || c == '>')
             fail(i, std::string("unexpected '") + c + "': parameters and expressions are not supported");
         fail(i, std::string("unexpected character '") + c + "'");
+    }
+    out.word_count = std::size_t(next - out.word_room.data());
+    if (out.word_count > 0) {
+        // The body begins at the first word or earlier comment, and ends at the last word or later comment.
+        body_begin = std::min<std::size_t>(body_begin, out.word_room[0].column - 1);
+        const std::string_view last = next[-1].text;
+        body_end = std::max<std::size_t>(body_end, std::size_t(last.data() + last.size() - line.data()));
     }
     if (body_begin == std::string_view::npos) {
         out.body = {};
@@ -294,7 +341,7 @@ void lex_line(std::string_view line, Block& out) {
     std::string_view body = line.substr(body_begin, body_end - body_begin);
     while (!body.empty() && is_blank(body.back())) body.remove_suffix(1);
     out.body = body;
-    if (out.words.empty() && out.has_comment && !out.percent && declares_compact(body)) out.compact_words = true;
+    if (out.word_count == 0 && out.has_comment && !out.percent && declares_compact(body)) out.compact_words = true;
 }
 
 }  // namespace xlate5

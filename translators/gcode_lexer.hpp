@@ -1,22 +1,27 @@
 // The lexer stage, after the line reader: one line of text -> a Block of words. Knows G-code
 // syntax, nothing of its meaning. May call: number parsing.
 #pragma once
+#include <cstddef>
 #include <cstdint>
+#include <span>
 #include <string_view>
 #include <vector>
 
 namespace xlate5 {
 
+// (The fields in this order make a word 32 bytes, not 40: words are copied and stored often.)
 struct Word {
-    char letter;             // upper case
     double value;            // NaN when the word has no number (a flag such as "G28 X")
-    std::uint32_t column;    // 1-based column of the letter, for error messages
-    bool has_value;          // false for a flag or a quoted string argument (P"file.g")
     std::string_view text;   // the number as written (valid while the line is), to pass E on verbatim
+    std::uint32_t column;    // 1-based column of the letter, for error messages
+    char letter;             // upper case
+    bool has_value;          // false for a flag or a quoted string argument (P"file.g")
 };
 
 struct Block {
-    std::vector<Word> words;  // in line order; the leading N word and the *checksum are not here
+    // In line order; the leading N word and the *checksum are not here. Valid until the next
+    // lex_line on this block.
+    std::span<const Word> words() const { return {word_room.data(), word_count}; }
     std::string_view body;    // the line without N word, checksum, line end and surrounding blanks
     bool has_comment = false;
     bool percent = false;     // a lone '%' (program delimiter of CNC files)
@@ -25,7 +30,14 @@ struct Block {
     // an integer is read as two words. Unlike the flags above it is kept from line to line (a
     // file's dialect); lex_line only ever sets it.
     bool compact_words = false;
-    bool empty() const { return words.empty(); }
+    bool empty() const { return word_count == 0; }
+
+    // The lexer's storage, kept from line to line so that a line allocates nothing: the words
+    // (the first word_count of word_room) and a copy of the line with a NUL after it, where the
+    // scans of digits and blanks stop without testing the line's end at every character.
+    std::vector<Word> word_room;
+    std::size_t word_count = 0;
+    std::vector<char> text;
 };
 
 // Largest magnitude accepted for any number: far beyond any machine, small enough that every

@@ -56,7 +56,7 @@ bool Interpreter::is_axis_letter(char c) const {
 void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& out, const LineState* before) {
     try {
         lex_line(line, block_);
-        if (block_.words.empty()) {
+        if (block_.empty()) {
             append_wordless(out, line, block_);
             return;
         }

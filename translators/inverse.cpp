@@ -53,7 +53,7 @@ void InverseTranslator::feed(std::string_view line, std::uint64_t line_no, std::
     line_no_ = line_no;
     try {
         lex_line(line, block_);
-        if (block_.words.empty()) {
+        if (block_.empty()) {
             append_wordless(out, line, block_);
             return;
         }

@@ -163,7 +163,7 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
     // Letters seen so far, one bit each (the lexer gives upper case A to Z).
     std::uint32_t seen = 0;
     bool tool_word_is_param = false;
-    for (const Word& w : block.words) {
+    for (const Word& w : block.words()) {
         if (w.letter == 'G' || w.letter == 'M' || (w.letter == 'T' && !tool_word_is_param)) {
             if (out.count == LineCommands::kMax) throw LineError(w.column, "more than 16 commands on one line");
             // The code times ten, rounded half away from zero (the lexer keeps codes below 1e5,
