@@ -1,6 +1,7 @@
 // The stages the front door wires together, each driven on its own: arcs -> chords (against the
 // circle through RS274's centre rules), the compensation stage (against interpolation done here),
-// and the limit policy (every answer checked through FK and the machine's limits).
+// the limit policy (every answer checked through FK and the machine's limits), and command
+// reading and line plans (the words each command takes).
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -12,7 +13,10 @@
 #include "translators/arcs.hpp"
 #include "translators/compensation.hpp"
 #include "translators/joint_limits.hpp"
+#include "translators/error.hpp"
+#include "translators/gcode_lexer.hpp"
 #include "translators/kinematics.hpp"
+#include "translators/line_commands.hpp"
 #include "translators/machine.hpp"
 
 using namespace xlate5;
@@ -204,4 +208,100 @@ TEST_CASE("limit policy: within the limits, on a branch, or continuous whatever 
         CHECK(orient_on_branch(m, rot, sols, 2, prev, prev, b0).status == IkStatus::Unreachable);
     }
     CHECK(outside_continuous > 0);  // the case the planner's policy is for did occur
+}
+
+namespace {
+
+// The params read, as "X1 E2" (letters and whole values).
+std::string params_of(const LineCommands& c) {
+    std::string out;
+    for (const Param& p : c.params) out += (out.empty() ? "" : " ") + std::string(1, p.letter) + std::to_string(int(p.value));
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("command reading: the params are the words after the commands, as written, or rewritten where they must be") {
+    Block b;
+    LineCommands c;
+    // The common line: the params are the block's own words.
+    lex_line("G1 X1 Y2 E3", b);
+    read_commands(b, 'E', c);
+    REQUIRE(c.count == 1);
+    CHECK(c.params.data() == b.words().data() + 1);
+    CHECK(params_of(c) == "X1 Y2 E3");
+    CHECK(c.letters == ((1u << ('X' - 'A')) | (1u << ('Y' - 'A')) | (1u << ('E' - 'A'))));
+    // A command after a word: the words keep their order around it.
+    lex_line("X1 G1 Y2 M3 S5", b);
+    read_commands(b, 'E', c);
+    CHECK(c.count == 2);
+    CHECK(params_of(c) == "X1 Y2 S5");
+    CHECK(c.params[0].column == 1);
+    CHECK(c.params[2].column == 13);
+    // The extrusion letter read as E, wherever it is; E itself then refused.
+    lex_line("G1 X1 A2 Y3", b);
+    read_commands(b, 'A', c);
+    CHECK(params_of(c) == "X1 E2 Y3");
+    CHECK(c.params[1].column == 7);
+    CHECK(c.params[1].text == "2");
+    CHECK(b.words()[2].letter == 'A');  // the block's word is left as it was
+    lex_line("G1 X1 E2", b);
+    CHECK_THROWS_AS(read_commands(b, 'A', c), LineError);
+    // G43.4 H: the register word is dropped.
+    lex_line("G43.4 H1 G1 X2", b);
+    read_commands(b, 'E', c);
+    CHECK(params_of(c) == "X2");
+    // M104's T names a tool: a param, not a command.
+    lex_line("M104 T1 S200", b);
+    read_commands(b, 'E', c);
+    CHECK(c.count == 1);
+    CHECK(params_of(c) == "T1 S200");
+    CHECK(c.params.data() == b.words().data() + 1);
+    // A word twice, counted after the extrusion letter is read as E.
+    lex_line("G1 X1 Y2 X3", b);
+    try {
+        read_commands(b, 'E', c);
+        FAIL("no error");
+    } catch (const LineError& e) {
+        CHECK(e.column() == 10);
+    }
+    lex_line("G1 A1 E2", b);
+    CHECK_THROWS_AS(read_commands(b, 'A', c), LineError);
+}
+
+TEST_CASE("line plan: a motion command takes the line's words as they are; S, or no motion command, plans otherwise") {
+    Block b;
+    LineCommands c;
+    LinePlan plan;
+    auto planned = [&](const char* line, int motion) {
+        lex_line(line, b);
+        read_commands(b, 'E', c);
+        plan_line(c, motion, "XYZIJKEFAB", "XYZAB", plan);
+    };
+    planned("G1 X1 Y2 F300", -1);
+    REQUIRE(plan.count == 1);
+    CHECK(plan.steps[0].command.code10 == 10);
+    CHECK(plan.steps[0].verbatim);
+    CHECK(plan.steps[0].words.data() == c.params.data());
+    CHECK(plan.steps[0].words.size() == 3);
+    // No motion command: the modal motion takes the words, not verbatim; none in effect is an error.
+    planned("X1 Y2", 0);
+    REQUIRE(plan.count == 1);
+    CHECK(plan.steps[0].command.code10 == 0);
+    CHECK_FALSE(plan.steps[0].verbatim);
+    CHECK(plan.steps[0].words.size() == 2);
+    CHECK_THROWS_AS(planned("X1 Y2", -1), LineError);
+    // S with a move: the move keeps its words and S goes on a line of its own.
+    planned("G1 X1 S200", -1);
+    REQUIRE(plan.count == 2);
+    CHECK(plan.steps[0].command.letter == 'S');
+    CHECK(plan.steps[0].words.size() == 1);
+    CHECK(plan.steps[1].command.code10 == 10);
+    REQUIRE(plan.steps[1].words.size() == 1);
+    CHECK(plan.steps[1].words[0].letter == 'X');
+    // S alone is passed on as written.
+    planned("S100", 1);
+    REQUIRE(plan.count == 1);
+    CHECK(plan.steps[0].command.letter == 'S');
+    CHECK(plan.steps[0].verbatim);
 }

@@ -21,6 +21,11 @@ std::string plane_orientation_error(const WorkPlane& plane) {
            ") are ambiguous: the tool axis there is the plane's +Z (G53.1); cancel the plane with G69 to orient the tool";
 }
 
+// A word of an arc's chord, computed here: its text only where the input's number is passed on.
+Param chord_word(char letter, double value, std::uint32_t column, std::string_view text = {}) {
+    return {.value = value, .text = text, .column = column, .letter = letter, .has_value = true};
+}
+
 }  // namespace
 
 Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner& planner, std::string input_name,
@@ -76,8 +81,8 @@ void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& ou
     try {
         for (std::size_t i = 0; i < plan_.count; ++i) {
             const LineStep& step = plan_.steps[i];
-            if (step.command.modal_only()) apply_modal(step.command.code10, *step.words, out);
-            else run_command(step.command, block_.body, step.verbatim, *step.words, run, out);
+            if (step.command.modal_only()) apply_modal(step.command.code10, step.words, out);
+            else run_command(step.command, block_.body, step.verbatim, step.words, run, out);
         }
     } catch (...) {
         // Nothing of a failed line stays: output, joints, pose, modes. What the firmware was
@@ -93,7 +98,7 @@ void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& ou
     }
 }
 
-void Interpreter::apply_modal(int code10, const Params& words, std::string& out) {
+void Interpreter::apply_modal(int code10, Params words, std::string& out) {
     ModalState& m = state_.modal;
     switch (code10) {
         case 200:
@@ -144,7 +149,7 @@ void Interpreter::apply_modal(int code10, const Params& words, std::string& out)
     }
 }
 
-void Interpreter::run_command(const CommandWord& c, std::string_view body, bool alone, const Params& words, LineRun& run,
+void Interpreter::run_command(const CommandWord& c, std::string_view body, bool alone, Params words, LineRun& run,
                               std::string& out) {
     ModalState& m = state_.modal;
     if (pass_non_g(c, body, alone, words, m.modes, out)) return;
@@ -208,7 +213,7 @@ void Interpreter::track_extrusion(const std::optional<PassedNumber>& e) {
     modes.e_position = modes.e_relative ? modes.e_position + e->value : e->value;
 }
 
-void Interpreter::tool_move(int gcode, std::uint32_t column, const Params& words, bool absolute, bool inches, LineRun& run,
+void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool absolute, bool inches, LineRun& run,
                             std::string& out) {
     ModalState& m = state_.modal;
     const PlannerState& at = state_.planner;
@@ -303,7 +308,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, const Params& words
 // along the plane's normal, P full turns) is cut into chords within half the tolerance in tool
 // space, the other half left for the motion stage's split; each chord is then a move like any
 // other. Under G43.4 rotary words turn linearly along the arc.
-void Interpreter::arc(bool clockwise, std::uint32_t column, const Params& words, LineRun& run, std::string& out) {
+void Interpreter::arc(bool clockwise, std::uint32_t column, Params words, LineRun& run, std::string& out) {
     ModalState& m = state_.modal;
     const Modes saved = m.modes;
     const double unit = saved.unit();
@@ -364,19 +369,19 @@ void Interpreter::arc(bool clockwise, std::uint32_t column, const Params& words,
         const double f = double(k) / chords;
         const Eigen::Vector3d& p = chord_ends_[std::size_t(k - 1)];
         chord_words_.clear();
-        for (int i = 0; i < 3; ++i) chord_words_.push_back({char('X' + i), p[i], column, true, {}});
+        for (int i = 0; i < 3; ++i) chord_words_.push_back(chord_word(char('X' + i), p[i], column));
         for (const Param& rw : rotary_words_) {
             const int j = machine_.joint_index(rw.letter);
             const double target = saved.absolute ? number(rw) : q_start[std::size_t(j)] + number(rw);
-            chord_words_.push_back({rw.letter, q_start[std::size_t(j)] + (target - q_start[std::size_t(j)]) * f, column, true, {}});
+            chord_words_.push_back(chord_word(rw.letter, q_start[std::size_t(j)] + (target - q_start[std::size_t(j)]) * f, column));
         }
         if (e_word) {
             double v;
             if (saved.e_relative) v = e_total / chords;  // equal chords: equal shares
             else v = e0 + (e_total - e0) * f;
             const bool last = k == chords;
-            chord_words_.push_back({'E', last && !saved.e_relative ? number(*e_word) * unit : v, e_word->column, true,
-                                    last && !saved.e_relative && !saved.inches ? e_word->text : std::string_view{}});
+            chord_words_.push_back(chord_word('E', last && !saved.e_relative ? number(*e_word) * unit : v, e_word->column,
+                                              last && !saved.e_relative && !saved.inches ? e_word->text : std::string_view{}));
         }
         if (f_word && k == 1) chord_words_.push_back(*f_word);
         if (f_word && k == 1 && saved.inches) chord_words_.back().value *= 25.4, chord_words_.back().text = {};
@@ -390,7 +395,7 @@ void Interpreter::arc(bool clockwise, std::uint32_t column, const Params& words,
     m.modes.motion = clockwise ? 2 : 3;
 }
 
-void Interpreter::joint_move(int gcode, const Params& words, std::string& out) {
+void Interpreter::joint_move(int gcode, Params words, std::string& out) {
     const Modes& modes = state_.modal.modes;
     const std::vector<double>& q = state_.planner.q;
     const double unit = modes.unit();
@@ -432,7 +437,7 @@ void Interpreter::joint_move(int gcode, const Params& words, std::string& out) {
     track_extrusion(e);
 }
 
-void Interpreter::set_position(const Params& words, std::string_view body, std::string& out) {
+void Interpreter::set_position(Params words, std::string_view body, std::string& out) {
     if (words.empty()) {
         append_passthrough(out, 'G', 920, body, true, words);
         return;
@@ -478,7 +483,7 @@ void Interpreter::set_position(const Params& words, std::string_view body, std::
     planner_.send_position(which_, e, out);
 }
 
-void Interpreter::home(const Params& words, std::string& out) {
+void Interpreter::home(Params words, std::string& out) {
     which_.assign(state_.planner.q.size(), words.empty());
     for (const Param& p : words) {
         const int j = machine_.joint_index(p.letter);
@@ -510,7 +515,7 @@ Eigen::Vector3d Interpreter::part_from_input(const Eigen::Vector3d& p) const {
 // degrees, each 0 when not given (LinuxCNC 2.9's P0 Q313, the only form read). G53.1 turns the
 // tool to the plane's +Z about the tip held still (a rapid under tool-centre-point control).
 // G69 cancels the plane; the tool stays where it is. None of them is sent to the firmware.
-void Interpreter::work_plane_command(const CommandWord& c, const Params& words, LineRun& run, std::string& out) {
+void Interpreter::work_plane_command(const CommandWord& c, Params words, LineRun& run, std::string& out) {
     ModalState& m = state_.modal;
     WorkPlane& plane = m.plane;
     const std::string code = c.code10 == 682 ? "G68.2" : c.code10 == 531 ? "G53.1" : "G69";

@@ -66,18 +66,18 @@ private:
     [[noreturn]] void no_number(const Param& p) const;
     PassedNumber passed(const Param& p, bool inches) const;  // E or F, in mm
     bool is_axis_letter(char c) const;
-    void apply_modal(int code10, const Params& words, std::string& out);
-    void run_command(const CommandWord& c, std::string_view body, bool alone, const Params& words, LineRun& run, std::string& out);
+    void apply_modal(int code10, Params words, std::string& out);
+    void run_command(const CommandWord& c, std::string_view body, bool alone, Params words, LineRun& run, std::string& out);
     // A tool-space move; `absolute` and `inches` say how to read its words (an arc's chords are
     // absolute millimetres whatever the modes).
-    void tool_move(int gcode, std::uint32_t column, const Params& words, bool absolute, bool inches, LineRun& run, std::string& out);
-    void arc(bool clockwise, std::uint32_t column, const Params& words, LineRun& run, std::string& out);
-    void joint_move(int gcode, const Params& words, std::string& out);
-    void set_position(const Params& words, std::string_view body, std::string& out);
-    void home(const Params& words, std::string& out);
+    void tool_move(int gcode, std::uint32_t column, Params words, bool absolute, bool inches, LineRun& run, std::string& out);
+    void arc(bool clockwise, std::uint32_t column, Params words, LineRun& run, std::string& out);
+    void joint_move(int gcode, Params words, std::string& out);
+    void set_position(Params words, std::string_view body, std::string& out);
+    void home(Params words, std::string& out);
     void track_extrusion(const std::optional<PassedNumber>& e);
     // G68.2 (define a tilted plane), G53.1 (turn the tool to its +Z), G69 (cancel).
-    void work_plane_command(const CommandWord& c, const Params& words, LineRun& run, std::string& out);
+    void work_plane_command(const CommandWord& c, Params words, LineRun& run, std::string& out);
     // The current tip in the frame the input's X Y Z are read in: the program frame, or inside a
     // tilted plane the plane's; and back to the part frame.
     Eigen::Vector3d input_frame_tip() const;
@@ -97,7 +97,7 @@ private:
     // Scratch reused line after line (no allocation on the hot path).
     std::vector<double> angles_, joints_, arc_angles_;
     std::vector<bool> commanded_, which_;
-    Params chord_words_, rotary_words_;
+    ParamList chord_words_, rotary_words_;
     std::vector<Eigen::Vector3d> chord_ends_;
 };
 

@@ -67,8 +67,8 @@ void InverseTranslator::feed(std::string_view line, std::uint64_t line_no, std::
     try {
         for (std::size_t i = 0; i < plan_.count; ++i) {
             const LineStep& step = plan_.steps[i];
-            if (step.command.modal_only()) apply_modal(step.command.code10, step.command.column, *step.words, out);
-            else run_command(step.command, block_.body, step.verbatim, *step.words, out);
+            if (step.command.modal_only()) apply_modal(step.command.code10, step.command.column, step.words, out);
+            else run_command(step.command, block_.body, step.verbatim, step.words, out);
         }
     } catch (const LineError& e) {  // a value that cannot be written, from the tool emitter
         out.resize(out_start);
@@ -81,7 +81,7 @@ void InverseTranslator::feed(std::string_view line, std::uint64_t line_no, std::
     }
 }
 
-void InverseTranslator::apply_modal(int code10, std::uint32_t column, const Params& words, std::string& out) {
+void InverseTranslator::apply_modal(int code10, std::uint32_t column, Params words, std::string& out) {
     Modes& modes = state_.modes;
     switch (code10) {
         case 200:
@@ -121,7 +121,7 @@ void InverseTranslator::apply_modal(int code10, std::uint32_t column, const Para
     }
 }
 
-void InverseTranslator::run_command(const CommandWord& c, std::string_view body, bool alone, const Params& words, std::string& out) {
+void InverseTranslator::run_command(const CommandWord& c, std::string_view body, bool alone, Params words, std::string& out) {
     Modes& modes = state_.modes;
     if (pass_non_g(c, body, alone, words, modes, out)) return;
     switch (c.code10) {
@@ -147,7 +147,7 @@ void InverseTranslator::run_command(const CommandWord& c, std::string_view body,
     }
 }
 
-void InverseTranslator::move(int gcode, const Params& words, std::string& out) {
+void InverseTranslator::move(int gcode, Params words, std::string& out) {
     Modes& modes = state_.modes;
     const double unit = modes.unit();
     std::optional<PassedNumber> e, f;
@@ -182,7 +182,7 @@ void InverseTranslator::move(int gcode, const Params& words, std::string& out) {
     if (e) modes.e_position = modes.e_relative ? modes.e_position + e->value : e->value;
 }
 
-void InverseTranslator::set_position(const Params& words, std::string_view body, std::string& out) {
+void InverseTranslator::set_position(Params words, std::string_view body, std::string& out) {
     if (words.empty()) {
         append_passthrough(out, 'G', 920, body, true, words);
         return;
@@ -222,7 +222,7 @@ void InverseTranslator::set_position(const Params& words, std::string_view body,
     emitter_.invalidate();
 }
 
-void InverseTranslator::home(const Params& words, std::string& out) {
+void InverseTranslator::home(Params words, std::string& out) {
     std::vector<bool> which(state_.q.size(), words.empty());
     for (const Param& p : words) {
         const int j = joint_of(p.letter);

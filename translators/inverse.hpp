@@ -46,11 +46,11 @@ private:
     double number(const Param& p) const;
     PassedNumber passed(const Param& p) const;
     int joint_of(char letter) const;  // the joint the firmware knows by this letter, or -1
-    void apply_modal(int code10, std::uint32_t column, const Params& words, std::string& out);
-    void run_command(const CommandWord& c, std::string_view body, bool alone, const Params& words, std::string& out);
-    void move(int gcode, const Params& words, std::string& out);
-    void set_position(const Params& words, std::string_view body, std::string& out);
-    void home(const Params& words, std::string& out);
+    void apply_modal(int code10, std::uint32_t column, Params words, std::string& out);
+    void run_command(const CommandWord& c, std::string_view body, bool alone, Params words, std::string& out);
+    void move(int gcode, Params words, std::string& out);
+    void set_position(Params words, std::string_view body, std::string& out);
+    void home(Params words, std::string& out);
 
     const Kinematics& kin_;
     const Machine& machine_;

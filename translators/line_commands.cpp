@@ -130,7 +130,7 @@ void append_wordless(std::string& out, std::string_view line, const Block& block
     }
 }
 
-bool pass_non_g(const CommandWord& c, std::string_view body, bool alone, const Params& words, Modes& modes, std::string& out) {
+bool pass_non_g(const CommandWord& c, std::string_view body, bool alone, Params words, Modes& modes, std::string& out) {
     if (c.letter == 'G') return false;
     if (c.letter == 'M' && c.code10 == 820) modes.e_relative = false;
     if (c.letter == 'M' && c.code10 == 830) modes.e_relative = true;
@@ -139,7 +139,7 @@ bool pass_non_g(const CommandWord& c, std::string_view body, bool alone, const P
     return true;
 }
 
-void append_passthrough(std::string& out, char letter, int code10, std::string_view body, bool alone, const Params& params) {
+void append_passthrough(std::string& out, char letter, int code10, std::string_view body, bool alone, Params params) {
     if (alone) {
         out += body;
         out += '\n';
@@ -158,12 +158,23 @@ void append_passthrough(std::string& out, char letter, int code10, std::string_v
 
 void read_commands(const Block& block, char extruder_letter, LineCommands& out) {
     out.count = 0;
-    out.params.clear();
     out.has_owner = false;
-    // Letters seen so far, one bit each (the lexer gives upper case A to Z).
+    const std::span<const Word> words = block.words();
+    // Letters seen so far, one bit each (the lexer gives upper case A to Z, and the extrusion
+    // letter is read as E).
     std::uint32_t seen = 0;
     bool tool_word_is_param = false;
-    for (const Word& w : block.words()) {
+    // The params are the block's words after its commands, taken as they are, as long as the
+    // commands all come first and no word is changed; else they are copied to `rewritten`, the
+    // words so far (all of them after the commands) when the first reason is met.
+    bool view = true;
+    auto stop_viewing = [&](std::size_t at) {
+        if (!view) return;
+        view = false;
+        out.rewritten.assign(words.begin() + std::ptrdiff_t(out.count), words.begin() + std::ptrdiff_t(at));
+    };
+    for (std::size_t k = 0; k < words.size(); ++k) {
+        const Word& w = words[k];
         if (w.letter == 'G' || w.letter == 'M' || (w.letter == 'T' && !tool_word_is_param)) {
             if (out.count == LineCommands::kMax) throw LineError(w.column, "more than 16 commands on one line");
             // The code times ten, rounded half away from zero (the lexer keeps codes below 1e5,
@@ -171,36 +182,42 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
             const double scaled = w.value * 10.0;
             const long long code10 = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
             if (std::abs(scaled - double(code10)) > 1e-6) throw LineError(w.column, std::string("command ") + w.letter + " has more than one decimal");
+            if (k != out.count) stop_viewing(k);  // a command after a word
             out.commands[out.count++] = {w.letter, int(code10), w.column};
             tool_word_is_param = w.letter == 'M' && m_takes_tool(out.commands[out.count - 1].code10);
             continue;
         }
         char letter = w.letter;
-        if (letter == extruder_letter) letter = 'E';
-        else if (letter == 'E' && extruder_letter != 'E')
-            throw LineError(w.column, std::string("word E on a file whose extrusion letter is ") + extruder_letter);
-        bool twice = false;
-        if (letter >= 'A' && letter <= 'Z') {
-            const std::uint32_t bit = 1u << (letter - 'A');
-            twice = (seen & bit) != 0;
-            seen |= bit;
-        } else {
-            for (const auto& p : out.params) twice = twice || p.letter == letter;
+        if (extruder_letter != 'E') {
+            if (letter == extruder_letter) {
+                letter = 'E';
+                stop_viewing(k);
+            } else if (letter == 'E') {
+                throw LineError(w.column, std::string("word E on a file whose extrusion letter is ") + extruder_letter);
+            }
         }
-        if (twice) throw LineError(w.column, std::string("word ") + w.letter + " appears twice on this line");
-        out.params.push_back({letter, w.value, w.column, w.has_value, w.text});
+        const std::uint32_t bit = 1u << (letter - 'A');
+        if (seen & bit) throw LineError(w.column, std::string("word ") + w.letter + " appears twice on this line");
+        seen |= bit;
+        if (!view) {
+            out.rewritten.push_back(w);
+            out.rewritten.back().letter = letter;
+        }
     }
 
     // G43.4/G43.5 H<n>: the tool length offset register of ISO controls. The tool length is the
     // machine file's, so the word is accepted and not used.
-    for (std::size_t i = 0; i < out.count; ++i) {
+    for (std::size_t i = 0; i < out.count && (seen & (1u << ('H' - 'A'))); ++i) {
         if (out.commands[i].letter != 'G' || (out.commands[i].code10 != 434 && out.commands[i].code10 != 435)) continue;
-        for (auto it = out.params.begin(); it != out.params.end(); ++it)
+        stop_viewing(words.size());
+        for (auto it = out.rewritten.begin(); it != out.rewritten.end(); ++it)
             if (it->letter == 'H') {
-                out.params.erase(it);
+                out.rewritten.erase(it);
                 break;
             }
     }
+    out.params = view ? words.subspan(out.count) : Params(out.rewritten);
+    out.letters = seen;
 
     // RS274's order of execution. (Insertion sort, stable: a line has a handful of commands,
     // and std::stable_sort would allocate.)
@@ -215,20 +232,37 @@ namespace {
 
 bool has_letter(std::string_view letters, char c) { return letters.find(c) != std::string_view::npos; }
 
-void add_step(LinePlan& out, const CommandWord& c, const Params& words, bool verbatim) {
+void add_step(LinePlan& out, const CommandWord& c, Params words, bool verbatim) {
     // In order of execution; stable among equals (the commands arrive sorted).
     std::size_t k = out.count++;
     for (; k > 0 && execution_rank(out.steps[k - 1].command) > execution_rank(c); --k) out.steps[k] = out.steps[k - 1];
-    out.steps[k] = {c, &words, verbatim};
+    out.steps[k] = {c, words, verbatim};
+}
+
+// The motion in effect takes the words of a line that has no command to take them.
+void add_modal_motion(LinePlan& out, int motion, Params words) {
+    if (motion < 0) throw LineError(words.front().column, "axis words without a motion command (G0 or G1)");
+    add_step(out, {'G', motion * 10, words.front().column}, words, false);
 }
 
 }  // namespace
 
 void plan_line(const LineCommands& line, int motion, std::string_view move_letters, std::string_view position_letters, LinePlan& out) {
     out.count = 0;
+    const Params words = line.params;
+    const bool any_speed = (line.letters & (1u << ('S' - 'A'))) != 0;
+    // The bulk of a program, planned at once: a line of one motion command, or of none (the
+    // modal motion), with no S (which a move leaves to a line of its own).
+    if (!any_speed && line.count == 1 && is_motion_code(line.commands[0])) {
+        add_step(out, line.commands[0], words, true);
+        return;
+    }
+    if (!any_speed && line.count == 0 && !words.empty()) {
+        add_modal_motion(out, motion, words);
+        return;
+    }
     out.move_words.clear();
     out.speed.clear();
-    const Params& words = line.params;
 
     // A lone S (spindle speed, laser power) is passed on as written.
     bool all_speed = line.count == 0 && !words.empty();
@@ -255,8 +289,6 @@ void plan_line(const LineCommands& line, int motion, std::string_view move_lette
     const int arc_motion = motion_cmd >= 0 ? line.commands[motion_cmd].code10 / 10 : motion;
     const bool arc = arc_motion == 2 || arc_motion == 3;
     auto is_move_word = [&](char c) { return has_letter(move_letters, c) || (arc && (c == 'R' || c == 'P')); };
-    bool any_speed = false;
-    for (const auto& p : words) any_speed = any_speed || p.letter == 'S';
     // A motion command moves whatever its words; the letters are looked up only without one.
     bool moves = motion_cmd >= 0;
     for (std::size_t k = 0; !moves && k < words.size(); ++k) moves = is_move_word(words[k].letter);
@@ -280,11 +312,8 @@ void plan_line(const LineCommands& line, int motion, std::string_view move_lette
                     }
         }
         for (std::size_t i = 0; i < line.count; ++i)
-            add_step(out, line.commands[i], line.commands[i].modal_only() ? out.none : words, line.alone());
-        if (!line.has_owner && !words.empty()) {
-            if (motion < 0) throw LineError(words.front().column, "axis words without a motion command (G0 or G1)");
-            add_step(out, {'G', motion * 10, words.front().column}, words, false);
-        }
+            add_step(out, line.commands[i], line.commands[i].modal_only() ? Params{} : words, line.alone());
+        if (!line.has_owner && !words.empty()) add_modal_motion(out, motion, words);
         return;
     }
 
@@ -316,15 +345,12 @@ void plan_line(const LineCommands& line, int motion, std::string_view move_lette
     }
     for (std::size_t i = 0; i < line.count; ++i) {
         const CommandWord& c = line.commands[i];
-        if (c.modal_only()) add_step(out, c, out.none, false);
+        if (c.modal_only()) add_step(out, c, {}, false);
         else if (c.letter == 'G') add_step(out, c, out.move_words, false);
-        else add_step(out, c, c.letter == 'M' ? out.code_words[i] : out.none, false);
+        else add_step(out, c, c.letter == 'M' ? Params(out.code_words[i]) : Params{}, false);
     }
     if (!out.speed.empty()) add_step(out, {'S', 0, out.speed.front().column}, out.speed, false);
-    if (motion_cmd < 0 && !out.move_words.empty()) {
-        if (motion < 0) throw LineError(out.move_words.front().column, "axis words without a motion command (G0 or G1)");
-        add_step(out, {'G', motion * 10, out.move_words.front().column}, out.move_words, false);
-    }
+    if (motion_cmd < 0 && !out.move_words.empty()) add_modal_motion(out, motion, out.move_words);
 }
 
 }  // namespace xlate5

@@ -5,6 +5,7 @@
 #pragma once
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -14,15 +15,13 @@
 
 namespace xlate5 {
 
-// A parameter word of a line (X, E, F, I ...), the extrusion letter already read as E.
-struct Param {
-    char letter;
-    double value;
-    std::uint32_t column;
-    bool has_value;
-    std::string_view text;  // the number as written (valid while the line is)
-};
-using Params = std::vector<Param>;
+// A parameter word of a line (X, E, F, I ...), the extrusion letter already read as E: a word
+// as the lexer gives it.
+using Param = Word;
+// A line's parameter words, or a command's: a view of the lexer's words where they can be taken
+// as they are, else of a list rewritten from them (ParamList).
+using Params = std::span<const Param>;
+using ParamList = std::vector<Param>;
 
 // G codes that only set a mode and take no words.
 bool is_modal_only(int code10);
@@ -41,13 +40,18 @@ struct LineCommands {
     static constexpr std::size_t kMax = 16;
     CommandWord commands[kMax];
     std::size_t count = 0;     // in RS274's order of execution (execution_rank), stable
-    Params params;
+    Params params;             // the block's own words after its commands, or `rewritten`
+    std::uint32_t letters = 0; // the letters of `params`, one bit each ('A' is bit 0)
     bool has_owner = false;    // a command that takes the words (not mode-only)
     bool alone() const { return count == 1; }
+    // The params when they cannot be a view of the block's words: a command after a word, the
+    // extrusion letter read as E, a G43.4 H word dropped.
+    ParamList rewritten;
 };
 
 // Reads `block` into `out` (reusing its storage). `extruder_letter` is the input letter that
-// carries extrusion. Throws LineError(column, cause).
+// carries extrusion. `out.params` may view the block's words: valid until its next lex_line.
+// Throws LineError(column, cause).
 void read_commands(const Block& block, char extruder_letter, LineCommands& out);
 
 // A command's step in RS274's order of execution within a line (LinuxCNC's list): feed mode,
@@ -59,7 +63,7 @@ int execution_rank(const CommandWord& c);
 // One step of a line: a command and the words it takes.
 struct LineStep {
     CommandWord command;             // 'S': a spindle speed word on its own; the implicit motion is G0..G3
-    const Params* words = nullptr;   // never null
+    Params words;                    // the line's params, or one of the plan's lists
     bool verbatim = false;           // the line's only command: passed on as written
 };
 
@@ -70,8 +74,8 @@ struct LinePlan {
     static constexpr std::size_t kMax = LineCommands::kMax + 2;
     LineStep steps[kMax];
     std::size_t count = 0;
-    Params move_words, speed, none;
-    Params code_words[LineCommands::kMax];
+    ParamList move_words, speed;     // a split line's words, shared out
+    ParamList code_words[LineCommands::kMax];
 };
 
 // Plans `line` given the modal motion (`motion`: 0..3, -1 none). `move_letters`: the letters of
@@ -84,11 +88,11 @@ void append_code(std::string& out, char letter, int code10);
 
 // A command passed on to the firmware: the line as written when it is the line's only command,
 // else the command and (unless mode-only) the line's words. Letter 'S': the words alone.
-void append_passthrough(std::string& out, char letter, int code10, std::string_view body, bool alone, const Params& params);
+void append_passthrough(std::string& out, char letter, int code10, std::string_view body, bool alone, Params params);
 
 // An S, M or T command, which both directions pass on as written (M82/M83 also set E's mode in
 // `modes`). False for a G command, which the caller interprets.
-bool pass_non_g(const CommandWord& c, std::string_view body, bool alone, const Params& words, Modes& modes, std::string& out);
+bool pass_non_g(const CommandWord& c, std::string_view body, bool alone, Params words, Modes& modes, std::string& out);
 
 // A line with no words: its text (a comment), or an empty line for a blank one, or nothing.
 void append_wordless(std::string& out, std::string_view line, const Block& block);
