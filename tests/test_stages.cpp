@@ -230,7 +230,7 @@ TEST_CASE("command reading: the params are the words after the commands, as writ
     REQUIRE(c.count == 1);
     CHECK(c.params.data() == b.words().data() + 1);
     CHECK(params_of(c) == "X1 Y2 E3");
-    CHECK(c.letters == ((1u << ('X' - 'A')) | (1u << ('Y' - 'A')) | (1u << ('E' - 'A'))));
+    CHECK(c.letters == (letter_bit('X') | letter_bit('Y') | letter_bit('E')));
     // A command after a word: the words keep their order around it.
     lex_line("X1 G1 Y2 M3 S5", b);
     read_commands(b, 'E', c);

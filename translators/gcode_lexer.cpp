@@ -196,7 +196,6 @@ void grow_words(Block& out, Word*& next, Word*& room_end) {
     room_end = out.word_room.data() + out.word_room.size();
 }
 
-constexpr std::uint32_t letter_bit(char upper_case) { return 1u << (upper_case - 'A'); }
 // Letters with checks of their own after the number: G M T are codes, N a line number.
 constexpr std::uint32_t kCheckedLetters = letter_bit('G') | letter_bit('M') | letter_bit('T') | letter_bit('N');
 

@@ -18,6 +18,9 @@ struct Word {
     bool has_value;          // false for a flag or a quoted string argument (P"file.g")
 };
 
+// A word's letter (upper case A to Z) as one bit of a set of letters: 'A' is bit 0.
+constexpr std::uint32_t letter_bit(char upper_case) { return 1u << (upper_case - 'A'); }
+
 struct Block {
     // In line order; the leading N word and the *checksum are not here. Valid until the next
     // lex_line on this block.

@@ -163,7 +163,9 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
     // Letters seen so far, one bit each (the lexer gives upper case A to Z, and the extrusion
     // letter is read as E).
     std::uint32_t seen = 0;
-    bool tool_word_is_param = false;
+    // The letters read as commands: T too, except after an M code whose T names a tool.
+    constexpr std::uint32_t kCodes = letter_bit('G') | letter_bit('M'), kCodesAndTool = kCodes | letter_bit('T');
+    std::uint32_t command_letters = kCodesAndTool;
     // The params are the block's words after its commands, taken as they are, as long as the
     // commands all come first and no word is changed; else they are copied to `rewritten`, the
     // words so far (all of them after the commands) when the first reason is met.
@@ -175,7 +177,8 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
     };
     for (std::size_t k = 0; k < words.size(); ++k) {
         const Word& w = words[k];
-        if (w.letter == 'G' || w.letter == 'M' || (w.letter == 'T' && !tool_word_is_param)) {
+        std::uint32_t bit = letter_bit(w.letter);
+        if (bit & command_letters) {
             if (out.count == LineCommands::kMax) throw LineError(w.column, "more than 16 commands on one line");
             // The code times ten, rounded half away from zero (the lexer keeps codes below 1e5,
             // so the sum is exact); a value off a tenth by more than 1e-6 is refused either way.
@@ -184,19 +187,19 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
             if (std::abs(scaled - double(code10)) > 1e-6) throw LineError(w.column, std::string("command ") + w.letter + " has more than one decimal");
             if (k != out.count) stop_viewing(k);  // a command after a word
             out.commands[out.count++] = {w.letter, int(code10), w.column};
-            tool_word_is_param = w.letter == 'M' && m_takes_tool(out.commands[out.count - 1].code10);
+            command_letters = w.letter == 'M' && m_takes_tool(int(code10)) ? kCodes : kCodesAndTool;
             continue;
         }
         char letter = w.letter;
         if (extruder_letter != 'E') {
             if (letter == extruder_letter) {
                 letter = 'E';
+                bit = letter_bit('E');
                 stop_viewing(k);
             } else if (letter == 'E') {
                 throw LineError(w.column, std::string("word E on a file whose extrusion letter is ") + extruder_letter);
             }
         }
-        const std::uint32_t bit = 1u << (letter - 'A');
         if (seen & bit) throw LineError(w.column, std::string("word ") + w.letter + " appears twice on this line");
         seen |= bit;
         if (!view) {
@@ -207,7 +210,7 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
 
     // G43.4/G43.5 H<n>: the tool length offset register of ISO controls. The tool length is the
     // machine file's, so the word is accepted and not used.
-    for (std::size_t i = 0; i < out.count && (seen & (1u << ('H' - 'A'))); ++i) {
+    for (std::size_t i = 0; i < out.count && (seen & letter_bit('H')); ++i) {
         if (out.commands[i].letter != 'G' || (out.commands[i].code10 != 434 && out.commands[i].code10 != 435)) continue;
         stop_viewing(words.size());
         for (auto it = out.rewritten.begin(); it != out.rewritten.end(); ++it)
@@ -250,7 +253,7 @@ void add_modal_motion(LinePlan& out, int motion, Params words) {
 void plan_line(const LineCommands& line, int motion, std::string_view move_letters, std::string_view position_letters, LinePlan& out) {
     out.count = 0;
     const Params words = line.params;
-    const bool any_speed = (line.letters & (1u << ('S' - 'A'))) != 0;
+    const bool any_speed = (line.letters & letter_bit('S')) != 0;
     // The bulk of a program, planned at once: a line of one motion command, or of none (the
     // modal motion), with no S (which a move leaves to a line of its own).
     if (!any_speed && line.count == 1 && is_motion_code(line.commands[0])) {

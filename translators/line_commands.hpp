@@ -41,7 +41,7 @@ struct LineCommands {
     CommandWord commands[kMax];
     std::size_t count = 0;     // in RS274's order of execution (execution_rank), stable
     Params params;             // the block's own words after its commands, or `rewritten`
-    std::uint32_t letters = 0; // the letters of `params`, one bit each ('A' is bit 0)
+    std::uint32_t letters = 0; // the letters of `params` (letter_bit)
     bool has_owner = false;    // a command that takes the words (not mode-only)
     bool alone() const { return count == 1; }
     // The params when they cannot be a view of the block's words: a command after a word, the
