@@ -42,6 +42,7 @@ Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner
         position_letters_ += j.name;
     }
     position_letters_ += "XYZ";
+    for (char letter = 'A'; letter <= 'Z'; ++letter) joint_of_letter_[std::size_t(letter - 'A')] = machine_.joint_index(letter);
 }
 
 void Interpreter::fail(std::uint32_t column, const std::string& message) const { throw LineError(column, message); }
@@ -55,7 +56,7 @@ PassedNumber Interpreter::passed(const Param& p, bool inches) const {
 }
 
 bool Interpreter::is_axis_letter(char c) const {
-    return c == 'X' || c == 'Y' || c == 'Z' || c == 'I' || c == 'J' || c == 'K' || machine_.joint_index(c) >= 0;
+    return c == 'X' || c == 'Y' || c == 'Z' || c == 'I' || c == 'J' || c == 'K' || joint_of(c) >= 0;
 }
 
 void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& out, const LineState* before) {
@@ -174,7 +175,7 @@ void Interpreter::run_command(const CommandWord& c, std::string_view body, bool 
                 fail(c.column, "joint-space arcs are passed on only in G90 and G21 (millimetres)");
             joints_.assign(state_.planner.q.begin(), state_.planner.q.end());
             for (const auto& p : words) {
-                const int j = machine_.joint_index(p.letter);
+                const int j = joint_of(p.letter);
                 if (j >= 0) joints_[std::size_t(j)] = number(p);
             }
             planner_.moved_to(joints_);
@@ -249,7 +250,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
                 if (!(f->value > 0)) fail(p.column, "feed rate F must be positive");
                 break;
             default: {
-                const int j = machine_.joint_index(p.letter);
+                const int j = joint_of(p.letter);
                 if (j < 0 || !machine_.joints[std::size_t(j)].rotary)
                     fail(p.column, std::string("word ") + p.letter + " is not a tool-space word for machine " + machine_.name +
                                        " (X Y Z give the tip" + (m.mode == OrientationMode::Vector ? ", I J K the tool axis)" : ", its rotary letters the orientation)"));
@@ -345,7 +346,7 @@ void Interpreter::arc(bool clockwise, std::uint32_t column, Params words, LineRu
             case 'E': e_word = p; break;
             case 'F': f_word = p; break;
             default: {
-                const int j = machine_.joint_index(p.letter);
+                const int j = joint_of(p.letter);
                 if (j < 0 || !machine_.joints[std::size_t(j)].rotary || m.mode != OrientationMode::Angles)
                     fail(p.column, std::string("word ") + p.letter + " is not understood on an arc here");
                 rotary_words_.push_back(p);
@@ -371,7 +372,7 @@ void Interpreter::arc(bool clockwise, std::uint32_t column, Params words, LineRu
         chord_words_.clear();
         for (int i = 0; i < 3; ++i) chord_words_.push_back(chord_word(char('X' + i), p[i], column));
         for (const Param& rw : rotary_words_) {
-            const int j = machine_.joint_index(rw.letter);
+            const int j = joint_of(rw.letter);
             const double target = saved.absolute ? number(rw) : q_start[std::size_t(j)] + number(rw);
             chord_words_.push_back(chord_word(rw.letter, q_start[std::size_t(j)] + (target - q_start[std::size_t(j)]) * f, column));
         }
@@ -413,7 +414,7 @@ void Interpreter::joint_move(int gcode, Params words, std::string& out) {
             case 'I': case 'J': case 'K':
                 fail(p.column, "I J K are tool-vector words (G43.5); under G49 the words are joint values");
             default: {
-                const int j = machine_.joint_index(p.letter);
+                const int j = joint_of(p.letter);
                 if (j < 0) fail(p.column, std::string("word ") + p.letter + " is not a joint of machine " + machine_.name);
                 const bool rotary = machine_.joints[std::size_t(j)].rotary;
                 const double v = number(p) * (rotary ? 1.0 : unit);
@@ -461,7 +462,7 @@ void Interpreter::set_position(Params words, std::string_view body, std::string&
                                    "): set the program frame before G68.2, or cancel it with G69 first");
             continue;  // applied below, after the joints
         }
-        const int j = machine_.joint_index(p.letter);
+        const int j = joint_of(p.letter);
         if (j < 0 || (tcp && !machine_.joints[std::size_t(j)].rotary))
             fail(p.column, std::string("G92 word ") + p.letter + " is not a joint of machine " + machine_.name);
         const bool rotary = machine_.joints[std::size_t(j)].rotary;
@@ -486,7 +487,7 @@ void Interpreter::set_position(Params words, std::string_view body, std::string&
 void Interpreter::home(Params words, std::string& out) {
     which_.assign(state_.planner.q.size(), words.empty());
     for (const Param& p : words) {
-        const int j = machine_.joint_index(p.letter);
+        const int j = joint_of(p.letter);
         if (j < 0) fail(p.column, std::string("G28 word ") + p.letter + " is not a joint of machine " + machine_.name);
         which_[std::size_t(j)] = true;
     }
@@ -494,7 +495,7 @@ void Interpreter::home(Params words, std::string& out) {
     out += "G28";
     for (const Param& p : words) {
         out += ' ';
-        out += machine_.joints[std::size_t(machine_.joint_index(p.letter))].output;
+        out += machine_.joints[std::size_t(joint_of(p.letter))].output;
     }
     out += '\n';
     state_.modal.offset.setZero();

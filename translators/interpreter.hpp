@@ -8,6 +8,7 @@
 // May call: the lexer, line_commands, arcs (G2/G3 -> chords), work_plane (the plane's frame), the
 // keep-out stage, the planner.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -66,6 +67,12 @@ private:
     [[noreturn]] void no_number(const Param& p) const;
     PassedNumber passed(const Param& p, bool inches) const;  // E or F, in mm
     bool is_axis_letter(char c) const;
+    // The joint a word's letter names, -1 for none: from a table made once, not a search of the
+    // joints per word. (A word's letter is upper case A to Z, and no joint is named otherwise.)
+    int joint_of(char letter) const {
+        const auto k = std::size_t(letter - 'A');
+        return k < joint_of_letter_.size() ? joint_of_letter_[k] : -1;
+    }
     void apply_modal(int code10, Params words, std::string& out);
     void run_command(const CommandWord& c, std::string_view body, bool alone, Params words, LineRun& run, std::string& out);
     // A tool-space move; `absolute` and `inches` say how to read its words (an arc's chords are
@@ -94,6 +101,7 @@ private:
     LineCommands commands_;
     LinePlan plan_;
     std::string move_letters_, position_letters_;  // see plan_line
+    std::array<int, 26> joint_of_letter_;           // see joint_of
     // Scratch reused line after line (no allocation on the hot path).
     std::vector<double> angles_, joints_, arc_angles_;
     std::vector<bool> commanded_, which_;
