@@ -72,6 +72,23 @@ void check_exponent_like(std::string_view s, std::size_t i, char letter, std::si
 // The value of a decimal digit, or more than 9 for any other byte (one test: '0'..'9' only).
 inline unsigned digit_value(char c) { return unsigned(static_cast<unsigned char>(c)) - unsigned('0'); }
 
+// Appends the run of digits at `k` to `mantissa`, two at a time (a byte after a digit can be
+// read: the line's copy ends with a NUL).
+inline void read_digit_run(const char* s, std::size_t& k, std::uint64_t& mantissa) {
+    for (;;) {
+        const unsigned d0 = digit_value(s[k]);
+        if (d0 > 9) return;
+        const unsigned d1 = digit_value(s[k + 1]);
+        if (d1 > 9) {
+            mantissa = mantissa * 10 + d0;
+            ++k;
+            return;
+        }
+        mantissa = mantissa * 100 + (d0 * 10 + d1);
+        k += 2;
+    }
+}
+
 // The common number, "[+-]digits[.digits]" with 1 to 19 digits and within the range limit, read
 // at `i` of `s`, which must end with a NUL (the lexer's copy of the line): the digit loops stop
 // there. False, `i` unchanged, for any other form; read_other_number then reads it.
@@ -85,11 +102,11 @@ inline bool read_plain_number(const char* s, std::size_t& i, double& value) {
     if (negative || s[k] == '+') ++k;
     std::uint64_t mantissa = 0;  // wraps past 19 digits, which are not read here
     const std::size_t int_start = k;
-    for (unsigned d; (d = digit_value(s[k])) <= 9; ++k) mantissa = mantissa * 10 + d;
+    read_digit_run(s, k, mantissa);
     std::size_t digits = k - int_start, decimals = 0;
     if (s[k] == '.') {
         const std::size_t frac_start = ++k;
-        for (unsigned d; (d = digit_value(s[k])) <= 9; ++k) mantissa = mantissa * 10 + d;
+        read_digit_run(s, k, mantissa);
         decimals = k - frac_start;
         digits += decimals;
     }
@@ -228,7 +245,7 @@ void lex_line(std::string_view line, Block& out) {
     std::size_t i = 0;
     for (;;) {
         const char c = s[i];
-        if (unsigned((c | 0x20) - 'a') < 26u) {  // a letter: the common case first, a word
+        if (unsigned((static_cast<unsigned char>(c) | 0x20u) - 'a') < 26u) {  // a letter: the common case first, a word
             const char letter = char(c & ~0x20);  // upper case
             const std::size_t letter_index = i++;
             while (is_blank(s[i])) ++i;  // RS274 allows "X 10"
@@ -337,7 +354,7 @@ void lex_line(std::string_view line, Block& out) {
         out.body = {};
         return;
     }
-    std::string_view body = line.substr(body_begin, body_end - body_begin);
+    std::string_view body(line.data() + body_begin, body_end - body_begin);  // (body_end <= n)
     while (!body.empty() && is_blank(body.back())) body.remove_suffix(1);
     out.body = body;
     if (out.word_count == 0 && out.has_comment && !out.percent && declares_compact(body)) out.compact_words = true;
