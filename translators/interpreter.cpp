@@ -153,7 +153,7 @@ void Interpreter::apply_modal(int code10, Params words, std::string& out) {
 void Interpreter::run_command(const CommandWord& c, std::string_view body, bool alone, Params words, LineRun& run,
                               std::string& out) {
     ModalState& m = state_.modal;
-    if (pass_non_g(c, body, alone, words, m.modes, out)) return;
+    if (c.letter != 'G' && pass_non_g(c, body, alone, words, m.modes, out)) return;  // (the call only for S, M, T)
     switch (c.code10) {
         case 0:
         case 10:

@@ -257,7 +257,8 @@ void plan_line(const LineCommands& line, int motion, std::string_view move_lette
     // The bulk of a program, planned at once: a line of one motion command, or of none (the
     // modal motion), with no S (which a move leaves to a line of its own).
     if (!any_speed && line.count == 1 && is_motion_code(line.commands[0])) {
-        add_step(out, line.commands[0], words, true);
+        out.steps[0] = {line.commands[0], words, true};
+        out.count = 1;
         return;
     }
     if (!any_speed && line.count == 0 && !words.empty()) {
