@@ -223,7 +223,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
     Eigen::Vector3d ijk = Eigen::Vector3d::Zero();
     bool any_xyz = false, any_ijk = false, any_rotary = false;
     std::uint32_t ijk_column = column;
-    std::optional<PassedNumber> e, f;
+    ToolMove mv;  // its E and F are written as the words are read
     commanded_.assign(at.q.size(), false);
     // Under G43.4 the rotary words are programmed angles; the joints are their image.
     planner_.programmed_angles(angles_);
@@ -244,10 +244,10 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
                 ijk[p.letter - 'I'] = number(p);
                 any_ijk = true;
                 break;
-            case 'E': e = passed(p, inches); break;
+            case 'E': mv.e = passed(p, inches); break;
             case 'F':
-                f = passed(p, inches);
-                if (!(f->value > 0)) fail(p.column, "feed rate F must be positive");
+                mv.f = passed(p, inches);
+                if (!(mv.f->value > 0)) fail(p.column, "feed rate F must be positive");
                 break;
             default: {
                 const int j = joint_of(p.letter);
@@ -265,7 +265,6 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
             }
         }
     }
-    ToolMove mv;
     mv.axis = at.pose.axis;
     if (any_ijk) {
         if (!(ijk.norm() > 1e-12)) fail(ijk_column, "tool vector I J K has length 0");
@@ -282,9 +281,9 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
         const bool rotary = machine_.joints[j].rotary;
         if ((!rotary && any_xyz) || (rotary && any_ijk)) commanded_[j] = true;
     }
-    if (f && !m.modes.inverse_time) m.modes.feed = f->value;
+    if (mv.f && !m.modes.inverse_time) m.modes.feed = mv.f->value;
     // G93 gives feed moves their duration; a rapid has none (RS274/NGC), so G0 needs no F.
-    if (m.modes.inverse_time && !f && gcode != 0 && (any_xyz || any_rotary || any_ijk))
+    if (m.modes.inverse_time && !mv.f && gcode != 0 && (any_xyz || any_rotary || any_ijk))
         fail(column, "under G93 every feed move (G1, G2, G3) needs its F (1/minutes)");
     mv.gcode = gcode;
     mv.column = column;
@@ -294,15 +293,13 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
     mv.angles = &angles_;
     mv.any_ijk = any_ijk;
     mv.commanded = &commanded_;
-    mv.e = e;
-    mv.f = f;
     mv.e_relative = m.modes.e_relative;
     mv.e_position = m.modes.e_position;
     mv.feed = m.modes.feed;
     mv.inverse_time = m.modes.inverse_time;
     if (keep_out_) keep_out_->tool_move(mv, run, out);
     else planner_.tool_move(mv, run, out);
-    track_extrusion(e);
+    track_extrusion(mv.e);
 }
 
 // G2/G3 under tool-centre-point control: the arc (I J K centre or R radius, any plane, helical
