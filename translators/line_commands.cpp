@@ -248,23 +248,11 @@ void add_modal_motion(LinePlan& out, int motion, Params words) {
     add_step(out, {'G', motion * 10, words.front().column}, words, false);
 }
 
-}  // namespace
-
-void plan_line(const LineCommands& line, int motion, std::string_view move_letters, std::string_view position_letters, LinePlan& out) {
-    out.count = 0;
+// Any line but the bulk of a program (plan_line).
+void plan_other_line(const LineCommands& line, int motion, std::string_view move_letters, std::string_view position_letters,
+                     LinePlan& out) {
     const Params words = line.params;
     const bool any_speed = (line.letters & letter_bit('S')) != 0;
-    // The bulk of a program, planned at once: a line of one motion command, or of none (the
-    // modal motion), with no S (which a move leaves to a line of its own).
-    if (!any_speed && line.count == 1 && is_motion_code(line.commands[0])) {
-        out.steps[0] = {line.commands[0], words, true};
-        out.count = 1;
-        return;
-    }
-    if (!any_speed && line.count == 0 && !words.empty()) {
-        add_modal_motion(out, motion, words);
-        return;
-    }
     out.move_words.clear();
     out.speed.clear();
 
@@ -355,6 +343,27 @@ void plan_line(const LineCommands& line, int motion, std::string_view move_lette
     }
     if (!out.speed.empty()) add_step(out, {'S', 0, out.speed.front().column}, out.speed, false);
     if (motion_cmd < 0 && !out.move_words.empty()) add_modal_motion(out, motion, out.move_words);
+}
+
+}  // namespace
+
+void plan_line(const LineCommands& line, int motion, std::string_view move_letters, std::string_view position_letters, LinePlan& out) {
+    out.count = 0;
+    const Params words = line.params;
+    // The bulk of a program, planned here at once: a line of one motion command, or of none (the
+    // modal motion), with no S (which a move leaves to a line of its own).
+    if (!(line.letters & letter_bit('S'))) {
+        if (line.count == 1 && is_motion_code(line.commands[0])) {
+            out.steps[0] = {line.commands[0], words, true};
+            out.count = 1;
+            return;
+        }
+        if (line.count == 0 && !words.empty()) {
+            add_modal_motion(out, motion, words);
+            return;
+        }
+    }
+    plan_other_line(line, motion, move_letters, position_letters, out);
 }
 
 }  // namespace xlate5
