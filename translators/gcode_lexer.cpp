@@ -49,10 +49,10 @@ bool takes_text(double m_value) {
 // After a number ending at `i`: an 'E' or 'e', an optional sign and digits with no '.' after them
 // read as an exponent as well as a separate E word ("X1.5e-05": 0.000015, or X1.5 and a retract
 // E-05). Command words (G M T N) are codes, never written with an exponent, so "G1E-1" is not
-// ambiguous; nor is "X1E0.5" (an exponent has no point). Unless the file is declared compact the
-// ambiguous form is refused, so a CAM program's float never turns into extrusion by accident.
+// ambiguous (the lexer asks only after other words); nor is "X1E0.5" (an exponent has no point).
+// Unless the file is declared compact the ambiguous form is refused, so a CAM program's float
+// never turns into extrusion by accident.
 void check_exponent_like(std::string_view s, std::size_t i, char letter, std::size_t letter_index) {
-    if (letter == 'G' || letter == 'M' || letter == 'T' || letter == 'N') return;
     if (i >= s.size() || (s[i] != 'E' && s[i] != 'e')) return;
     std::size_t k = i + 1;
     if (k < s.size() && (s[k] == '+' || s[k] == '-')) ++k;
@@ -253,8 +253,6 @@ void lex_line(std::string_view line, Block& out) {
             bool has_value = true;
             double value;
             if (!read_plain_number(s.data(), i, value)) value = read_other_number(s, i, letter, letter_index, has_value);
-            // Only an E right after the number can make it ambiguous (the common case: a blank).
-            if ((s[i] | 0x20) == 'e' && has_value && !out.compact_words) check_exponent_like(s, i, letter, letter_index);
             if (kCheckedLetters & letter_bit(letter)) {
                 if (!has_value) fail(letter_index, std::string("word ") + letter + " has no number");
                 if (letter != 'N' && !(std::abs(value) < kMaxCode))
@@ -264,6 +262,10 @@ void lex_line(std::string_view line, Block& out) {
                     line_number_read = true;
                     continue;
                 }
+            } else if ((s[i] | 0x20) == 'e' && has_value && !out.compact_words) {
+                // Only an E right after the number can make it ambiguous (the common case: a
+                // blank), and only after a word that is not a code or line number.
+                check_exponent_like(s, i, letter, letter_index);
             }
             // (The body's end after words is found from the last word, once, at the end.)
             if (next == room_end) grow_words(out, next, room_end);
