@@ -215,7 +215,11 @@ namespace {
 // The params read, as "X1 E2" (letters and whole values).
 std::string params_of(const LineCommands& c) {
     std::string out;
-    for (const Param& p : c.params) out += (out.empty() ? "" : " ") + std::string(1, p.letter) + std::to_string(int(p.value));
+    for (const Param& p : c.params) {
+        if (!out.empty()) out += ' ';
+        out += p.letter;
+        out += std::to_string(int(p.value));
+    }
     return out;
 }
 
