@@ -604,6 +604,44 @@ TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit o
     }
 }
 
+TEST_CASE("the position solve without a part chain equals the general products with the part frame") {
+    // A machine whose part chain is empty (rw2) skips the part walk and the products with its
+    // identity rotation. Against the same machine with a part chain that changes nothing but
+    // a shift far below every tip's last bit (so the general products run, Rp the identity):
+    // the same linear joints and tool axis on random poses (== allows only a zero's sign).
+    int machines = 0;
+    for (const auto& [name, path] : bundled_machines()) {
+        const Machine m = load_machine(path);
+        if (!m.part_chain.empty()) continue;
+        ++machines;
+        CAPTURE(name);
+        Machine general = m;
+        ChainElement nudge;
+        nudge.kind = ChainElement::Kind::Fixed;
+        nudge.fixed.translation() = Eigen::Vector3d(1e-300, 0, 0);
+        general.part_chain.push_back(nudge);
+        const Kinematics fast(m), slow(general);
+        std::mt19937 rng(17);
+        std::uniform_real_distribution<double> U(0, 1);
+        int differ = 0;
+        for (int i = 0; i < 20000; ++i) {
+            std::vector<double> q(m.joints.size());
+            for (std::size_t j = 0; j < q.size(); ++j) {
+                const Joint& J = m.joints[j];
+                const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
+                q[j] = lo + (hi - lo) * U(rng);
+            }
+            const Eigen::Vector3d tip(400 * U(rng) - 200, 400 * U(rng) - 200, 400 * U(rng) - 200);
+            std::vector<double> qa = q, qb = q;
+            Eigen::Vector3d aa, ab;
+            const bool oka = fast.solve_position(tip, qa, &aa).ok(), okb = slow.solve_position(tip, qb, &ab).ok();
+            if (oka != okb || qa != qb || aa != ab) ++differ;
+        }
+        CHECK(differ == 0);
+    }
+    CHECK(machines > 0);
+}
+
 TEST_CASE("AngleLimit's verdicts are the acos's own, near the limit and far from it") {
     std::mt19937 rng(11);
     std::uniform_real_distribution<double> U(0, 1);

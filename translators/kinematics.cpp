@@ -558,11 +558,21 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
         // The same products as below in the walk's scalars (forward's tip and axis, Eigen's
         // matrix times a column), without the round trip through Eigen's matrices.
         M3 Rp, Rt;
-        V3 tp, tt;
-        walk(part_links_, q.data(), Rp, tp, nullptr);
+        V3 tp, tt, current;
         walk(tool_links_, q.data(), Rt, tt, nullptr);
-        if (axis) *axis = part_axis(Rp, Rt, machine_.tool_axis);
-        const V3 current = transposed_times(Rp, tt - tp);
+        if (part_links_.empty()) {
+            // The part frame is the base (Rp the identity, tp zero): the products with them give
+            // tt and Rt's axis to the last bit, up to the sign of a zero (1 x + 0 y is x).
+            if (axis) {
+                const V3 u = normalized(Rt * v3(machine_.tool_axis));
+                *axis = Eigen::Vector3d(u.x, u.y, u.z);
+            }
+            current = tt;
+        } else {
+            walk(part_links_, q.data(), Rp, tp, nullptr);
+            if (axis) *axis = part_axis(Rp, Rt, machine_.tool_axis);
+            current = transposed_times(Rp, tt - tp);
+        }
         const double* Ji = jacobian_inverse_;
         const V3 dq = M3{Ji[0], Ji[1], Ji[2], Ji[3], Ji[4], Ji[5], Ji[6], Ji[7], Ji[8]} * (v3(tip) - current);
         q[std::size_t(linear_[0])] += dq.x;
