@@ -97,7 +97,12 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
       kin_(kinematics),
       machine_(kinematics.machine()),
       compensation_(kinematics.machine().compensation),
-      emitter_(emitter) {}
+      emitter_(emitter) {
+    for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
+        if (machine_.joints[j].rotary) rotary_.push_back(j);
+        if (machine_.joints[j].max_feed > 0) feed_limits_.push_back({j, machine_.joints[j].max_feed});
+    }
+}
 
 const GreatArc& MotionStage::arc_of(const MoveSpec& mv) const {
     if (!(mv.p0.axis == arc_.a && mv.p1.axis == arc_.b)) arc_ = GreatArc(mv.p0.axis, mv.p1.axis);
@@ -327,21 +332,21 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     // for it): a move that starts at the last one's end, joints and tip, starts on its line.
     const bool from_last = *mv.q0 == last_end_q_;
     const bool start_on_line = from_last && mv.p0.tip == last_end_tip_;
+    // q1_printed_ holds the last move's end as printed (last_end_q_ rounded): taken, then refilled.
     if (from_last) {
-        q0_printed_.swap(last_end_printed_);  // refilled below
+        q0_printed_.swap(q1_printed_);
     } else {
         round_printed(machine_, *mv.q0, q0_printed_);
     }
     round_printed(machine_, *mv.q1, q1_printed_);
     last_end_q_ = *mv.q1;
-    last_end_printed_ = q1_printed_;
     last_end_tip_ = mv.p1.tip;
     final_moved_ = false;
     const auto& q0 = q0_printed_;
     const auto& q1 = q1_printed_;
+    // One piece, the whole move: read from q1_printed_ and the move's own end (no copies).
     s_.assign(1, 1.0);
-    qs_.assign(q1.begin(), q1.end());
-    qs_exact_.assign(mv.q1->begin(), mv.q1->end());
+    whole_ = true;
     bool rotates = false;
     for (const int j : kin_.rotary_joints()) rotates = rotates || q1[std::size_t(j)] != q0[std::size_t(j)];
     // With the rotaries still the tip is affine in the linear joints: the firmware's line is exact.
@@ -363,6 +368,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     s_.clear();
     qs_.clear();
     qs_exact_.clear();
+    whole_ = false;
     double step = 1.0 / std::ceil(std::sqrt(ratio));
     double sa = 0;
     std::vector<double>& qa = march_a_;
@@ -621,11 +627,10 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
 double MotionStage::split_rotary_travel() const {
     // Degrees the rotaries turn along the pieces split() made last, from the printed start.
     const auto& rot = kin_.rotary_joints();
-    const std::size_t n = machine_.joints.size();
     double travel = 0;
     const double* qa = q0_printed_.data();
     for (std::size_t k = 0; k < s_.size(); ++k) {
-        const double* qb = &qs_[k * n];
+        const double* qb = piece_printed(k);
         for (const int j : rot) travel += std::abs(qb[std::size_t(j)] - qa[std::size_t(j)]);
         qa = qb;
     }
@@ -660,7 +665,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     std::span<const double> qprev(q0);
     for (int k = 0; k < pieces; ++k) {
         const double s = s_[std::size_t(k)];
-        const std::span<const double> qk(&qs_[std::size_t(k) * n], n);
+        const std::span<const double> qk(piece_printed(std::size_t(k)), n);
         const double share = s;  // the tip moves uniformly in s along the straight programmed line
         const bool last = k + 1 == pieces;
 
@@ -695,13 +700,12 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
             double t = total_time * (share - prev_share);
             // Per-axis limits slow the piece down, never change its path; a pure turn runs at
             // the machine's rotary feed.
-            double rot_max = 0;
-            for (std::size_t j = 0; j < n; ++j) {
-                const double d = std::abs(qk[j] - qprev[j]);
-                if (machine_.joints[j].rotary) rot_max = std::max(rot_max, d);
-                if (machine_.joints[j].max_feed > 0) t = std::max(t, d / machine_.joints[j].max_feed);
+            for (const FeedLimit& l : feed_limits_) t = std::max(t, std::abs(qk[l.joint] - qprev[l.joint]) / l.max_feed);
+            if (length == 0 && mv.inverse_time == 0) {
+                double rot_max = 0;
+                for (const std::size_t j : rotary_) rot_max = std::max(rot_max, std::abs(qk[j] - qprev[j]));
+                t = std::max(t, rot_max / machine_.motion.rotary_feed);
             }
-            if (length == 0 && mv.inverse_time == 0) t = std::max(t, rot_max / machine_.motion.rotary_feed);
             piece_time_[std::size_t(k)] = t;
             const double d_fw = dialect_length(machine_, qprev, qk, false);  // both ends come from the split, rounded
             if (inverse_time_out) {
@@ -718,7 +722,8 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         // corrected and nothing upstream sees anything but nominal joints.
         // Compensated from the joints as solved: the emitter rounds once (without compensation
         // that gives exactly the rounded joints checked above).
-        const auto sent = compensation_.apply(std::span<const double>(&qs_exact_[std::size_t(k) * n], n));
+        const double* exact = whole_ ? mv.q1->data() : &qs_exact_[std::size_t(k) * n];
+        const auto sent = compensation_.apply(std::span<const double>(exact, n));
         if (!sent.ok()) throw LineError(1, sent.why);
         emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, inverse_time_out);
         prev_share = share;
@@ -736,7 +741,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         const double* qa = q0.data();
         std::vector<double> qq(n);
         for (int k = 0; k < pieces; ++k) {
-            const double* qb = &qs_[std::size_t(k) * n];
+            const double* qb = piece_printed(std::size_t(k));
             piece_error(mv, sa, s_[std::size_t(k)], qa, qb, 2 * kCheckSamples, ptip, pang);
             tip = std::max(tip, ptip);
             ang = std::max(ang, pang);

@@ -81,7 +81,7 @@ public:
 
     // The split of the last move: parameter s at each piece's end and its joints.
     const std::vector<double>& split_params() const { return s_; }
-    const std::vector<double>& split_joints() const { return qs_; }  // pieces x joints
+    const std::vector<double>& split_joints() const { return whole_ ? q1_printed_ : qs_; }  // pieces x joints
 
 private:
     // True when the firmware's path from qa to qb (move parameters sa to sb) is proved within
@@ -142,9 +142,14 @@ private:
     JointEmitter& emitter_;
     std::vector<double> s_, qs_;                 // the pieces, joints as printed
     std::vector<double> qs_exact_;               // the pieces' ends as solved
+    // The move is one piece (s_ = {1}): its end is q1_printed_ as printed and the move's q1 as
+    // solved, and qs_, qs_exact_ are not filled.
+    bool whole_ = false;
+    const double* piece_printed(std::size_t k) const { return whole_ ? q1_printed_.data() : &qs_[k * machine_.joints.size()]; }
     std::vector<double> q0_printed_, q1_printed_;  // the move's ends as printed
-    // The last move's end: its joints as solved and as printed, and its tip (which they reach).
-    std::vector<double> last_end_q_, last_end_printed_;
+    // The last move's end: its joints as solved, and its tip (which they reach). Its joints as
+    // printed are q1_printed_ until the next move's split.
+    std::vector<double> last_end_q_;
     Eigen::Vector3d last_end_tip_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
     std::vector<double> final_exact_, exact_b_, ok_exact_, cross_end_;
     bool final_moved_ = false;  // final_exact_ holds the last move's end (else it is the end asked for)
@@ -153,6 +158,13 @@ private:
     std::vector<double> scratch_a_, scratch_b_, alt_exact_, lerp_, march_a_, march_b_;
     mutable std::vector<double> sample_;
     std::vector<double> piece_time_;  // minutes each piece of the last move takes
+    // The rotary joints, and the joints with a known top speed, looked up once.
+    std::vector<std::size_t> rotary_;
+    struct FeedLimit {
+        std::size_t joint;
+        double max_feed;
+    };
+    std::vector<FeedLimit> feed_limits_;
 };
 
 }  // namespace xlate5
