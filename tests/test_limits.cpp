@@ -11,6 +11,7 @@
 
 #include "helpers.hpp"
 #include "translators/error.hpp"
+#include "translators/joint_limits.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/translator.hpp"
@@ -362,4 +363,28 @@ TEST_CASE("limits: where a machine claims the flip, FK agrees: (t1 + 180, -t2) g
         CHECK(worst < 1e-9);
     }
     CHECK(machines_with_flip >= 2);  // rw2's head and the A/C tables at least
+}
+
+TEST_CASE("limits: within_limits is check_limits's verdict, at the limits, past them and on NaN") {
+    for (const char* name : {"rw2", "pentarod", "wpi5"}) {
+        CAPTURE(name);
+        const Machine m = load(name);
+        std::vector<double> q(m.joints.size());
+        int differ = 0, outside = 0;
+        for (int i = 0; i < 20000; ++i) {
+            for (std::size_t j = 0; j < q.size(); ++j) {
+                const Joint& J = m.joints[j];
+                const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
+                const int pick = (i + int(j) * 7) % 11;
+                // Mostly inside; some exactly at a limit, just past its slack, or NaN.
+                q[j] = pick == 0 ? lo : pick == 1 ? hi : pick == 2 ? hi + 2e-9 : pick == 3 ? lo - 2e-9
+                     : pick == 4 && i % 5 == 0 ? std::nan("") : lo + (hi - lo) * double((i * 37 + int(j) * 13) % 1000) / 999.0;
+            }
+            const bool fast = within_limits(m, q);
+            outside += !fast;
+            if (fast != check_limits(m, q).ok()) ++differ;
+        }
+        CHECK(differ == 0);
+        CHECK(outside > 0);
+    }
 }

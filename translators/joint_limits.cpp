@@ -89,11 +89,15 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
 
 bool inside_limits(const Joint& J, double v) { return v >= J.min - kLimitSlack && v <= J.max + kLimitSlack; }
 
-IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
-    // Nearly every move is inside: one pass says so (a NaN fails it too and is named below).
+bool within_limits(const Machine& machine, const std::vector<double>& q) {
     bool inside = true;
     for (std::size_t j = 0; j < machine.joints.size(); ++j) inside &= inside_limits(machine.joints[j], q[j]);
-    if (inside) return {};
+    return inside;
+}
+
+IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
+    // Nearly every move is inside: one pass says so (a NaN fails it too and is named below).
+    if (within_limits(machine, q)) return {};
     // The rotaries first: the linear joints follow from the angles (a tilt past its limit also
     // throws X Y Z far out), so a rotary out of range is the cause to name.
     for (int pass = 0; pass < 2; ++pass) {

@@ -14,6 +14,10 @@ namespace xlate5 {
 // True when v lies inside the joint's limits (within kLimitSlack).
 bool inside_limits(const Joint& joint, double v);
 
+// True when every joint of q is inside its limits (a NaN is not): check_limits's verdict, with
+// no result to build (nearly every move is inside).
+bool within_limits(const Machine& machine, const std::vector<double>& q);
+
 // Checks every joint of q against its limits.
 IkResult check_limits(const Machine& machine, const std::vector<double>& q);
 

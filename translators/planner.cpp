@@ -117,7 +117,8 @@ void Planner::unmap_angles(const AngleImage& image, const std::vector<double>& q
 
 void Planner::programmed_angles(std::vector<double>& a) const {
     a.assign(state_.q.begin(), state_.q.end());
-    unmap_angles(state_.image, state_.q, a);
+    // The plain image gives the joints themselves ((q - 0) * 1 is q, bit for bit).
+    if (!(state_.image == AngleImage{})) unmap_angles(state_.image, state_.q, a);
 }
 
 // Where else a travel move to `end` may stop: every solution of that pose inside the limits
@@ -319,7 +320,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
             if (mv.any_ijk) next.axis = mv.axis;
         }
     }
-    if (r.ok()) r = check_limits(machine_, q_next_);
+    if (r.ok() && !within_limits(machine_, q_next_)) r = check_limits(machine_, q_next_);
     // A travel move (tool space, no extrusion) may end on another solution of its pose: when its
     // usual end is outside a joint's limits, or when the look-back replays it to unwind a joint
     // for the printing that follows. Printing moves never change solution: their path is printed.
