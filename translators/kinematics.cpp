@@ -346,8 +346,9 @@ inline void turn_about_axis(double sign, double degrees, const double* point, M3
 }
 
 // kShift false: the rotation alone (tool_axis), the same products in the same order, so R is the
-// same to the last bit.
-template <bool kShift>
+// same to the last bit. kExtras false: no linear directions or axis lines asked for (the
+// position solve), so the walk does not test for them at every link.
+template <bool kShift, bool kExtras = kShift>
 void walk_links(const std::vector<ChainLink>& chain, const double* q, M3& R, V3& t, Eigen::Vector3d* linear_dirs,
                 AxisLine* lines, int* line_count) {
     using K = ChainLink::Kind;
@@ -373,7 +374,7 @@ void walk_links(const std::vector<ChainLink>& chain, const double* q, M3& R, V3&
             case K::Linear: {
                 if (!kShift) break;
                 const V3 d = e.fresh ? axis : R * axis;
-                if (linear_dirs) linear_dirs[e.joint] = Eigen::Vector3d(d.x, d.y, d.z);
+                if (kExtras && linear_dirs) linear_dirs[e.joint] = Eigen::Vector3d(d.x, d.y, d.z);
                 t = t + d * q[e.joint];
                 break;
             }
@@ -381,7 +382,7 @@ void walk_links(const std::vector<ChainLink>& chain, const double* q, M3& R, V3&
             case K::RotaryX:
             case K::RotaryY:
             case K::RotaryZ: {
-                if (kShift && lines) lines[(*line_count)++] = {t + R * point, normalized(R * axis)};
+                if (kShift && kExtras && lines) lines[(*line_count)++] = {t + R * point, normalized(R * axis)};
                 if (e.kind == K::RotaryX) {
                     if (shifts) turn_about_axis<0, true>(e.sign, q[e.joint], e.point, R, t, e.fresh);
                     else turn_about_axis<0, false>(e.sign, q[e.joint], e.point, R, t, e.fresh);
@@ -559,7 +560,7 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
         // matrix times a column), without the round trip through Eigen's matrices.
         M3 Rp, Rt;
         V3 tp, tt, current;
-        walk(tool_links_, q.data(), Rt, tt, nullptr);
+        walk_links<true, false>(tool_links_, q.data(), Rt, tt, nullptr, nullptr, nullptr);
         if (part_links_.empty()) {
             // The part frame is the base (Rp the identity, tp zero): the products with them give
             // tt and Rt's axis to the last bit, up to the sign of a zero (1 x + 0 y is x).
