@@ -314,8 +314,8 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
                 r = kin_.solve_position(next.tip, q_next_, &at_end);
                 if (mv.any_rotary) next.axis = at_end;
                 if (r.ok()) remember_axis(q_next_, at_end);
-            } else {
-                r = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr);
+            } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr); !solved.ok()) {
+                r = std::move(solved);  // r is ok here: only a failure needs moving in
             }
             if (mv.any_ijk) next.axis = mv.axis;
         }
