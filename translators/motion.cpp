@@ -523,7 +523,8 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
             }
         }
     }
-    if (cross_pole(mv, cross_end_)) {
+    // Only a vector move can cross (cross_pole's own first test, made here without the call).
+    if (mv.mode == OrientationMode::Vector && cross_pole(mv, cross_end_)) {
         // Across the pole (Isa, Koc 2018, sec. 4.6: C patched linearly through the singular
         // cone): the rotaries turn linearly to the other branch while the split holds the tip
         // on the line; the tool axis stays within the angle tolerance (checked in cross_pole).
