@@ -35,6 +35,18 @@ Eigen::Matrix3d Rz(double deg) { return Eigen::AngleAxisd(rad(deg), Eigen::Vecto
 // Angle difference modulo 360.
 double angle_diff(double a, double b) { return std::abs(wrap180(a - b)); }
 
+// Joint values drawn uniformly inside each joint's limits (an unbounded rotary: two turns either way).
+std::vector<double> random_joints(const Machine& m, std::mt19937& rng) {
+    std::uniform_real_distribution<double> U(0, 1);
+    std::vector<double> q(m.joints.size());
+    for (std::size_t j = 0; j < q.size(); ++j) {
+        const Joint& J = m.joints[j];
+        const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
+        q[j] = lo + (hi - lo) * U(rng);
+    }
+    return q;
+}
+
 }  // namespace
 
 TEST_CASE("wrap180 gives (-180, 180], as the remainder of a division by 360 defines it") {
@@ -253,20 +265,10 @@ TEST_CASE("FK o IK and IK o FK round trips to 1e-9 on every shipped machine") {
         const Machine m = load_machine(path);
         const Kinematics k(m);
         std::mt19937 rng(std::hash<std::string>{}(name) & 0xffff);
-        std::uniform_real_distribution<double> U(0, 1);
-        auto random_q = [&] {
-            std::vector<double> q(m.joints.size());
-            for (std::size_t j = 0; j < q.size(); ++j) {
-                const Joint& J = m.joints[j];
-                const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
-                q[j] = lo + (hi - lo) * U(rng);
-            }
-            return q;
-        };
         int ik_fk = 0, fk_ik = 0;
         for (int i = 0; i < 3000; ++i) {
             // IK o FK: joints -> pose -> joints, starting from those joints: the same joints back.
-            const auto q = random_q();
+            const auto q = random_joints(m, rng);
             const Pose pose = k.forward(q);
             std::vector<double> q2;
             const auto r = k.inverse(pose, q, q2);
@@ -275,7 +277,7 @@ TEST_CASE("FK o IK and IK o FK round trips to 1e-9 on every shipped machine") {
             ++ik_fk;
             // FK o IK: a pose solved from another start (possibly the other solution, other turns)
             // must still reproduce the pose exactly.
-            const auto start = random_q();
+            const auto start = random_joints(m, rng);
             std::vector<double> q3;
             if (k.inverse(pose, start, q3).ok()) {
                 const Pose back = k.forward(q3);
@@ -568,12 +570,7 @@ TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit o
             const Kinematics k(m);
             int differ = 0;
             for (int i = 0; i < 20000; ++i) {
-                std::vector<double> q(m.joints.size());
-                for (std::size_t j = 0; j < q.size(); ++j) {
-                    const Joint& J = m.joints[j];
-                    const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
-                    q[j] = lo + (hi - lo) * U(rng);
-                }
+                const std::vector<double> q = random_joints(m, rng);
                 Eigen::Matrix3d Rp, Rt;
                 Eigen::Vector3d tp, tt;
                 std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> lines;
@@ -625,12 +622,7 @@ TEST_CASE("the position solve without a part chain equals the general products w
         std::uniform_real_distribution<double> U(0, 1);
         int differ = 0;
         for (int i = 0; i < 20000; ++i) {
-            std::vector<double> q(m.joints.size());
-            for (std::size_t j = 0; j < q.size(); ++j) {
-                const Joint& J = m.joints[j];
-                const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
-                q[j] = lo + (hi - lo) * U(rng);
-            }
+            const std::vector<double> q = random_joints(m, rng);
             const Eigen::Vector3d tip(400 * U(rng) - 200, 400 * U(rng) - 200, 400 * U(rng) - 200);
             std::vector<double> qa = q, qb = q;
             Eigen::Vector3d aa, ab;
