@@ -178,7 +178,8 @@ void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const do
 }
 
 bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol,
-                               double atol, double* middle_ratio) const {
+                               double* middle_ratio) const {
+    const double atol = sample_angle_.degrees();
     // The same points as piece_error's, the middle first (where a chord's error is largest): a
     // piece that fails usually fails there, and the other six are not computed. A piece passes
     // exactly when piece_error's largest values would pass.
@@ -215,9 +216,9 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
         }
         if (mv.mode == OrientationMode::Vector) {
             const Eigen::Vector3d ideal = arc.at(sa + t * (sb - sa));
-            // The split's own limit is tested on the dot product (the acos only near it).
+            // The limit tested on the dot product (the acos only near it).
             const double dot = fw.axis.dot(ideal);
-            if (atol == sample_angle_.degrees() ? sample_angle_.above(dot) : angle_of_dot(dot) > atol) {
+            if (sample_angle_.above(dot)) {
                 if (middle && middle_ratio) *middle_ratio = angle_of_dot(dot) / atol;
                 return false;
             }
@@ -352,7 +353,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     // With the rotaries still the tip is affine in the linear joints: the firmware's line is exact.
     if (!rotates || mv.mode == OrientationMode::Joints || !machine_.motion.segment) return {};
 
-    const double tol = kSampleMargin * machine_.motion.tolerance, atol = kSampleMargin * machine_.motion.angle_tolerance;
+    const double tol = kSampleMargin * machine_.motion.tolerance, atol = sample_angle_.degrees();
     double tip = 0, ang = 0;
     if (start_on_line && reach_clears(mv, tol)) return {};
     if (bounded_within(mv, 0, 1, q0.data(), q1.data(), tol, atol)) return {};
@@ -396,7 +397,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
             round_printed(machine_, qb);
             double middle_ratio = 0;  // the failing middle sample's error over the tolerance (0: not known)
             bool pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, atol);
-            if (!pass) pass = piece_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, atol, &middle_ratio);
+            if (!pass) pass = piece_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, &middle_ratio);
             if (!pass && mv.mode == OrientationMode::Vector) {
                 // Near a pole the continuous branch swings a joint round; the other branch may
                 // cut across within the tolerance (a tilt through zero instead of a half turn).
@@ -408,7 +409,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                     round_printed(machine_, alt);
                     if (alt == qb) continue;
                     const bool alt_pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol, atol) ||
-                                          piece_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol, atol);
+                                          piece_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol);
                     if (alt_pass) {
                         pass = true;
                         qb = alt;

@@ -90,11 +90,11 @@ private:
                         double atol) const;
     // The same for the whole move under the angle form, from the machine's reach: no FK at all.
     bool reach_clears(const MoveSpec& move, double tol) const;
-    // piece_error's verdict against `tol` and `atol`, stopping at the first point outside them.
-    // `middle_ratio`, when given, receives the error over its tolerance when the verdict is no at
-    // the middle point (left as it is otherwise).
+    // piece_error's verdict against `tol` and the split's angle limit (sample_angle_), stopping at
+    // the first point outside them. `middle_ratio`, when given, receives the error over its
+    // tolerance when the verdict is no at the middle point (left as it is otherwise).
     bool piece_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
-                      double atol, double* middle_ratio = nullptr) const;
+                      double* middle_ratio = nullptr) const;
     IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
     // Across a pole: the end on the other branch, reached with the rotaries turning linearly,
     // when that stays within the angle tolerance and turns the rotaries less than the
