@@ -620,10 +620,12 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
         cross_angle_ = worst;
         found = true;
     }
-    if (!found) return false;
-    // Measured: the continuous branch's split, joint by joint.
-    if (!split(mv).ok()) return true;
-    return best < split_rotary_travel() - kClearlyLess;
+    // The continuous branch's split, made above, is still the stage's own (nothing since has
+    // touched it): kept for emit_one when the way across is not taken, not made again.
+    if (!split_ok) return found;
+    const bool across = found && best < measured - kClearlyLess;
+    if (!across) split_for_ = &mv;
+    return across;
 }
 
 double MotionStage::split_rotary_travel() const {
