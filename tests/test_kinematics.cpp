@@ -634,6 +634,104 @@ TEST_CASE("the position solve without a part chain equals the general products w
     CHECK(machines > 0);
 }
 
+TEST_CASE("the position solve's own end is the FK at its solution, and near_end bounds the FK at every rounding of it") {
+    // The motion stage bounds a move's printed end from the solve's end instead of an FK: the
+    // solve's pose and lever arms must be the FK's, and near_end's slacks must cover the FK at
+    // joints moved from the solution (by the printed rounding, and by more). Every shipped
+    // machine as shipped and with every axis turned at random, and two layouts built here from
+    // pentarod's joints in which linear joints carry axis lines (the solve moves those lines):
+    // Y under the trunnion (part chain Y, A, C) and a head whose Z rides on a tilt (tool chain
+    // X, Y, A, Z; part chain C).
+    std::mt19937 rng(20261126);
+    std::uniform_real_distribution<double> U(0, 1);
+    auto unit = [&] { return Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized(); };
+    std::vector<std::pair<std::string, Machine>> cases;
+    for (const auto& [name, path] : bundled_machines()) {
+        cases.emplace_back(name, load_machine(path));
+        Machine turned = load_machine(path);
+        for (auto* chain : {&turned.part_chain, &turned.tool_chain})
+            for (auto& e : *chain) {
+                if (e.kind == ChainElement::Kind::Fixed) e.fixed.linear() = Eigen::AngleAxisd(U(rng) * 6, unit()).toRotationMatrix();
+                else e.axis = unit();
+                if (e.kind == ChainElement::Kind::Rotary) e.point = 50 * unit();
+            }
+        turned.tool_axis = unit();
+        cases.emplace_back(name + " turned", turned);
+    }
+    const Machine pentarod = machine("pentarod");
+    const int X = joint(pentarod, 'X'), Y = joint(pentarod, 'Y'), Z = joint(pentarod, 'Z'), A = joint(pentarod, 'A'), C = joint(pentarod, 'C');
+    auto linear = [](int j, Eigen::Vector3d axis) {
+        ChainElement e;
+        e.kind = ChainElement::Kind::Linear;
+        e.joint = j;
+        e.axis = axis;
+        return e;
+    };
+    auto rotary = [](int j, Eigen::Vector3d axis, Eigen::Vector3d point) {
+        ChainElement e;
+        e.kind = ChainElement::Kind::Rotary;
+        e.joint = j;
+        e.axis = axis;
+        e.point = point;
+        return e;
+    };
+    Machine bed = pentarod;  // the trunnion rides on the Y bed
+    bed.part_chain = {linear(Y, -Eigen::Vector3d::UnitY()), rotary(A, Eigen::Vector3d::UnitX(), {0, 0, -20}),
+                      rotary(C, Eigen::Vector3d::UnitZ(), {3, -2, 0})};
+    bed.tool_chain = {linear(X, Eigen::Vector3d::UnitX()), linear(Z, Eigen::Vector3d::UnitZ())};
+    cases.emplace_back("built: Y under the trunnion", bed);
+    Machine head = pentarod;  // Z rides on the tilting head
+    head.part_chain = {rotary(C, Eigen::Vector3d::UnitZ(), {0, 0, 0})};
+    head.tool_chain = {linear(X, Eigen::Vector3d::UnitX()), linear(Y, Eigen::Vector3d::UnitY()),
+                       rotary(A, Eigen::Vector3d::UnitX(), {0, 5, 40}), linear(Z, Eigen::Vector3d::UnitZ())};
+    cases.emplace_back("built: Z on the tilt", head);
+
+    int given = 0;
+    double printed_slack = 0;  // the largest tip slack of a printed rounding on pentarod as shipped
+    for (const auto& [name, m] : cases) {
+        CAPTURE(name);
+        const Kinematics k(m);
+        int wrong = 0, loose = 0;
+        for (int i = 0; i < 2000; ++i) {
+            std::vector<double> q = random_joints(m, rng);
+            const Eigen::Vector3d tip = k.forward(q).tip + Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5);
+            Kinematics::SolvedEnd end;
+            if (!k.solve_position(tip, q, nullptr, &end).ok() || !end.valid) continue;
+            ++given;
+            const Kinematics::PathEnd fk = k.path_end(q.data());
+            bool same = end.q == q && (end.end.pose.tip - fk.pose.tip).norm() < 1e-9 && (end.end.pose.axis - fk.pose.axis).norm() < 1e-12 &&
+                        std::abs(end.end.lever_arm - fk.lever_arm) < 1e-9 && end.end.tip_slack == 0 && end.end.axis_slack == 0;
+            for (int a = 0; a < 8; ++a) same = same && std::abs(end.end.arm[a] - fk.arm[a]) < 1e-9;
+            if (!same) ++wrong;
+            // Joints moved from the solution: each by up to half a printed unit, then by more.
+            for (const double step : {0.0005, 0.01, 0.5}) {
+                std::vector<double> moved = q;
+                for (double& v : moved) v += step * (2 * U(rng) - 1);
+                Kinematics::PathEnd near;
+                if (!k.near_end(end, moved.data(), near)) {
+                    ++loose;
+                    continue;
+                }
+                const Kinematics::PathEnd there = k.path_end(moved.data());
+                bool holds = (there.pose.tip - near.pose.tip).norm() <= near.tip_slack + 1e-9 &&
+                             (there.pose.axis - near.pose.axis).norm() <= near.axis_slack + 1e-12 && there.lever_arm <= near.lever_arm + 1e-9;
+                for (int a = 0; a < 8; ++a) holds = holds && there.arm[a] <= near.arm[a] + 1e-9;
+                if (!holds) ++wrong;
+                if (name == "pentarod" && step == 0.0005) printed_slack = std::max(printed_slack, near.tip_slack);
+            }
+        }
+        CHECK(wrong == 0);
+        CHECK(loose == 0);  // every machine here has limits on its linear joints: a reach
+    }
+    // Pentarod and the built layouts take the general solve, which gives its end (a machine
+    // with a fixed Jacobian, rw2's, does not); a printed rounding's slack stays far below the
+    // 0.01 mm tolerance, or the bound would be of no use.
+    CHECK(given >= 4 * 1500);
+    CHECK(printed_slack > 0);
+    CHECK(printed_slack < 0.005);
+    MESSAGE("largest tip slack of a printed rounding on pentarod: " << printed_slack << " mm");
+}
+
 TEST_CASE("AngleLimit's verdicts are the acos's own, near the limit and far from it") {
     std::mt19937 rng(11);
     std::uniform_real_distribution<double> U(0, 1);

@@ -285,6 +285,31 @@ Kinematics::Kinematics(const Machine& machine)
             constant_jacobian_ = true;
         }
     }
+
+    // The solve's SolvedEnd: which linear joints move each rotary element's axis line (those
+    // ahead of it in its chain), in the order forward() records the lines.
+    unsigned seen = 0;
+    bool twice = false;
+    for (const auto* chain : {&part_links_, &tool_links_}) {
+        unsigned ahead = 0;
+        for (const ChainLink& l : *chain) {
+            if (l.kind == ChainLink::Kind::Linear) {
+                const unsigned bit = 1u << l.joint;
+                twice = twice || (seen & bit) != 0;
+                seen |= bit;
+                ahead |= bit;
+                if (chain == &tool_links_) tool_linear_.push_back(l.joint);
+            } else if (l.kind != ChainLink::Kind::Fixed && l.kind != ChainLink::Kind::Shift) {
+                line_shifts_.push_back({chain == &tool_links_, ahead});
+            }
+        }
+    }
+    solved_ends_ = !twice && line_shifts_.size() <= 8 && machine.joints.size() <= 8;
+    arm_count_ = std::min(int(line_shifts_.size()), 8);
+    for (std::size_t j = 0; j < machine.joints.size(); ++j)
+        if (!machine.joints[j].rotary && shift_per_unit_[j] > 0) near_terms_.push_back({int(j), shift_per_unit_[j], -1});
+    for (const BoundTerm& e : terms_)
+        if (e.rotary) near_terms_.push_back({e.joint, e.scale * kDeg, e.arm});
 }
 
 namespace {
@@ -553,9 +578,10 @@ double Kinematics::axis_path_bound(const double* qa, const double* qb) const {
     return (2 * w * w - s) / 8.0;
 }
 
-IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis) const {
+IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const {
     // With the rotary joints fixed the tip is affine in the linear joints: one 3x3 solve is exact.
     if (constant_jacobian_) {
+        if (end) end->valid = false;  // this path walks no axis lines: the motion stage measures the end instead
         // The same products as below in the walk's scalars (forward's tip and axis, Eigen's
         // matrix times a column), without the round trip through Eigen's matrices.
         M3 Rp, Rt;
@@ -586,16 +612,87 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
     for (std::size_t j = 0; j < n; ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();
     Eigen::Matrix3d Rp, Rt;
     Eigen::Vector3d tp, tt;
-    eval(part_links_, q.data(), Rp, tp, part_dirs);
-    eval(tool_links_, q.data(), Rt, tt, tool_dirs);
-    if (axis) *axis = (Rp.transpose() * (Rt * machine_.tool_axis)).normalized();
+    // With `end` the walk also records the rotaries' axis lines (the same R and t either way).
+    const bool want_end = end && solved_ends_;
+    if (end) end->valid = false;
+    AxisLine lines[8];
+    int count = 0;
+    {
+        M3 R;
+        V3 t;
+        walk(part_links_, q.data(), R, t, part_dirs, want_end ? lines : nullptr, &count);
+        Rp << R.xx, R.xy, R.xz, R.yx, R.yy, R.yz, R.zx, R.zy, R.zz;
+        tp = Eigen::Vector3d(t.x, t.y, t.z);
+        walk(tool_links_, q.data(), R, t, tool_dirs, want_end ? lines : nullptr, &count);
+        Rt << R.xx, R.xy, R.xz, R.yx, R.yy, R.yz, R.zx, R.zy, R.zz;
+        tt = Eigen::Vector3d(t.x, t.y, t.z);
+    }
+    if (axis || want_end) {
+        const Eigen::Vector3d u = (Rp.transpose() * (Rt * machine_.tool_axis)).normalized();
+        if (axis) *axis = u;
+        if (want_end) end->end.pose.axis = u;
+    }
     const Eigen::Vector3d current = Rp.transpose() * (tt - tp);
     Eigen::Matrix3d J;
     if (!linear_jacobian(Rp, part_dirs, tool_dirs, J))
         return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
     const Eigen::Vector3d dq = J.inverse() * (tip - current);  // closed-form 3x3 inverse
     for (int i = 0; i < 3; ++i) q[std::size_t(linear_[std::size_t(i)])] += dq[i];
+    if (want_end) {
+        // The lever arms at the solution from the walk's own lines: the linear joints moved by
+        // dq carry the tip (those of the tool chain) and the axis lines behind them (those ahead
+        // of each line in its chain) along their directions; nothing turns.
+        double moved[8] = {};
+        for (int i = 0; i < 3; ++i) moved[linear_[std::size_t(i)]] = dq[i];
+        V3 x = v3(tt);
+        for (const int j : tool_linear_) x = x + v3(tool_dirs[j]) * moved[j];
+        PathEnd& e = end->end;
+        e.lever_arm = 0;
+        e.tip_slack = e.axis_slack = 0;
+        for (int i = 0; i < count; ++i) {
+            V3 p = lines[i].point;
+            const LineShift& ls = line_shifts_[std::size_t(i)];
+            if (ls.linear) {
+                const Eigen::Vector3d* dirs = ls.tool ? tool_dirs : part_dirs;
+                for (std::size_t j = 0; j < n; ++j)
+                    if (ls.linear >> j & 1u) p = p + v3(dirs[j]) * moved[j];
+            }
+            const V3 d = x - p, u = lines[i].dir;
+            const V3 off = d - u * (u.x * d.x + u.y * d.y + u.z * d.z);
+            e.arm[i] = std::sqrt(off.x * off.x + off.y * off.y + off.z * off.z);
+            e.lever_arm = std::max(e.lever_arm, e.arm[i]);
+        }
+        // The solve is exact up to rounding (the tip is affine in the linear joints), which the
+        // bound's own slack covers as it does the FK's.
+        e.pose.tip = tip;
+        end->q = q;
+        end->valid = true;
+    }
     return {};
+}
+
+bool Kinematics::near_end(const SolvedEnd& solved, const double* q, PathEnd& out) const {
+    if (!solved.valid || !has_reach_) return false;
+    const double* s = solved.q.data();
+    // Along the joint-linear path from the solution to q the tip moves (relative to any axis)
+    // by at most `grow`, so each arm stays within its value at the solution plus that.
+    const double grow = reach_shift(s, q);
+    double tip = 0, axis = 0;
+    for (const NearTerm& t : near_terms_) {
+        const double move = std::abs(q[t.joint] - s[t.joint]) * t.per_unit;  // mm, or radians
+        if (t.arm < 0) {
+            tip += move;
+        } else {
+            tip += move * (solved.end.arm[t.arm] + grow);
+            axis += move;  // a unit vector turned by that angle moves at most that far
+        }
+    }
+    out.pose = solved.end.pose;
+    out.tip_slack = tip;
+    out.axis_slack = axis;
+    out.lever_arm = solved.end.lever_arm + grow;
+    for (int i = 0; i < arm_count_; ++i) out.arm[i] = solved.end.arm[i] + grow;
+    return true;
 }
 
 bool Kinematics::linear_jacobian(const Eigen::Matrix3d& Rp, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,

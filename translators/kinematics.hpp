@@ -82,8 +82,25 @@ public:
         Pose pose;
         double lever_arm = 0;  // the largest of `arm`
         double arm[8] = {};    // the distance from each rotary element's axis, in chain order (part chain, then tool chain)
+        // An end bounded rather than measured (near_end): the true tip and tool axis are within
+        // these of `pose` (mm, and a unit vector's length), and `arm` holds upper bounds.
+        double tip_slack = 0, axis_slack = 0;
     };
     PathEnd path_end(const double* q) const;
+    // An end the position solve found: its joints as solved and its PathEnd, which the solve
+    // gives for a few operations more than its own walk (solve_position). `valid` is false when
+    // it did not (the machine's Jacobian is fixed, or no solve was made).
+    struct SolvedEnd {
+        std::vector<double> q;
+        PathEnd end;
+        bool valid = false;
+    };
+    // The PathEnd at joints q near a solved end (the end rounded to the printed decimals), with
+    // no FK: the solved pose with the slack that moving its joints to q can add (each rotary
+    // turns the tip by at most its angle times the tip's distance from its axis, a linear joint
+    // moves it by its own travel) and the arms grown by how far the tip can move at all. False
+    // when that cannot be bounded (a linear joint without limits: no reach).
+    bool near_end(const SolvedEnd& solved, const double* q, PathEnd& out) const;
     struct PathBound {
         double tip = 0, axis = 0;
     };
@@ -107,7 +124,9 @@ public:
 
     // Sets the linear joints of q so the tip reaches `tip`, rotary joints as they are in q;
     // `axis`, when given, receives the tool axis of that configuration.
-    IkResult solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr) const;
+    // `end`, when given, receives the solution's SolvedEnd where the solve can give it cheaply.
+    IkResult solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr,
+                            SolvedEnd* end = nullptr) const;
 
     // The raw orientation solutions of a tool axis (see OrientationSolutions).
     using Solutions = OrientationSolutions;
@@ -155,6 +174,25 @@ private:
     bool has_reach_ = false;
     std::vector<double> shift_per_unit_;    // per joint: mm of tip per unit of the joint, at most
     double jacobian_inverse_[9] = {};       // that inverse, row by row (constant_jacobian_)
+    // For the solve's SolvedEnd: each rotary element's axis line, in forward()'s walk order, is
+    // moved by the linear joints ahead of it in its own chain (a mask of joints); the tip by those
+    // of the tool chain. False when a linear joint appears twice (a machine built by hand).
+    struct LineShift {
+        bool tool = false;      // in the tool chain (else the part chain)
+        unsigned linear = 0;    // bit j: linear joint j is ahead of it in that chain
+    };
+    std::vector<LineShift> line_shifts_;
+    std::vector<int> tool_linear_;      // the tool chain's linear joints (they carry the tip)
+    bool solved_ends_ = false;
+    // near_end's terms, looked up once: each linear joint with its mm per unit, each rotary
+    // element with its radians per unit and its arm.
+    struct NearTerm {
+        int joint = 0;
+        double per_unit = 0;
+        int arm = -1;  // rotary: its index in PathEnd::arm; -1 for a linear joint
+    };
+    std::vector<NearTerm> near_terms_;
+    int arm_count_ = 0;  // rotary elements, the entries of PathEnd::arm in use
 };
 
 }  // namespace xlate5

@@ -228,16 +228,20 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
             const Kinematics::PathEnd& ea = path_end(qa);
             const Kinematics::PathBound b = kin_.joint_path_bound(ea, qa, qb);
             if (!std::isfinite(b.tip)) continue;
-            const Pose pa = ea.pose;  // a copy: the next call may reuse the slot
-            const Pose pb = path_end(qb).pose;
+            // Copies of the start's pose and slacks (the next call may reuse the slot); a bounded
+            // end (near_end) is within its slacks of its pose.
+            const Pose pa = ea.pose;
+            const double pa_tip_slack = ea.tip_slack, pa_axis_slack = ea.axis_slack;
+            const Kinematics::PathEnd& eb = path_end(qb);
+            const Pose& pb = eb.pose;
             curve = b.tip;
-            ends = std::max(segment_distance(pa.tip, mv.p0.tip, mv.p1.tip), segment_distance(pb.tip, mv.p0.tip, mv.p1.tip));
+            ends = std::max(segment_distance(pa.tip, mv.p0.tip, mv.p1.tip) + pa_tip_slack, segment_distance(pb.tip, mv.p0.tip, mv.p1.tip) + eb.tip_slack);
             if (mv.mode == OrientationMode::Vector) {
                 const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
                 const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);
                 const double phi = (sb - sa) * arc.angle;
                 axis_curve = b.axis;
-                axis_ends = std::max((pa.axis - ia).norm(), (pb.axis - ib).norm());
+                axis_ends = std::max((pa.axis - ia).norm() + pa_axis_slack, (pb.axis - ib).norm() + eb.axis_slack);
                 arc_curve = phi * phi / 8.0;
             }
             bounded = true;
@@ -278,6 +282,8 @@ const Kinematics::PathEnd& MotionStage::path_end(const double* q) const {
     CachedEnd& c = ends_[ends_next_];
     ends_next_ = 1 - ends_next_;
     c.q.assign(q, q + n);
+    // The move's printed end, a rounding of the solve's own end: bounded from it, no FK.
+    if (solved_end_ && std::equal(q, q + n, q1_printed_.begin()) && kin_.near_end(*solved_end_, q, c.end)) return c.end;
     c.end = kin_.path_end(q);
     return c.end;
 }
@@ -307,9 +313,14 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
     // farther end's distance of the programmed segment. The first part alone often decides (a
     // piece being lengthened to the tolerance): then no FK at qb.
     if (!(b.tip <= tol - kSlack)) return false;
-    const Pose pa = ea.pose;  // a copy: the next call may reuse the slot
-    const Pose pb = path_end(qb).pose;
-    const double ends = std::max(segment_distance(pa.tip, mv.p0.tip, mv.p1.tip), segment_distance(pb.tip, mv.p0.tip, mv.p1.tip));
+    // Copies of the start's pose and slacks: the next call may reuse the slot. An end bounded
+    // rather than measured (near_end) is within its slacks of its pose.
+    const Pose pa = ea.pose;
+    const double pa_tip_slack = ea.tip_slack, pa_axis_slack = ea.axis_slack;
+    const Kinematics::PathEnd& eb = path_end(qb);
+    const Pose& pb = eb.pose;
+    const double ends = std::max(segment_distance(pa.tip, mv.p0.tip, mv.p1.tip) + pa_tip_slack,
+                                 segment_distance(pb.tip, mv.p0.tip, mv.p1.tip) + eb.tip_slack);
     if (!(b.tip + ends <= tol - kSlack)) return false;
     if (mv.mode != OrientationMode::Vector) return true;
     // The tool axis against the great-circle arc from sa to sb: both lie near the chords between
@@ -318,13 +329,16 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
         // The whole move (most moves pass here): the arc's angle alone, its sine not needed.
         const double phi = mv.p0.axis == arc_.a && mv.p1.axis == arc_.b ? arc_.angle
                                                                         : std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
-        return axis_chord_within(b.axis + std::max((pa.axis - mv.p0.axis).norm(), (pb.axis - mv.p1.axis).norm()) + phi * phi / 8.0, atol);
+        return axis_chord_within(b.axis + std::max((pa.axis - mv.p0.axis).norm() + pa_axis_slack, (pb.axis - mv.p1.axis).norm() + eb.axis_slack) +
+                                     phi * phi / 8.0,
+                                 atol);
     }
     const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
     const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
     const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);
     const double phi = (sb - sa) * arc.angle;
-    return axis_chord_within(b.axis + std::max((pa.axis - ia).norm(), (pb.axis - ib).norm()) + phi * phi / 8.0, atol);
+    return axis_chord_within(b.axis + std::max((pa.axis - ia).norm() + pa_axis_slack, (pb.axis - ib).norm() + eb.axis_slack) + phi * phi / 8.0,
+                             atol);
 }
 
 IkResult MotionStage::split(const MoveSpec& mv) {
@@ -340,6 +354,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
         round_printed(machine_, *mv.q0, q0_printed_);
     }
     round_printed(machine_, *mv.q1, q1_printed_);
+    solved_end_ = nullptr;
     last_end_q_ = *mv.q1;
     last_end_tip_ = mv.p1.tip;
     final_moved_ = false;
@@ -352,6 +367,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     for (const int j : kin_.rotary_joints()) rotates = rotates || q1[std::size_t(j)] != q0[std::size_t(j)];
     // With the rotaries still the tip is affine in the linear joints: the firmware's line is exact.
     if (!rotates || mv.mode == OrientationMode::Joints || !machine_.motion.segment) return {};
+    if (mv.end && mv.end->valid && mv.end->q == *mv.q1) solved_end_ = mv.end;
 
     const double tol = kSampleMargin * machine_.motion.tolerance, atol = sample_angle_.degrees();
     double tip = 0, ang = 0;

@@ -29,6 +29,9 @@ struct MoveSpec {
     Pose p0;
     const std::vector<double>* q1 = nullptr;         // end joints (solved) and pose
     Pose p1;
+    // The position solve's own end, when it gave one: the split bounds the printed end from it
+    // instead of an FK (used only when its joints are q1's).
+    const Kinematics::SolvedEnd* end = nullptr;
     const std::vector<bool>* commanded = nullptr;
     std::optional<PassedNumber> e;                   // E as written (mm, absolute or relative)
     bool e_relative = false;
@@ -116,6 +119,9 @@ private:
         Kinematics::PathEnd end;
     };
     mutable CachedEnd ends_[2];
+    // The move's solved end while it is split (split() sets it when it holds for the move's q1):
+    // path_end bounds q1_printed_ from it.
+    const Kinematics::SolvedEnd* solved_end_ = nullptr;
     // The programmed axis's great circle of the move being split: its angle (an acos and a sine)
     // once per move, not once per try and sample point. Keyed by the two axes.
     const GreatArc& arc_of(const MoveSpec& mv) const;

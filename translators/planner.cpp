@@ -293,6 +293,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     PlannerState& s = state_;
     q_next_ = s.q;
     if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
+    end_solved_.valid = false;
     IkResult r;
     if (mv.any_ijk) {
         end_solutions_ = kin_.orientation_solutions(mv.axis);
@@ -311,10 +312,10 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
                 // The tool axis of the end comes with the solve at little cost: the pole check
                 // asks for it at the next move's start.
                 Eigen::Vector3d at_end;
-                r = kin_.solve_position(next.tip, q_next_, &at_end);
+                r = kin_.solve_position(next.tip, q_next_, &at_end, &end_solved_);
                 if (mv.any_rotary) next.axis = at_end;
                 if (r.ok()) remember_axis(q_next_, at_end);
-            } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr); !solved.ok()) {
+            } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr, &end_solved_); !solved.ok()) {
                 r = std::move(solved);  // r is ok here: only a failure needs moving in
             }
             if (mv.any_ijk) next.axis = mv.axis;
@@ -372,6 +373,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     spec.p0 = s.pose;
     spec.q1 = &q_next_;
     spec.p1 = next;
+    spec.end = &end_solved_;  // the stage uses it only while its joints are still q_next_'s
     spec.commanded = mv.commanded;
     spec.e = mv.e;
     spec.e_relative = mv.e_relative;

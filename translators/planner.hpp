@@ -164,6 +164,9 @@ private:
         bool holds(const std::vector<int>& rot, const std::vector<double>& q) const;
     };
     Kinematics::Solutions end_solutions_;  // of the move's end axis (G43.5 with I J K)
+    // The end's position solve with its pose and lever arms (when the solve gives them): the
+    // motion stage bounds the printed end from it instead of an FK.
+    Kinematics::SolvedEnd end_solved_;
     KnownAxis known_axes_[2];  // see axis_at
     int known_next_ = 0;
 };
