@@ -732,6 +732,51 @@ TEST_CASE("the position solve's own end is the FK at its solution, and near_end 
     MESSAGE("largest tip slack of a printed rounding on pentarod: " << printed_slack << " mm");
 }
 
+TEST_CASE("the bounds' angle helpers are safe against acos and asin, and tight for small turns") {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> U(0, 1);
+    // Below about 1e-15 in the squared angle the dot product's own rounding decides (d within an
+    // ulp of 1): both sides are then that small, far under the chord limit's margin (1e-12 of a
+    // chord of about 0.017 for a degree), so the checks allow it.
+    constexpr double kFloor = 1e-15;
+    int unsafe = 0, loose = 0, unsafe_chord = 0;
+    for (int i = 0; i < 200000; ++i) {
+        // Angles from 1e-9 to 120 degrees, spread over their orders of magnitude.
+        const double phi = std::pow(10.0, -9 + 11.3 * U(rng)) * kPi / 180.0;
+        if (phi > 2.1) continue;
+        const Eigen::Vector3d a = Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized();
+        const Eigen::Vector3d n = a.cross(Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5)).normalized();
+        const Eigen::Vector3d b = std::cos(phi) * a + std::sin(phi) * n;
+        const double d = a.dot(b), exact = std::acos(std::clamp(d, -1.0, 1.0));
+        const double bound = turn_squared_at_most(d);
+        if (!(bound >= exact * exact - kFloor) || bound < 0) ++unsafe;
+        if (phi < 0.1 && !(bound <= exact * exact * (1 + phi * phi / 4) + kFloor)) ++loose;
+        if (d <= 0 && std::isfinite(bound)) ++unsafe;
+        // A chord below chord_within(limit) is within the limit, by asin.
+        const double limit = 180.0 * U(rng);
+        const double c = chord_within(limit) * U(rng);
+        if (!(2.0 * std::asin(0.5 * c) * 180.0 / kPi <= limit)) ++unsafe_chord;
+    }
+    CHECK(unsafe == 0);
+    CHECK(loose == 0);
+    CHECK(unsafe_chord == 0);
+    // At the limit itself the chord is the limit's own, short by about 1e-12 of it (for the
+    // small limits the split uses; near 180 degrees asin's slope makes that more of the angle).
+    for (const double limit : {0.01, 0.97, 1.0, 45.0}) {
+        const double c = chord_within(limit);
+        CHECK(2.0 * std::asin(0.5 * c) * 180.0 / kPi <= limit);
+        CHECK(2.0 * std::asin(0.5 * c) * 180.0 / kPi > limit * (1 - 1e-11));
+    }
+    CHECK(2.0 * std::asin(0.5 * chord_within(179.0)) * 180.0 / kPi <= 179.0);
+    CHECK(chord_within(0) == 0);
+    CHECK(chord_within(-1) == 0);
+    CHECK(chord_within(180) == 0);
+    CHECK(std::isinf(turn_squared_at_most(0.0)));
+    CHECK(std::isinf(turn_squared_at_most(-0.5)));
+    CHECK(turn_squared_at_most(1.0) == 0);
+    CHECK(turn_squared_at_most(std::nextafter(1.0, 2.0)) == 0);  // a unit vectors' dot product rounded past 1
+}
+
 TEST_CASE("AngleLimit's verdicts are the acos's own, near the limit and far from it") {
     std::mt19937 rng(11);
     std::uniform_real_distribution<double> U(0, 1);

@@ -127,6 +127,17 @@ std::vector<ChainLink> compile_chain(const std::vector<ChainElement>& chain) {
 
 double angle_of_dot(double dot) { return std::acos(std::clamp(dot, -1.0, 1.0)) * kDegPerRad; }
 
+double turn_squared_at_most(double d) {
+    if (!(d > 0)) return std::numeric_limits<double>::infinity();
+    // The factor covers the division's rounding; a dot product rounded past 1 is no turn at all.
+    return std::max(4.0 * (1.0 - d) / (1.0 + d) * (1.0 + 1e-12), 0.0);
+}
+
+double chord_within(double degrees) {
+    if (!(degrees > 0 && degrees < 180)) return 0.0;
+    return 2.0 * std::sin(0.5 * degrees * kDeg) * (1.0 - 1e-12);
+}
+
 AngleLimit::AngleLimit(double degrees) : degrees_(degrees) {
     constexpr double kWindow = 1e-12;
     if (degrees > 0 && degrees < 180) {

@@ -34,6 +34,15 @@ struct ChainLink {
 // The angle (degrees) between two unit vectors, from their dot product.
 double angle_of_dot(double dot);
 
+// For bounds, which only have to be safe, without an acos or asin:
+// the square of the angle (radians) between two unit vectors with dot product d, at most:
+// 4 tan^2(phi / 2) = 4 (1 - d) / (1 + d) >= phi^2 (tan x >= x), within a few parts in phi^2 of it
+// for small turns; infinite past a right angle;
+double turn_squared_at_most(double d);
+// and the chord between two unit vectors below which their angle is within `degrees`: 2 sin of
+// half of it, made shorter by 1e-12 of itself than rounding could move it (0 outside (0, 180)).
+double chord_within(double degrees);
+
 // angle_of_dot(dot) compared with a fixed limit: the same verdict, with the acos only when dot is
 // within 1e-12 of the limit's cosine. Outside that window the angle is more than 1e-12 radians
 // from the limit (|d acos / d dot| >= 1), far more than the few ulps by which acos, the product

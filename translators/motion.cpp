@@ -25,10 +25,9 @@ constexpr double kSampleMargin = 0.97;
 // A piece's length predicted from a failing try's error aims this far short of the limit.
 constexpr double kPredictAim = 0.98;
 
-// A unit vector within `chord` of the programmed axis is within the angle 2 asin(chord / 2).
-bool axis_chord_within(double chord, double atol) {
-    return chord < 2.0 && 2.0 * std::asin(0.5 * chord) * kDegPerRad <= atol - 1e-6;
-}
+// Distance from an end to the segment: zero, with no arithmetic, when the end is the segment's
+// own end point (a bounded end's pose is the programmed tip itself).
+double end_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 
 double printed(const Machine& m, std::size_t j, double v) {
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
@@ -56,6 +55,10 @@ double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, cons
     double t = len2 > 0 ? (p - a).dot(ab) / len2 : 0.0;
     t = std::clamp(t, 0.0, 1.0);
     return (a + t * ab - p).norm();
+}
+
+double end_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return p == a || p == b ? 0.0 : segment_distance(p, a, b);
 }
 
 }  // namespace
@@ -94,6 +97,7 @@ double firmware_length(const Machine& m, const std::vector<double>& q0, const st
 
 MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
     : sample_angle_(kSampleMargin * kinematics.machine().motion.angle_tolerance),
+      chord_limit_(chord_within(sample_angle_.degrees() - 1e-6)),
       kin_(kinematics),
       machine_(kinematics.machine()),
       compensation_(kinematics.machine().compensation),
@@ -203,7 +207,7 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
             const double f = 4 * t * (1 - t);
             bool clear = curve * f + ends <= tol - kSlack;
             if (clear && mv.mode == OrientationMode::Vector) {
-                clear = axis_chord_within((axis_curve + arc_curve) * f + axis_ends, atol);
+                clear = (axis_curve + arc_curve) * f + axis_ends < chord_limit_;
             }
             if (clear) continue;
         }
@@ -235,7 +239,7 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
             const Kinematics::PathEnd& eb = path_end(qb);
             const Pose& pb = eb.pose;
             curve = b.tip;
-            ends = std::max(segment_distance(pa.tip, mv.p0.tip, mv.p1.tip) + pa_tip_slack, segment_distance(pb.tip, mv.p0.tip, mv.p1.tip) + eb.tip_slack);
+            ends = std::max(end_distance(pa.tip, mv.p0.tip, mv.p1.tip) + pa_tip_slack, end_distance(pb.tip, mv.p0.tip, mv.p1.tip) + eb.tip_slack);
             if (mv.mode == OrientationMode::Vector) {
                 const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
                 const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);
@@ -301,8 +305,7 @@ bool MotionStage::reach_clears(const MoveSpec& mv, double tol) const {
     return b.tip + ends <= tol - kSlack;
 }
 
-bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol,
-                                 double atol) const {
+bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol) const {
     // Sampling finds at most the true deviation, and the bound is at least that: when the bound
     // passes, the samples would have too, so the split is the same, only cheaper. The slack
     // covers rounding in the two computations.
@@ -319,26 +322,23 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
     const double pa_tip_slack = ea.tip_slack, pa_axis_slack = ea.axis_slack;
     const Kinematics::PathEnd& eb = path_end(qb);
     const Pose& pb = eb.pose;
-    const double ends = std::max(segment_distance(pa.tip, mv.p0.tip, mv.p1.tip) + pa_tip_slack,
-                                 segment_distance(pb.tip, mv.p0.tip, mv.p1.tip) + eb.tip_slack);
+    const double ends = std::max(end_distance(pa.tip, mv.p0.tip, mv.p1.tip) + pa_tip_slack, end_distance(pb.tip, mv.p0.tip, mv.p1.tip) + eb.tip_slack);
     if (!(b.tip + ends <= tol - kSlack)) return false;
     if (mv.mode != OrientationMode::Vector) return true;
     // The tool axis against the great-circle arc from sa to sb: both lie near the chords between
     // their ends (the arc within phi^2 / 8 of its own), and those chords within the ends' gaps.
     if (sa == 0.0 && sb == 1.0) {
-        // The whole move (most moves pass here): the arc's angle alone, its sine not needed.
-        const double phi = mv.p0.axis == arc_.a && mv.p1.axis == arc_.b ? arc_.angle
-                                                                        : std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0));
-        return axis_chord_within(b.axis + std::max((pa.axis - mv.p0.axis).norm() + pa_axis_slack, (pb.axis - mv.p1.axis).norm() + eb.axis_slack) +
-                                     phi * phi / 8.0,
-                                 atol);
+        // The whole move (most moves pass here): the arc's angle alone, bounded from the axes'
+        // dot product (no acos, no sine).
+        const double phi2 = turn_squared_at_most(mv.p0.axis.dot(mv.p1.axis));
+        return b.axis + std::max((pa.axis - mv.p0.axis).norm() + pa_axis_slack, (pb.axis - mv.p1.axis).norm() + eb.axis_slack) + phi2 / 8.0 <
+               chord_limit_;
     }
     const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
     const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
     const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);
     const double phi = (sb - sa) * arc.angle;
-    return axis_chord_within(b.axis + std::max((pa.axis - ia).norm() + pa_axis_slack, (pb.axis - ib).norm() + eb.axis_slack) + phi * phi / 8.0,
-                             atol);
+    return b.axis + std::max((pa.axis - ia).norm() + pa_axis_slack, (pb.axis - ib).norm() + eb.axis_slack) + phi * phi / 8.0 < chord_limit_;
 }
 
 IkResult MotionStage::split(const MoveSpec& mv) {
@@ -372,7 +372,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     const double tol = kSampleMargin * machine_.motion.tolerance, atol = sample_angle_.degrees();
     double tip = 0, ang = 0;
     if (start_on_line && reach_clears(mv, tol)) return {};
-    if (bounded_within(mv, 0, 1, q0.data(), q1.data(), tol, atol)) return {};
+    if (bounded_within(mv, 0, 1, q0.data(), q1.data(), tol)) return {};
     piece_error(mv, 0, 1, q0.data(), q1.data(), kCheckSamples, tip, ang);
     const double ratio = std::max(tip / tol, ang / atol);
     if (ratio <= 1) return {};
@@ -412,7 +412,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
             else exact_b_ = qb;
             round_printed(machine_, qb);
             double middle_ratio = 0;  // the failing middle sample's error over the tolerance (0: not known)
-            bool pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, atol);
+            bool pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol);
             if (!pass) pass = piece_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, &middle_ratio);
             if (!pass && mv.mode == OrientationMode::Vector) {
                 // Near a pole the continuous branch swings a joint round; the other branch may
@@ -424,7 +424,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                     alt_exact = alt;
                     round_printed(machine_, alt);
                     if (alt == qb) continue;
-                    const bool alt_pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol, atol) ||
+                    const bool alt_pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol) ||
                                           piece_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol);
                     if (alt_pass) {
                         pass = true;

@@ -88,9 +88,8 @@ public:
 
 private:
     // True when the firmware's path from qa to qb (move parameters sa to sb) is proved within
-    // `tol` (mm) and `atol` (degrees) by kinematics' bound, without sampling it.
-    bool bounded_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
-                        double atol) const;
+    // `tol` (mm) and the split's angle limit (chord_limit_) by kinematics' bound, without sampling it.
+    bool bounded_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol) const;
     // The same for the whole move under the angle form, from the machine's reach: no FK at all.
     bool reach_clears(const MoveSpec& move, double tol) const;
     // piece_error's verdict against `tol` and the split's angle limit (sample_angle_), stopping at
@@ -141,6 +140,7 @@ private:
     mutable int ends_next_ = 0;
     const MoveSpec* split_for_ = nullptr;  // the move whose split s_, qs_ hold already (cross_pole made it)
     AngleLimit sample_angle_;  // the split's angle limit (the angle tolerance with its sampling margin)
+    double chord_limit_;       // the bound's form of it: a tool axis within this chord is inside it (motion.cpp)
 
     const Kinematics& kin_;
     const Machine& machine_;
