@@ -5,9 +5,12 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <map>
+#include <memory>
 #include <random>
 
+#include "translators/error.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 
@@ -830,4 +833,98 @@ TEST_CASE("atan2 is odd in y to the last bit, as the orientation solve's second 
     for (const double x : {1.0, -1.0, 0.0, -0.0, 1e-300, -1e-300})
         for (const double y : {0.0, -0.0, 1.0, 1e-300, 5e-324}) check(y, x);
     CHECK(differ == 0);
+}
+
+TEST_CASE("the orientation solve's shortcut equals its general path bit for bit, on every shipped machine and random axes") {
+    // The shortcut (two rotaries along coordinate axes) leaves out the products with the axes'
+    // zero entries; it must give the general path's bits, signed zeros and NaNs included, or
+    // leave the axis to it. Machines: as shipped, tilted (fixed rotations that are not the
+    // identity, a tool axis off the coordinate axes), and with random coordinate rotary axes of
+    // either sign (their zero entries of either sign too). Axes: random, the machine's own at
+    // random joints and at whole quarter turns (its poles), and vectors built from zeros of
+    // both signs, ones, tiny and random numbers.
+    const std::map<std::string, std::map<std::string, double>> tilted = {
+        {"wpi5", {{"rho", 1.7}, {"psi", -2.3}}},
+        {"pentarod", {{"a_offset", 2.9}, {"cx", 1.3}, {"cy", -0.8}}},
+    };
+    std::mt19937 rng(23);
+    std::uniform_real_distribution<double> U(0, 1);
+    std::uniform_int_distribution<int> pick(0, 2), coin(0, 1);
+    int with_shortcut = 0, answered = 0, asked = 0;
+    for (const auto& [name, path] : bundled_machines()) {
+        for (int variant = 0; variant < 42; ++variant) {
+            if (variant == 1 && !tilted.count(name)) continue;
+            CAPTURE(name);
+            CAPTURE(variant);
+            Machine m = variant == 1 ? load_machine(path, tilted.at(name)) : load_machine(path);
+            if (variant >= 2) {
+                auto coordinate = [&] {
+                    Eigen::Vector3d w(coin(rng) ? 0.0 : -0.0, coin(rng) ? 0.0 : -0.0, coin(rng) ? 0.0 : -0.0);
+                    w[pick(rng)] = coin(rng) ? 1.0 : -1.0;
+                    return w;
+                };
+                auto unit = [&] { return Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized(); };
+                for (auto* chain : {&m.part_chain, &m.tool_chain})
+                    for (auto& e : *chain) {
+                        if (e.kind == ChainElement::Kind::Rotary) e.axis = coordinate();
+                        else if (e.kind == ChainElement::Kind::Fixed && coin(rng))
+                            e.fixed.linear() = Eigen::AngleAxisd(U(rng) * 6, unit()).toRotationMatrix();
+                    }
+                m.tool_axis = coin(rng) ? coordinate() : unit();
+            }
+            std::unique_ptr<Kinematics> made;
+            try {
+                made = std::make_unique<Kinematics>(m);
+            } catch (const MachineError&) {
+                continue;  // parallel rotary axes
+            }
+            const Kinematics& k = *made;
+            if (name == "pentarod" && variant == 0) CHECK(k.has_orientation_shortcut());
+            if (!k.has_orientation_shortcut()) continue;
+            ++with_shortcut;
+            std::vector<Eigen::Vector3d> axes;
+            for (int i = 0; i < 400; ++i) {
+                axes.push_back(Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized());
+                axes.push_back(k.forward(random_joints(m, rng)).axis);
+                std::vector<double> q = random_joints(m, rng);
+                for (const int j : k.rotary_joints()) q[std::size_t(j)] = 90.0 * std::uniform_int_distribution<int>(-4, 4)(rng);
+                axes.push_back(k.forward(q).axis);
+                const double parts[] = {0.0, -0.0, 1.0, -1.0, 1e-300, -5e-324, U(rng) - 0.5, 1e-9 * (U(rng) - 0.5)};
+                std::uniform_int_distribution<int> part(0, 7);
+                axes.push_back(Eigen::Vector3d(parts[part(rng)], parts[part(rng)], parts[part(rng)]));
+                // Near a pole (the tool axis at rotaries zero), and a few ulps off an exact axis.
+                const Eigen::Vector3d pole = k.forward(std::vector<double>(m.joints.size(), 0.0)).axis;
+                axes.push_back(pole + 1e-7 * (U(rng) - 0.5) * Eigen::Vector3d(U(rng), U(rng), U(rng)));
+                // At the distance where a joint turns free (1e-7), within a millionth of it.
+                const Eigen::Vector3d side = pole.cross(Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5)).normalized();
+                axes.push_back(pole + 1e-7 * (1 + 2e-6 * (U(rng) - 0.5)) * side);
+                axes.push_back(Eigen::Vector3d(std::nextafter(1.0, 2.0), std::ldexp(U(rng) - 0.5, -52), -0.0));
+            }
+            const double inf = std::numeric_limits<double>::infinity(), nan = std::nan("");
+            for (const Eigen::Vector3d& a : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(-0.0, 0, -0.0), Eigen::Vector3d(inf, 0, 1),
+                                             Eigen::Vector3d(nan, 1, 0), Eigen::Vector3d(1e200, 1e200, 1e200)})
+                axes.push_back(a);
+            int differ = 0;
+            for (const Eigen::Vector3d& a : axes) {
+                const Kinematics::Solutions general = k.orientation_solutions_general(a);
+                Kinematics::Solutions fast;
+                ++asked;
+                if (k.orientation_shortcut(a, fast)) ++answered;
+                else fast = general;
+                const Kinematics::Solutions used = k.orientation_solutions(a);
+                const Kinematics::Solutions* got[] = {&fast, &used};
+                for (const Kinematics::Solutions* s : got) {
+                    bool same = s->count == general.count && same_bits(s->axis, general.axis);
+                    for (int b = 0; b < general.count && same; ++b)
+                        same = std::memcmp(s->angle[b], general.angle[b], sizeof(double) * k.rotary_joints().size()) == 0;
+                    if (!same) ++differ;
+                }
+            }
+            CHECK(differ == 0);
+        }
+    }
+    CHECK(with_shortcut > 20);
+    // The shortcut answers nearly every axis itself (else this test would hold little).
+    CHECK(answered > asked / 2);
+    MESSAGE("orientation shortcut: " << with_shortcut << " machines, " << answered << " of " << asked << " axes answered");
 }

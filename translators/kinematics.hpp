@@ -140,6 +140,12 @@ public:
     // The raw orientation solutions of a tool axis (see OrientationSolutions).
     using Solutions = OrientationSolutions;
     Solutions orientation_solutions(const Eigen::Vector3d& axis) const;
+    // orientation_solutions is the shortcut where the machine's rotary axes allow it and it
+    // answers (false: it leaves the axis to the general path), else the general path: the same
+    // bits. Apart for the tests that hold the two against each other.
+    bool has_orientation_shortcut() const { return orient_.on; }
+    bool orientation_shortcut(const Eigen::Vector3d& axis, Solutions& out) const;
+    Solutions orientation_solutions_general(const Eigen::Vector3d& axis) const;
     const std::vector<int>& rotary_joints() const { return rotary_; }
 
     // True when (theta1 + 180, -theta2) gives the same tool axis as (theta1, theta2) for every
@@ -177,6 +183,18 @@ private:
     Eigen::Matrix3d g0_ = Eigen::Matrix3d::Identity();
     Eigen::Vector3d p_ = Eigen::Vector3d::UnitZ();
     bool flip_ = false;
+    // orientation_solutions' shortcut, for two rotaries along coordinate axes: w1 = w1i e_i,
+    // w2 = w2j e_j, n = w1 x w2 = nk e_k (w1i, w2j, nk +-1), and the general path's constants.
+    struct OrientShortcut {
+        bool on = false, g0_identity = false, free2 = false;
+        int i = 0, j = 1, pattern = 0;  // pattern: which of the six (i, j)
+        double w1i = 1, w2j = 1, nk = 1;
+        double sign1 = 1, sign2 = 1;  // sign_
+        double a = 0, den = -1, w2p = 0, aw2p = 0, psq = 1, nn = 1;
+        double pp2[3] = {};  // p projected off w2
+        double g0[9] = {};   // row by row
+        double free_sq = 0;  // |v|^2 below this: |v| < kFreeEps
+    } orient_;
     std::vector<int> linear_;               // the first three linear joints: the position solve's unknowns
     bool constant_jacobian_ = false;        // no rotation ahead of a linear joint: its inverse is fixed
     PathEnd reach_;                         // see reach()
