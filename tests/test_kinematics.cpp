@@ -13,6 +13,7 @@
 #include "translators/error.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
+#include "translators/planner.hpp"
 
 using namespace xlate5;
 
@@ -812,6 +813,32 @@ TEST_CASE("AngleLimit's verdicts are the acos's own, near the limit and far from
         }
         CHECK(differ == 0);
     }
+}
+
+TEST_CASE("least_dot_below gives the acos's verdict on every double near 1, for limits of a few ulps") {
+    // The planner's exact-start test (1e-6 degrees) as `dot >= least`: right only if no double
+    // below the least passing one passes again. Every double within 1e-12 of 1 (AngleLimit takes
+    // the acos there; beyond, its own reason holds), random dots, and the clamped and NaN ones.
+    std::mt19937 rng(13);
+    std::uniform_real_distribution<double> U(-1, 1);
+    for (const double limit : {1e-6, 3e-7, 2e-6, 4e-6}) {
+        CAPTURE(limit);
+        const double least = least_dot_below(limit);
+        REQUIRE(least <= 1.0);
+        int differ = 0, passed = 0;
+        auto check = [&](double d) {
+            const bool pass = angle_of_dot(d) < limit;
+            passed += pass;
+            if ((d >= least) != pass) ++differ;
+        };
+        for (double d = 1.0 + 1e-12; d >= 1.0 - 1e-12; d = std::nextafter(d, 0.0)) check(d);
+        for (int i = 0; i < 100000; ++i) check(U(rng));
+        for (const double d : {2.0, -2.0, std::nan(""), 0.0, -0.0}) check(d);
+        CHECK(differ == 0);
+        CHECK(passed > 0);
+    }
+    CHECK(std::isnan(least_dot_below(1e-5)));  // not a limit of a few ulps (137 doubles pass)
+    CHECK(std::isnan(least_dot_below(0.0)));
 }
 
 TEST_CASE("atan2 is odd in y to the last bit, as the orientation solve's second tilt assumes") {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
@@ -39,6 +40,17 @@ double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { retur
 
 }  // namespace
 
+double least_dot_below(double degrees) {
+    if (!(angle_of_dot(1.0) < degrees)) return std::numeric_limits<double>::quiet_NaN();
+    double least = 1.0;
+    for (int i = 0; i < 64; ++i) {
+        const double d = std::nextafter(least, 0.0);
+        if (!(angle_of_dot(d) < degrees)) return least;
+        least = d;
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+}
+
 Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter& emitter, MoveLog* log)
     : kin_(kinematics),
       machine_(kinematics.machine()),
@@ -48,9 +60,9 @@ Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter
       compensation_(kinematics.machine().compensation),
       motion_(kinematics, emitter),
       q_next_(state.q),
-      exact_start_(1e-6),
       pole_region_(kPoleRegion * kinematics.machine().motion.angle_tolerance),
-      short_turn_(kinematics.machine().motion.angle_tolerance) {
+      short_turn_(kinematics.machine().motion.angle_tolerance),
+      exact_start_(least_dot_below(1e-6)) {
     // The pole of a has_flip machine (pole_passage): the tool axis with the tilting rotary at 0,
     // which the first rotary then turns about itself (has_flip: within 1e-9 of its axis), so it is
     // the same for every joint value; computed per move before, the same to rounding (every
@@ -199,7 +211,7 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinematics::S
     const std::vector<double>& q0 = state_.q;
     const double tolerance = machine_.motion.angle_tolerance;
     const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
-    const bool start_exact = exact_start_.below(axis_at(q0).dot(from.axis));
+    const bool start_exact = axis_at(q0).dot(from.axis) >= exact_start_;
     // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
     // files under G43.5: the axis stays on the pole).
     if (start_exact && q_next_[c] == q0[c] && q_next_[b] == q0[b]) return false;

@@ -34,6 +34,13 @@ struct AngleImage {
     bool operator==(const AngleImage&) const = default;
 };
 
+// The least dot with angle_of_dot(dot) < degrees, for a limit so small that only dots a few
+// ulps below 1 pass (1e-6 degrees: 1 and the double below it; at most 64 of them, else NaN).
+// Every dot below it fails: acos only grows as dot falls (test_kinematics checks each double
+// within 1e-12 of 1, where AngleLimit would take the acos; past that AngleLimit's own reason
+// holds), so `dot >= least` is the acos's verdict without the acos.
+double least_dot_below(double degrees);
+
 // What the planner keeps between moves: where the machine is.
 struct PlannerState {
     std::vector<double> q;   // joint values the firmware will be at
@@ -156,7 +163,8 @@ private:
     std::vector<double> pole_q_, pole_probe_;  // scratch for pole_passage
     Eigen::Vector3d pole_ = Eigen::Vector3d::UnitZ();  // pole_passage's pole (has_flip machines; see the constructor)
     bool pole_checks_ = false;                         // pole_passage applies to this machine
-    AngleLimit exact_start_, pole_region_, short_turn_;  // pole_passage's tests of the angles it compares
+    AngleLimit pole_region_, short_turn_;  // pole_passage's tests of the angles it compares
+    double exact_start_;                   // and its start within 1e-6 degrees of the axis: a dot at least this
     struct KnownAxis {
         bool valid = false;
         double rotary[2] = {};  // rotary_joints() order
