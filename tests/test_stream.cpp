@@ -211,6 +211,31 @@ TEST_CASE("write_units writes the integer's digits with the point placed and tra
     CHECK(checked > 250000);
 }
 
+TEST_CASE("write_units below a million units, its table paths, writes what the general path writes: every value") {
+    // Three decimals below 1000 in magnitude are written inline from two tables; at any count of
+    // decimals an integer part below a million is two table entries. Every value of that range
+    // and a little past it, against the digit-by-digit text built here.
+    auto reference = [](long long units, int d) {
+        std::string digits = std::to_string(units < 0 ? -units : units);
+        if (d > 0) {
+            if (digits.size() <= std::size_t(d)) digits.insert(0, std::size_t(d) + 1 - digits.size(), '0');
+            digits.insert(digits.size() - std::size_t(d), 1, '.');
+            while (digits.back() == '0') digits.pop_back();
+            if (digits.back() == '.') digits.pop_back();
+        }
+        return (units < 0 && digits != "0" ? "-" : "") + digits;
+    };
+    for (int d : {0, 1, 3, 4}) {
+        bool all = true;
+        for (long long v = -1000100; v <= 1000100 && all; ++v) {
+            char buf[kUnitsChars];
+            all = std::string(buf, write_units(buf, v, d)) == reference(v, d);
+            if (!all) CHECK_MESSAGE(false, v << " at " << d << " decimals: " << std::string(buf, write_units(buf, v, d)));
+        }
+        CHECK(all);
+    }
+}
+
 TEST_CASE("a number that is not finite or beyond 1e9 is never written: UnwritableNumber, and nothing appended") {
     // std::to_chars fails for |v| >~ 1e61 at 3 decimals in 64 bytes; its buffer must not be written.
     for (const double v : {1e61, -1e200, 1e300, 1e9 * (1 + 1e-15), -2e9, 1e12, std::numeric_limits<double>::infinity(),

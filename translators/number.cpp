@@ -26,28 +26,8 @@ void append_units(std::string& out, long long units, int decimals) {
     out.append(buf, write_units(buf, units, decimals));
 }
 
-namespace {
-
-constexpr char kPairs[] =
-    "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
-    "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
-    "8081828384858687888990919293949596979899";
-
-// A short text of at most four bytes and its length: an entry of the tables below.
-struct ShortText {
-    char text[4];
-    unsigned char size;
-};
-
-// The text at p: four bytes copied at once (the caller's buffer has room, see kUnitsChars in
-// write_units: the bytes past size are scratch), the length added.
-inline char* put_short(char* p, const ShortText& t) {
-    std::memcpy(p, t.text, 4);
-    return p + t.size;
-}
-
 // The text of 0 to 999 (a joint's integer part, mostly).
-constexpr auto kSmall = [] {
+extern constexpr std::array<ShortText, 1000> kIntegerText = [] {
     std::array<ShortText, 1000> t{};
     for (int v = 0; v < 1000; ++v) {
         const int n = v >= 100 ? 3 : v >= 10 ? 2 : 1;
@@ -57,9 +37,43 @@ constexpr auto kSmall = [] {
     return t;
 }();
 
+// Three decimals, the joints' usual count: each fraction's text (point, digits without the
+// trailing zeros; nothing for 0) from a table.
+extern constexpr std::array<ShortText, 1000> kFraction3Text = [] {
+    std::array<ShortText, 1000> t{};
+    for (int f = 1; f < 1000; ++f) {
+        int digits = 3, v = f;
+        while (v % 10 == 0) v /= 10, --digits;
+        ShortText& e = t[std::size_t(f)];
+        e.text[0] = '.';
+        for (int k = digits; k >= 1; --k, v /= 10) e.text[k] = char('0' + v % 10);
+        e.size = static_cast<unsigned char>(digits + 1);
+    }
+    return t;
+}();
+
+namespace {
+
+constexpr char kPairs[] =
+    "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
+    "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
+    "8081828384858687888990919293949596979899";
+
+// Three digits of 0 to 999 with their leading zeros ("007"): the lower part of a number below
+// a million.
+constexpr auto kThreeDigits = [] {
+    std::array<ShortText, 1000> t{};
+    for (int v = 0; v < 1000; ++v) {
+        for (int k = 2, x = v; k >= 0; --k, x /= 10) t[std::size_t(v)].text[k] = char('0' + x % 10);
+        t[std::size_t(v)].size = 3;
+    }
+    return t;
+}();
+
 // The digits of v at p, left to right; below 1000 from the table.
 inline char* write_integer(char* p, unsigned long long v) {
-    if (v < 1000) return put_short(p, kSmall[v]);
+    if (v < 1000) return put_short(p, kIntegerText[v]);
+    if (v < 1000000) return put_short(put_short(p, kIntegerText[v / 1000]), kThreeDigits[v % 1000]);  // (a feed, mostly)
     int n = 1;
     for (unsigned long long t = 10; n < 20 && v >= t; t *= 10) ++n;
     char* q = p + n;
@@ -110,30 +124,15 @@ char* write_decimals(char* p, unsigned long long u) {
     return write_fraction(write_integer(p, u / kScale), u % kScale, D);
 }
 
-// Three decimals, the joints' usual count: each fraction's text (point, digits without the
-// trailing zeros; nothing for 0) from a table.
-constexpr auto kFraction3 = [] {
-    std::array<ShortText, 1000> t{};
-    for (int f = 1; f < 1000; ++f) {
-        int digits = 3, v = f;
-        while (v % 10 == 0) v /= 10, --digits;
-        ShortText& e = t[std::size_t(f)];
-        e.text[0] = '.';
-        for (int k = digits; k >= 1; --k, v /= 10) e.text[k] = char('0' + v % 10);
-        e.size = static_cast<unsigned char>(digits + 1);
-    }
-    return t;
-}();
-
 template <>
 char* write_decimals<3>(char* p, unsigned long long u) {
     p = write_integer(p, u / 1000);
-    return put_short(p, kFraction3[u % 1000]);
+    return put_short(p, kFraction3Text[u % 1000]);
 }
 
 }  // namespace
 
-char* write_units(char* out, long long units, int decimals) {
+char* write_units_general(char* out, long long units, int decimals) {
     if (units == 0) {
         *out = '0';
         return out + 1;

@@ -1,7 +1,9 @@
 // Number text <-> double, without locale and without allocation (the hot path of every line).
 // No stage: the lexer and the emitters call it. Calls nothing.
 #pragma once
+#include <array>
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <string_view>
 
@@ -46,12 +48,42 @@ inline bool to_units(double v, int decimals, long long& units) {
     units = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
     return true;
 }
-// Writes units * 10^-decimals (decimals 0 to 18) with trailing fraction zeros removed at p and
+// write_units_general: writes units * 10^-decimals (decimals 0 to 18) with trailing fraction zeros removed at p and
 // returns the end of the text: at most 21 characters, no terminator. It may write scratch bytes
 // past that end, never past p + kUnitsChars: give it that much room. append_units appends the
-// same to a string.
+// same to a string. (write_units, below, is inline for the usual case; this is any case.)
 inline constexpr std::size_t kUnitsChars = 24;
-char* write_units(char* p, long long units, int decimals);
+char* write_units_general(char* p, long long units, int decimals);
 void append_units(std::string& out, long long units, int decimals);
+
+// A text of at most four bytes and its length: an entry of the tables below.
+struct ShortText {
+    char text[4];
+    unsigned char size;
+};
+// The text of 0 to 999 ("7", "42"), and of a three-decimal fraction 0 to 999 (".05", ".125";
+// nothing for 0), from number.cpp.
+extern const std::array<ShortText, 1000> kIntegerText;
+extern const std::array<ShortText, 1000> kFraction3Text;
+
+// The text at p: four bytes copied at once (the bytes past size are scratch: see kUnitsChars),
+// the length added.
+inline char* put_short(char* p, const ShortText& t) {
+    std::memcpy(p, t.text, 4);
+    return p + t.size;
+}
+
+// The text write_units_general writes, the joints' usual case inline: three decimals and a
+// magnitude below 1000 are a sign and two table entries, no call (the emitter writes several a
+// line); any other case is passed on.
+inline char* write_units(char* p, long long units, int decimals) {
+    if (decimals == 3 && units > -1000000 && units < 1000000) {
+        *p = '-';
+        p += units < 0;
+        const unsigned u = unsigned(units < 0 ? -units : units);
+        return put_short(put_short(p, kIntegerText[u / 1000]), kFraction3Text[u % 1000]);
+    }
+    return write_units_general(p, units, decimals);
+}
 
 }  // namespace xlate5
