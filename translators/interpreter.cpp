@@ -3,6 +3,7 @@
 #include "translators/interpreter.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <optional>
 #include <string>
@@ -43,6 +44,9 @@ Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner
     }
     position_letters_ += "XYZ";
     for (char letter = 'A'; letter <= 'Z'; ++letter) joint_of_letter_[std::size_t(letter - 'A')] = machine_.joint_index(letter);
+    // (One bit a joint: the loader allows five joints, the emitter eight.)
+    if (machine_.joints.size() > 32) throw MachineError(machine_.source_path + ": more joints than the interpreter holds (32)");
+    for (std::size_t j = 0; j < machine_.joints.size(); ++j) (machine_.joints[j].rotary ? rotary_joints_ : linear_joints_) |= 1u << j;
 }
 
 void Interpreter::fail(std::uint32_t column, const std::string& message) const { throw LineError(column, message); }
@@ -208,6 +212,18 @@ void Interpreter::run_command(const CommandWord& c, std::string_view body, bool 
     }
 }
 
+void Interpreter::set_move_commanded(std::uint32_t bits, std::size_t joints) {
+    if (joints < 32) bits &= (1u << joints) - 1;  // (the state's joints are the machine's)
+    if (move_commanded_.size() != joints) {
+        move_commanded_.assign(joints, false);
+        move_commanded_bits_ = 0;
+    }
+    // Only the joints whose flag changed (none on most moves: a program names the same axes).
+    for (std::uint32_t change = bits ^ move_commanded_bits_; change != 0; change &= change - 1)
+        move_commanded_[std::size_t(std::countr_zero(change))].flip();
+    move_commanded_bits_ = bits;
+}
+
 void Interpreter::track_extrusion(const std::optional<PassedNumber>& e) {
     if (!e) return;
     Modes& modes = state_.modal.modes;
@@ -224,7 +240,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
     bool any_xyz = false, any_ijk = false, any_rotary = false;
     std::uint32_t ijk_column = column;
     ToolMove mv;  // its E and F are written as the words are read
-    commanded_.assign(at.q.size(), false);
+    std::uint32_t commanded = 0;  // one bit a joint, written to move_commanded_ at the end
     // Under G43.4 the rotary words are programmed angles; the joints are their image.
     planner_.programmed_angles(angles_);
     for (const Param& p : words) {
@@ -259,7 +275,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
                     fail(p.column, std::string("rotary word ") + p.letter + " under G43.5: give the tool axis as I J K, or switch to G43.4");
                 const double v = number(p);
                 angles_[std::size_t(j)] = absolute ? v : angles_[std::size_t(j)] + v;
-                commanded_[std::size_t(j)] = true;
+                commanded |= 1u << j;
                 any_rotary = true;
                 break;
             }
@@ -277,10 +293,9 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
         mv.axis = m.plane.normal();
         mv.mode = OrientationMode::Vector;
     }
-    for (std::size_t j = 0; j < at.q.size(); ++j) {
-        const bool rotary = machine_.joints[j].rotary;
-        if ((!rotary && any_xyz) || (rotary && any_ijk)) commanded_[j] = true;
-    }
+    if (any_xyz) commanded |= linear_joints_;
+    if (any_ijk) commanded |= rotary_joints_;
+    set_move_commanded(commanded, at.q.size());
     if (mv.f && !m.modes.inverse_time) m.modes.feed = mv.f->value;
     // G93 gives feed moves their duration; a rapid has none (RS274/NGC), so G0 needs no F.
     if (m.modes.inverse_time && !mv.f && gcode != 0 && (any_xyz || any_rotary || any_ijk))
@@ -292,7 +307,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
     mv.any_rotary = any_rotary;
     mv.angles = &angles_;
     mv.any_ijk = any_ijk;
-    mv.commanded = &commanded_;
+    mv.commanded = &move_commanded_;
     mv.e_relative = m.modes.e_relative;
     mv.e_position = m.modes.e_position;
     mv.feed = m.modes.feed;

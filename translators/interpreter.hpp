@@ -82,6 +82,7 @@ private:
     void joint_move(int gcode, Params words, std::string& out);
     void set_position(Params words, std::string_view body, std::string& out);
     void home(Params words, std::string& out);
+    void set_move_commanded(std::uint32_t bits, std::size_t joints);
     void track_extrusion(const std::optional<PassedNumber>& e);
     // G68.2 (define a tilted plane), G53.1 (turn the tool to its +Z), G69 (cancel).
     void work_plane_command(const CommandWord& c, Params words, LineRun& run, std::string& out);
@@ -105,6 +106,11 @@ private:
     // Scratch reused line after line (no allocation on the hot path).
     std::vector<double> angles_, joints_, arc_angles_;
     std::vector<bool> commanded_, which_;
+    // A tool move's commanded joints (ToolMove::commanded), rewritten from one bit a joint, and
+    // those bits: only a flag that changed is written (set_move_commanded).
+    std::vector<bool> move_commanded_;
+    std::uint32_t move_commanded_bits_ = 0;
+    std::uint32_t linear_joints_ = 0, rotary_joints_ = 0;  // one bit a joint, from the machine
     ParamList chord_words_, rotary_words_;
     std::vector<Eigen::Vector3d> chord_ends_;
 };
