@@ -242,6 +242,7 @@ void lex_line(std::string_view line, Block& out) {
     std::size_t body_end = 0;                         // of a comment or '%' after the last word
     std::size_t checksum_at = std::string_view::npos;
     bool line_number_read = false;
+    std::uint32_t letters = 0;  // Block::letters
     std::size_t i = 0;
     for (;;) {
         const char c = s[i];
@@ -269,6 +270,7 @@ void lex_line(std::string_view line, Block& out) {
             }
             // (The body's end after words is found from the last word, once, at the end.)
             if (next == room_end) grow_words(out, next, room_end);
+            letters |= letter_bit(letter);
             *next++ = Word{.value = value, .text = std::string_view(line.data() + number_start, i - number_start),
                            .column = std::uint32_t(letter_index + 1), .letter = letter, .has_value = has_value};
             if (letter == 'M' && takes_text(value)) {
@@ -340,6 +342,7 @@ void lex_line(std::string_view line, Block& out) {
         fail(i, std::string("unexpected character '") + c + "'");
     }
     out.word_count = std::size_t(next - out.word_room.data());
+    out.letters = letters;
     if (out.word_count > 0) {
         // The body begins at the first word or earlier comment, and ends at the last word or later comment.
         body_begin = std::min<std::size_t>(body_begin, out.word_room[0].column - 1);

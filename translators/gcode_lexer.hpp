@@ -26,6 +26,9 @@ struct Block {
     // lex_line on this block.
     std::span<const Word> words() const { return {word_room.data(), word_count}; }
     std::string_view body;    // the line without N word, checksum, line end and surrounding blanks
+    // The letters of words() (letter_bit): read_commands takes the common line (a G code first,
+    // then distinct letters: as many letters as words) from these, not word by word.
+    std::uint32_t letters = 0;
     bool has_comment = false;
     bool percent = false;     // a lone '%' (program delimiter of CNC files)
     bool text_argument = false;  // M117-style command whose free text follows (not words)

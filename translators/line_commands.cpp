@@ -59,6 +59,22 @@ bool m_takes_tool(int code10) {
     }
 }
 
+// A command word's code times ten, rounded half away from zero (the lexer keeps codes below
+// 1e5, so the sum is exact); a value off a tenth by more than 1e-6 is refused.
+int code10_of(const Word& w) {
+    const double scaled = w.value * 10.0;
+    const long long code10 = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
+    if (std::abs(scaled - double(code10)) > 1e-6) throw LineError(w.column, std::string("command ") + w.letter + " has more than one decimal");
+    return int(code10);
+}
+
+// The bits set in v (the library's popcount is a call in the baseline x86-64 this is built for).
+unsigned bit_count(std::uint32_t v) {
+    v = v - ((v >> 1) & 0x55555555u);
+    v = (v & 0x33333333u) + ((v >> 2) & 0x33333333u);
+    return (((v + (v >> 4)) & 0x0F0F0F0Fu) * 0x01010101u) >> 24;
+}
+
 bool blank(std::string_view s) {
     for (char c : s)
         if (c != ' ' && c != '\t' && c != '\r') return false;
@@ -160,6 +176,25 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
     out.count = 0;
     out.has_owner = false;
     const std::span<const Word> words = block.words();
+    // The bulk of a program from the block's letter set: no letter twice (as many letters as
+    // words), no M, T or H, the extrusion letter E, and a G code only as the first word. Then the
+    // line's one command (or none) is that G, no word is rewritten, and the words after it are
+    // the params: what the loop below gives, without its steps per word. The G code is read as there.
+    constexpr std::uint32_t kOther = letter_bit('M') | letter_bit('T') | letter_bit('H');
+    if (extruder_letter == 'E' && !(block.letters & kOther) && bit_count(block.letters) == words.size() &&
+        (!(block.letters & letter_bit('G')) || words.front().letter == 'G')) {
+        std::size_t first = 0;
+        if (block.letters & letter_bit('G')) {
+            const Word& w = words.front();
+            out.commands[0] = {w.letter, code10_of(w), w.column};
+            out.count = 1;
+            out.has_owner = !out.commands[0].modal_only();
+            first = 1;
+        }
+        out.params = words.subspan(first);
+        out.letters = block.letters & ~letter_bit('G');
+        return;
+    }
     // Letters seen so far, one bit each (the lexer gives upper case A to Z, and the extrusion
     // letter is read as E).
     std::uint32_t seen = 0;
@@ -180,14 +215,10 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
         std::uint32_t bit = letter_bit(w.letter);
         if (bit & command_letters) {
             if (out.count == LineCommands::kMax) throw LineError(w.column, "more than 16 commands on one line");
-            // The code times ten, rounded half away from zero (the lexer keeps codes below 1e5,
-            // so the sum is exact); a value off a tenth by more than 1e-6 is refused either way.
-            const double scaled = w.value * 10.0;
-            const long long code10 = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
-            if (std::abs(scaled - double(code10)) > 1e-6) throw LineError(w.column, std::string("command ") + w.letter + " has more than one decimal");
+            const int code10 = code10_of(w);
             if (k != out.count) stop_viewing(k);  // a command after a word
-            out.commands[out.count++] = {w.letter, int(code10), w.column};
-            command_letters = w.letter == 'M' && m_takes_tool(int(code10)) ? kCodes : kCodesAndTool;
+            out.commands[out.count++] = {w.letter, code10, w.column};
+            command_letters = w.letter == 'M' && m_takes_tool(code10) ? kCodes : kCodesAndTool;
             continue;
         }
         char letter = w.letter;
