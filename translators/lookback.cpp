@@ -87,6 +87,12 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
         window_text_.clear();
         window_lines_.clear();
     }
+    if (!have_checkpoint_ && held_.empty()) {
+        // No window open (most lines): nothing is held, and the window's lists are empty since it
+        // last closed; only the report's moves of this line are final.
+        if (log_) log_->release(held_moves());
+        return;
+    }
     if (have_checkpoint_) {
         window_text_.append(line);
         window_text_ += '\n';
