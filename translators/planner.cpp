@@ -279,26 +279,28 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinematics::S
         }
         return true;
     }
-    // Without a report the verdict alone is wanted, and it is the same with fewer points: every
-    // kStride-th point is measured; between two of them the gap between the two curves (the
-    // joint-linear axis u and the great circle g, unit vectors) stays within the larger of its
-    // ends' plus M h^2 / 8, with h the interval and M a bound on |u'' - g''|: kinematics' bound
-    // on the axis path's bend (8 times its chord distance) plus g's, the arc angle squared. An
-    // interval so cleared has every point inside the margin; any other is measured point by point.
-    constexpr int kStride = 8;
+    // Without a report the verdict alone is wanted, and it is the same with fewer points: the
+    // ends are measured, then the interval between two measured points is halved until it is
+    // cleared. Within an interval the gap between the two curves (the joint-linear axis u and the
+    // great circle g, unit vectors) stays within the larger of its ends' plus M h^2 / 8, with h
+    // the interval and M a bound on |u'' - g''| over the whole turn: kinematics' bound on the
+    // axis path's bend (8 times its chord distance) plus g's, the arc angle squared. An interval
+    // so cleared has every point inside the margin; one of a single step has no point inside.
     constexpr double kSlack = 1e-9;  // degrees: rounding in the two computations
     const double bend = 8.0 * kin_.axis_path_bound(q0.data(), q.data()) + arc.angle * arc.angle;
-    const double h = double(kStride) / kPoleSamples;
-    double chord[kPoleSamples / kStride + 1];
-    for (int k = 0; k <= kPoleSamples / kStride; ++k)
-        if (!(deviation(k * kStride, &chord[k]) <= limit)) return false;
-    for (int k = 0; k < kPoleSamples / kStride; ++k) {
-        const double gap = std::max(chord[k], chord[k + 1]) + bend * h * h / 8.0;
-        if (gap < 2.0 && 2.0 * std::asin(0.5 * gap) * kDegPerRad <= limit - kSlack) continue;
-        for (int i = k * kStride + 1; i < (k + 1) * kStride; ++i)
-            if (!(deviation(i, nullptr) <= limit)) return false;
-    }
-    return true;
+    auto cleared = [&](auto& self, int a, int b, double chord_a, double chord_b) -> bool {
+        if (b - a <= 1) return true;
+        const double h = double(b - a) / kPoleSamples;
+        const double gap = std::max(chord_a, chord_b) + bend * h * h / 8.0;
+        if (gap < 2.0 && 2.0 * std::asin(0.5 * gap) * kDegPerRad <= limit - kSlack) return true;
+        const int m = (a + b) / 2;
+        double chord_m;
+        if (!(deviation(m, &chord_m) <= limit)) return false;
+        return self(self, a, m, chord_a, chord_m) && self(self, m, b, chord_m, chord_b);
+    };
+    double chord0, chord1;
+    if (!(deviation(0, &chord0) <= limit) || !(deviation(kPoleSamples, &chord1) <= limit)) return false;
+    return cleared(cleared, 0, kPoleSamples, chord0, chord1);
 }
 
 void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
