@@ -361,10 +361,21 @@ Kinematics::Kinematics(const Machine& machine)
     }
     solved_ends_ = !twice && line_shifts_.size() <= 8 && machine.joints.size() <= 8;
     arm_count_ = std::min(int(line_shifts_.size()), 8);
+    std::vector<bool> counted(machine.joints.size(), false);  // each joint's reach term once
     for (std::size_t j = 0; j < machine.joints.size(); ++j)
-        if (!machine.joints[j].rotary && shift_per_unit_[j] > 0) near_terms_.push_back({int(j), shift_per_unit_[j], -1});
+        if (!machine.joints[j].rotary && shift_per_unit_[j] > 0) {
+            near_terms_.push_back({int(j), shift_per_unit_[j], -1, shift_per_unit_[j]});
+            counted[j] = true;
+        }
     for (const BoundTerm& e : terms_)
-        if (e.rotary) near_terms_.push_back({e.joint, e.scale * kDeg, e.arm});
+        if (e.rotary) {
+            const std::size_t j = std::size_t(e.joint);
+            near_terms_.push_back({e.joint, e.scale * kDeg, e.arm, counted[j] ? 0.0 : shift_per_unit_[j]});
+            counted[j] = true;
+        }
+    // near_end's growth is reach_shift's sum only when every joint that shifts the tip has a term
+    // here (a rotary in no chain shifts nothing); otherwise the solve gives no ends.
+    for (std::size_t j = 0; j < machine.joints.size(); ++j) solved_ends_ = solved_ends_ && (counted[j] || shift_per_unit_[j] == 0);
 }
 
 namespace {
@@ -730,18 +741,21 @@ bool Kinematics::near_end(const SolvedEnd& solved, const double* q, PathEnd& out
     if (!solved.valid || !has_reach_) return false;
     const double* s = solved.q.data();
     // Along the joint-linear path from the solution to q the tip moves (relative to any axis)
-    // by at most `grow`, so each arm stays within its value at the solution plus that.
-    const double grow = reach_shift(s, q);
-    double tip = 0, axis = 0;
+    // by at most `grow` (reach_shift's sum, made in the same pass), so each arm stays within its
+    // value at the solution plus that: a rotary's term is its turn times (arm + grow).
+    double grow = 0, tip = 0, axis = 0;
     for (const NearTerm& t : near_terms_) {
-        const double move = std::abs(q[t.joint] - s[t.joint]) * t.per_unit;  // mm, or radians
+        const double d = std::abs(q[t.joint] - s[t.joint]);
+        grow += d * t.reach_per_unit;
+        const double move = d * t.per_unit;  // mm, or radians
         if (t.arm < 0) {
             tip += move;
         } else {
-            tip += move * (solved.end.arm[t.arm] + grow);
+            tip += move * solved.end.arm[t.arm];
             axis += move;  // a unit vector turned by that angle moves at most that far
         }
     }
+    tip += axis * grow;
     out.pose = solved.end.pose;
     out.tip_slack = tip;
     out.axis_slack = axis;

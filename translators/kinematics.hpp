@@ -216,7 +216,8 @@ private:
     struct NearTerm {
         int joint = 0;
         double per_unit = 0;
-        int arm = -1;  // rotary: its index in PathEnd::arm; -1 for a linear joint
+        int arm = -1;          // rotary: its index in PathEnd::arm; -1 for a linear joint
+        double reach_per_unit = 0;  // the joint's shift_per_unit_ (reach_shift's term), on its first term only
     };
     std::vector<NearTerm> near_terms_;
     int arm_count_ = 0;  // rotary elements, the entries of PathEnd::arm in use

@@ -286,8 +286,9 @@ const Kinematics::PathEnd& MotionStage::path_end(const double* q) const {
     CachedEnd& c = ends_[ends_next_];
     ends_next_ = 1 - ends_next_;
     c.q.assign(q, q + n);
-    // The move's printed end, a rounding of the solve's own end: bounded from it, no FK.
-    if (solved_end_ && std::equal(q, q + n, q1_printed_.begin()) && kin_.near_end(*solved_end_, q, c.end)) return c.end;
+    // The move's printed end (split passes q1_printed_ itself), a rounding of the solve's own
+    // end: bounded from it, no FK.
+    if (solved_end_ && q == q1_printed_.data() && kin_.near_end(*solved_end_, q, c.end)) return c.end;
     c.end = kin_.path_end(q);
     return c.end;
 }
