@@ -145,6 +145,31 @@ TEST_CASE("every machine: the emitted joint path, densely sampled through FK, st
     }
 }
 
+TEST_CASE("an emitter copied from another machine's writes as that one, and a copy back restores what it was told") {
+    const Machine rw2 = load("rw2"), penta = load("pentarod");
+    JointEmitter a(rw2), b(penta);
+    const std::vector<double> q{10, 20, 30, 40, 50};
+    const std::vector<bool> all(5, true);
+    std::string first;
+    a.move(first, 1, std::span(q).first(rw2.joints.size()), std::span(q).first(rw2.joints.size()), all, {}, PassedNumber{1500, "1500"});
+    b = a;  // the whole emitter: rw2's letters and decimals, and what it has told the firmware
+    std::string a_out, b_out;
+    const std::vector<double> q2{11, 20, 31, 40, 50};
+    const auto moved = std::span(q2).first(rw2.joints.size());
+    a.move(a_out, 1, moved, moved, all, {}, PassedNumber{1500, "1500"});
+    b.move(b_out, 1, moved, moved, all, {}, PassedNumber{1500, "1500"});
+    CHECK(b_out == a_out);
+    CHECK(b.moves_written() == a.moves_written());
+    JointEmitter c(penta);
+    c = b;
+    c = a;  // same machine: the state alone
+    std::string c_out;
+    a_out.clear();
+    a.move(a_out, 1, moved, moved, all, {}, PassedNumber{1600, "1600"});
+    c.move(c_out, 1, moved, moved, all, {}, PassedNumber{1600, "1600"});
+    CHECK(c_out == a_out);
+}
+
 TEST_CASE("seven interior samples per piece do not miss the error: dense sampling agrees") {
     const Machine m = load("rw2");
     const Kinematics k(m);

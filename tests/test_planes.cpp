@@ -14,6 +14,7 @@
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/translator.hpp"
+#include "translators/work_plane.hpp"
 
 using namespace xlate5;
 using namespace xlate5::test;
@@ -226,6 +227,51 @@ TEST_CASE("G68.2 errors: nested planes, G69 or G53.1 without one, orientation wo
         FAIL("G69 after a refused G68.2 was accepted");
     } catch (const InputError& g69) {
         CHECK(g69.message().find("G69 without a tilted plane") != std::string::npos);
+    }
+}
+
+TEST_CASE("a stamped plane: a copy onto the same stamp keeps it, any edit is copied, a copy back undoes it") {
+    StampedPlane a, b;
+    WorkPlane& set = a.edit();
+    set.active = true;
+    set.origin = Eigen::Vector3d(1, 2, 3);
+    set.line = 7;
+    b = a;
+    CHECK(b.get().active);
+    CHECK(b.get().origin == Eigen::Vector3d(1, 2, 3));
+    const StampedPlane before = a;  // the look-back's copy before a line
+    a.edit().tool_turned = true;    // the line changes the plane (same fields otherwise)
+    b = a;
+    CHECK(b.get().tool_turned);
+    a = before;  // the line is undone
+    CHECK_FALSE(a.get().tool_turned);
+    a.edit() = WorkPlane{};  // G69: the default plane's contents under a new stamp
+    b = a;
+    CHECK_FALSE(b.get().active);
+    b = StampedPlane{};
+    CHECK_FALSE(b.get().active);
+    b = before;
+    CHECK(b.get().line == 7);
+}
+
+TEST_CASE("a line that cancels the plane and then fails leaves the plane, with look-back on and off") {
+    const Machine m = machine("wpi5");
+    const Kinematics k(m);
+    for (const std::size_t lines : {std::size_t(0), Translator::kDefaultLookback}) {
+        CAPTURE(lines);
+        TranslatorOptions o;
+        o.input_name = "plane.gcode";
+        Translator t(k, o);
+        t.set_lookback(lines);
+        std::string out;
+        t.feed("G0 X0 Y0 Z20", 1, out);
+        t.feed("G68.2 J30", 2, out);
+        // G69 runs first, then G53.1 finds no plane: the line is refused whole.
+        CHECK_THROWS_AS(t.feed("G69 G53.1", 3, out), InputError);
+        t.feed("G53.1", 4, out);  // the plane is still there to turn the tool to
+        t.feed("G69", 5, out);
+        CHECK_THROWS_AS(t.feed("G69", 6, out), InputError);
+        t.finish(out);
     }
 }
 

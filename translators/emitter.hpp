@@ -31,6 +31,26 @@ void finish_move(std::string& out, std::size_t start, std::size_t empty, const s
 class JointEmitter {
 public:
     explicit JointEmitter(const Machine& machine);
+    JointEmitter(const JointEmitter&) = default;
+    // The look-back copies the emitter with every line, always from one of the same machine: the
+    // machine's letters and decimals are copied only when the machine differs, what the firmware
+    // was told always. Inline, so the copy is a few stores where it is made.
+    JointEmitter& operator=(const JointEmitter& o) {
+        if (machine_ != o.machine_) {
+            machine_ = o.machine_;
+            joints_ = o.joints_;
+            letter_ = o.letter_;
+            decimals_ = o.decimals_;
+        }
+        last_ = o.last_;
+        known_ = o.known_;
+        believed_ = o.believed_;
+        last_f_ = o.last_f_;
+        last_f_size_ = o.last_f_size_;
+        inverse_time_ = o.inverse_time_;
+        moves_written_ = o.moves_written_;
+        return *this;
+    }
 
     // "G0"/"G1" with every joint whose printed value changed, then E and F when given. A joint
     // whose firmware position is not known is written when the input commands it (`commanded`)
@@ -71,7 +91,7 @@ private:
     void format(std::string& text, std::size_t joint, double value) const;
 
     // Fixed arrays, not vectors: the look-back copies the emitter with every line, and a copy of
-    // these is one block of memory. A machine has at most 5 joints (the loader checks).
+    // these is one block of memory. Every member is copied by operator= (above): keep it so. A machine has at most 5 joints (the loader checks).
     static constexpr std::size_t kMaxJoints = 8;
     const Machine* machine_;  // a pointer, so a copy of the emitter is its whole state (the translator's snapshots)
     std::size_t joints_ = 0;

@@ -162,8 +162,8 @@ void Interpreter::run_command(const CommandWord& c, std::string_view body, bool 
         case 0:
         case 10:
             m.modes.motion = c.code10 / 10;
-            if (m.mode == OrientationMode::Joints && m.plane.active)
-                fail(c.column, "joint moves (G49) inside a tilted plane (G68.2 on line " + std::to_string(m.plane.line) +
+            if (m.mode == OrientationMode::Joints && m.plane.get().active)
+                fail(c.column, "joint moves (G49) inside a tilted plane (G68.2 on line " + std::to_string(m.plane.get().line) +
                                    "): cancel it with G69 first");
             if (m.mode == OrientationMode::Joints) joint_move(c.code10 / 10, words, out);
             else tool_move(c.code10 / 10, c.column, words, m.modes.absolute, m.modes.inches, run, out);
@@ -253,7 +253,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
                 break;
             }
             case 'I': case 'J': case 'K':
-                if (m.plane.active) fail(p.column, plane_orientation_error(m.plane));
+                if (m.plane.get().active) fail(p.column, plane_orientation_error(m.plane.get()));
                 if (m.mode != OrientationMode::Vector)
                     fail(p.column, "I J K give a tool vector only under G43.5");
                 if (!any_ijk) ijk_column = p.column;
@@ -270,7 +270,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
                 if (j < 0 || !machine_.joints[std::size_t(j)].rotary)
                     fail(p.column, std::string("word ") + p.letter + " is not a tool-space word for machine " + machine_.name +
                                        " (X Y Z give the tip" + (m.mode == OrientationMode::Vector ? ", I J K the tool axis)" : ", its rotary letters the orientation)"));
-                if (m.plane.active) fail(p.column, plane_orientation_error(m.plane));
+                if (m.plane.get().active) fail(p.column, plane_orientation_error(m.plane.get()));
                 if (m.mode == OrientationMode::Vector)
                     fail(p.column, std::string("rotary word ") + p.letter + " under G43.5: give the tool axis as I J K, or switch to G43.4");
                 const double v = number(p);
@@ -287,10 +287,10 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
         mv.axis = ijk.normalized();
     }
     mv.mode = m.mode;
-    if (m.plane.active && m.plane.tool_turned) {
+    if (m.plane.get().active && m.plane.get().tool_turned) {
         // After G53.1 every move inside the plane holds the tool on the plane's +Z.
         any_ijk = true;
-        mv.axis = m.plane.normal();
+        mv.axis = m.plane.get().normal();
         mv.mode = OrientationMode::Vector;
     }
     if (any_xyz) commanded |= linear_joints_;
@@ -469,8 +469,8 @@ void Interpreter::set_position(Params words, std::string_view body, std::string&
             continue;
         }
         if (tcp && (p.letter == 'X' || p.letter == 'Y' || p.letter == 'Z')) {
-            if (m.plane.active)
-                fail(p.column, "G92 X Y Z inside a tilted plane (G68.2 on line " + std::to_string(m.plane.line) +
+            if (m.plane.get().active)
+                fail(p.column, "G92 X Y Z inside a tilted plane (G68.2 on line " + std::to_string(m.plane.get().line) +
                                    "): set the program frame before G68.2, or cancel it with G69 first");
             continue;  // applied below, after the joints
         }
@@ -516,12 +516,12 @@ void Interpreter::home(Params words, std::string& out) {
 Eigen::Vector3d Interpreter::input_frame_tip() const {
     const ModalState& m = state_.modal;
     const Eigen::Vector3d program = state_.planner.pose.tip - m.offset;
-    return m.plane.active ? m.plane.to_plane(program) : program;
+    return m.plane.get().active ? m.plane.get().to_plane(program) : program;
 }
 
 Eigen::Vector3d Interpreter::part_from_input(const Eigen::Vector3d& p) const {
     const ModalState& m = state_.modal;
-    return (m.plane.active ? m.plane.to_program(p) : p) + m.offset;
+    return (m.plane.get().active ? m.plane.get().to_program(p) : p) + m.offset;
 }
 
 // G68.2 X Y Z I J K: origin (program frame, the program's unit) and Z-X-Z Euler angles in
@@ -530,7 +530,7 @@ Eigen::Vector3d Interpreter::part_from_input(const Eigen::Vector3d& p) const {
 // G69 cancels the plane; the tool stays where it is. None of them is sent to the firmware.
 void Interpreter::work_plane_command(const CommandWord& c, Params words, LineRun& run, std::string& out) {
     ModalState& m = state_.modal;
-    WorkPlane& plane = m.plane;
+    const WorkPlane& plane = m.plane.get();  // changed through edit() only (work_plane.hpp)
     const std::string code = c.code10 == 682 ? "G68.2" : c.code10 == 531 ? "G53.1" : "G69";
     if (m.mode == OrientationMode::Joints)
         fail(c.column, code + " needs tool-centre-point control (G43.4 or G43.5), not G49");
@@ -557,17 +557,18 @@ void Interpreter::work_plane_command(const CommandWord& c, Params words, LineRun
                     fail(p.column, std::string("word ") + p.letter + " is not a G68.2 word (X Y Z origin, I J K Z-X-Z angles in degrees)");
             }
         }
-        plane.active = true;
-        plane.tool_turned = false;
-        plane.origin = origin;
-        plane.rotation = euler_zxz(angles.x(), angles.y(), angles.z());
-        plane.line = run.line_no;
+        WorkPlane& set = m.plane.edit();
+        set.active = true;
+        set.tool_turned = false;
+        set.origin = origin;
+        set.rotation = euler_zxz(angles.x(), angles.y(), angles.z());
+        set.line = run.line_no;
         return;
     }
     if (!words.empty()) fail(words.front().column, code + " takes no words");
     if (!plane.active) fail(c.column, code + " without a tilted plane: G68.2 defines one first");
     if (c.code10 == 690) {
-        plane = WorkPlane{};
+        m.plane.edit() = WorkPlane{};
         return;
     }
     // G53.1: the rotaries turn, the tip stays.
@@ -588,7 +589,7 @@ void Interpreter::work_plane_command(const CommandWord& c, Params words, LineRun
     mv.feed = m.modes.feed;
     if (keep_out_) keep_out_->tool_move(mv, run, out);
     else planner_.tool_move(mv, run, out);
-    plane.tool_turned = true;
+    m.plane.edit().tool_turned = true;
 }
 
 }  // namespace xlate5

@@ -31,7 +31,7 @@ struct ModalState {
     OrientationMode mode = OrientationMode::Angles;
     Modes modes;
     Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // program frame origin in the part frame (G92)
-    WorkPlane plane;  // G68.2 ... G69: X Y Z are read in the plane's frame (work_plane.hpp)
+    StampedPlane plane;  // G68.2 ... G69: X Y Z are read in the plane's frame (work_plane.hpp)
 };
 
 // The state a line can change above the emitter: rolled back as one when a line fails.

@@ -3,6 +3,7 @@
 #include "translators/work_plane.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 
 #include <Eigen/Geometry>
@@ -11,6 +12,13 @@ namespace xlate5 {
 
 namespace {
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
+}
+
+WorkPlane& StampedPlane::edit() {
+    // Process-wide, so no two states' planes (of any translator, on any thread) share a stamp.
+    static std::atomic<std::uint64_t> last{0};
+    stamp_ = last.fetch_add(1, std::memory_order_relaxed) + 1;
+    return plane_;
 }
 
 Eigen::Matrix3d euler_zxz(double i_deg, double j_deg, double k_deg) {

@@ -28,6 +28,31 @@ struct WorkPlane {
     Eigen::Vector3d normal() const { return rotation.col(2); }
 };
 
+// The plane as the interpreter's state holds it. The look-back copies that state with every
+// line, and the plane changes only on G68.2, G53.1 and G69 lines: every change takes a stamp
+// that no other change in the process has taken, so equal stamps mean equal planes and a copy
+// onto a plane with the same stamp copies nothing (a few bytes a line, not the whole plane).
+class StampedPlane {
+public:
+    StampedPlane() = default;
+    StampedPlane(const StampedPlane&) = default;
+    StampedPlane& operator=(const StampedPlane& o) {
+        if (stamp_ != o.stamp_) {
+            plane_ = o.plane_;
+            stamp_ = o.stamp_;
+        }
+        return *this;
+    }
+    const WorkPlane& get() const { return plane_; }
+    // The only way to change the plane: takes a new stamp first. Change it at once, and keep
+    // no reference past a copy of the state.
+    WorkPlane& edit();
+
+private:
+    WorkPlane plane_;
+    std::uint64_t stamp_ = 0;  // 0: as default-constructed (no plane)
+};
+
 // R = Rz(i) Rx(j) Rz(k), angles in degrees.
 Eigen::Matrix3d euler_zxz(double i_deg, double j_deg, double k_deg);
 
