@@ -170,6 +170,30 @@ TEST_CASE("an emitter copied from another machine's writes as that one, and a co
     CHECK(c_out == a_out);
 }
 
+TEST_CASE("the emitter's F: a computed one written where it changes, remembered as the passed text is, every move under G93") {
+    const Machine m = load("rw2");
+    JointEmitter em(m);
+    const std::vector<bool> all(m.joints.size(), true);
+    std::vector<double> q(m.joints.size(), 0.0);
+    auto line = [&](double x, std::optional<PassedNumber> f, bool g93 = false) {
+        q[0] = x;
+        std::string out;
+        em.move(out, 1, q, q, all, PassedNumber{0, "0.5"}, f, g93);
+        return out;
+    };
+    CHECK(line(1, PassedNumber{6468.5, {}, 1}).ends_with(" E0.5 F6468.5\n"));
+    CHECK(line(2, PassedNumber{6468.5, {}, 1}).ends_with(" E0.5\n"));    // the same text: not again
+    CHECK(line(3, PassedNumber{6468.5, "6468.5"}).ends_with(" E0.5\n"));  // passed, the same text
+    CHECK(line(4, PassedNumber{6468.46, {}, 1}).ends_with(" E0.5\n"));   // rounds to the same text
+    CHECK(line(5, PassedNumber{6468.56, {}, 1}).ends_with(" E0.5 F6468.6\n"));
+    CHECK(line(6, PassedNumber{-0.0, {}, 3}).ends_with(" E0.5 F0\n"));
+    CHECK(line(7, PassedNumber{0, "0"}).ends_with(" E0.5\n"));
+    CHECK(line(8, PassedNumber{2.5, {}, 3}, true) == "G93\nG1 X8 E0.5 F2.5\n");
+    CHECK(line(9, PassedNumber{2.5, {}, 3}, true).ends_with(" E0.5 F2.5\n"));  // every move under G93
+    CHECK(line(10, PassedNumber{2.5, "2.5"}, false) == "G94\nG1 X10 E0.5 F2.5\n");
+    CHECK(line(11, PassedNumber{2.5, {}, 3}).ends_with(" E0.5\n"));
+}
+
 TEST_CASE("seven interior samples per piece do not miss the error: dense sampling agrees") {
     const Machine m = load("rw2");
     const Kinematics k(m);

@@ -121,29 +121,6 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
             format(out, j, sent[j]);
         }
     }
-    char text[kFText];
-    if (f) {
-        // F is modal in the firmware: written when its text changes (under G93 every move carries
-        // its own). The text as it will be written, formatted once.
-        std::string_view written;
-        long long units = 0;
-        if (!f->text.empty()) {
-            if (f->text.size() <= kFText) written = f->text;
-        } else if (f->decimals >= 0 && to_units(f->value, f->decimals, units)) {
-            written = std::string_view(text, std::size_t(write_units(text, units, f->decimals) - text));
-        }
-        if (written.empty()) {  // a text too long to remember, or a value off the fast path: written, nothing remembered
-            last_f_size_ = 0;
-        } else if (!inverse_time_ && written == std::string_view(last_f_.data(), last_f_size_)) {
-            f.reset();
-        } else {
-            if (!inverse_time_) {
-                std::memcpy(last_f_.data(), written.data(), written.size());
-                last_f_size_ = written.size();
-            }
-            f->text = written;
-        }
-    }
     // E and F end the line, as finish_move ends it elsewhere.
     auto passed_word = [&](char letter, const std::optional<PassedNumber>& n) {
         if (!n) return;
@@ -156,7 +133,45 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         }
     };
     passed_word('E', e);
-    passed_word('F', f);
+    if (f) {
+        // F is modal in the firmware: written when its text changes (under G93 every move carries
+        // its own), and remembered when it fits kFText.
+        long long units = 0;
+        if (f->text.empty() && f->decimals >= 0 && to_units(f->value, f->decimals, units)) {
+            // A computed F (the motion stage's, most moves): its digits go straight into the line
+            // after the room for " F" and are compared there with the last; taken back (p stays)
+            // when the same. What append_fixed would write, as the path below writes it.
+            static_assert(kUnitsChars <= kFText, "a computed F is always remembered");
+            char* const digits = p + 2;
+            char* const end = write_units(digits, units, f->decimals);
+            const std::size_t n = std::size_t(end - digits);
+            bool same = !inverse_time_ && n == last_f_size_;
+            for (std::size_t i = 0; same && i < n; ++i) same = digits[i] == last_f_[i];  // a few bytes: no memcmp call
+            if (!same) {
+                if (!inverse_time_) {
+                    // A fixed size (the line has room for kUnitsChars after `digits`): no memcpy
+                    // call; only the first n bytes are ever read back.
+                    std::memcpy(last_f_.data(), digits, kUnitsChars);
+                    last_f_size_ = n;
+                }
+                p[0] = ' ';
+                p[1] = 'F';
+                p = end;
+            }
+        } else {
+            // Passed text, or a value off the fast path: the text as it will be written.
+            const bool remembered = !f->text.empty() && f->text.size() <= kFText;
+            if (!remembered) {  // too long to remember, or computed: written, nothing remembered
+                last_f_size_ = 0;
+            } else if (!inverse_time_ && f->text == std::string_view(last_f_.data(), last_f_size_)) {
+                f.reset();
+            } else if (!inverse_time_) {
+                std::memcpy(last_f_.data(), f->text.data(), f->text.size());
+                last_f_size_ = f->text.size();
+            }
+            passed_word('F', f);
+        }
+    }
     // Nothing changed (no word after the command, none flushed to `out` either): no line.
     if (p == line + 2 && out.size() == start) return;
     *p++ = '\n';
