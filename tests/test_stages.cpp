@@ -5,6 +5,7 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <string>
 #include <vector>
@@ -208,6 +209,57 @@ TEST_CASE("limit policy: within the limits, on a branch, or continuous whatever 
         CHECK(orient_on_branch(m, rot, sols, 2, prev, prev, b0).status == IkStatus::Unreachable);
     }
     CHECK(outside_continuous > 0);  // the case the planner's policy is for did occur
+}
+
+TEST_CASE("limit policy: the shortcut for two rotaries and two solutions chooses what the general path chooses, bit for bit") {
+    // Previous angles near, at and past the limits, far round an unbounded joint (wrap180's path
+    // past 360 degrees), half a turn away, NaN; axes at random and on a pole (a free joint).
+    int checked = 0, failed = 0;
+    for (const char* name : {"pentarod", "rw2", "koc5", "xyzac-trt", "wpi5", "addin4"}) {
+        const Machine m = load(name);
+        const Kinematics k(m);
+        const auto& rot = k.rotary_joints();
+        if (rot.size() != 2) continue;
+        std::mt19937 rng(11);
+        std::uniform_real_distribution<double> U(-1, 1);
+        for (int i = 0; i < 20000; ++i) {
+            std::vector<double> prev = m.home_joints();
+            for (int r : rot) {
+                const Joint& J = m.joints[std::size_t(r)];
+                double v;
+                switch (i % 6) {
+                    case 0: v = J.bounded() ? J.min + (J.max - J.min) * (0.5 + 0.5 * U(rng)) : 200 * U(rng); break;
+                    case 1: v = (U(rng) < 0 ? J.min : J.max) + 1e-9 * U(rng) * (i % 5); break;  // at a limit (unbounded: huge)
+                    case 2: v = 1e5 * U(rng); break;                                               // many turns round
+                    case 3: v = 180.0 * std::round(4 * U(rng)) + (i % 4 == 3 ? 1e-12 * U(rng) : 0.0); break;  // half turns
+                    case 4: v = (J.bounded() ? J.max : 360.0) + 30 * U(rng); break;
+                    default: v = i % 97 == 0 ? std::nan("") : 720 * U(rng); break;
+                }
+                prev[std::size_t(r)] = v;
+            }
+            const Eigen::Vector3d axis = i % 50 == 0 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d(U(rng), U(rng), U(rng));
+            auto sols = k.orientation_solutions(axis);
+            if (i % 3 == 0) {  // made by hand on a coarse grid: ties between the two, free joints
+                sols.count = 2;
+                for (auto& row : sols.angle)
+                    for (double& v : row) v = i % 89 == 0 && U(rng) < 0 ? std::nan("") : 10.0 * std::round(19 * U(rng));
+                if (i / 3 % 2 == 1) sols.angle[1][0] = -sols.angle[0][0], sols.angle[1][1] = -sols.angle[0][1];
+            }
+            std::vector<double> free = prev;
+            for (double& v : free) v += 1.5;
+            std::vector<double> a = prev, b = prev;
+            const IkResult ra = orient_within_limits(m, rot, sols, prev, free, a);
+            const IkResult rb = orient_within_limits_general(m, rot, sols, prev, free, b);
+            REQUIRE(ra.status == rb.status);
+            CHECK(ra.message == rb.message);
+            REQUIRE(a.size() == b.size());
+            CHECK(std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0);
+            ++checked;
+            failed += !ra.ok();
+        }
+    }
+    CHECK(checked >= 40000);
+    CHECK(failed > 0);
 }
 
 namespace {

@@ -22,7 +22,8 @@ std::string fmt(double v) {
 // Of `solutions`, the turn of each rotary nearest its previous value (inside the limits when
 // `limited`), and of those the solution nearest `previous` overall.
 IkResult choose(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
-                const std::vector<double>& previous, const std::vector<double>& free_value, bool limited, std::vector<double>& q) {
+                const std::vector<double>& previous, const std::vector<double>& free_value, bool limited, std::vector<double>& q,
+                bool shortcut = true) {
     const Eigen::Vector3d& axis = solutions.axis;
     if (solutions.empty()) {
         char buf[160];
@@ -30,6 +31,39 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
         return {IkStatus::Unreachable, buf};
     }
     const std::size_t n = rotary.size();
+    // Two rotaries, two solutions, no joint free, each joint's nearest turn taken at once (the
+    // first test below): the loop's own operations in the same order, without its bookkeeping.
+    // Anything else, a failure included, goes the general way.
+    if (shortcut && n == 2 && solutions.count == 2 && limited) {
+        const std::size_t j0 = std::size_t(rotary[0]), j1 = std::size_t(rotary[1]);
+        const Joint& J0 = machine.joints[j0];
+        const Joint& J1 = machine.joints[j1];
+        const double p0 = previous[j0], p1 = previous[j1];
+        const double a00 = solutions.angle[0][0], a01 = solutions.angle[0][1];
+        const double a10 = solutions.angle[1][0], a11 = solutions.angle[1][1];
+        auto at_once = [](const Joint& J, double prev, double nearest) {
+            return !J.bounded() || (inside_limits(J, nearest) && std::abs(nearest - prev) < 179.0);
+        };
+        if (!std::isnan(a00) && !std::isnan(a01) && !std::isnan(a10) && !std::isnan(a11)) {
+            const double n00 = p0 + wrap180(a00 - p0), n01 = p1 + wrap180(a01 - p1);
+            const double n10 = p0 + wrap180(a10 - p0), n11 = p1 + wrap180(a11 - p1);
+            if (at_once(J0, p0, n00) && at_once(J1, p1, n01) && at_once(J0, p0, n10) && at_once(J1, p1, n11)) {
+                // cost starts at 0 and adds a square (never -0): 0 + x is x.
+                const double cost0 = (n00 - p0) * (n00 - p0) + (n01 - p1) * (n01 - p1);
+                const double cost1 = (n10 - p0) * (n10 - p0) + (n11 - p1) * (n11 - p1);
+                const double inf = std::numeric_limits<double>::infinity();
+                const bool take0 = cost0 < inf;
+                if (cost1 < (take0 ? cost0 : inf)) {
+                    q[j0] = n10, q[j1] = n11;
+                    return {};
+                }
+                if (take0) {
+                    q[j0] = n00, q[j1] = n01;
+                    return {};
+                }
+            }
+        }
+    }
     double best_cost = std::numeric_limits<double>::infinity();
     double best[2] = {0, 0};
     bool found = false;
@@ -115,6 +149,11 @@ IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
 IkResult orient_within_limits(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
                               const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q) {
     return choose(machine, rotary, solutions, previous, free_value, true, q);
+}
+
+IkResult orient_within_limits_general(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
+                                      const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q) {
+    return choose(machine, rotary, solutions, previous, free_value, true, q, false);
 }
 
 IkResult orient_on_branch(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions, int branch,

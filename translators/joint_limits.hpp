@@ -28,6 +28,11 @@ IkResult check_limits(const Machine& machine, const std::vector<double>& q);
 IkResult orient_within_limits(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
                               const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q);
 
+// The same without its shortcut for two rotaries and two solutions: for the tests that hold the
+// shortcut against it.
+IkResult orient_within_limits_general(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
+                                      const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q);
+
 // The same, restricted to solution `branch` (0 or 1): the motion stage tries the other branch
 // where the continuous one would swing a joint round a pole.
 IkResult orient_on_branch(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions, int branch,
