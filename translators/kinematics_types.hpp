@@ -42,7 +42,9 @@ inline double wrap180(double degrees) {
     double r = degrees;
     if (!(std::abs(degrees) < 360.0)) {
         if (std::abs(degrees) < 1099511627776.0) {
-            r = degrees - std::trunc(degrees / 360.0) * 360.0;
+            // The truncation by conversion to an integer: std::trunc's, below 2^63, in two
+            // instructions instead of its general sequence (a zero quotient cannot occur here).
+            r = degrees - double(static_cast<long long>(degrees / 360.0)) * 360.0;
             if (degrees > 0) {
                 if (r < 0) r += 360.0;
                 else if (r >= 360.0) r -= 360.0;
