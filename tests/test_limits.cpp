@@ -365,10 +365,11 @@ TEST_CASE("limits: where a machine claims the flip, FK agrees: (t1 + 180, -t2) g
     CHECK(machines_with_flip >= 2);  // rw2's head and the A/C tables at least
 }
 
-TEST_CASE("limits: within_limits is check_limits's verdict, at the limits, past them and on NaN") {
+TEST_CASE("limits: within_limits and LimitBox give check_limits's verdict, at the limits, past them, on the slack's edge and on NaN") {
     for (const char* name : {"rw2", "pentarod", "wpi5"}) {
         CAPTURE(name);
         const Machine m = load(name);
+        const LimitBox box(m);
         std::vector<double> q(m.joints.size());
         int differ = 0, outside = 0;
         for (int i = 0; i < 20000; ++i) {
@@ -380,9 +381,17 @@ TEST_CASE("limits: within_limits is check_limits's verdict, at the limits, past 
                 q[j] = pick == 0 ? lo : pick == 1 ? hi : pick == 2 ? hi + 2e-9 : pick == 3 ? lo - 2e-9
                      : pick == 4 && i % 5 == 0 ? std::nan("") : lo + (hi - lo) * double((i * 37 + int(j) * 13) % 1000) / 999.0;
             }
+            // Some joint on the edge of its slack, or a double either side of it.
+            if (i % 3 == 0) {
+                const std::size_t j = std::size_t(i / 3) % q.size();
+                const double slack = 1e-9;  // kLimitSlack (constants.hpp's kPi would clash with this file's)
+                const double edge = i % 2 ? m.joints[j].max + slack : m.joints[j].min - slack;
+                q[j] = i % 9 == 0 ? edge : std::nextafter(edge, i % 9 == 3 ? 1e300 : -1e300);
+            }
             const bool fast = within_limits(m, q);
             outside += !fast;
             if (fast != check_limits(m, q).ok()) ++differ;
+            if (box.contains(q) != fast) ++differ;
         }
         CHECK(differ == 0);
         CHECK(outside > 0);

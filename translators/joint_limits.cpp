@@ -129,6 +129,13 @@ bool within_limits(const Machine& machine, const std::vector<double>& q) {
     return inside;
 }
 
+LimitBox::LimitBox(const Machine& machine) {
+    for (const Joint& J : machine.joints) {
+        lo_.push_back(J.min - kLimitSlack);  // inside_limits's bounds, computed as it computes them
+        hi_.push_back(J.max + kLimitSlack);
+    }
+}
+
 IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
     // Nearly every move is inside: one pass says so (a NaN fails it too and is named below).
     if (within_limits(machine, q)) return {};

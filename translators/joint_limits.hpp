@@ -18,6 +18,22 @@ bool inside_limits(const Joint& joint, double v);
 // no result to build (nearly every move is inside).
 bool within_limits(const Machine& machine, const std::vector<double>& q);
 
+// within_limits's verdict from the limits with their slack worked out once (the same values,
+// the same comparisons), for the planner's check of every move's end: no joint record read and
+// no slack added a joint.
+class LimitBox {
+public:
+    explicit LimitBox(const Machine& machine);
+    bool contains(const std::vector<double>& q) const {
+        bool inside = true;
+        for (std::size_t j = 0; j < lo_.size(); ++j) inside &= (q[j] >= lo_[j]) & (q[j] <= hi_[j]);
+        return inside;
+    }
+
+private:
+    std::vector<double> lo_, hi_;
+};
+
 // Checks every joint of q against its limits.
 IkResult check_limits(const Machine& machine, const std::vector<double>& q);
 

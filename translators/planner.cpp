@@ -54,6 +54,7 @@ double least_dot_below(double degrees) {
 Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter& emitter, MoveLog* log)
     : kin_(kinematics),
       machine_(kinematics.machine()),
+      limits_(kinematics.machine()),
       state_(state),
       emitter_(emitter),
       log_(log),
@@ -335,7 +336,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
             if (mv.any_ijk) next.axis = mv.axis;
         }
     }
-    if (r.ok() && !within_limits(machine_, q_next_)) r = check_limits(machine_, q_next_);
+    if (r.ok() && !limits_.contains(q_next_)) r = check_limits(machine_, q_next_);
     // A travel move (tool space, no extrusion) may end on another solution of its pose: when its
     // usual end is outside a joint's limits, or when the look-back replays it to unwind a joint
     // for the printing that follows. Printing moves never change solution: their path is printed.

@@ -17,6 +17,7 @@
 
 #include "translators/compensation.hpp"
 #include "translators/emitter.hpp"
+#include "translators/joint_limits.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/motion.hpp"
@@ -151,6 +152,7 @@ private:
 
     const Kinematics& kin_;
     const Machine& machine_;
+    LimitBox limits_;  // the end of every move is checked against it
     PlannerState& state_;
     JointEmitter& emitter_;
     MoveLog* log_;
