@@ -51,6 +51,21 @@ std::vector<double> random_joints(const Machine& m, std::mt19937& rng) {
     return q;
 }
 
+// Every axis of the machine's chains, its fixed rotations, its rotary axes' points and its tool
+// axis turned or moved at random: a layout unlike any shipped one, for tests that must hold for
+// any machine.
+void turn_at_random(Machine& m, std::mt19937& rng) {
+    std::uniform_real_distribution<double> U(0, 1);
+    auto unit = [&] { return Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized(); };
+    for (auto* chain : {&m.part_chain, &m.tool_chain})
+        for (auto& e : *chain) {
+            if (e.kind == ChainElement::Kind::Fixed) e.fixed.linear() = Eigen::AngleAxisd(U(rng) * 6, unit()).toRotationMatrix();
+            else e.axis = unit();
+            if (e.kind == ChainElement::Kind::Rotary) e.point = 50 * unit();
+        }
+    m.tool_axis = unit();
+}
+
 }  // namespace
 
 TEST_CASE("wrap180 gives (-180, 180], as the remainder of a division by 360 defines it") {
@@ -561,16 +576,7 @@ TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit o
             Machine m = variant == 1 ? load_machine(path, tilted.at(name)) : load_machine(path);
             std::mt19937 rng(std::hash<std::string>{}(name) & 0xffff);
             std::uniform_real_distribution<double> U(0, 1);
-            if (variant == 2) {
-                auto unit = [&] { return Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized(); };
-                for (auto* chain : {&m.part_chain, &m.tool_chain})
-                    for (auto& e : *chain) {
-                        if (e.kind == ChainElement::Kind::Fixed) e.fixed.linear() = Eigen::AngleAxisd(U(rng) * 6, unit()).toRotationMatrix();
-                        else e.axis = unit();
-                        if (e.kind == ChainElement::Kind::Rotary) e.point = 50 * unit();
-                    }
-                m.tool_axis = unit();
-            }
+            if (variant == 2) turn_at_random(m, rng);
             const Kinematics k(m);
             int differ = 0;
             for (int i = 0; i < 20000; ++i) {
@@ -648,18 +654,11 @@ TEST_CASE("the position solve's own end is the FK at its solution, and near_end 
     // X, Y, A, Z; part chain C).
     std::mt19937 rng(20261126);
     std::uniform_real_distribution<double> U(0, 1);
-    auto unit = [&] { return Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized(); };
     std::vector<std::pair<std::string, Machine>> cases;
     for (const auto& [name, path] : bundled_machines()) {
         cases.emplace_back(name, load_machine(path));
         Machine turned = load_machine(path);
-        for (auto* chain : {&turned.part_chain, &turned.tool_chain})
-            for (auto& e : *chain) {
-                if (e.kind == ChainElement::Kind::Fixed) e.fixed.linear() = Eigen::AngleAxisd(U(rng) * 6, unit()).toRotationMatrix();
-                else e.axis = unit();
-                if (e.kind == ChainElement::Kind::Rotary) e.point = 50 * unit();
-            }
-        turned.tool_axis = unit();
+        turn_at_random(turned, rng);
         cases.emplace_back(name + " turned", turned);
     }
     const Machine pentarod = machine("pentarod");

@@ -1282,21 +1282,54 @@ TEST_CASE("the pole passage's verdict without a report (fewer points, a bound be
         for (std::size_t j = 0; j < mid.size(); ++j)
             if (!m.joints[j].rotary && m.joints[j].bounded()) mid[j] = 0.5 * (m.joints[j].min + m.joints[j].max);
         const Eigen::Vector3d centre = k.forward(mid).tip;
-        for (const double miss : {0.0, 0.01, 0.05, 0.3, 1.5})
-            for (const double step : {0.1, 0.5, 2.0}) {
-
-                CAPTURE(miss);
-                CAPTURE(step);
-                DeviationReport report("t.gcode", name, m.motion.tolerance, atol);
+        // The same G43.5 program through a translator with a report (every point of a passage
+        // measured) and one without; their outputs a and b.
+        struct Both {
+            DeviationReport report;
+            Translator measured, plain;
+            std::string a, b;
+            static TranslatorOptions reporting(DeviationReport* r) {
                 TranslatorOptions o;
-                o.report = &report;
-                Translator measured(k, o), plain(k, {});
-                std::string a, b;
+                o.report = r;
+                return o;
+            }
+            Both(const Kinematics& k, const std::string& name, double tol, double atol)
+                : report("t.gcode", name, tol, atol), measured(k, reporting(&report)), plain(k, {}) {
                 for (Translator* t : {&measured, &plain}) {
                     std::string& out = t == &measured ? a : b;
                     t->feed("G43.5", 1, out);
                     t->feed("M83", 2, out);
                 }
+            }
+            // One line through both: the same words, or the same error (a joint limit may end the
+            // path, rw2's A); false once either has refused a line.
+            bool feed(const std::string& line, std::uint64_t no) {
+                std::string why_a, why_b;
+                try {
+                    measured.feed(line, no, a);
+                } catch (const std::exception& e) {
+                    why_a = e.what();
+                }
+                try {
+                    plain.feed(line, no, b);
+                } catch (const std::exception& e) {
+                    why_b = e.what();
+                }
+                CHECK(why_a == why_b);
+                return why_a.empty() && why_b.empty();
+            }
+            void finish() {
+                measured.finish(a);
+                plain.finish(b);
+                CHECK(a == b);
+            }
+        };
+        for (const double miss : {0.0, 0.01, 0.05, 0.3, 1.5})
+            for (const double step : {0.1, 0.5, 2.0}) {
+
+                CAPTURE(miss);
+                CAPTURE(step);
+                Both both(k, name, m.motion.tolerance, atol);
                 const double d = rad(3.0), r = rad(3.0 - miss), dphi = rad(step * atol) / r;
                 // Half the circle, the pole passage in its middle.
                 const int n = int(kPi / dphi) + 1;
@@ -1309,25 +1342,10 @@ TEST_CASE("the pole passage's verdict without a report (fewer points, a bound be
                                              " Z" + num(centre.z() + 0.0005 * i) +
                                              " I" + num(axis.x(), 9) + " J" + num(axis.y(), 9) + " K" + num(axis.z(), 9) +
                                              (i == 0 ? " F1500" : " E0.01");
-                    // A joint limit may end the path (rw2's A): then at the same line, with the same words.
-                    std::string why_a, why_b;
-                    try {
-                        measured.feed(line, std::uint64_t(i + 3), a);
-                    } catch (const std::exception& e) {
-                        why_a = e.what();
-                    }
-                    try {
-                        plain.feed(line, std::uint64_t(i + 3), b);
-                    } catch (const std::exception& e) {
-                        why_b = e.what();
-                    }
-                    CHECK(why_a == why_b);
-                    if (!why_a.empty() || !why_b.empty()) break;
+                    if (!both.feed(line, std::uint64_t(i + 3))) break;
                     ++lines;
                 }
-                measured.finish(a);
-                plain.finish(b);
-                CHECK(a == b);
+                both.finish();
             }
         // The benchmark's helix (bench_translate), round the machine's middle: its short moves end
         // on joints as printed, so no start is exact and each move's turn is checked; twice a
@@ -1335,16 +1353,7 @@ TEST_CASE("the pole passage's verdict without a report (fewer points, a bound be
         // circle in its middle only. 300 lines round each of twelve jumps, at tilts of either sign.
         for (int jump = 1; jump <= 12; ++jump) {
             CAPTURE(jump);
-            DeviationReport report("t.gcode", name, m.motion.tolerance, atol);
-            TranslatorOptions o;
-            o.report = &report;
-            Translator measured(k, o), plain(k, {});
-            std::string a, b, why_a, why_b;
-            for (Translator* t : {&measured, &plain}) {
-                std::string& out = t == &measured ? a : b;
-                t->feed("G43.5", 1, out);
-                t->feed("M83", 2, out);
-            }
+            Both both(k, name, m.motion.tolerance, atol);
             const long first = long(jump * 523.6) - 150;
             for (long i = first; i < first + 300; ++i) {
                 const double t = double(i) * 0.01;
@@ -1353,23 +1362,10 @@ TEST_CASE("the pole passage's verdict without a report (fewer points, a bound be
                 char line[160];
                 std::snprintf(line, sizeof line, "G1 X%.3f Y%.3f Z%.3f I%.6f J%.6f K%.6f E%.5f F1800", centre.x() + x, centre.y() + y,
                               centre.z() + z, std::sin(tilt) * std::sin(az), std::sin(tilt) * std::cos(az), std::cos(tilt), 0.0123);
-                try {
-                    measured.feed(line, std::uint64_t(i + 3), a);
-                } catch (const std::exception& e) {
-                    why_a = e.what();
-                }
-                try {
-                    plain.feed(line, std::uint64_t(i + 3), b);
-                } catch (const std::exception& e) {
-                    why_b = e.what();
-                }
-                CHECK(why_a == why_b);
-                if (!why_a.empty() || !why_b.empty()) break;
+                if (!both.feed(line, std::uint64_t(i + 3))) break;
                 ++lines;
             }
-            measured.finish(a);
-            plain.finish(b);
-            CHECK(a == b);
+            both.finish();
         }
         CHECK(lines > 1000);
     }
