@@ -25,10 +25,6 @@ constexpr double kSampleMargin = 0.97;
 // A piece's length predicted from a failing try's error aims this far short of the limit.
 constexpr double kPredictAim = 0.98;
 
-// Distance from an end to the segment: zero, with no arithmetic, when the end is the segment's
-// own end point (a bounded end's pose is the programmed tip itself).
-double end_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b);
-
 double printed(const Machine& m, std::size_t j, double v) {
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
     const int d = m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals;
@@ -57,6 +53,8 @@ double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, cons
     return (a + t * ab - p).norm();
 }
 
+// Distance from an end to the segment: zero, with no arithmetic, when the end is the segment's
+// own end point (a bounded end's pose is the programmed tip itself).
 double end_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
     return p == a || p == b ? 0.0 : segment_distance(p, a, b);
 }
