@@ -13,7 +13,6 @@
 #include "translators/error.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
-#include "translators/planner.hpp"
 
 using namespace xlate5;
 

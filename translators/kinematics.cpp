@@ -133,6 +133,17 @@ double turn_squared_at_most(double d) {
     return std::max(4.0 * (1.0 - d) / (1.0 + d) * (1.0 + 1e-12), 0.0);
 }
 
+double least_dot_below(double degrees) {
+    if (!(angle_of_dot(1.0) < degrees)) return std::numeric_limits<double>::quiet_NaN();
+    double least = 1.0;
+    for (int i = 0; i < 64; ++i) {
+        const double d = std::nextafter(least, 0.0);
+        if (!(angle_of_dot(d) < degrees)) return least;
+        least = d;
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+}
+
 double chord_within(double degrees) {
     if (!(degrees > 0 && degrees < 180)) return 0.0;
     return 2.0 * std::sin(0.5 * degrees * kDeg) * (1.0 - 1e-12);
@@ -220,7 +231,7 @@ Kinematics::Kinematics(const Machine& machine)
             f.aw2p = f.a * f.w2p;
             f.psq = p_.squaredNorm();
             f.nn = n.squaredNorm();
-            for (int k = 0; k < 3; ++k) f.pp2[k] = pp2[k];
+            for (int m = 0; m < 3; ++m) f.pp2[m] = pp2[m];
             f.free2 = pp2.norm() < kFreeEps;
             f.g0_identity = g0_ == Eigen::Matrix3d::Identity();
             for (int r = 0; r < 3; ++r)
@@ -394,6 +405,14 @@ struct AxisLine {
     V3 point, dir;
 };
 
+// The distance of x from an axis line (measured in the base frame, as forward() and the
+// position solve's end measure the lever arms).
+inline double distance_from(const V3& x, const AxisLine& line) {
+    const V3 d = x - line.point, u = line.dir;
+    const V3 off = d - u * (u.x * d.x + u.y * d.y + u.z * d.z);
+    return std::sqrt(off.x * off.x + off.y * off.y + off.z * off.z);
+}
+
 // Base -> the chain's end: rotation R and translation t. `linear_dirs`, when given, receives each
 // linear joint's direction (indexed by joint); `lines` each rotary joint's axis.
 //
@@ -553,9 +572,7 @@ Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const
         // Distances are the same in every frame: measured in the base frame, the tip at tt.
         *lever_arm = 0;
         for (int i = 0; i < count; ++i) {
-            const V3 d = tt - lines[i].point, u = lines[i].dir;
-            const V3 off = d - u * (u.x * d.x + u.y * d.y + u.z * d.z);
-            const double arm = std::sqrt(off.x * off.x + off.y * off.y + off.z * off.z);
+            const double arm = distance_from(tt, lines[i]);
             if (arms) arms[i] = arm;
             *lever_arm = std::max(*lever_arm, arm);
         }
@@ -716,16 +733,14 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
         e.lever_arm = 0;
         e.tip_slack = e.axis_slack = 0;
         for (int i = 0; i < count; ++i) {
-            V3 p = lines[i].point;
+            AxisLine line = lines[i];
             const LineShift& ls = line_shifts_[std::size_t(i)];
             if (ls.linear) {
                 const Eigen::Vector3d* dirs = ls.tool ? tool_dirs : part_dirs;
                 for (std::size_t j = 0; j < n; ++j)
-                    if (ls.linear >> j & 1u) p = p + v3(dirs[j]) * moved[j];
+                    if (ls.linear >> j & 1u) line.point = line.point + v3(dirs[j]) * moved[j];
             }
-            const V3 d = x - p, u = lines[i].dir;
-            const V3 off = d - u * (u.x * d.x + u.y * d.y + u.z * d.z);
-            e.arm[i] = std::sqrt(off.x * off.x + off.y * off.y + off.z * off.z);
+            e.arm[i] = distance_from(x, line);
             e.lever_arm = std::max(e.lever_arm, e.arm[i]);
         }
         // The solve is exact up to rounding (the tip is affine in the linear joints), which the

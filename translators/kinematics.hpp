@@ -43,6 +43,13 @@ double turn_squared_at_most(double d);
 // half of it, made shorter by 1e-12 of itself than rounding could move it (0 outside (0, 180)).
 double chord_within(double degrees);
 
+// The least dot with angle_of_dot(dot) < degrees, for a limit so small that only dots a few
+// ulps below 1 pass (1e-6 degrees: 1 and the double below it; at most 64 of them, else NaN).
+// Every dot below it fails: acos only grows as dot falls (test_kinematics checks each double
+// within 1e-12 of 1, where AngleLimit would take the acos; past that AngleLimit's own reason
+// holds), so `dot >= least` is the acos's verdict without the acos.
+double least_dot_below(double degrees);
+
 // angle_of_dot(dot) compared with a fixed limit: the same verdict, with the acos only when dot is
 // within 1e-12 of the limit's cosine. Outside that window the angle is more than 1e-12 radians
 // from the limit (|d acos / d dot| >= 1), far more than the few ulps by which acos, the product

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <limits>
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
@@ -39,17 +38,6 @@ constexpr double kPoleMargin = 0.97;  // as the motion stage's sampling margin
 double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return angle_of_dot(a.dot(b)); }
 
 }  // namespace
-
-double least_dot_below(double degrees) {
-    if (!(angle_of_dot(1.0) < degrees)) return std::numeric_limits<double>::quiet_NaN();
-    double least = 1.0;
-    for (int i = 0; i < 64; ++i) {
-        const double d = std::nextafter(least, 0.0);
-        if (!(angle_of_dot(d) < degrees)) return least;
-        least = d;
-    }
-    return std::numeric_limits<double>::quiet_NaN();
-}
 
 Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter& emitter, MoveLog* log)
     : kin_(kinematics),
@@ -287,13 +275,16 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinematics::S
     // the interval and M a bound on |u'' - g''| over the whole turn: kinematics' bound on the
     // axis path's bend (8 times its chord distance) plus g's, the arc angle squared. An interval
     // so cleared has every point inside the margin; one of a single step has no point inside.
+    // (A gap below chord_within's chord is inside the limit; a stricter test than the asin's by
+    // 1e-12 of it, which at most measures an interval more: the same verdict.)
     constexpr double kSlack = 1e-9;  // degrees: rounding in the two computations
     const double bend = 8.0 * kin_.axis_path_bound(q0.data(), q.data()) + arc.angle * arc.angle;
+    const double chord_limit = chord_within(limit - kSlack);
     auto cleared = [&](auto& self, int a, int b, double chord_a, double chord_b) -> bool {
         if (b - a <= 1) return true;
         const double h = double(b - a) / kPoleSamples;
         const double gap = std::max(chord_a, chord_b) + bend * h * h / 8.0;
-        if (gap < 2.0 && 2.0 * std::asin(0.5 * gap) * kDegPerRad <= limit - kSlack) return true;
+        if (gap < chord_limit) return true;
         const int m = (a + b) / 2;
         double chord_m;
         if (!(deviation(m, &chord_m) <= limit)) return false;

@@ -35,13 +35,6 @@ struct AngleImage {
     bool operator==(const AngleImage&) const = default;
 };
 
-// The least dot with angle_of_dot(dot) < degrees, for a limit so small that only dots a few
-// ulps below 1 pass (1e-6 degrees: 1 and the double below it; at most 64 of them, else NaN).
-// Every dot below it fails: acos only grows as dot falls (test_kinematics checks each double
-// within 1e-12 of 1, where AngleLimit would take the acos; past that AngleLimit's own reason
-// holds), so `dot >= least` is the acos's verdict without the acos.
-double least_dot_below(double degrees);
-
 // What the planner keeps between moves: where the machine is.
 struct PlannerState {
     std::vector<double> q;   // joint values the firmware will be at
