@@ -8,7 +8,9 @@
 #   scripts/compare-outputs.sh BINARY_A BINARY_B [CORPUS_DIR]
 #
 # BINARY_A may instead be a directory written by an earlier run (kept as out-A), so a baseline
-# is run once; BINARY_B "none" only writes out-A. Outputs go to $COMPARE_DIR (default: ./compare-out). Exit 0 when all match.
+# is run once; BINARY_B "none" only writes out-A. Outputs go to $COMPARE_DIR (default: ./compare-out);
+# B's to $COMPARE_OUT_B if set (so that several builds can be held against one baseline at once:
+# messages name the generated inputs under $COMPARE_DIR, which must then be the same). Exit 0 when all match.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 A=$1
@@ -119,8 +121,11 @@ else
     outA=$DIR/out-A
     run_all "$(realpath "$A")" "$outA"
 fi
+# A binary that found no machines (a copy away from its share/ directory) fails every run: two
+# such builds would "match". Refuse a baseline that translated nothing.
+grep -qx 0 "$outA"/*.rc || { echo "compare-outputs: $A translated none of the inputs (does it find its machines?)"; exit 2; }
 [[ $B == none ]] && { echo "outputs of $A in $outA"; exit 0; }
-outB=$DIR/out-B
+outB=${COMPARE_OUT_B:-$DIR/out-B}
 run_all "$(realpath "$B")" "$outB"
 
 # Input names inside reports and messages point at the run's own directory: compare with it
