@@ -2,6 +2,7 @@
 // conventions (RS274/NIST, Marlin host protocol, RepRapFirmware strings), not from lexer output.
 #include <doctest/doctest.h>
 
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <random>
@@ -510,4 +511,90 @@ TEST_CASE("lexer error: parameters and expressions '#', '[' are not supported") 
 TEST_CASE("lexer error: text after the checksum") {
     lex_error("N3 G1 X1*12 Y2", 13, 13, "checksum");
     lex_error("G1 X1*", 6, 6, "checksum");
+}
+
+TEST_CASE("lexer: the words of the bulk of a program read as the general reading reads them") {
+    // The lexer reads a letter directly followed by a short number in a loop of its own; a blank
+    // after the letter ("X 90.000", which RS274 allows) takes the general reading instead. Random
+    // lines of words in many forms (signs, points, leading zeros, long numbers, flags, lower case,
+    // codes out of range, exponent-like E, no separators, tabs, comments), read both ways: the same
+    // words, values to the bit, text and letters, or an error both ways.
+    std::mt19937_64 rng(15);
+    const std::string letters = "GXYZABCEFIJKMTNSPRHxyzegmt";
+    auto number = [&] {
+        std::string t;
+        switch (rng() % 8) {
+            case 0: t += '-'; break;
+            case 1: if (rng() % 4 == 0) t += '+'; break;
+            default: break;
+        }
+        const int int_digits = int(rng() % 12 == 0 ? rng() % 13 : rng() % 4), frac_digits = int(rng() % 10 == 0 ? rng() % 12 : rng() % 7);
+        for (int k = 0; k < int_digits; ++k) t += char('0' + rng() % 10);
+        if (frac_digits > 0 || rng() % 8 == 0) t += '.';
+        for (int k = 0; k < frac_digits; ++k) t += char('0' + rng() % 10);
+        if (rng() % 40 == 0) t = "";  // a flag
+        return t;
+    };
+    int lines = 0, fast_words = 0, errors = 0;
+    for (int n = 0; n < 40000; ++n) {
+        std::string line, general;
+        const int words = 1 + int(rng() % 9);
+        for (int w = 0; w < words; ++w) {
+            const char* separators[] = {" ", " ", " ", " ", "", "\t", "  "};
+            const std::string sep = w == 0 ? (rng() % 10 == 0 ? " " : "") : separators[rng() % 7];
+            const char letter = letters[rng() % letters.size()];
+            std::string num = number();
+            if (rng() % 30 == 0 && num.find_first_of("0123456789") != std::string::npos) num += (rng() % 2 ? "e-05" : "E3");
+            line += sep + letter + num;
+            general += sep + letter;
+            // The general reading, forced by a blank; after a separator only, so that an E right
+            // after a number stays as it is (it may be an exponent) and a flag stays a flag.
+            if ((w == 0 || !sep.empty()) && !num.empty()) general += ' ';
+            general += num;
+        }
+        if (rng() % 10 == 0) {
+            line += " ; note";
+            general += " ; note";
+        }
+        CAPTURE(line);
+        CAPTURE(general);
+        Block a, b;
+        bool a_ok = true, b_ok = true;
+        try {
+            lex_line(line, a);
+        } catch (const LineError&) {
+            a_ok = false;
+        }
+        try {
+            lex_line(general, b);
+        } catch (const LineError&) {
+            b_ok = false;
+        }
+        REQUIRE(a_ok == b_ok);
+        if (!a_ok) {
+            ++errors;
+            continue;
+        }
+        ++lines;
+        REQUIRE(a.words().size() == b.words().size());
+        CHECK(a.letters == b.letters);
+        for (std::size_t k = 0; k < a.words().size(); ++k) {
+            const Word& x = a.words()[k];
+            const Word& y = b.words()[k];
+            CAPTURE(k);
+            CHECK(x.letter == y.letter);
+            CHECK(x.has_value == y.has_value);
+            CHECK(x.text == y.text);
+            if (x.has_value) {
+                CHECK(x.value == y.value);
+                CHECK(std::signbit(x.value) == std::signbit(y.value));
+            }
+            REQUIRE(x.column >= 1);
+            CHECK(std::toupper(static_cast<unsigned char>(line[x.column - 1])) == x.letter);
+            if (x.has_value && x.column < line.size() && line[x.column] != ' ') ++fast_words;
+        }
+    }
+    CHECK(lines > 10000);
+    CHECK(errors > 1000);
+    CHECK(fast_words > 50000);
 }

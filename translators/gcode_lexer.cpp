@@ -2,6 +2,7 @@
 #include "translators/gcode_lexer.hpp"
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -128,6 +129,77 @@ inline bool read_plain_number(const char* s, std::size_t& i, double& value) {
     return true;
 }
 
+// The letter bit (letter_bit) of each byte that is a letter, either case; 0 for any other byte.
+constexpr auto kLetterBits = [] {
+    std::array<std::uint32_t, 256> bits{};
+    for (int c = 'A'; c <= 'Z'; ++c) bits[std::size_t(c)] = bits[std::size_t(c - 'A' + 'a')] = letter_bit(char(c));
+    return bits;
+}();
+
+// The words of the bulk of a program, read from `i` of `s` in a loop of their own (few
+// variables, so they all stay in registers): a letter other than M and N (which have more to
+// them), right after it "[-]digits[.digits]" with 1 to 9 digits, then no E (which could be an
+// exponent) and, after G and T, a code in range. Returns where it stopped: at anything else, from
+// its letter on, for the general reading in lex_line (which then reads the same thing, or refuses
+// it). `s`: the line's copy (a NUL after it); `line`: the line, where words point. The caller
+// makes room for every word the rest of the line can hold (each has two characters at least).
+// The value is read_plain_number's (the same mantissa and division); nine digits are below 1e9
+// at every count of decimals, so no range test.
+[[gnu::noinline]] std::size_t read_common_words(const char* s, std::size_t i, const char* line, Word*& next_out,
+                                                std::uint32_t& letters_out) {
+    // 10^decimals, then the same negated: the sign is the division's (IEEE division is exact in
+    // sign, so m / -10^k is -(m / 10^k), and -0.0 for m = 0 as read_plain_number gives).
+    static constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  0, 0, 0, 0, 0, 0,
+                                        -1e0, -1e1, -1e2, -1e3, -1e4, -1e5, -1e6, -1e7, -1e8, -1e9, 0, 0, 0, 0, 0, 0};
+    constexpr std::uint32_t kCodes = letter_bit('G') | letter_bit('T'), kOther = letter_bit('M') | letter_bit('N');
+    // A byte's digit value, or more than 9 (64 bits: no widening in the loops; '.' is -2).
+    auto digit = [](char c) { return std::uint64_t(static_cast<unsigned char>(c)) - '0'; };
+    Word* next = next_out;
+    std::uint32_t letters = letters_out;
+    unsigned c = static_cast<unsigned char>(s[i]);
+    for (;;) {
+        const std::uint32_t bit = kLetterBits[c];
+        if (bit == 0 || (bit & kOther)) break;
+        std::size_t k = i + 1;
+        std::uint64_t d = digit(s[k]);
+        std::size_t sign = 0;  // 16 when negative: the row of kPow10
+        if (d > 9) {
+            if (s[k] != '-') break;
+            d = digit(s[++k]);
+            if (d > 9) break;
+            sign = 16;
+        }
+        const std::size_t int_start = k;
+        std::uint64_t mantissa = d;
+        while ((d = digit(s[++k])) <= 9) mantissa = mantissa * 10 + d;
+        std::size_t decimals = 0;
+        if (d == std::uint64_t(-2)) {  // '.'
+            const std::size_t frac_start = k + 1;
+            while ((d = digit(s[++k])) <= 9) mantissa = mantissa * 10 + d;
+            decimals = k - frac_start;
+        }
+        // At most nine digits (with the point, ten characters).
+        if (k - int_start > 9 + (decimals != 0)) break;
+        const double value = double(std::int64_t(mantissa)) / kPow10[sign + decimals];
+        if ((bit & kCodes) && !(std::abs(value) < kMaxCode)) break;
+        const unsigned after = unsigned(d) + unsigned('0');  // the byte after the number (from its digit value)
+        if ((after | 0x20u) == 'e') break;
+        *next++ = Word{.value = value, .text = std::string_view(line + i + 1, k - i - 1), .column = std::uint32_t(i + 1),
+                       .letter = char(c & ~0x20u), .has_value = true};
+        letters |= bit;
+        if (after == ' ') {  // the common separator, skipped at once
+            i = k + 1;
+            c = static_cast<unsigned char>(s[i]);
+        } else {
+            i = k;
+            c = after;
+        }
+    }
+    next_out = next;
+    letters_out = letters;
+    return i;
+}
+
 // Any other number at `i`: "[+-]digits[.digits]" or "[+-].digits" of any length (std::from_chars),
 // out of range, or no number at all. G-code has no exponent (E is a word). A letter followed by
 // no number is a flag (has_value false); whether a flag is allowed is the interpreter's call,
@@ -236,6 +308,9 @@ void lex_line(std::string_view line, Block& out) {
     out.text[n] = '\0';
     const std::string_view s(out.text.data(), n);
 
+    // Room for every word of a line of up to 4096 characters (two at least each, "X1"), so that
+    // read_common_words needs no test of the room (longer lines grow it word by word).
+    if (out.word_room.size() < n / 2 + 1 && n <= 4096) out.word_room.resize(n / 2 + 1);
     Word* next = out.word_room.data();
     Word* room_end = next + out.word_room.size();
     std::size_t body_begin = std::string_view::npos;  // of a comment or '%' before the first word
@@ -247,6 +322,11 @@ void lex_line(std::string_view line, Block& out) {
     for (;;) {
         const char c = s[i];
         if (unsigned((static_cast<unsigned char>(c) | 0x20u) - 'a') < 26u) {  // a letter: the common case first, a word
+            if (2 * std::size_t(room_end - next) >= n - i) {  // room for every word the line has left
+                const std::size_t from = i;
+                i = read_common_words(s.data(), i, line.data(), next, letters);
+                if (i != from) continue;
+            }
             const char letter = char(c & ~0x20);  // upper case
             const std::size_t letter_index = i++;
             while (is_blank(s[i])) ++i;  // RS274 allows "X 10"
