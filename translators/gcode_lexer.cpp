@@ -145,7 +145,7 @@ constexpr auto kLetterBits = [] {
 // makes room for every word the rest of the line can hold (each has two characters at least).
 // The value is read_plain_number's (the same mantissa and division); nine digits are below 1e9
 // at every count of decimals, so no range test.
-[[gnu::noinline]] std::size_t read_common_words(const char* s, std::size_t i, const char* line, Word*& next_out,
+[[gnu::always_inline]] inline std::size_t read_common_words(const char* s, std::size_t i, const char* line, Word*& next_out,
                                                 std::uint32_t& letters_out) {
     // 10^decimals, then the same negated: the sign is the division's (IEEE division is exact in
     // sign, so m / -10^k is -(m / 10^k), and -0.0 for m = 0 as read_plain_number gives).
@@ -163,36 +163,50 @@ constexpr auto kLetterBits = [] {
         std::size_t k = i + 1;
         std::uint64_t d = digit(s[k]);
         std::size_t sign = 0;  // 16 when negative: the row of kPow10
-        if (d > 9) {
+        if (__builtin_expect(d > 9, 0)) {
             if (s[k] != '-') break;
             d = digit(s[++k]);
             if (d > 9) break;
             sign = 16;
         }
-        const std::size_t int_start = k;
+        const char* const int_start = s + k;
+        const char* q = int_start;
         std::uint64_t mantissa = d;
-        while ((d = digit(s[++k])) <= 9) mantissa = mantissa * 10 + d;
-        std::size_t decimals = 0;
-        if (d == std::uint64_t(-2)) {  // '.'
-            const std::size_t frac_start = k + 1;
-            while ((d = digit(s[++k])) <= 9) mantissa = mantissa * 10 + d;
-            decimals = k - frac_start;
+        for (;;) {
+            d = digit(q[1]);
+            if (d > 9) break;
+            mantissa = mantissa * 10 + d;
+            ++q;
         }
-        // At most nine digits (with the point, ten characters).
-        if (k - int_start > 9 + (decimals != 0)) break;
+        ++q;
+        std::size_t decimals = 0, digits = std::size_t(q - int_start);
+        if (d == std::uint64_t(-2)) {  // '.'
+            const char* const dot = q;
+            for (;;) {
+                d = digit(q[1]);
+                if (d > 9) break;
+                mantissa = mantissa * 10 + d;
+                ++q;
+            }
+            ++q;
+            decimals = std::size_t(q - dot) - 1;
+            digits += decimals;
+        }
+        k = std::size_t(q - s);
+        if (digits > 9) break;
         const double value = double(std::int64_t(mantissa)) / kPow10[sign + decimals];
         if ((bit & kCodes) && !(std::abs(value) < kMaxCode)) break;
-        const unsigned after = unsigned(d) + unsigned('0');  // the byte after the number (from its digit value)
-        if ((after | 0x20u) == 'e') break;
+        // d is now the digit value of the byte after the number: 'E' or 'e' (21 or 53) stops.
+        if ((d | 32) == 53) break;
         *next++ = Word{.value = value, .text = std::string_view(line + i + 1, k - i - 1), .column = std::uint32_t(i + 1),
                        .letter = char(c & ~0x20u), .has_value = true};
         letters |= bit;
-        if (after == ' ') {  // the common separator, skipped at once
+        if (d == std::uint64_t(' ' - '0')) {  // the common separator, skipped at once
             i = k + 1;
             c = static_cast<unsigned char>(s[i]);
         } else {
             i = k;
-            c = after;
+            c = unsigned(d) + unsigned('0');
         }
     }
     next_out = next;
@@ -288,37 +302,16 @@ void grow_words(Block& out, Word*& next, Word*& room_end) {
 // Letters with checks of their own after the number: G M T are codes, N a line number.
 constexpr std::uint32_t kCheckedLetters = letter_bit('G') | letter_bit('M') | letter_bit('T') | letter_bit('N');
 
-}  // namespace
-
-void lex_line(std::string_view line, Block& out) {
-    out.word_count = 0;
-    out.has_comment = false;
-    out.percent = false;
-    out.text_argument = false;
-    // Non-text bytes are caught where each part of the line is read (one pass over the line).
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-
-    // The line is read from a copy with a NUL after it (Block::text): the scans of digits and
-    // blanks stop there, with no test of the line's end at every character. A NUL inside the line
-    // stops them too, and is then refused as a non-text byte where the line's end is tested.
-    // Words and body point into `line` itself, which outlives the copy's next use.
+// The rest of lex_line from `i` (the words before it in the block's room up to `next`, their
+// letters `letters`): any line but one of words read_common_words reads to its end.
+[[gnu::noinline]] void lex_rest(std::string_view line, Block& out, std::size_t i, Word* next, std::uint32_t letters) {
     const std::size_t n = line.size();
-    if (out.text.size() < n + 1) out.text.resize(n + 1);
-    if (n > 0) std::memcpy(out.text.data(), line.data(), n);
-    out.text[n] = '\0';
     const std::string_view s(out.text.data(), n);
-
-    // Room for every word of a line of up to 4096 characters (two at least each, "X1"), so that
-    // read_common_words needs no test of the room (longer lines grow it word by word).
-    if (out.word_room.size() < n / 2 + 1 && n <= 4096) out.word_room.resize(n / 2 + 1);
-    Word* next = out.word_room.data();
-    Word* room_end = next + out.word_room.size();
+    Word* room_end = out.word_room.data() + out.word_room.size();
     std::size_t body_begin = std::string_view::npos;  // of a comment or '%' before the first word
     std::size_t body_end = 0;                         // of a comment or '%' after the last word
     std::size_t checksum_at = std::string_view::npos;
     bool line_number_read = false;
-    std::uint32_t letters = 0;  // Block::letters
-    std::size_t i = 0;
     for (;;) {
         const char c = s[i];
         if (unsigned((static_cast<unsigned char>(c) | 0x20u) - 'a') < 26u) {  // a letter: the common case first, a word
@@ -443,6 +436,49 @@ void lex_line(std::string_view line, Block& out) {
     while (!body.empty() && is_blank(body.back())) body.remove_suffix(1);
     out.body = body;
     if (out.word_count == 0 && out.has_comment && !out.percent && declares_compact(body)) out.compact_words = true;
+}
+
+}  // namespace
+
+void lex_line(std::string_view line, Block& out) {
+    out.word_count = 0;
+    out.has_comment = false;
+    out.percent = false;
+    out.text_argument = false;
+    // Non-text bytes are caught where each part of the line is read (one pass over the line).
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+
+    // The line is read from a copy with a NUL after it (Block::text): the scans of digits and
+    // blanks stop there, with no test of the line's end at every character. A NUL inside the line
+    // stops them too, and is then refused as a non-text byte where the line's end is tested.
+    // Words and body point into `line` itself, which outlives the copy's next use.
+    const std::size_t n = line.size();
+    if (out.text.size() < n + 1) out.text.resize(n + 1);
+    if (n > 0) std::memcpy(out.text.data(), line.data(), n);
+    out.text[n] = '\0';
+    const std::string_view s(out.text.data(), n);
+
+    // Room for every word of a line of up to 4096 characters (two at least each, "X1"), so that
+    // read_common_words needs no test of the room (longer lines grow it word by word).
+    if (out.word_room.size() < n / 2 + 1 && n <= 4096) out.word_room.resize(n / 2 + 1);
+    Word* next = out.word_room.data();
+    Word* room_end = next + out.word_room.size();
+    std::uint32_t letters = 0;  // Block::letters
+    std::size_t i = 0;
+    if (2 * std::size_t(room_end - next) >= n) {
+        i = read_common_words(s.data(), 0, line.data(), next, letters);
+        if (i == n && next != out.word_room.data()) {
+            // The whole line was such words (the bulk of a program): what lex_rest would give,
+            // at once. The body runs from the first word, at the line's start, to the end of the
+            // last, a digit or point.
+            out.word_count = std::size_t(next - out.word_room.data());
+            out.letters = letters;
+            const std::string_view last = next[-1].text;
+            out.body = std::string_view(line.data(), std::size_t(last.data() + last.size() - line.data()));
+            return;
+        }
+    }
+    lex_rest(line, out, i, next, letters);
 }
 
 }  // namespace xlate5

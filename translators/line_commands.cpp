@@ -61,10 +61,15 @@ bool m_takes_tool(int code10) {
 
 // A command word's code times ten, rounded half away from zero (the lexer keeps codes below
 // 1e5, so the sum is exact); a value off a tenth by more than 1e-6 is refused.
-int code10_of(const Word& w) {
+[[noreturn, gnu::noinline, gnu::cold]] void fail_decimals(const Word& w) {
+    throw LineError(w.column, std::string("command ") + w.letter + " has more than one decimal");
+}
+
+// (Inline, its error out of line: asked of every command.)
+inline int code10_of(const Word& w) {
     const double scaled = w.value * 10.0;
     const long long code10 = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
-    if (std::abs(scaled - double(code10)) > 1e-6) throw LineError(w.column, std::string("command ") + w.letter + " has more than one decimal");
+    if (std::abs(scaled - double(code10)) > 1e-6) fail_decimals(w);
     return int(code10);
 }
 
@@ -172,29 +177,11 @@ void append_passthrough(std::string& out, char letter, int code10, std::string_v
     out += '\n';
 }
 
-void read_commands(const Block& block, char extruder_letter, LineCommands& out) {
-    out.count = 0;
-    out.has_owner = false;
+namespace {
+
+// read_commands for any block but the bulk of a program's (see there).
+[[gnu::noinline]] void read_other_commands(const Block& block, char extruder_letter, LineCommands& out) {
     const std::span<const Word> words = block.words();
-    // The bulk of a program from the block's letter set: no letter twice (as many letters as
-    // words), no M, T or H, the extrusion letter E, and a G code only as the first word. Then the
-    // line's one command (or none) is that G, no word is rewritten, and the words after it are
-    // the params: what the loop below gives, without its steps per word. The G code is read as there.
-    constexpr std::uint32_t kOther = letter_bit('M') | letter_bit('T') | letter_bit('H');
-    if (extruder_letter == 'E' && !(block.letters & kOther) && bit_count(block.letters) == words.size() &&
-        (!(block.letters & letter_bit('G')) || words.front().letter == 'G')) {
-        std::size_t first = 0;
-        if (block.letters & letter_bit('G')) {
-            const Word& w = words.front();
-            out.commands[0] = {w.letter, code10_of(w), w.column};
-            out.count = 1;
-            out.has_owner = !out.commands[0].modal_only();
-            first = 1;
-        }
-        out.params = words.subspan(first);
-        out.letters = block.letters & ~letter_bit('G');
-        return;
-    }
     // Letters seen so far, one bit each (the lexer gives upper case A to Z, and the extrusion
     // letter is read as E).
     std::uint32_t seen = 0;
@@ -260,6 +247,34 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
             std::swap(out.commands[k], out.commands[k - 1]);
     for (std::size_t i = 0; i < out.count; ++i)
         if (!out.commands[i].modal_only()) out.has_owner = true;
+}
+
+}  // namespace
+
+void read_commands(const Block& block, char extruder_letter, LineCommands& out) {
+    out.count = 0;
+    out.has_owner = false;
+    const std::span<const Word> words = block.words();
+    // The bulk of a program from the block's letter set: no letter twice (as many letters as
+    // words), no M, T or H, the extrusion letter E, and a G code only as the first word. Then the
+    // line's one command (or none) is that G, no word is rewritten, and the words after it are
+    // the params: what read_other_commands gives, without its steps per word. The G code is read as there.
+    constexpr std::uint32_t kOther = letter_bit('M') | letter_bit('T') | letter_bit('H');
+    if (extruder_letter == 'E' && !(block.letters & kOther) && bit_count(block.letters) == words.size() &&
+        (!(block.letters & letter_bit('G')) || words.front().letter == 'G')) {
+        std::size_t first = 0;
+        if (block.letters & letter_bit('G')) {
+            const Word& w = words.front();
+            out.commands[0] = {w.letter, code10_of(w), w.column};
+            out.count = 1;
+            out.has_owner = !out.commands[0].modal_only();
+            first = 1;
+        }
+        out.params = words.subspan(first);
+        out.letters = block.letters & ~letter_bit('G');
+        return;
+    }
+    read_other_commands(block, extruder_letter, out);
 }
 
 namespace {
