@@ -129,10 +129,12 @@ inline bool read_plain_number(const char* s, std::size_t& i, double& value) {
     return true;
 }
 
-// The letter bit (letter_bit) of each byte that is a letter, either case; 0 for any other byte.
-constexpr auto kLetterBits = [] {
+// The letter bit (letter_bit) of each byte that is a letter, either case, but M and N (which
+// read_common_words leaves to the general reading); 0 for any other byte.
+constexpr auto kCommonLetterBits = [] {
     std::array<std::uint32_t, 256> bits{};
-    for (int c = 'A'; c <= 'Z'; ++c) bits[std::size_t(c)] = bits[std::size_t(c - 'A' + 'a')] = letter_bit(char(c));
+    for (int c = 'A'; c <= 'Z'; ++c)
+        if (c != 'M' && c != 'N') bits[std::size_t(c)] = bits[std::size_t(c - 'A' + 'a')] = letter_bit(char(c));
     return bits;
 }();
 
@@ -151,15 +153,15 @@ constexpr auto kLetterBits = [] {
     // sign, so m / -10^k is -(m / 10^k), and -0.0 for m = 0 as read_plain_number gives).
     static constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  0, 0, 0, 0, 0, 0,
                                         -1e0, -1e1, -1e2, -1e3, -1e4, -1e5, -1e6, -1e7, -1e8, -1e9, 0, 0, 0, 0, 0, 0};
-    constexpr std::uint32_t kCodes = letter_bit('G') | letter_bit('T'), kOther = letter_bit('M') | letter_bit('N');
+    constexpr std::uint32_t kCodes = letter_bit('G') | letter_bit('T');
     // A byte's digit value, or more than 9 (64 bits: no widening in the loops; '.' is -2).
     auto digit = [](char c) { return std::uint64_t(static_cast<unsigned char>(c)) - '0'; };
     Word* next = next_out;
     std::uint32_t letters = letters_out;
     unsigned c = static_cast<unsigned char>(s[i]);
     for (;;) {
-        const std::uint32_t bit = kLetterBits[c];
-        if (bit == 0 || (bit & kOther)) break;
+        const std::uint32_t bit = kCommonLetterBits[c];
+        if (bit == 0) break;
         std::size_t k = i + 1;
         std::uint64_t d = digit(s[k]);
         std::size_t sign = 0;  // 16 when negative: the row of kPow10
@@ -196,18 +198,20 @@ constexpr auto kLetterBits = [] {
         if (digits > 9) break;
         const double value = double(std::int64_t(mantissa)) / kPow10[sign + decimals];
         if ((bit & kCodes) && !(std::abs(value) < kMaxCode)) break;
-        // d is now the digit value of the byte after the number: 'E' or 'e' (21 or 53) stops.
-        if ((d | 32) == 53) break;
-        *next++ = Word{.value = value, .text = std::string_view(line + i + 1, k - i - 1), .column = std::uint32_t(i + 1),
-                       .letter = char(c & ~0x20u), .has_value = true};
-        letters |= bit;
+        // The word is written at once, but counted only once the byte after the number is known
+        // not to be 'E' or 'e' (there is room for it in any case). d is that byte's digit value.
+        *next = Word{.value = value, .text = std::string_view(line + i + 1, k - i - 1), .column = std::uint32_t(i + 1),
+                     .letter = char(c & ~0x20u), .has_value = true};
         if (d == std::uint64_t(' ' - '0')) {  // the common separator, skipped at once
             i = k + 1;
             c = static_cast<unsigned char>(s[i]);
         } else {
+            if ((d | 32) == 53) break;  // 'E' (21) or 'e' (53)
             i = k;
             c = unsigned(d) + unsigned('0');
         }
+        ++next;
+        letters |= bit;
     }
     next_out = next;
     letters_out = letters;
