@@ -166,7 +166,7 @@ constexpr auto kCommonLetterBits = [] {
         std::uint64_t d = digit(s[k]);
         std::size_t sign = 0;  // 16 when negative: the row of kPow10
         if (__builtin_expect(d > 9, 0)) {
-            if (s[k] != '-') break;
+            if (d != std::uint64_t('-' - '0')) break;
             d = digit(s[++k]);
             if (d > 9) break;
             sign = 16;
@@ -464,12 +464,11 @@ void lex_line(std::string_view line, Block& out) {
 
     // Room for every word of a line of up to 4096 characters (two at least each, "X1"), so that
     // read_common_words needs no test of the room (longer lines grow it word by word).
-    if (out.word_room.size() < n / 2 + 1 && n <= 4096) out.word_room.resize(n / 2 + 1);
+    if (2 * out.word_room.size() < n && n <= 4096) out.word_room.resize(n / 2 + 1);
     Word* next = out.word_room.data();
-    Word* room_end = next + out.word_room.size();
     std::uint32_t letters = 0;  // Block::letters
     std::size_t i = 0;
-    if (2 * std::size_t(room_end - next) >= n) {
+    if (2 * out.word_room.size() >= n) {
         i = read_common_words(s.data(), 0, line.data(), next, letters);
         if (i == n && next != out.word_room.data()) {
             // The whole line was such words (the bulk of a program): what lex_rest would give,
