@@ -142,7 +142,7 @@ constexpr auto kCommonLetterBits = [] {
 // variables, so they all stay in registers): a letter other than M and N (which have more to
 // them), right after it "[-]digits[.digits]" with 1 to 9 digits, then no E (which could be an
 // exponent) and, after G and T, a code in range. Returns where it stopped: at anything else, from
-// its letter on, for the general reading in lex_line (which then reads the same thing, or refuses
+// its letter on, for the general reading in lex_rest (which then reads the same thing, or refuses
 // it). `s`: the line's copy (a NUL after it); `line`: the line, where words point. The caller
 // makes room for every word the rest of the line can hold (each has two characters at least).
 // The value is read_plain_number's (the same mantissa and division); nine digits are below 1e9

@@ -295,7 +295,7 @@ void add_modal_motion(LinePlan& out, int motion, Params words) {
 }
 
 // Any line but the bulk of a program (plan_line).
-void plan_other_line(const LineCommands& line, int motion, std::string_view move_letters, std::string_view position_letters,
+[[gnu::noinline]] void plan_other_line(const LineCommands& line, int motion, std::string_view move_letters, std::string_view position_letters,
                      LinePlan& out) {
     const Params words = line.params;
     const bool any_speed = (line.letters & letter_bit('S')) != 0;
@@ -400,7 +400,10 @@ void plan_line(const LineCommands& line, int motion, std::string_view move_lette
     // modal motion), with no S (which a move leaves to a line of its own).
     if (!(line.letters & letter_bit('S'))) {
         if (line.count == 1 && is_motion_code(line.commands[0])) {
-            out.steps[0] = {line.commands[0], words, true};
+            LineStep& step = out.steps[0];  // (field by field: no copy through the stack)
+            step.command = line.commands[0];
+            step.words = words;
+            step.verbatim = true;
             out.count = 1;
             return;
         }
