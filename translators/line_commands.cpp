@@ -2,6 +2,7 @@
 // What it may call: see line_commands.hpp.
 #include "translators/line_commands.hpp"
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <utility>
@@ -67,17 +68,27 @@ bool m_takes_tool(int code10) {
 
 // (Inline, its error out of line: asked of every command.)
 inline int code10_of(const Word& w) {
+    // A whole code (G1, M104): ten times it, which the rounding below gives too, at less cost.
+    const long long whole = static_cast<long long>(w.value);
+    if (double(whole) == w.value) return int(whole * 10);
     const double scaled = w.value * 10.0;
     const long long code10 = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
     if (std::abs(scaled - double(code10)) > 1e-6) fail_decimals(w);
     return int(code10);
 }
 
-// The bits set in v (the library's popcount is a call in the baseline x86-64 this is built for).
-unsigned bit_count(std::uint32_t v) {
-    v = v - ((v >> 1) & 0x55555555u);
-    v = (v & 0x33333333u) + ((v >> 2) & 0x33333333u);
-    return (((v + (v >> 4)) & 0x0F0F0F0Fu) * 0x01010101u) >> 24;
+// The bits set in each 11-bit value.
+constexpr auto kBitCount11 = [] {
+    std::array<std::uint8_t, 2048> counts{};
+    for (std::size_t v = 1; v < counts.size(); ++v) counts[v] = std::uint8_t(counts[v >> 1] + (v & 1));
+    return counts;
+}();
+
+// The bits set in a set of letters (26 bits), from a table in three steps (the library's
+// popcount is a call in the baseline x86-64 this is built for; counting in the register takes
+// more instructions).
+unsigned letter_count(std::uint32_t letters) {
+    return unsigned(kBitCount11[letters & 0x7FF]) + kBitCount11[(letters >> 11) & 0x7FF] + kBitCount11[letters >> 22];
 }
 
 bool blank(std::string_view s) {
@@ -260,7 +271,7 @@ void read_commands(const Block& block, char extruder_letter, LineCommands& out) 
     // line's one command (or none) is that G, no word is rewritten, and the words after it are
     // the params: what read_other_commands gives, without its steps per word. The G code is read as there.
     constexpr std::uint32_t kOther = letter_bit('M') | letter_bit('T') | letter_bit('H');
-    if (extruder_letter == 'E' && !(block.letters & kOther) && bit_count(block.letters) == words.size() &&
+    if (extruder_letter == 'E' && !(block.letters & kOther) && letter_count(block.letters) == words.size() &&
         (!(block.letters & letter_bit('G')) || words.front().letter == 'G')) {
         std::size_t first = 0;
         if (block.letters & letter_bit('G')) {
