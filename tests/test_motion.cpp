@@ -17,6 +17,7 @@
 #include "translators/machine.hpp"
 #include "translators/report.hpp"
 #include "translators/motion.hpp"
+#include "translators/number.hpp"
 #include "translators/translator.hpp"
 
 using namespace xlate5;
@@ -192,6 +193,79 @@ TEST_CASE("the emitter's F: a computed one written where it changes, remembered 
     CHECK(line(9, PassedNumber{2.5, {}, 3}, true).ends_with(" E0.5 F2.5\n"));  // every move under G93
     CHECK(line(10, PassedNumber{2.5, "2.5"}, false) == "G94\nG1 X10 E0.5 F2.5\n");
     CHECK(line(11, PassedNumber{2.5, {}, 3}).ends_with(" E0.5\n"));
+}
+
+TEST_CASE("the emitter's inline joint, E and F words are what the general formatting writes: random values, bit for bit") {
+    // Every joint word of a move against to_units + write_units_general (append_fixed's own
+    // path) or append_fixed's fallback, E passed as text of every length, F computed at one decimal.
+    const Machine m = load("rw2");
+    JointEmitter em(m);
+    const std::size_t n = m.joints.size();
+    const std::vector<bool> all(n, true);
+    std::mt19937_64 rng(15);
+    auto joint_value = [&]() -> double {
+        switch (rng() % 6) {
+            case 0: return (double(rng() % 2000001) - 1000000.0) / 1000.0;                   // on the grid
+            case 1: return (double(rng() % 2000001) - 1000000.0 + 0.5) / 1000.0;             // near ties
+            case 2: return std::nextafter(999.9995, rng() % 2 ? 0.0 : 2000.0) * (rng() % 2 ? 1 : -1);  // the edge
+            case 3: return (double(rng() >> 11) / double(1ull << 53) - 0.5) * 4e9;          // large, some unwritable
+            case 4: return rng() % 2 ? -0.0 : -0.0004;                                       // negative zero
+            default: return std::ldexp(double(rng() >> 11), -int(rng() % 80)) * (rng() % 2 ? 1 : -1);
+        }
+    };
+    const std::string digits = "0123456789.-0123456789.-0123456789.-0123456789.-";
+    int lines = 0, refused = 0;
+    std::vector<double> q(n);
+    for (int i = 0; i < 60000; ++i) {
+        for (double& v : q) v = joint_value();
+        const std::size_t e_size = 1 + rng() % 44;
+        const std::string e_text = digits.substr(rng() % 4, e_size);
+        const double f_value = rng() % 8 == 0 ? (double(rng() >> 11) / double(1ull << 53)) * 2e9 : double(rng() % 20000000) / 7.0;
+        std::string expected = "G1";
+        bool writable = true;
+        for (std::size_t j = 0; j < n; ++j) {
+            expected += ' ';
+            expected += m.joints[j].output;
+            long long units = 0;
+            if (to_units(q[j], 3, units)) {
+                char buf[kUnitsChars];
+                expected.append(buf, write_units_general(buf, units, 3));
+            } else {
+                try {
+                    append_fixed(expected, q[j], 3);
+                } catch (const UnwritableNumber&) {
+                    writable = false;
+                }
+            }
+        }
+        expected += " E" + e_text + " F";
+        long long f_units = 0;
+        if (to_units(f_value, 1, f_units)) {
+            char buf[kUnitsChars];
+            expected.append(buf, write_units_general(buf, f_units, 1));
+        } else {
+            try {
+                append_fixed(expected, f_value, 1);
+            } catch (const UnwritableNumber&) {
+                writable = false;
+            }
+        }
+        expected += '\n';
+        em.invalidate(std::vector<double>(n, 1e300));  // every joint written (commanded, not known)
+        std::string out;
+        try {
+            em.move(out, 1, q, q, all, PassedNumber{0, e_text}, PassedNumber{f_value, {}, 1}, true);
+        } catch (const UnwritableNumber&) {
+            CHECK_FALSE(writable);
+            ++refused;
+            continue;
+        }
+        CHECK(writable);
+        if (out != "G93\n" + expected && out != expected) CHECK_MESSAGE(false, out << " vs " << expected);
+        ++lines;
+    }
+    CHECK(lines > 20000);
+    CHECK(refused > 1000);
 }
 
 TEST_CASE("seven interior samples per piece do not miss the error: dense sampling agrees") {

@@ -11,6 +11,7 @@
 #include <random>
 #include <string>
 #include <unistd.h>
+#include <vector>
 
 #include "translators/error.hpp"
 #include "translators/number.hpp"
@@ -234,6 +235,46 @@ TEST_CASE("write_units below a million units, its table paths, writes what the g
         }
         CHECK(all);
     }
+}
+
+TEST_CASE("to_units' branch-free rounding and write_units' one-decimal case agree with the plain forms, bit for bit") {
+    // Half away from zero as it was written before: a branch on the sign.
+    auto plain = [](double scaled) { return static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5); };
+    std::mt19937_64 rng(15);
+    std::vector<double> values = {0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, 0.49999999999999994, -0.49999999999999994,
+                                  4503599627370495.5, -4503599627370495.5, 999999999999999.0, -999999999999999.0,
+                                  std::numeric_limits<double>::denorm_min(), -std::numeric_limits<double>::denorm_min()};
+    for (int i = 0; i < 1000000; ++i) {
+        const int kind = int(rng() % 4);
+        double v;
+        if (kind == 0) v = std::ldexp(double(rng() >> 11), -int(rng() % 60));     // any magnitude below 1e15
+        else if (kind == 1) v = double(static_cast<long long>(rng() % 2000000001) - 1000000000) + 0.5;  // exact ties
+        else if (kind == 2) v = std::nextafter(double(static_cast<long long>(rng() % 2000001) - 1000000) + 0.5, rng() % 2 ? 1e300 : -1e300);
+        else v = (double(rng() % 2000000001) - 1e9) / 1e3;
+        if (std::abs(v) < 1e15) values.push_back(rng() % 2 ? -v : v);
+    }
+    bool all = true;
+    for (const double v : values) {
+        if (round_half_away(v) != plain(v)) {
+            all = false;
+            CHECK_MESSAGE(false, v);
+        }
+    }
+    CHECK(all);
+    // write_units at one decimal below 10 000 000 units (inline) against write_units_general; the
+    // range up to 1000100 is checked value by value above.
+    std::vector<long long> units = {9999999, -9999999, 10000000, -10000000, 10000001, 9999990, 1000000, 999999, 10, -10, 0};
+    for (int i = 0; i < 1000000; ++i) units.push_back(static_cast<long long>(rng() % 20000400) - 10000200);
+    all = true;
+    for (const long long u : units) {
+        char a[kUnitsChars], b[kUnitsChars];
+        const std::string mine(a, write_units(a, u, 1)), general(b, write_units_general(b, u, 1));
+        if (mine != general) {
+            all = false;
+            CHECK_MESSAGE(false, u << ": " << mine << " vs " << general);
+        }
+    }
+    CHECK(all);
 }
 
 TEST_CASE("a number that is not finite or beyond 1e9 is never written: UnwritableNumber, and nothing appended") {

@@ -2,6 +2,7 @@
 #include "translators/emitter.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 
@@ -30,6 +31,30 @@ void append_word(std::string& out, char letter, const PassedNumber& n) {
 // Longest passed text JointEmitter::move copies into its line buffer; a longer one is appended.
 constexpr std::size_t kPassedChars = 40;
 
+// n (1 to kPassedChars) bytes from src to dst; up to 16 without a call, by two loads that may
+// overlap (a passed E or F is a few characters), never reading past src + n.
+inline void copy_short(char* dst, const char* src, std::size_t n) {
+    if (n >= 8 && n <= 16) {
+        std::uint64_t a, b;
+        std::memcpy(&a, src, 8);
+        std::memcpy(&b, src + n - 8, 8);
+        std::memcpy(dst, &a, 8);
+        std::memcpy(dst + n - 8, &b, 8);
+    } else if (n >= 4 && n < 8) {
+        std::uint32_t a, b;
+        std::memcpy(&a, src, 4);
+        std::memcpy(&b, src + n - 4, 4);
+        std::memcpy(dst, &a, 4);
+        std::memcpy(dst + n - 4, &b, 4);
+    } else if (n < 4) {
+        dst[0] = src[0];
+        dst[n / 2] = src[n / 2];
+        dst[n - 1] = src[n - 1];
+    } else {
+        std::memcpy(dst, src, n);
+    }
+}
+
 // The word append_word would write, into a buffer at p (room: 2 + max(kPassedChars,
 // kUnitsChars)): a passed text up to kPassedChars, or a computed value on to_units' path (what
 // append_fixed writes). Null, with nothing written, for any other: append_word's to write.
@@ -40,7 +65,7 @@ char* put_passed_word(char* p, char letter, const PassedNumber& n) {
     *p++ = ' ';
     *p++ = letter;
     if (!text) return write_units(p, units, n.decimals);
-    std::memcpy(p, n.text.data(), n.text.size());
+    copy_short(p, n.text.data(), n.text.size());
     return p + n.text.size();
 }
 }  // namespace
@@ -61,6 +86,9 @@ JointEmitter::JointEmitter(const Machine& machine) : machine_(&machine), joints_
     for (std::size_t j = 0; j < joints_; ++j) {
         letter_[j] = machine.joints[j].output;
         decimals_[j] = machine.joints[j].rotary ? machine.dialect.rotary_decimals : machine.dialect.linear_decimals;
+        // |v * 1000| < 999999.5: to_units gives |units| < 1000000 (v * 1000 is its scaled value, v
+        // far inside kMaxWritten), write_units' three-decimal inline case.
+        small_below_[j] = decimals_[j] == 3 ? 999999.5 : -1.0;
     }
 }
 
@@ -104,7 +132,13 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
     for (std::size_t j = 0; j < q.size(); ++j) {
         long long units = 0;
         const int d = decimals(j);
-        const bool fast = to_units(sent[j], d, units);
+        // The usual joint (three decimals, below 1000 in magnitude): one test, then what to_units
+        // and write_units do for it. Any other: to_units' own tests.
+        const double scaled = sent[j] * 1e3;
+        const bool small = std::abs(scaled) < small_below_[j];
+        bool fast = true;
+        if (small) units = round_half_away(scaled);
+        else fast = to_units(sent[j], d, units);
         if (!fast) units = std::numeric_limits<long long>::min();  // never equal: always written
         const bool write = known_[j] ? units != last_[j] : (commanded[j] || q[j] != believed_[j]);
         believed_[j] = q[j];
@@ -113,7 +147,9 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         known_[j] = true;
         *p++ = ' ';
         *p++ = letter_[j];
-        if (fast) {
+        if (small) {
+            p = write_units3_small(p, units);
+        } else if (fast) {
             p = write_units(p, units, d);
         } else {
             out.append(line, p);

@@ -41,6 +41,7 @@ public:
             joints_ = o.joints_;
             letter_ = o.letter_;
             decimals_ = o.decimals_;
+            small_below_ = o.small_below_;
         }
         last_ = o.last_;
         known_ = o.known_;
@@ -98,6 +99,9 @@ private:
     // Per joint, from the machine: its output letter and printed decimals (read on every move).
     std::array<char, kMaxJoints> letter_{};
     std::array<int, kMaxJoints> decimals_{};
+    // Per joint: a value whose |value * 1000| is below this is written by the inline three-decimal
+    // path with no other test (999999.5 for three decimals, the usual; -1 for others: never).
+    std::array<double, kMaxJoints> small_below_{};
     // What the firmware was last sent per joint, in units of its last printed digit.
     std::array<long long, kMaxJoints> last_{};
     std::array<bool, kMaxJoints> known_{};       // false: not sent since start, homing or probing

@@ -59,9 +59,11 @@ constexpr char kPairs[] =
     "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
     "8081828384858687888990919293949596979899";
 
+}  // namespace
+
 // Three digits of 0 to 999 with their leading zeros ("007"): the lower part of a number below
 // a million.
-constexpr auto kThreeDigits = [] {
+extern constexpr std::array<ShortText, 1000> kThreeDigits = [] {
     std::array<ShortText, 1000> t{};
     for (int v = 0; v < 1000; ++v) {
         for (int k = 2, x = v; k >= 0; --k, x /= 10) t[std::size_t(v)].text[k] = char('0' + x % 10);
@@ -69,6 +71,8 @@ constexpr auto kThreeDigits = [] {
     }
     return t;
 }();
+
+namespace {
 
 // The digits of v at p, left to right; below 1000 from the table.
 inline char* write_integer(char* p, unsigned long long v) {

@@ -36,6 +36,13 @@ void append_fixed(std::string& out, double v, int decimals);
 // UnwritableNumber as append_fixed.
 void append_shortest(std::string& out, double v);
 
+// Half away from zero, as llround, without the library call or a branch: ±0.5 by scaled's sign
+// (scaled - 0.5 and scaled + -0.5 are the same sum; -0 gives -0.5, truncated to 0 as +0.5 is).
+// For |scaled| < 1e15 (fits exactly), not NaN.
+inline long long round_half_away(double scaled) {
+    return static_cast<long long>(scaled + std::copysign(0.5, scaled));
+}
+
 // v in units of 10^-decimals, rounded half away from zero: what append_fixed prints. False if
 // out of the fast range or not writable (then append_fixed falls back to std::to_chars, or throws).
 // Inline: the emitter calls it for every joint of every line.
@@ -44,8 +51,7 @@ inline bool to_units(double v, int decimals, long long& units) {
     if (decimals < 0 || decimals > 9 || !(std::abs(v) <= kMaxWritten)) return false;  // NaN too
     const double scaled = v * kPow10[decimals];
     if (!(std::abs(scaled) < 1e15)) return false;
-    // Half away from zero, as llround, without the library call (|scaled| < 1e15 fits exactly).
-    units = static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5);
+    units = round_half_away(scaled);
     return true;
 }
 // write_units_general: writes units * 10^-decimals (decimals 0 to 18) with trailing fraction zeros removed at p and
@@ -65,6 +71,8 @@ struct ShortText {
 // nothing for 0), from number.cpp.
 extern const std::array<ShortText, 1000> kIntegerText;
 extern const std::array<ShortText, 1000> kFraction3Text;
+// Three digits of 0 to 999 with their leading zeros ("007"): the lower part of a number below a million.
+extern const std::array<ShortText, 1000> kThreeDigits;
 
 // The text at p: four bytes copied at once (the bytes past size are scratch: see kUnitsChars),
 // the length added.
@@ -73,16 +81,31 @@ inline char* put_short(char* p, const ShortText& t) {
     return p + t.size;
 }
 
-// The text write_units_general writes, the joints' usual case inline: three decimals and a
-// magnitude below 1000 are a sign and two table entries, no call (the emitter writes several a
-// line); any other case is passed on.
+// The text write_units_general writes, the usual cases inline, no call: three decimals below
+// 1000 in magnitude (the joints), one decimal below a million (a feed); any other case is passed on.
+// write_units3_small: three decimals, |units| < 1000000 (the caller has checked): a sign and two
+// table entries. write_units1_small: one decimal, |units| < 10000000 (a feed): the integer part
+// from one or two entries, then the point and the digit, both written and kept only when not 0.
+inline char* write_units3_small(char* p, long long units) {
+    *p = '-';
+    p += units < 0;
+    const unsigned u = unsigned(units < 0 ? -units : units);
+    return put_short(put_short(p, kIntegerText[u / 1000]), kFraction3Text[u % 1000]);
+}
+inline char* write_units1_small(char* p, long long units) {
+    *p = '-';
+    p += units < 0;
+    const unsigned u = unsigned(units < 0 ? -units : units);
+    const unsigned i = u / 10, f = u % 10;
+    p = i < 1000 ? put_short(p, kIntegerText[i]) : put_short(put_short(p, kIntegerText[i / 1000]), kThreeDigits[i % 1000]);
+    p[0] = '.';
+    p[1] = char('0' + f);
+    return p + (f != 0 ? 2 : 0);
+}
+
 inline char* write_units(char* p, long long units, int decimals) {
-    if (decimals == 3 && units > -1000000 && units < 1000000) {
-        *p = '-';
-        p += units < 0;
-        const unsigned u = unsigned(units < 0 ? -units : units);
-        return put_short(put_short(p, kIntegerText[u / 1000]), kFraction3Text[u % 1000]);
-    }
+    if (decimals == 3 && units > -1000000 && units < 1000000) return write_units3_small(p, units);
+    if (decimals == 1 && units > -10000000 && units < 10000000) return write_units1_small(p, units);
     return write_units_general(p, units, decimals);
 }
 
