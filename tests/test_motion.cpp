@@ -268,6 +268,50 @@ TEST_CASE("the emitter's inline joint, E and F words are what the general format
     CHECK(refused > 1000);
 }
 
+TEST_CASE("the emitter's F under G94: written exactly when its text differs from the last, texts of every length") {
+    // Computed F at several decimals (texts of 1 to 17 characters, ties at one decimal, -0) and
+    // passed texts, against the text the general path writes and the last one written.
+    const Machine m = load("rw2");
+    JointEmitter em(m);
+    const std::size_t n = m.joints.size();
+    const std::vector<bool> none(n, false);
+    const std::vector<double> q(n, 0.0);
+    std::mt19937_64 rng(16);
+    const std::vector<double> pool = {0.0, -0.0, 0.04, 0.05, 0.25, 0.75, 1.0, 12.25, 12.3, 99.95, 1234.5, 6468.46, 6468.5,
+                                      6468.56, 99999.75, 123456.7, 999999.94, 999999.96, 1000000.25, 12345678.9, 1e-7, 0.123456789};
+    std::string last;  // the F text the firmware was last told
+    int written = 0, kept = 0;
+    for (int i = 0; i < 200000; ++i) {
+        const int d = std::vector<int>{0, 1, 1, 1, 3, 7, 9}[rng() % 7];
+        double v = pool[rng() % pool.size()];
+        if (rng() % 4 == 0) v = double(rng() % 40000000) / 4.0 * (rng() % 8 == 0 ? -1 : 1);
+        std::string text;
+        std::optional<PassedNumber> f;
+        const bool passed = rng() % 10 == 0;
+        if (passed) {
+            text = std::to_string(rng() % 100);
+            f = PassedNumber{0, text};
+        } else {
+            append_fixed(text, v, d);
+            f = PassedNumber{v, {}, d};
+        }
+        // Remembered: a passed text, or a value on to_units' path (any other is written every time).
+        long long units = 0;
+        const bool remembered = passed || to_units(v, d, units);
+        std::string out;
+        em.move(out, 1, q, q, none, PassedNumber{0, "1"}, f, false);
+        if (i > 0) {
+            const bool same = remembered && !last.empty() && text == last;  // one off to_units' path: always written
+            const std::string expected = same ? "G1 E1\n" : "G1 E1 F" + text + "\n";
+            if (out != expected) CHECK_MESSAGE(false, out << " vs " << expected << " (last " << last << ")");
+            (same ? kept : written) += 1;
+        }
+        last = remembered ? text : "";
+    }
+    CHECK(written > 10000);
+    CHECK(kept > 2000);
+}
+
 TEST_CASE("seven interior samples per piece do not miss the error: dense sampling agrees") {
     const Machine m = load("rw2");
     const Kinematics k(m);

@@ -55,6 +55,30 @@ inline void copy_short(char* dst, const char* src, std::size_t n) {
     }
 }
 
+// Whether the n bytes at a and b are the same; up to 16 without a call or a byte loop, by two
+// compares that may overlap (a feed's text is a few characters), never reading past n.
+inline bool same_short(const char* a, const char* b, std::size_t n) {
+    if (n >= 8 && n <= 16) {
+        std::uint64_t a0, a1, b0, b1;
+        std::memcpy(&a0, a, 8);
+        std::memcpy(&b0, b, 8);
+        std::memcpy(&a1, a + n - 8, 8);
+        std::memcpy(&b1, b + n - 8, 8);
+        return ((a0 ^ b0) | (a1 ^ b1)) == 0;
+    }
+    if (n >= 4 && n < 8) {
+        std::uint32_t a0, a1, b0, b1;
+        std::memcpy(&a0, a, 4);
+        std::memcpy(&b0, b, 4);
+        std::memcpy(&a1, a + n - 4, 4);
+        std::memcpy(&b1, b + n - 4, 4);
+        return ((a0 ^ b0) | (a1 ^ b1)) == 0;
+    }
+    if (n == 0) return true;
+    if (n < 4) return a[0] == b[0] && a[n / 2] == b[n / 2] && a[n - 1] == b[n - 1];
+    return std::memcmp(a, b, n) == 0;
+}
+
 // The word append_word would write, into a buffer at p (room: 2 + max(kPassedChars,
 // kUnitsChars)): a passed text up to kPassedChars, or a computed value on to_units' path (what
 // append_fixed writes). Null, with nothing written, for any other: append_word's to write.
@@ -84,7 +108,7 @@ JointEmitter::JointEmitter(const Machine& machine) : machine_(&machine), joints_
     const std::vector<double> home = machine.home_joints();
     std::copy(home.begin(), home.end(), believed_.begin());
     for (std::size_t j = 0; j < joints_; ++j) {
-        letter_[j] = machine.joints[j].output;
+        word_[j] = {' ', machine.joints[j].output};
         decimals_[j] = machine.joints[j].rotary ? machine.dialect.rotary_decimals : machine.dialect.linear_decimals;
         // |v * 1000| < 999999.5: to_units gives |units| < 1000000 (v * 1000 is its scaled value, v
         // far inside kMaxWritten), write_units' three-decimal inline case.
@@ -145,8 +169,8 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         if (!write) continue;
         last_[j] = units;
         known_[j] = true;
-        *p++ = ' ';
-        *p++ = letter_[j];
+        std::memcpy(p, word_[j].data(), 2);
+        p += 2;
         if (small) {
             p = write_units3_small(p, units);
         } else if (fast) {
@@ -172,17 +196,23 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
     if (f) {
         // F is modal in the firmware: written when its text changes (under G93 every move carries
         // its own), and remembered when it fits kFText.
-        long long units = 0;
-        if (f->text.empty() && f->decimals >= 0 && to_units(f->value, f->decimals, units)) {
-            // A computed F (the motion stage's, most moves): its digits go straight into the line
-            // after the room for " F" and are compared there with the last; taken back (p stays)
-            // when the same. What append_fixed would write, as the path below writes it.
-            static_assert(kUnitsChars <= kFText, "a computed F is always remembered");
-            char* const digits = p + 2;
-            char* const end = write_units(digits, units, f->decimals);
+        // A computed F (the motion stage's, most moves): its digits go straight into the line
+        // after the room for " F" and are compared there with the last; taken back (p stays)
+        // when the same. What append_fixed would write, as the path below writes it: the usual
+        // one decimal below a million by one test (|value * 10| < 9999999.5: to_units' units
+        // below 10000000, write_units' one-decimal inline case), any other by to_units.
+        static_assert(kUnitsChars <= kFText, "a computed F is always remembered");
+        char* const digits = p + 2;
+        char* end = nullptr;
+        if (f->text.empty() && f->decimals >= 0) {
+            const double scaled = f->value * 1e1;
+            long long units = 0;
+            if (f->decimals == 1 && std::abs(scaled) < 9999999.5) end = write_units1_small(digits, round_half_away(scaled));
+            else if (to_units(f->value, f->decimals, units)) end = write_units(digits, units, f->decimals);
+        }
+        if (end) {
             const std::size_t n = std::size_t(end - digits);
-            bool same = !inverse_time_ && n == last_f_size_;
-            for (std::size_t i = 0; same && i < n; ++i) same = digits[i] == last_f_[i];  // a few bytes: no memcmp call
+            const bool same = !inverse_time_ && n == last_f_size_ && same_short(digits, last_f_.data(), n);
             if (!same) {
                 if (!inverse_time_) {
                     // A fixed size (the line has room for kUnitsChars after `digits`): no memcpy

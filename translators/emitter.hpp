@@ -39,7 +39,7 @@ public:
         if (machine_ != o.machine_) {
             machine_ = o.machine_;
             joints_ = o.joints_;
-            letter_ = o.letter_;
+            word_ = o.word_;
             decimals_ = o.decimals_;
             small_below_ = o.small_below_;
         }
@@ -96,8 +96,9 @@ private:
     static constexpr std::size_t kMaxJoints = 8;
     const Machine* machine_;  // a pointer, so a copy of the emitter is its whole state (the translator's snapshots)
     std::size_t joints_ = 0;
-    // Per joint, from the machine: its output letter and printed decimals (read on every move).
-    std::array<char, kMaxJoints> letter_{};
+    // Per joint, from the machine: the start of its word (" " and its output letter, stored at
+    // once) and its printed decimals (read on every move).
+    std::array<std::array<char, 2>, kMaxJoints> word_{};
     std::array<int, kMaxJoints> decimals_{};
     // Per joint: a value whose |value * 1000| is below this is written by the inline three-decimal
     // path with no other test (999999.5 for three decimals, the usual; -1 for others: never).

@@ -62,11 +62,14 @@ inline constexpr std::size_t kUnitsChars = 24;
 char* write_units_general(char* p, long long units, int decimals);
 void append_units(std::string& out, long long units, int decimals);
 
-// A text of at most four bytes and its length: an entry of the tables below.
+// A text of at most four bytes and its length: an entry of the tables below. Eight bytes, so an
+// entry's address is the index shifted (no multiply by five).
 struct ShortText {
     char text[4];
     unsigned char size;
+    unsigned char unused[3];
 };
+static_assert(sizeof(ShortText) == 8);
 // The text of 0 to 999 ("7", "42"), and of a three-decimal fraction 0 to 999 (".05", ".125";
 // nothing for 0), from number.cpp.
 extern const std::array<ShortText, 1000> kIntegerText;
