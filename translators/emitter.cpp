@@ -241,7 +241,17 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
     // Nothing changed (no word after the command, none flushed to `out` either): no line.
     if (p == line + 2 && out.size() == start) return;
     *p++ = '\n';
-    out.append(line, p);
+    // A line of up to kBlock characters (most) goes to `out` as a block of that fixed size, copied
+    // without a library call, and `out` is cut back to the line's end (erase to the end is inline).
+    constexpr std::size_t kBlock = 64;
+    static_assert(kLineChars >= kBlock, "the block is read from the line buffer");
+    if (const std::size_t n = std::size_t(p - line); n <= kBlock) {
+        const std::size_t size = out.size();
+        out.append(line, kBlock);
+        out.erase(size + n);
+    } else {
+        out.append(line, p);
+    }
     ++moves_written_;
 }
 
