@@ -204,7 +204,9 @@ TEST_CASE("the emitter's inline joint, E and F words are what the general format
     const std::vector<bool> all(n, true);
     std::mt19937_64 rng(15);
     auto joint_value = [&]() -> double {
-        switch (rng() % 6) {
+        switch (rng() % 8) {
+            case 6: return (double(rng() % 2000000000001) - 1e12) / 1e6;                    // below a million
+            case 7: return std::nextafter(999999.9995, rng() % 2 ? 0.0 : 2e6) * (rng() % 2 ? 1 : -1);  // its edge
             case 0: return (double(rng() % 2000001) - 1000000.0) / 1000.0;                   // on the grid
             case 1: return (double(rng() % 2000001) - 1000000.0 + 0.5) / 1000.0;             // near ties
             case 2: return std::nextafter(999.9995, rng() % 2 ? 0.0 : 2000.0) * (rng() % 2 ? 1 : -1);  // the edge
