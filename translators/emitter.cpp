@@ -79,6 +79,26 @@ inline bool same_short(const char* a, const char* b, std::size_t n) {
     return std::memcmp(a, b, n) == 0;
 }
 
+// Three decimals below 1000000 in magnitude (|units| < 1000000000): what write_units writes for
+// them (a sign, the integer part from one table entry, or two past 1000, the fraction from a
+// third), inline.
+inline char* write_units3(char* p, long long units) {
+    *p = '-';
+    p += units < 0;
+    const unsigned u = unsigned(units < 0 ? -units : units);
+    const unsigned i = u / 1000;
+    p = i < 1000 ? put_short(p, kIntegerText[i]) : put_short(put_short(p, kIntegerText[i / 1000]), kThreeDigits[i % 1000]);
+    return put_short(p, kFraction3Text[u % 1000]);
+}
+
+// A joint value on to_units' path but not the move's usual one: past 1000 at three decimals (a
+// multi-turn rotary) below a million by write_units3, any other by write_units. Out of line, so
+// the move's loop is laid out for its usual joint alone.
+[[gnu::noinline]] char* write_joint_units(char* p, long long units, int decimals) {
+    if (decimals == 3 && units > -1000000000 && units < 1000000000) return write_units3(p, units);
+    return write_units(p, units, decimals);
+}
+
 // The word append_word would write, into a buffer at p (room: 2 + max(kPassedChars,
 // kUnitsChars)): a passed text up to kPassedChars, or a computed value on to_units' path (what
 // append_fixed writes). Null, with nothing written, for any other: append_word's to write.
@@ -174,7 +194,7 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         if (small) {
             p = write_units3_small(p, units);
         } else if (fast) {
-            p = write_units(p, units, d);
+            p = write_joint_units(p, units, d);
         } else {
             out.append(line, p);
             p = line;
