@@ -312,3 +312,18 @@ TEST_CASE("a number that is not finite or beyond 1e9 is never written: Unwritabl
     append_shortest(out, 1e-300);
     CHECK(out == "1000000000 -1000000000 -1000000000 0");
 }
+
+TEST_CASE("count_newlines counts what the memchr path counts: any length, any density, past the byte counters' 255 steps") {
+    std::mt19937 rng(15);
+    for (int round = 0; round < 3000; ++round) {
+        const std::size_t size = round < 100 ? std::size_t(round) : std::size_t(rng() % (round % 10 == 0 ? 20000 : 300));
+        const unsigned density = 1 + rng() % 200;  // one byte in `density` is a line end
+        std::string text(size, 'x');
+        for (char& c : text) c = rng() % density == 0 ? '\n' : char(rng() % 256);
+        if (round % 7 == 0) std::fill(text.begin(), text.end(), '\n');  // every byte: counters at their fullest
+        const std::size_t skip = size > 0 ? rng() % std::min<std::size_t>(size, 16) : 0;  // unaligned starts
+        const std::string_view view = std::string_view(text).substr(skip);
+        REQUIRE(count_newlines(view) == count_newlines_memchr(view));
+        REQUIRE(count_newlines(view) == std::uint64_t(std::count(view.begin(), view.end(), '\n')));
+    }
+}

@@ -1200,3 +1200,29 @@ TEST_CASE("translator: inverse splits a joint move that carries M codes too, and
     CHECK(std::abs(w.at('Y') - tip.y()) <= kPrinted);
     CHECK(std::abs(w.at('Z') - tip.z()) <= kPrinted);
 }
+
+TEST_CASE("translator: a rotary word's checks keep their order: not a rotary, inside a tilted plane, under G43.5") {
+    Rig p("pentarod");
+    p.feed("G1 X1 Y2 Z3 I0 J0 K1");
+    InputError e = expect_error(p, "G1 X2 Q5");  // no joint Q: not a tool-space word, whatever the mode
+    CHECK(e.column() == 7);
+    CHECK(contains(e.message(), "not a tool-space word"));
+    e = expect_error(p, "G1 X2 A10");
+    CHECK(e.column() == 7);
+    CHECK(contains(e.message(), "under G43.5"));
+    p.feed("G68.2 J30");
+    e = expect_error(p, "G1 X2 A10");  // inside the plane its check comes first
+    CHECK(e.column() == 7);
+    CHECK(contains(e.message(), "ambiguous"));
+    e = expect_error(p, "G1 X2 Q5");
+    CHECK(contains(e.message(), "not a tool-space word"));
+
+    Rig r("rw2");
+    place_rw2(r);
+    r.feed("G1 X1 A10 B5");  // allowed: G43.4, no plane
+    CHECK(std::abs(r.q('A') - 10) < 1e-12);
+    CHECK(std::abs(r.q('B') - 5) < 1e-12);
+    e = expect_error(r, "G1 X1 A10 C5");
+    CHECK(e.column() == 11);
+    CHECK(contains(e.message(), "not a tool-space word"));
+}

@@ -37,6 +37,12 @@ void InputFront::pass(std::string& out) {
 }
 
 void InputFront::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
+    // G-code first, and as the call it ends with: most lines take only this test.
+    if (format_ == InputFormat::GCode) return translator_.feed(line, line_no, out);
+    feed_other(line, line_no, out);
+}
+
+void InputFront::feed_other(std::string_view line, std::uint64_t line_no, std::string& out) {
     if (format_ == InputFormat::Auto) {
         bool empty = true;
         for (char c : line)

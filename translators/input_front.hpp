@@ -44,6 +44,7 @@ public:
 
 private:
     void pass(std::string& out);
+    void feed_other(std::string_view line, std::uint64_t line_no, std::string& out);  // feed, but for G-code
 
     Translator& translator_;
     FrontOptions o_;

@@ -43,7 +43,11 @@ Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner
         position_letters_ += j.name;
     }
     position_letters_ += "XYZ";
-    for (char letter = 'A'; letter <= 'Z'; ++letter) joint_of_letter_[std::size_t(letter - 'A')] = machine_.joint_index(letter);
+    for (char letter = 'A'; letter <= 'Z'; ++letter) {
+        const int j = machine_.joint_index(letter);
+        joint_of_letter_[std::size_t(letter - 'A')] = j;
+        rotary_of_letter_[std::size_t(letter - 'A')] = j >= 0 && machine_.joints[std::size_t(j)].rotary ? j : -1;
+    }
     // (One bit a joint: the loader allows five joints, the emitter eight.)
     if (machine_.joints.size() > 32) throw MachineError(machine_.source_path + ": more joints than the interpreter holds (32)");
     for (std::size_t j = 0; j < machine_.joints.size(); ++j) (machine_.joints[j].rotary ? rotary_joints_ : linear_joints_) |= 1u << j;
@@ -235,7 +239,11 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
     ModalState& m = state_.modal;
     const PlannerState& at = state_.planner;
     const double unit = inches ? 25.4 : 1.0;
-    Eigen::Vector3d tip = input_frame_tip();  // program frame, or the tilted plane's
+    const WorkPlane& plane = m.plane.get();
+    // The program frame, or the tilted plane's (input_frame_tip, without the call: most lines
+    // are outside any plane).
+    Eigen::Vector3d tip = at.pose.tip - m.offset;
+    if (plane.active) tip = plane.to_plane(tip);
     Eigen::Vector3d ijk = Eigen::Vector3d::Zero();
     bool any_xyz = false, any_ijk = false, any_rotary = false;
     std::uint32_t ijk_column = column;
@@ -243,6 +251,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
     std::uint32_t commanded = 0;  // one bit a joint, written to move_commanded_ at the end
     // Under G43.4 the rotary words are programmed angles; the joints are their image.
     planner_.programmed_angles(angles_);
+    const bool angles_allowed = !plane.active && m.mode != OrientationMode::Vector;  // rotary words' own checks pass
     for (const Param& p : words) {
         switch (p.letter) {
             case 'X': case 'Y': case 'Z': {
@@ -253,7 +262,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
                 break;
             }
             case 'I': case 'J': case 'K':
-                if (m.plane.get().active) fail(p.column, plane_orientation_error(m.plane.get()));
+                if (plane.active) fail(p.column, plane_orientation_error(plane));
                 if (m.mode != OrientationMode::Vector)
                     fail(p.column, "I J K give a tool vector only under G43.5");
                 if (!any_ijk) ijk_column = p.column;
@@ -266,13 +275,16 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
                 if (!(mv.f->value > 0)) fail(p.column, "feed rate F must be positive");
                 break;
             default: {
-                const int j = joint_of(p.letter);
-                if (j < 0 || !machine_.joints[std::size_t(j)].rotary)
-                    fail(p.column, std::string("word ") + p.letter + " is not a tool-space word for machine " + machine_.name +
-                                       " (X Y Z give the tip" + (m.mode == OrientationMode::Vector ? ", I J K the tool axis)" : ", its rotary letters the orientation)"));
-                if (m.plane.get().active) fail(p.column, plane_orientation_error(m.plane.get()));
-                if (m.mode == OrientationMode::Vector)
-                    fail(p.column, std::string("rotary word ") + p.letter + " under G43.5: give the tool axis as I J K, or switch to G43.4");
+                const int j = rotary_of(p.letter);
+                if (j < 0 || !angles_allowed) {
+                    // The checks in their order (angles_allowed: neither of the last two fails).
+                    if (j < 0)
+                        fail(p.column, std::string("word ") + p.letter + " is not a tool-space word for machine " + machine_.name +
+                                           " (X Y Z give the tip" + (m.mode == OrientationMode::Vector ? ", I J K the tool axis)" : ", its rotary letters the orientation)"));
+                    if (plane.active) fail(p.column, plane_orientation_error(plane));
+                    if (m.mode == OrientationMode::Vector)
+                        fail(p.column, std::string("rotary word ") + p.letter + " under G43.5: give the tool axis as I J K, or switch to G43.4");
+                }
                 const double v = number(p);
                 angles_[std::size_t(j)] = absolute ? v : angles_[std::size_t(j)] + v;
                 commanded |= 1u << j;
@@ -287,10 +299,10 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
         mv.axis = ijk.normalized();
     }
     mv.mode = m.mode;
-    if (m.plane.get().active && m.plane.get().tool_turned) {
+    if (plane.active && plane.tool_turned) {
         // After G53.1 every move inside the plane holds the tool on the plane's +Z.
         any_ijk = true;
-        mv.axis = m.plane.get().normal();
+        mv.axis = plane.normal();
         mv.mode = OrientationMode::Vector;
     }
     if (any_xyz) commanded |= linear_joints_;
@@ -303,7 +315,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
     mv.gcode = gcode;
     mv.column = column;
     mv.any_xyz = any_xyz;
-    mv.tip = part_from_input(tip);
+    mv.tip = (plane.active ? plane.to_program(tip) : tip) + m.offset;  // part_from_input, without the call
     mv.any_rotary = any_rotary;
     mv.angles = &angles_;
     mv.any_ijk = any_ijk;

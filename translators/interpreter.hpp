@@ -67,6 +67,11 @@ private:
     [[noreturn]] void no_number(const Param& p) const;
     PassedNumber passed(const Param& p, bool inches) const;  // E or F, in mm
     bool is_axis_letter(char c) const;
+    // The rotary joint a word's letter names, -1 for none (a linear joint's letter, or none).
+    int rotary_of(char letter) const {
+        const auto k = std::size_t(letter - 'A');
+        return k < rotary_of_letter_.size() ? rotary_of_letter_[k] : -1;
+    }
     // The joint a word's letter names, -1 for none: from a table made once, not a search of the
     // joints per word. (A word's letter is upper case A to Z, and no joint is named otherwise.)
     int joint_of(char letter) const {
@@ -103,6 +108,7 @@ private:
     LinePlan plan_;
     std::string move_letters_, position_letters_;  // see plan_line
     std::array<int, 26> joint_of_letter_;           // see joint_of
+    std::array<int, 26> rotary_of_letter_;          // see rotary_of
     // Scratch reused line after line (no allocation on the hot path).
     std::vector<double> angles_, joints_, arc_angles_;
     std::vector<bool> commanded_, which_;

@@ -44,17 +44,9 @@ bool LineReader::has_line() const {
     return eof_ || std::memchr(buf_.data() + begin_, '\n', end_ - begin_) != nullptr;
 }
 
-bool LineReader::next(std::string_view& line) {
-    std::size_t scanned = begin_;
+bool LineReader::next_after_read(std::string_view& line) {
+    // next() has scanned the pending bytes: no '\n' among them.
     for (;;) {
-        const void* nl = std::memchr(buf_.data() + scanned, '\n', end_ - scanned);
-        if (nl) {
-            const std::size_t pos = std::size_t(static_cast<const char*>(nl) - buf_.data());
-            line = std::string_view(buf_.data() + begin_, pos - begin_);
-            begin_ = pos + 1;
-            ++line_no_;
-            return true;
-        }
         if (end_ - begin_ > max_line_)
             throw InputError(name_, line_no_ + 1, 1, "line longer than " + std::to_string(max_line_) + " bytes");
         const std::size_t pending = end_ - begin_;
@@ -65,7 +57,15 @@ bool LineReader::next(std::string_view& line) {
             ++line_no_;
             return true;
         }
-        scanned = pending;  // fill() moved the pending line to the front; its bytes are scanned
+        // fill() moved the pending line to the front; its bytes are scanned.
+        const void* nl = std::memchr(buf_.data() + pending, '\n', end_ - pending);
+        if (nl) {
+            const std::size_t pos = std::size_t(static_cast<const char*>(nl) - buf_.data());
+            line = std::string_view(buf_.data() + begin_, pos - begin_);
+            begin_ = pos + 1;
+            ++line_no_;
+            return true;
+        }
     }
 }
 

@@ -2,6 +2,7 @@
 // whatever the file size. May call: nothing of the pipeline.
 #pragma once
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <string_view>
 
@@ -13,7 +14,17 @@ public:
     explicit LineReader(int fd, std::string name, std::size_t max_line = 64u << 20);
     // The next line without its '\n'; false at end of input. Throws InputError for a line longer
     // than max_line, IoError for a read error.
-    bool next(std::string_view& line);
+    // Inline for the usual case, a whole line already in the buffer.
+    bool next(std::string_view& line) {
+        if (const void* nl = std::memchr(buf_.data() + begin_, '\n', end_ - begin_)) {
+            const std::size_t pos = std::size_t(static_cast<const char*>(nl) - buf_.data());
+            line = std::string_view(buf_.data() + begin_, pos - begin_);
+            begin_ = pos + 1;
+            ++line_no_;
+            return true;
+        }
+        return next_after_read(line);
+    }
     std::uint64_t line_number() const { return line_no_; }
     std::uint64_t bytes_read() const { return total_; }
     // True when next() can return a line without reading: when false, the next call may wait on
@@ -22,6 +33,8 @@ public:
 
 private:
     bool fill();
+    // next() when the buffer holds no '\n' from begin_ on: reads more.
+    bool next_after_read(std::string_view& line);
 
     int fd_;
     std::string name_;

@@ -116,12 +116,6 @@ void Planner::unmap_angles(const AngleImage& image, const std::vector<double>& q
     }
 }
 
-void Planner::programmed_angles(std::vector<double>& a) const {
-    a.assign(state_.q.begin(), state_.q.end());
-    // The plain image gives the joints themselves ((q - 0) * 1 is q, bit for bit).
-    if (!(state_.image == AngleImage{})) unmap_angles(state_.image, state_.q, a);
-}
-
 // Where else a travel move to `end` may stop: every solution of that pose inside the limits
 // other than `usual` (the continuous one), nearest the current joints first. Under G43.4 each is
 // an image of the programmed angles (another turn, or the flipped branch), so the moves after it
@@ -297,7 +291,11 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinematics::S
 
 void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     PlannerState& s = state_;
-    q_next_ = s.q;
+    if (q_next_.size() == s.q.size()) {
+        for (std::size_t j = 0; j < s.q.size(); ++j) q_next_[j] = s.q[j];  // (no call of memmove for five doubles)
+    } else {
+        q_next_ = s.q;
+    }
     if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
     end_solved_.valid = false;
     IkResult r;

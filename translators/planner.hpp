@@ -44,7 +44,40 @@ struct PlannerState {
     // Per rotary (rotary_joints() order): the whole turns re-zeros took off the joint since the
     // program last set it (G92, G28), in degrees. The program's angles go on without them.
     double rezeroed[2] = {0, 0};
+
+    PlannerState() = default;
+    PlannerState(const PlannerState&) = default;
+    PlannerState(PlannerState&&) = default;
+    PlannerState& operator=(PlannerState&&) = default;
+    // The look-back copies the state with every line: the joints one by one when the sizes agree
+    // (always, after the first), without vector assignment's call of memmove for five doubles.
+    // Every member is copied (the static_assert below counts them by size).
+    PlannerState& operator=(const PlannerState& o) {
+        if (q.size() == o.q.size()) {
+            for (std::size_t j = 0; j < q.size(); ++j) q[j] = o.q[j];
+        } else {
+            q = o.q;
+        }
+        pose = o.pose;
+        tip_known = o.tip_known;
+        image = o.image;
+        rezeroed[0] = o.rezeroed[0];
+        rezeroed[1] = o.rezeroed[1];
+        return *this;
+    }
 };
+namespace planner_detail {
+// The members PlannerState's copy assignment copies, in their order: a member added there and
+// not here changes the size and stops the build.
+struct PlannerStateMembers {
+    std::vector<double> q;
+    Pose pose;
+    bool tip_known;
+    AngleImage image;
+    double rezeroed[2];
+};
+static_assert(sizeof(PlannerState) == sizeof(PlannerStateMembers), "PlannerState's copy assignment must copy every member");
+}  // namespace planner_detail
 
 // One input line's dealings with the look-back: what it asks of the line's moves, and what they
 // did. An argument of every move, never a member left set for the next call.
@@ -113,7 +146,18 @@ public:
     void tip_placed() { state_.tip_known = true; }
 
     // The programmed angles (G43.4) of the current joints: per joint, rotaries through the image.
-    void programmed_angles(std::vector<double>& a) const;
+    // Inline, with the joints copied one by one when the sizes agree (every move after the first):
+    // the same values as assign(), without its call of memmove for five doubles.
+    void programmed_angles(std::vector<double>& a) const {
+        const std::vector<double>& q = state_.q;
+        if (a.size() == q.size()) {
+            for (std::size_t j = 0; j < q.size(); ++j) a[j] = q[j];
+        } else {
+            a.assign(q.begin(), q.end());
+        }
+        // The plain image gives the joints themselves ((q - 0) * 1 is q, bit for bit).
+        if (!(state_.image == AngleImage{})) unmap_angles(state_.image, q, a);
+    }
 
 private:
     void send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,

@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <cstring>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "translators/input_front.hpp"
 #include "translators/translator.hpp"
@@ -12,10 +15,12 @@ namespace xlate5 {
 
 namespace {
 constexpr std::size_t kFlushAt = 1u << 18;
+}  // namespace
 
-// Line ends in a block of output, found with memchr (the C library's vector search: a move
-// line is about 50 bytes, so a call per line costs less than testing every byte, or every eight).
-std::uint64_t count_newlines(std::string_view text) {
+// Line ends in a block of output. With SSE2 (every x86-64): 16 bytes a step, each compare's
+// 0xFF bytes (-1) subtracted into byte counters summed before they can wrap; a call of memchr
+// per output line (about 50 bytes) costs twice that. Elsewhere memchr, a call per line.
+std::uint64_t count_newlines_memchr(std::string_view text) {
     std::uint64_t n = 0;
     const char* p = text.data();
     const char* const end = p + text.size();
@@ -27,7 +32,29 @@ std::uint64_t count_newlines(std::string_view text) {
     }
     return n;
 }
-}  // namespace
+
+std::uint64_t count_newlines(std::string_view text) {
+#if defined(__SSE2__)
+    std::uint64_t n = 0;
+    const char* p = text.data();
+    std::size_t left = text.size();
+    const __m128i newline = _mm_set1_epi8('\n');
+    while (left >= 16) {
+        // At most 255 steps into the byte counters: none of them can wrap.
+        const std::size_t steps = std::min<std::size_t>(left / 16, 255);
+        __m128i counts = _mm_setzero_si128();
+        for (std::size_t i = 0; i < steps; ++i, p += 16)
+            counts = _mm_sub_epi8(counts, _mm_cmpeq_epi8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)), newline));
+        const __m128i sums = _mm_sad_epu8(counts, _mm_setzero_si128());  // two 64-bit sums of 8 bytes
+        n += std::uint64_t(_mm_cvtsi128_si64(sums)) + std::uint64_t(_mm_cvtsi128_si64(_mm_unpackhi_epi64(sums, sums)));
+        left -= steps * 16;
+    }
+    for (; left > 0; --left, ++p) n += *p == '\n';
+    return n;
+#else
+    return count_newlines_memchr(text);
+#endif
+}
 
 StreamStats translate_stream(LineReader& reader, Translator& translator, OutputSink& sink, bool streaming,
                              const std::function<void(const StreamStats&)>& on_read,

@@ -39,4 +39,9 @@ StreamStats translate_stream(LineReader& reader, Translator& translator, OutputS
                              const std::function<void(const StreamStats&)>& on_read = {},
                              const std::function<void(std::string_view)>& on_write = {});
 
+// The line ends ('\n') in a block of output (StreamStats::lines_out), and the same counted with
+// memchr (the general path the tests hold it against).
+std::uint64_t count_newlines(std::string_view text);
+std::uint64_t count_newlines_memchr(std::string_view text);
+
 }  // namespace xlate5
