@@ -19,6 +19,7 @@
 #include "translators/kinematics.hpp"
 #include "translators/line_commands.hpp"
 #include "translators/machine.hpp"
+#include "translators/planner.hpp"
 
 using namespace xlate5;
 using namespace xlate5::test;
@@ -423,4 +424,47 @@ TEST_CASE("line plan: a motion command takes the line's words as they are; S, or
     REQUIRE(plan.count == 1);
     CHECK(plan.steps[0].command.letter == 'S');
     CHECK(plan.steps[0].verbatim);
+}
+
+TEST_CASE("planner state: copy_joints and PlannerState's copy give what vector assignment gives, bit for bit") {
+    std::mt19937_64 rng(15);
+    auto random_joints = [&](std::size_t n) {
+        std::vector<double> v(n);
+        for (double& x : v) {
+            std::uint64_t bits = rng();
+            std::memcpy(&x, &bits, sizeof x);  // any bits: signed zeros, NaNs, infinities
+        }
+        return v;
+    };
+    auto same_bits = [](const std::vector<double>& a, const std::vector<double>& b) {
+        return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0);
+    };
+    for (int round = 0; round < 2000; ++round) {
+        const std::size_t n_to = rng() % 12, n_from = round % 3 == 0 ? rng() % 12 : n_to;  // mostly equal sizes
+        std::vector<double> to = random_joints(n_to);
+        const std::vector<double> from = random_joints(n_from);
+        std::vector<double> expected = to;
+        expected = from;
+        copy_joints(to, from);
+        REQUIRE(same_bits(to, expected));
+
+        PlannerState a, b;
+        a.q = random_joints(n_to);
+        b.q = from;
+        b.pose.tip = Eigen::Vector3d(1, 2, double(round));
+        b.pose.axis = Eigen::Vector3d(0, 1, 0);
+        b.tip_known = round % 2 == 0;
+        b.image.sign[1] = -1;
+        b.image.shift[0] = 360.0 * round;
+        b.rezeroed[0] = 720;
+        b.rezeroed[1] = -double(round);
+        a = b;
+        REQUIRE(same_bits(a.q, b.q));
+        CHECK(a.pose.tip == b.pose.tip);
+        CHECK(a.pose.axis == b.pose.axis);
+        CHECK(a.tip_known == b.tip_known);
+        CHECK(a.image == b.image);
+        CHECK(a.rezeroed[0] == b.rezeroed[0]);
+        CHECK(a.rezeroed[1] == b.rezeroed[1]);
+    }
 }

@@ -291,11 +291,7 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinematics::S
 
 void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     PlannerState& s = state_;
-    if (q_next_.size() == s.q.size()) {
-        for (std::size_t j = 0; j < s.q.size(); ++j) q_next_[j] = s.q[j];  // (no call of memmove for five doubles)
-    } else {
-        q_next_ = s.q;
-    }
+    copy_joints(q_next_, s.q);
     if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
     end_solved_.valid = false;
     IkResult r;

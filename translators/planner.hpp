@@ -35,6 +35,30 @@ struct AngleImage {
     bool operator==(const AngleImage&) const = default;
 };
 
+// to = from, for joint vectors: when the sizes agree (always, after the first move), value by
+// value without a loop (a machine has at most 8 joints, the emitter's bound): a loop or
+// vector assignment costs about twice as much for five doubles (versioning, or a call of memmove).
+inline void copy_joints(std::vector<double>& to, const std::vector<double>& from) {
+    const std::size_t n = from.size();
+    if (to.size() != n || n > 8) {
+        to = from;
+        return;
+    }
+    double* d = to.data();
+    const double* s = from.data();
+    switch (n) {
+        case 8: d[7] = s[7]; [[fallthrough]];
+        case 7: d[6] = s[6]; [[fallthrough]];
+        case 6: d[5] = s[5]; [[fallthrough]];
+        case 5: d[4] = s[4]; [[fallthrough]];
+        case 4: d[3] = s[3]; [[fallthrough]];
+        case 3: d[2] = s[2]; [[fallthrough]];
+        case 2: d[1] = s[1]; [[fallthrough]];
+        case 1: d[0] = s[0]; [[fallthrough]];
+        default: break;
+    }
+}
+
 // What the planner keeps between moves: where the machine is.
 struct PlannerState {
     std::vector<double> q;   // joint values the firmware will be at
@@ -49,15 +73,10 @@ struct PlannerState {
     PlannerState(const PlannerState&) = default;
     PlannerState(PlannerState&&) = default;
     PlannerState& operator=(PlannerState&&) = default;
-    // The look-back copies the state with every line: the joints one by one when the sizes agree
-    // (always, after the first), without vector assignment's call of memmove for five doubles.
-    // Every member is copied (the static_assert below counts them by size).
+    // The look-back copies the state with every line: the joints through copy_joints. Every
+    // member is copied (the static_assert below counts them by size).
     PlannerState& operator=(const PlannerState& o) {
-        if (q.size() == o.q.size()) {
-            for (std::size_t j = 0; j < q.size(); ++j) q[j] = o.q[j];
-        } else {
-            q = o.q;
-        }
+        copy_joints(q, o.q);
         pose = o.pose;
         tip_known = o.tip_known;
         image = o.image;
@@ -146,15 +165,10 @@ public:
     void tip_placed() { state_.tip_known = true; }
 
     // The programmed angles (G43.4) of the current joints: per joint, rotaries through the image.
-    // Inline, with the joints copied one by one when the sizes agree (every move after the first):
-    // the same values as assign(), without its call of memmove for five doubles.
+    // Inline, the joints copied through copy_joints.
     void programmed_angles(std::vector<double>& a) const {
         const std::vector<double>& q = state_.q;
-        if (a.size() == q.size()) {
-            for (std::size_t j = 0; j < q.size(); ++j) a[j] = q[j];
-        } else {
-            a.assign(q.begin(), q.end());
-        }
+        copy_joints(a, q);
         // The plain image gives the joints themselves ((q - 0) * 1 is q, bit for bit).
         if (!(state_.image == AngleImage{})) unmap_angles(state_.image, q, a);
     }
