@@ -90,8 +90,17 @@ void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& ou
     try {
         for (std::size_t i = 0; i < plan_.count; ++i) {
             const LineStep& step = plan_.steps[i];
-            if (step.command.modal_only()) apply_modal(step.command.code10, step.words, out);
-            else run_command(step.command, block_.body, step.verbatim, step.words, run, out);
+            const CommandWord& c = step.command;
+            ModalState& m = state_.modal;
+            if (c.letter == 'G' && (c.code10 == 10 || c.code10 == 0) && m.mode != OrientationMode::Joints) {
+                // G0/G1 under tool-centre-point control (most lines): run_command's case, without its call.
+                m.modes.motion = c.code10 / 10;
+                tool_move(c.code10 / 10, c.column, step.words, m.modes.absolute, m.modes.inches, run, out);
+            } else if (c.modal_only()) {
+                apply_modal(c.code10, step.words, out);
+            } else {
+                run_command(c, block_.body, step.verbatim, step.words, run, out);
+            }
         }
     } catch (...) {
         // Nothing of a failed line stays: output, joints, pose, modes. What the firmware was
