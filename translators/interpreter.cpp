@@ -46,7 +46,9 @@ Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner
     for (char letter = 'A'; letter <= 'Z'; ++letter) {
         const int j = machine_.joint_index(letter);
         joint_of_letter_[std::size_t(letter - 'A')] = j;
-        rotary_of_letter_[std::size_t(letter - 'A')] = j >= 0 && machine_.joints[std::size_t(j)].rotary ? j : -1;
+        // (None for a letter tool_move reads otherwise, as its switch does: X Y Z I J K E F.)
+        const bool own = std::string_view("XYZIJKEF").find(letter) != std::string_view::npos;
+        rotary_of_letter_[std::size_t(letter - 'A')] = !own && j >= 0 && machine_.joints[std::size_t(j)].rotary ? j : -1;
     }
     // (One bit a joint: the loader allows five joints, the emitter eight.)
     if (machine_.joints.size() > 32) throw MachineError(machine_.source_path + ": more joints than the interpreter holds (32)");
@@ -262,14 +264,14 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
     planner_.programmed_angles(angles_);
     const bool angles_allowed = !plane.active && m.mode != OrientationMode::Vector;  // rotary words' own checks pass
     for (const Param& p : words) {
+        // X Y Z (three words of most lines) before the switch's jump, as its case did.
+        if (const unsigned i = unsigned(p.letter - 'X'); i < 3) {
+            const double v = number(p) * unit;
+            tip[i] = absolute ? v : tip[i] + v;
+            any_xyz = true;
+            continue;
+        }
         switch (p.letter) {
-            case 'X': case 'Y': case 'Z': {
-                const int i = p.letter - 'X';
-                const double v = number(p) * unit;
-                tip[i] = absolute ? v : tip[i] + v;
-                any_xyz = true;
-                break;
-            }
             case 'I': case 'J': case 'K':
                 if (plane.active) fail(p.column, plane_orientation_error(plane));
                 if (m.mode != OrientationMode::Vector)

@@ -67,7 +67,8 @@ private:
     [[noreturn]] void no_number(const Param& p) const;
     PassedNumber passed(const Param& p, bool inches) const;  // E or F, in mm
     bool is_axis_letter(char c) const;
-    // The rotary joint a word's letter names, -1 for none (a linear joint's letter, or none).
+    // The rotary joint a word's letter names, -1 for none (a linear joint's letter, none, or a
+    // letter tool_move reads as something else: X Y Z I J K E F).
     int rotary_of(char letter) const {
         const auto k = std::size_t(letter - 'A');
         return k < rotary_of_letter_.size() ? rotary_of_letter_[k] : -1;
