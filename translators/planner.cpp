@@ -3,6 +3,7 @@
 #include "translators/planner.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 
@@ -63,30 +64,33 @@ Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter
         pole_ = kin_.tool_axis(q);
     }
     pole_checks_ = rot.size() == 2 && kin_.has_flip() && machine_.motion.segment;
+    if (pole_checks_) pole_c_ = std::size_t(rot[0]), pole_b_ = std::size_t(rot[1]);
 }
 
-Eigen::Vector3d Planner::axis_at(const std::vector<double>& q) const {
-    for (const KnownAxis& k : known_axes_)
-        if (k.valid && k.holds(kin_.rotary_joints(), q)) return k.axis;
+// The tool axis at q's rotaries: a remembered one when they are the same to the bit (a move's
+// end is the next one's start), else tool_axis(q). pole_passage's machines only (two rotaries).
+// The older slot first: it holds the end of the move before, this move's start (the newer one
+// holds this move's usual end). Should both hold q's rotaries, their axes are the same bits: the
+// position solve's axis (test_kinematics: tool_axis(q) to the bit) is computed from the rotaries
+// alone (rotations; the linear joints only translate), the same operations on the same bits.
+inline Eigen::Vector3d Planner::axis_at(const std::vector<double>& q) const {
+    const std::uint64_t qc = std::bit_cast<std::uint64_t>(q[pole_c_]), qb = std::bit_cast<std::uint64_t>(q[pole_b_]);
+    const KnownAxis& older = known_axes_[known_next_];
+    if (older.holds(qc, qb)) return older.axis;
+    const KnownAxis& newer = known_axes_[1 - known_next_];
+    if (newer.holds(qc, qb)) return newer.axis;
     return kin_.tool_axis(q);
 }
 
 void Planner::remember_axis(const std::vector<double>& q, const Eigen::Vector3d& axis) {
     // Two slots: a move's end is remembered before the pole check asks for its start (the end
-    // of the move before).
+    // of the move before). Called only where pole_passage applies (two rotaries).
     KnownAxis& k = known_axes_[known_next_];
     known_next_ = 1 - known_next_;
-    const auto& rot = kin_.rotary_joints();
-    for (std::size_t i = 0; i < rot.size(); ++i) k.rotary[i] = q[std::size_t(rot[i])];
+    k.rotary[0] = std::bit_cast<std::uint64_t>(q[pole_c_]);
+    k.rotary[1] = std::bit_cast<std::uint64_t>(q[pole_b_]);
     k.axis = axis;
     k.valid = true;
-}
-
-bool Planner::KnownAxis::holds(const std::vector<int>& rot, const std::vector<double>& q) const {
-    // Bit for bit (a signed zero counts: the sine of the angle keeps its sign).
-    for (std::size_t k = 0; k < rot.size(); ++k)
-        if (std::memcmp(&rotary[k], &q[std::size_t(rot[k])], sizeof(double)) != 0) return false;
-    return true;
 }
 
 void Planner::plain_image() {
@@ -184,31 +188,43 @@ void Planner::end_candidates(OrientationMode mode, const Pose& end, const std::v
     std::stable_sort(candidates_.begin(), candidates_.end(), [&](const Candidate& a, const Candidate& b) { return distance(a) < distance(b); });
 }
 
-bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
-                           double& worst, bool need_worst) {
-    const auto& rot = kin_.rotary_joints();
+// The tests every move makes, cheapest first; most moves leave here (see pole_hold). Small, so
+// that tool_move takes it inline.
+inline bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
+                                  double& worst, bool need_worst) {
     // Machines whose tool axis at zero lies along the first rotary (has_flip): there the pole is
     // that rotary's axis and the second tilts the tool along a great circle through it.
     if (!pole_checks_) return false;
-    const std::size_t c = std::size_t(rot[0]), b = std::size_t(rot[1]);
+    const std::size_t c = pole_c_, b = pole_b_;
     const std::vector<double>& q0 = state_.q;
-    const double tolerance = machine_.motion.angle_tolerance;
-    const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
     const bool start_exact = axis_at(q0).dot(from.axis) >= exact_start_;
     // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
     // files under G43.5: the axis stays on the pole).
     if (start_exact && q_next_[c] == q0[c] && q_next_[b] == q0[b]) return false;
-    const Eigen::Vector3d& pole = pole_;
     // The tilt from the pole (the nearer of its two ends) is below the region; its value is
-    // needed only then.
-    const bool near_pole = pole_region_.below(to.axis.dot(pole)) || pole_region_.below(to.axis.dot(-pole));
+    // needed only then. The dot with -pole is -d to the bit (each product and sum only changes
+    // sign; a zero sum's sign aside, which neither comparison nor acos tells apart).
+    const double d = to.axis.dot(pole_);
+    const bool near_pole = pole_region_.below(d) || pole_region_.below(-d);
+    if (start_exact && !near_pole) return false;
     // Only a move turning the tool axis by less than the tolerance may end off its axis: a
     // passage made of such moves cannot cross in any one of them. A longer move ends exactly
     // where it was programmed (a crossing within it is the motion stage's).
     const bool short_move = short_turn_.below(from.axis.dot(to.axis));
-    if (start_exact && (!near_pole || !short_move)) return false;
+    if (start_exact && !short_move) return false;
+    return pole_hold(from, to, at_end, q, worst, need_worst, start_exact, near_pole && short_move);
+}
+
+// The rest of pole_passage, out of line: a move near the pole, or from an inexact start.
+bool Planner::pole_hold(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
+                        double& worst, bool need_worst, bool start_exact, bool hold_end) {
+    const std::size_t c = pole_c_, b = pole_b_;
+    const std::vector<double>& q0 = state_.q;
+    const double tolerance = machine_.motion.angle_tolerance;
+    const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
+    const Eigen::Vector3d& pole = pole_;
     q = q_next_;  // as solved: the continuous end (exact)
-    if (near_pole && short_move) {
+    if (hold_end) {
         const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
         const double budget = tilt <= hold ? hold : hold * (region - tilt) / (region - hold);
         // The turntable may stay this far off an exact solution's angle.
@@ -232,11 +248,12 @@ bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinematics::S
         // (cos B along the pole, sin B along the tilt at 90 degrees), taken nearest B now.
         q[c] = best;
         q[b] = 90;
-        const Eigen::Vector3d toward = kin_.forward(q).axis;
+        // tool_axis: forward's axis to the bit, without its translations.
+        const Eigen::Vector3d toward = kin_.tool_axis(q);
         const double tilt_b = std::atan2(to.axis.dot(toward), to.axis.dot(pole)) * kDegPerRad;
         q[b] = q0[b] + wrap180(tilt_b - q0[b]);
         if (!kin_.solve_position(to.tip, q).ok() || !check_limits(machine_, q).ok()) return false;
-        if (angle_between(kin_.forward(q).axis, to.axis) > budget + 1e-9) return false;
+        if (angle_between(kin_.tool_axis(q), to.axis) > budget + 1e-9) return false;
         // The usual end from an exact start: nothing to choose (planar files, exact on the pole).
         if (start_exact && std::abs(q[c] - q_next_[c]) < kSameAngle && std::abs(q[b] - q_next_[b]) < kSameAngle) return false;
     }
@@ -294,12 +311,13 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     copy_joints(q_next_, s.q);
     if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
     end_solved_.valid = false;
-    IkResult r;
-    if (mv.any_ijk) {
+    // Returned in place (prvalues): no result moved in, nor its message.
+    IkResult r = [&] {
+        if (!mv.any_ijk) return IkResult{};
         end_solutions_ = kin_.orientation_solutions(mv.axis);
         motion_.remember_solutions(end_solutions_);  // the move's end axis: the motion stage asks for it again
-        r = orient_within_limits(machine_, kin_.rotary_joints(), end_solutions_, s.q, s.q, q_next_);
-    }
+        return orient_within_limits(machine_, kin_.rotary_joints(), end_solutions_, s.q, s.q, q_next_);
+    }();
     Pose next = s.pose;
     if (r.ok()) {
         if (!mv.any_xyz && !s.tip_known) {
@@ -312,9 +330,12 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
                 // The tool axis of the end comes with the solve at little cost: the pole check
                 // asks for it at the next move's start.
                 Eigen::Vector3d at_end;
-                r = kin_.solve_position(next.tip, q_next_, &at_end, &end_solved_);
+                // r is ok here: only a failure needs moving in.
+                if (auto solved = kin_.solve_position(next.tip, q_next_, &at_end, &end_solved_); solved.ok())
+                    remember_axis(q_next_, at_end);
+                else
+                    r = std::move(solved);
                 if (mv.any_rotary) next.axis = at_end;
-                if (r.ok()) remember_axis(q_next_, at_end);
             } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr, &end_solved_); !solved.ok()) {
                 r = std::move(solved);  // r is ok here: only a failure needs moving in
             }

@@ -191,8 +191,11 @@ private:
     // `at_end`, when given, holds the orientation solutions of to.axis.
     bool pole_passage(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
                       double& worst, bool need_worst);
+    // Its part past the tests most moves leave at; `hold_end`: near the pole and short.
+    bool pole_hold(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
+                   double& worst, bool need_worst, bool start_exact, bool hold_end);
     // The tool axis at q's rotaries: a remembered one when they are the same to the bit (a move's
-    // end is the next one's start), else tool_axis(q).
+    // end is the next one's start), else tool_axis(q). Where pole_passage applies only.
     Eigen::Vector3d axis_at(const std::vector<double>& q) const;
     void remember_axis(const std::vector<double>& q, const Eigen::Vector3d& axis);
 
@@ -218,11 +221,12 @@ private:
     bool pole_checks_ = false;                         // pole_passage applies to this machine
     AngleLimit pole_region_, short_turn_;  // pole_passage's tests of the angles it compares
     double exact_start_;                   // and its start within 1e-6 degrees of the axis: a dot at least this
+    std::size_t pole_c_ = 0, pole_b_ = 0;              // its rotaries' joints (rotary_joints() order)
     struct KnownAxis {
         bool valid = false;
-        double rotary[2] = {};  // rotary_joints() order
+        std::uint64_t rotary[2] = {};  // the rotaries' bits, rotary_joints() order (a signed zero counts: the sine keeps its sign)
         Eigen::Vector3d axis;
-        bool holds(const std::vector<int>& rot, const std::vector<double>& q) const;
+        bool holds(std::uint64_t c, std::uint64_t b) const { return valid & (rotary[0] == c) & (rotary[1] == b); }
     };
     Kinematics::Solutions end_solutions_;  // of the move's end axis (G43.5 with I J K)
     // The end's position solve with its pose and lever arms (when the solve gives them): the
