@@ -39,6 +39,7 @@ constexpr double kPoleRegion = 2.0;
 constexpr double kPoleHold = 0.5;
 constexpr int kPoleSamples = 64;
 constexpr double kPoleMargin = 0.97;  // as the motion stage's sampling margin
+constexpr double kPoleSlack = 1e-9;   // degrees: rounding in pole_passage's two computations of the gap
 
 double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return angle_of_dot(a.dot(b)); }
 
@@ -56,7 +57,8 @@ Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter
       q_next_(state.q),
       pole_region_(kPoleRegion * kinematics.machine().motion.angle_tolerance),
       short_turn_(kinematics.machine().motion.angle_tolerance),
-      exact_start_(least_dot_below(1e-6)) {
+      exact_start_(least_dot_below(1e-6)),
+      pole_chord_limit_(chord_within(kPoleMargin * kinematics.machine().motion.angle_tolerance - kPoleSlack)) {
     // The pole of a has_flip machine (pole_passage): the tool axis with the tilting rotary at 0,
     // which the first rotary then turns about itself (has_flip: within 1e-9 of its axis), so it is
     // the same for every joint value; computed per move before, the same to rounding (every
@@ -201,7 +203,8 @@ inline bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinema
     if (!pole_checks_) return false;
     const std::size_t c = pole_c_, b = pole_b_;
     const std::vector<double>& q0 = state_.q;
-    const bool start_exact = axis_at(q0).dot(from.axis) >= exact_start_;
+    const Eigen::Vector3d start_axis = axis_at(q0);
+    const bool start_exact = start_axis.dot(from.axis) >= exact_start_;
     // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
     // files under G43.5: the axis stays on the pole).
     if (start_exact && q_next_[c] == q0[c] && q_next_[b] == q0[b]) return false;
@@ -216,18 +219,19 @@ inline bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinema
     // where it was programmed (a crossing within it is the motion stage's).
     const bool short_move = short_turn_.below(from.axis.dot(to.axis));
     if (start_exact && !short_move) return false;
-    return pole_hold(from, to, at_end, q, worst, need_worst, start_exact, near_pole && short_move);
+    return pole_hold(from, to, at_end, q, worst, need_worst, start_axis, start_exact, near_pole && short_move);
 }
 
 // The rest of pole_passage, out of line: a move near the pole, or from an inexact start.
 bool Planner::pole_hold(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
-                        double& worst, bool need_worst, bool start_exact, bool hold_end) {
+                        double& worst, bool need_worst, const Eigen::Vector3d& start_axis, bool start_exact, bool hold_end) {
     const std::size_t c = pole_c_, b = pole_b_;
     const std::vector<double>& q0 = state_.q;
     const double tolerance = machine_.motion.angle_tolerance;
     const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
     const Eigen::Vector3d& pole = pole_;
     q = q_next_;  // as solved: the continuous end (exact)
+    Eigen::Vector3d end_axis;  // tool_axis(q), when hold_end
     if (hold_end) {
         const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
         const double budget = tilt <= hold ? hold : hold * (region - tilt) / (region - hold);
@@ -257,7 +261,8 @@ bool Planner::pole_hold(const Pose& from, const Pose& to, const Kinematics::Solu
         const double tilt_b = std::atan2(to.axis.dot(toward), to.axis.dot(pole)) * kDegPerRad;
         q[b] = q0[b] + wrap180(tilt_b - q0[b]);
         if (!kin_.solve_position(to.tip, q).ok() || !check_limits(machine_, q).ok()) return false;
-        if (angle_between(kin_.tool_axis(q), to.axis) > budget + 1e-9) return false;
+        end_axis = kin_.tool_axis(q);
+        if (angle_between(end_axis, to.axis) > budget + 1e-9) return false;
         // The usual end from an exact start: nothing to choose (planar files, exact on the pole).
         if (start_exact && std::abs(q[c] - q_next_[c]) < kSameAngle && std::abs(q[b] - q_next_[b]) < kSameAngle) return false;
     }
@@ -269,18 +274,29 @@ bool Planner::pole_hold(const Pose& from, const Pose& to, const Kinematics::Solu
     lerp.resize(q0.size());
     const GreatArc arc(from.axis, to.axis);
     const double limit = kPoleMargin * tolerance;
+    // The tool axis at joints p: the start's and the end's are known (the same bits as
+    // tool_axis: it reads only the rotaries, compared to the bit), and the cache may hold others.
+    const std::uint64_t c0 = std::bit_cast<std::uint64_t>(q0[c]), b0 = std::bit_cast<std::uint64_t>(q0[b]);
+    auto axis_of = [&](const std::vector<double>& p) -> Eigen::Vector3d {
+        const std::uint64_t pc = std::bit_cast<std::uint64_t>(p[c]), pb = std::bit_cast<std::uint64_t>(p[b]);
+        if (pc == c0 && pb == b0) return start_axis;
+        if (hold_end && pc == std::bit_cast<std::uint64_t>(q[c]) && pb == std::bit_cast<std::uint64_t>(q[b])) return end_axis;
+        return axis_at(p);
+    };
     auto deviation = [&](int i, double* chord) {
         const double t = double(i) / kPoleSamples;
         for (std::size_t j = 0; j < q.size(); ++j) lerp[j] = q0[j] + t * (q[j] - q0[j]);
-        const Eigen::Vector3d axis = kin_.tool_axis(lerp), ideal = arc.at(t);
+        const Eigen::Vector3d axis = axis_of(lerp), ideal = arc.at(t);
         if (chord) *chord = (axis - ideal).norm();
         return angle_between(axis, ideal);
     };
+    // A held end taken is the next move's start: its axis is remembered for it.
     if (need_worst) {
         for (int i = 0; i <= kPoleSamples; ++i) {
             worst = std::max(worst, deviation(i, nullptr));
             if (!(worst <= limit)) return false;
         }
+        if (hold_end) remember_axis(q, end_axis);
         return true;
     }
     // Without a report the verdict alone is wanted, and it is the same with fewer points: the
@@ -292,9 +308,8 @@ bool Planner::pole_hold(const Pose& from, const Pose& to, const Kinematics::Solu
     // so cleared has every point inside the margin; one of a single step has no point inside.
     // (A gap below chord_within's chord is inside the limit; a stricter test than the asin's by
     // 1e-12 of it, which at most measures an interval more: the same verdict.)
-    constexpr double kSlack = 1e-9;  // degrees: rounding in the two computations
     const double bend = 8.0 * kin_.axis_path_bound(q0.data(), q.data()) + arc.angle * arc.angle;
-    const double chord_limit = chord_within(limit - kSlack);
+    const double chord_limit = pole_chord_limit_;  // chord_within(limit - kSlack), per machine
     auto cleared = [&](auto& self, int a, int b, double chord_a, double chord_b) -> bool {
         if (b - a <= 1) return true;
         const double h = double(b - a) / kPoleSamples;
@@ -307,7 +322,9 @@ bool Planner::pole_hold(const Pose& from, const Pose& to, const Kinematics::Solu
     };
     double chord0, chord1;
     if (!(deviation(0, &chord0) <= limit) || !(deviation(kPoleSamples, &chord1) <= limit)) return false;
-    return cleared(cleared, 0, kPoleSamples, chord0, chord1);
+    if (!cleared(cleared, 0, kPoleSamples, chord0, chord1)) return false;
+    if (hold_end) remember_axis(q, end_axis);
+    return true;
 }
 
 void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
