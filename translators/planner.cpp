@@ -203,8 +203,7 @@ inline bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinema
     if (!pole_checks_) return false;
     const std::size_t c = pole_c_, b = pole_b_;
     const std::vector<double>& q0 = state_.q;
-    const Eigen::Vector3d start_axis = axis_at(q0);
-    const bool start_exact = start_axis.dot(from.axis) >= exact_start_;
+    const bool start_exact = axis_at(q0).dot(from.axis) >= exact_start_;
     // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
     // files under G43.5: the axis stays on the pole).
     if (start_exact && q_next_[c] == q0[c] && q_next_[b] == q0[b]) return false;
@@ -219,17 +218,18 @@ inline bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinema
     // where it was programmed (a crossing within it is the motion stage's).
     const bool short_move = short_turn_.below(from.axis.dot(to.axis));
     if (start_exact && !short_move) return false;
-    return pole_hold(from, to, at_end, q, worst, need_worst, start_axis, start_exact, near_pole && short_move);
+    return pole_hold(from, to, at_end, q, worst, need_worst, start_exact, near_pole && short_move);
 }
 
 // The rest of pole_passage, out of line: a move near the pole, or from an inexact start.
 bool Planner::pole_hold(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
-                        double& worst, bool need_worst, const Eigen::Vector3d& start_axis, bool start_exact, bool hold_end) {
+                        double& worst, bool need_worst, bool start_exact, bool hold_end) {
     const std::size_t c = pole_c_, b = pole_b_;
     const std::vector<double>& q0 = state_.q;
     const double tolerance = machine_.motion.angle_tolerance;
     const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
     const Eigen::Vector3d& pole = pole_;
+    const Eigen::Vector3d start_axis = axis_at(q0);  // as pole_passage found it (a miss computes it again)
     q = q_next_;  // as solved: the continuous end (exact)
     Eigen::Vector3d end_axis;  // tool_axis(q), when hold_end
     if (hold_end) {

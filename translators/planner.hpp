@@ -193,7 +193,7 @@ private:
                       double& worst, bool need_worst);
     // Its part past the tests most moves leave at; `hold_end`: near the pole and short.
     bool pole_hold(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
-                   double& worst, bool need_worst, const Eigen::Vector3d& start_axis, bool start_exact, bool hold_end);
+                   double& worst, bool need_worst, bool start_exact, bool hold_end);
     // The tool axis at q's rotaries: a remembered one when they are the same to the bit (a move's
     // end is the next one's start), else tool_axis(q). Where pole_passage applies only.
     Eigen::Vector3d axis_at(const std::vector<double>& q) const;
