@@ -6,8 +6,6 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
-#include <new>
-#include <type_traits>
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
@@ -20,8 +18,6 @@
 namespace xlate5 {
 
 namespace {
-
-static_assert(std::is_trivially_destructible_v<Kinematics::Solutions>, "tool_move replaces end_solutions_ in place");
 
 // Near a pole (the tool axis along the turntable's axis, which then turns it no more), the
 // turntable's angle matters less the nearer the axis is: at a tilt t from the pole, turning it by
@@ -335,9 +331,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // Returned in place (prvalues): no result moved in, nor its message.
     IkResult r = [&] {
         if (!mv.any_ijk) return IkResult{};
-        // Built where it is kept (a prvalue into placement new: no copy; the solutions are
-        // trivially destructible, so the object there is simply replaced).
-        ::new (&end_solutions_) Kinematics::Solutions(kin_.orientation_solutions(mv.axis));
+        end_solutions_ = kin_.orientation_solutions(mv.axis);
         motion_.remember_solutions(end_solutions_);  // the move's end axis: the motion stage asks for it again
         return orient_within_limits(machine_, kin_.rotary_joints(), end_solutions_, s.q, s.q, q_next_);
     }();
