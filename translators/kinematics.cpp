@@ -387,6 +387,20 @@ Kinematics::Kinematics(const Machine& machine)
     // near_end's growth is reach_shift's sum only when every joint that shifts the tip has a term
     // here (a rotary in no chain shifts nothing); otherwise the solve gives no ends.
     for (std::size_t j = 0; j < machine.joints.size(); ++j) solved_ends_ = solved_ends_ && (counted[j] || shift_per_unit_[j] == 0);
+
+    // The scalar solve's plan: which chain gives each unknown's direction, and a tool chain of
+    // fresh linear links alone (its rotation the identity throughout: the identity times the tool
+    // axis, as the walk's product makes it, once here).
+    for (std::size_t k = 0; k < linear_.size() && k < 3; ++k)
+        for (const auto* chain : {&part_links_, &tool_links_})
+            for (const ChainLink& l : *chain)
+                if (l.kind == ChainLink::Kind::Linear && l.joint == linear_[k]) (chain == &tool_links_ ? solve_cols_[k].tool : solve_cols_[k].part) = true;
+    tool_plain_ = true;
+    for (const ChainLink& l : tool_links_) tool_plain_ = tool_plain_ && l.kind == ChainLink::Kind::Linear && l.fresh;
+    {
+        const V3 up = M3{1, 0, 0, 0, 1, 0, 0, 0, 1} * v3(machine.tool_axis);
+        tool_up_[0] = up.x, tool_up_[1] = up.y, tool_up_[2] = up.z;
+    }
 }
 
 namespace {
@@ -690,6 +704,102 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
         q[std::size_t(linear_[2])] += dq.z;
         return {};
     }
+    return solve_scalar(tip, q, axis, end);
+}
+
+// The general solve in the walk's scalars: the same operations in the same order as
+// solve_position_general's Eigen products (a matrix times a column as M3 * V3, a transposed one
+// as transposed_times, normalized as Eigen's; the 3x3 determinant and inverse as Eigen writes
+// them for fixed size: bruteforce_det3_helper, and the cofactors with one division), so the same
+// bits; test_kinematics holds the two against each other on random machines and joints.
+IkResult Kinematics::solve_scalar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const {
+    if (end) end->valid = false;
+    const std::size_t n = machine_.joints.size();  // at most 5 (the loader checks)
+    // Only the entries the walks write are read (see solve_cols_): no zeroing.
+    Eigen::Vector3d part_dirs[8], tool_dirs[8];
+    const bool want_end = end && solved_ends_;
+    AxisLine lines[8];
+    int count = 0;
+    M3 Rp, Rt;
+    V3 tp, tt, up;
+    walk(part_links_, q.data(), Rp, tp, part_dirs, want_end ? lines : nullptr, &count);
+    if (tool_plain_) {
+        // Fresh linear links only: the walk's own steps for them (R stays the identity, no line),
+        // and the identity times the tool axis, made once.
+        tt = V3{0, 0, 0};
+        for (const ChainLink& l : tool_links_) {
+            const V3 d{l.axis[0], l.axis[1], l.axis[2]};
+            tool_dirs[l.joint] = Eigen::Vector3d(d.x, d.y, d.z);
+            tt = tt + d * q[std::size_t(l.joint)];
+        }
+        up = V3{tool_up_[0], tool_up_[1], tool_up_[2]};
+    } else {
+        walk(tool_links_, q.data(), Rt, tt, tool_dirs, want_end ? lines : nullptr, &count);
+        up = Rt * v3(machine_.tool_axis);
+    }
+    if (axis || want_end) {
+        const V3 u = normalized(transposed_times(Rp, up));
+        if (axis) *axis = Eigen::Vector3d(u.x, u.y, u.z);
+        if (want_end) end->end.pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
+    }
+    const V3 current = transposed_times(Rp, tt - tp);
+    // (linear_jacobian's refusal, after the axis as there)
+    if (linear_.size() < 3) return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+    // J's columns: Rp^T (tool direction - part direction); a direction a chain does not give is
+    // zero, and x - 0 is x to the last bit (0 - x is not -x: a zero's sign).
+    V3 col[3];
+    for (int k = 0; k < 3; ++k) {
+        const std::size_t j = std::size_t(linear_[std::size_t(k)]);
+        V3 d = solve_cols_[k].tool ? v3(tool_dirs[j]) : V3{0, 0, 0};
+        if (solve_cols_[k].part) d = d - v3(part_dirs[j]);
+        col[k] = transposed_times(Rp, d);
+    }
+    const double m00 = col[0].x, m10 = col[0].y, m20 = col[0].z, m01 = col[1].x, m11 = col[1].y, m21 = col[1].z, m02 = col[2].x,
+                 m12 = col[2].y, m22 = col[2].z;
+    // J.determinant() (Eigen's bruteforce_det3_helper sum)
+    const double det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)) + m02 * (m10 * m21 - m11 * m20);
+    if (!(std::abs(det) > 1e-9)) return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+    // J.inverse(): the first column's cofactors, their dot with column 0, one division.
+    const double c00 = m11 * m22 - m12 * m21, c10 = m21 * m02 - m22 * m01, c20 = m01 * m12 - m02 * m11;
+    const double invdet = 1.0 / ((c00 * m00 + c10 * m10) + c20 * m20);
+    const M3 Ji{c00 * invdet, c10 * invdet, c20 * invdet,
+                (m12 * m20 - m10 * m22) * invdet, (m22 * m00 - m20 * m02) * invdet, (m02 * m10 - m00 * m12) * invdet,
+                (m10 * m21 - m11 * m20) * invdet, (m20 * m01 - m21 * m00) * invdet, (m00 * m11 - m01 * m10) * invdet};
+    const V3 dq = Ji * (v3(tip) - current);
+    q[std::size_t(linear_[0])] += dq.x;
+    q[std::size_t(linear_[1])] += dq.y;
+    q[std::size_t(linear_[2])] += dq.z;
+    if (want_end) {
+        double moved[8] = {};
+        moved[linear_[0]] = dq.x;
+        moved[linear_[1]] = dq.y;
+        moved[linear_[2]] = dq.z;
+        V3 x = tt;
+        for (const int j : tool_linear_) x = x + v3(tool_dirs[j]) * moved[j];
+        PathEnd& e = end->end;
+        e.lever_arm = 0;
+        e.tip_slack = e.axis_slack = 0;
+        for (int i = 0; i < count; ++i) {
+            AxisLine line = lines[i];
+            const LineShift& ls = line_shifts_[std::size_t(i)];
+            if (ls.linear) {
+                const Eigen::Vector3d* dirs = ls.tool ? tool_dirs : part_dirs;
+                for (std::size_t j = 0; j < n; ++j)
+                    if (ls.linear >> j & 1u) line.point = line.point + v3(dirs[j]) * moved[j];
+            }
+            e.arm[i] = distance_from(x, line);
+            e.lever_arm = std::max(e.lever_arm, e.arm[i]);
+        }
+        e.pose.tip = tip;
+        end->q = q;
+        end->valid = true;
+    }
+    return {};
+}
+
+IkResult Kinematics::solve_position_general(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis,
+                                            SolvedEnd* end) const {
+    if (constant_jacobian_) return solve_position(tip, q, axis, end);
     const std::size_t n = machine_.joints.size();  // at most 5 (the loader checks)
     Eigen::Vector3d part_dirs[8], tool_dirs[8];
     for (std::size_t j = 0; j < n; ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();

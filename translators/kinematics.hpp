@@ -143,6 +143,10 @@ public:
     // `end`, when given, receives the solution's SolvedEnd where the solve can give it cheaply.
     IkResult solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr,
                             SolvedEnd* end = nullptr) const;
+    // solve_position's general path in Eigen's own products, which the scalar solve equals bit
+    // for bit. Apart for the tests that hold the two against each other.
+    IkResult solve_position_general(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr,
+                                    SolvedEnd* end = nullptr) const;
 
     // The raw orientation solutions of a tool axis (see OrientationSolutions).
     using Solutions = OrientationSolutions;
@@ -168,6 +172,8 @@ private:
     void eval(const std::vector<ChainLink>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
               Eigen::Vector3d* linear_dirs) const;
     Pose forward(const double* q, double* lever_arm, double* arms = nullptr) const;
+    // solve_position's path for a Jacobian that varies, in the walk's scalars (kinematics.cpp).
+    IkResult solve_scalar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
     // The position solve's 3x3 Jacobian from the chains' linear directions; false when singular.
     bool linear_jacobian(const Eigen::Matrix3d& Rp, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,
                          Eigen::Matrix3d& J) const;
@@ -216,6 +222,15 @@ private:
         unsigned linear = 0;    // bit j: linear joint j is ahead of it in that chain
     };
     std::vector<LineShift> line_shifts_;
+    // The scalar solve (solve_scalar): whether each unknown's linear joint is in the tool chain
+    // and in the part chain; a tool chain of fresh linear links alone, and the identity times the
+    // tool axis.
+    struct SolveColumn {
+        bool tool = false, part = false;
+    };
+    SolveColumn solve_cols_[3];
+    bool tool_plain_ = false;
+    double tool_up_[3] = {};
     std::vector<int> tool_linear_;      // the tool chain's linear joints (they carry the tip)
     bool solved_ends_ = false;
     // near_end's terms, looked up once: each linear joint with its mm per unit, each rotary
