@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <optional>
 #include <random>
 #include <sstream>
@@ -1490,4 +1491,71 @@ TEST_CASE("the pole passage's verdict without a report (fewer points, a bound be
         CHECK(lines > 1000);
     }
     CHECK(machines >= 2);
+}
+
+TEST_CASE("the split's ends as printed: its one-pass rounding is to_units' over the power of ten, bit for bit, any value") {
+    // MoveSpec in joint space: split rounds both ends and stops there (one piece, split_joints()
+    // is the end as printed). Moves chained from the last end (the one-pass path) and not.
+    for (const std::string name : {"rw2", "pentarod", "koc5", "wpi5", "xyzac-trt"}) {
+        CAPTURE(name);
+        const Machine m = load(name);
+        const Kinematics k(m);
+        JointEmitter em(m);
+        MotionStage stage(k, em);
+        const std::size_t n = m.joints.size();
+        std::mt19937 rng(std::hash<std::string>{}(name) & 0xffff);
+        std::uniform_real_distribution<double> U(-1, 1);
+        std::uniform_int_distribution<int> kind(0, 9);
+        // Values about every rounding edge: small and large, halves of the last digit, near
+        // to_units' limits (1e15 scaled, kMaxWritten) and past them.
+        auto value = [&](int d) {
+            const double p = std::pow(10.0, d);
+            switch (kind(rng)) {
+                case 0: return (std::round(U(rng) * 1e6) + 0.5) / p;
+                case 1: return U(rng) * 1e3;
+                case 2: return U(rng) * kMaxWritten;
+                case 3: return kMaxWritten * (1 + 1e-3 * U(rng));
+                case 4: return 0.5e15 / p * (1 + 1e-9 * U(rng));
+                case 5: return U(rng) * 3e9;
+                case 6: return -0.0;
+                case 7: return std::nextafter((std::round(U(rng) * 1e4) + 0.5) / p, U(rng) * 2);
+                default: return U(rng) * 400;
+            }
+        };
+        std::vector<double> q0(n), q1(n), prev(n);
+        std::vector<bool> all(n, true);
+        std::string out;
+        for (int i = 0; i < 20000; ++i) {
+            for (std::size_t j = 0; j < n; ++j) {
+                const int d = m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals;
+                q1[j] = value(d);
+            }
+            if (i % 5 == 4) q0 = q1;   // a move to where it is (no rotary turns)
+            else if (i % 3 == 0) {
+                for (std::size_t j = 0; j < n; ++j) q0[j] = value(m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals);
+            } else q0 = prev;          // from the last end (the usual case)
+            MoveSpec mv;
+            mv.mode = OrientationMode::Joints;
+            mv.q0 = &q0;
+            mv.q1 = &q1;
+            mv.commanded = &all;
+            out.clear();
+            try {
+                stage.emit(mv, out);
+            } catch (const std::exception&) {
+                // A value the emitter cannot write: the split was made before.
+            }
+            prev = q1;
+            REQUIRE(stage.split_params().size() == 1);
+            const std::vector<double>& got = stage.split_joints();
+            REQUIRE(got.size() == n);
+            for (std::size_t j = 0; j < n; ++j) {
+                const int d = m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals;
+                long long units = 0;
+                const double want = to_units(q1[j], d, units) ? double(units) / std::pow(10.0, d) : q1[j];
+                CAPTURE(q1[j]);
+                CHECK(std::memcmp(&got[j], &want, sizeof want) == 0);
+            }
+        }
+    }
 }

@@ -104,6 +104,39 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
         if (machine_.joints[j].rotary) rotary_.push_back(j);
         if (machine_.joints[j].max_feed > 0) feed_limits_.push_back({j, machine_.joints[j].max_feed});
     }
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+    for (std::size_t j = 0; j < machine_.joints.size() && j < kPrintJoints; ++j) {
+        const int d = machine_.joints[j].rotary ? machine_.dialect.rotary_decimals : machine_.dialect.linear_decimals;
+        if (d < 0 || d > 9) {
+            print_scale_[j] = 1;
+            print_below_[j] = -1;  // never: printed() for every value
+            continue;
+        }
+        print_scale_[j] = kPow10[d];
+        // |v * 10^d| below half of the smaller of to_units' limits (1e15 scaled, kMaxWritten
+        // unscaled): both its range tests pass (a NaN fails this one too).
+        print_below_[j] = 0.5 * std::min(1e15, kMaxWritten * kPow10[d]);
+    }
+    for (const int j : kin_.rotary_joints())
+        if (std::size_t(j) < kPrintJoints) print_rotary_[j] = true;
+}
+
+bool MotionStage::print_end(const double* q1) {
+    const std::size_t n = machine_.joints.size();
+    double* to = q1_printed_.data();
+    double* last = last_end_q_.data();
+    const double* q0 = q0_printed_.data();
+    bool rotates = false;
+    for (std::size_t j = 0; j < n; ++j) {
+        const double v = q1[j];
+        last[j] = v;
+        const double scaled = v * print_scale_[j];
+        // printed(): to_units' units over the same power of ten.
+        const double p = std::abs(scaled) < print_below_[j] ? double(round_half_away(scaled)) / print_scale_[j] : printed(machine_, j, v);
+        to[j] = p;
+        rotates |= print_rotary_[j] & (p != q0[j]);
+    }
+    return rotates;
 }
 
 const GreatArc& MotionStage::arc_of(const MoveSpec& mv) const {
@@ -352,18 +385,25 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     } else {
         round_printed(machine_, *mv.q0, q0_printed_);
     }
-    round_printed(machine_, *mv.q1, q1_printed_);
+    const std::size_t n = machine_.joints.size();
+    bool rotates = false;
+    if (n <= kPrintJoints && mv.q1->size() == n && q0_printed_.size() == n && q1_printed_.size() == n && last_end_q_.size() == n) {
+        // The usual move (every one after the first): one pass, no copies or calls.
+        rotates = print_end(mv.q1->data());
+    } else {
+        round_printed(machine_, *mv.q1, q1_printed_);
+        last_end_q_ = *mv.q1;
+        for (const int j : kin_.rotary_joints()) rotates = rotates || q1_printed_[std::size_t(j)] != q0_printed_[std::size_t(j)];
+    }
     solved_end_ = nullptr;
-    last_end_q_ = *mv.q1;
     last_end_tip_ = mv.p1.tip;
     final_moved_ = false;
     const auto& q0 = q0_printed_;
     const auto& q1 = q1_printed_;
     // One piece, the whole move: read from q1_printed_ and the move's own end (no copies).
-    s_.assign(1, 1.0);
+    if (s_.size() == 1) s_[0] = 1.0;
+    else s_.assign(1, 1.0);
     whole_ = true;
-    bool rotates = false;
-    for (const int j : kin_.rotary_joints()) rotates = rotates || q1[std::size_t(j)] != q0[std::size_t(j)];
     // With the rotaries still the tip is affine in the linear joints: the firmware's line is exact.
     if (!rotates || mv.mode == OrientationMode::Joints || !machine_.motion.segment) return {};
     if (mv.end && mv.end->valid && mv.end->q == *mv.q1) solved_end_ = mv.end;

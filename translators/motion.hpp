@@ -153,6 +153,18 @@ private:
     bool whole_ = false;
     const double* piece_printed(std::size_t k) const { return whole_ ? q1_printed_.data() : &qs_[k * machine_.joints.size()]; }
     std::vector<double> q0_printed_, q1_printed_;  // the move's ends as printed
+    // printed()'s usual case worked out once per joint (machines of up to kPrintJoints joints):
+    // a value whose |value * print_scale_| is below print_below_ is rounded at once (to_units'
+    // own arithmetic, its range tests passed by that one); any other goes through printed().
+    // print_rotary_: the joint is one of kinematics' rotaries (split's test whether they turn).
+    static constexpr std::size_t kPrintJoints = 8;
+    double print_scale_[kPrintJoints] = {};
+    double print_below_[kPrintJoints] = {};
+    bool print_rotary_[kPrintJoints] = {};
+    // split's start for a move whose joints have the stage's own size (n <= kPrintJoints): q1
+    // rounded into q1_printed_ and copied into last_end_q_ in one pass; true when a rotary's
+    // printed value differs from q0_printed_'s.
+    bool print_end(const double* q1);
     // The last move's end: its joints as solved, and its tip (which they reach). Its joints as
     // printed are q1_printed_ until the next move's split.
     std::vector<double> last_end_q_;
