@@ -782,9 +782,14 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         // Compensated from the joints as solved: the emitter rounds once (without compensation
         // that gives exactly the rounded joints checked above).
         const double* exact = whole_ ? mv.q1->data() : &qs_exact_[std::size_t(k) * n];
-        const auto sent = compensation_.apply(std::span<const double>(exact, n));
-        if (!sent.ok()) throw LineError(1, sent.why);
-        emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, inverse_time_out);
+        if (machine_.compensation.empty()) {
+            // The stage's own answer without compensation (the joints themselves), without its result.
+            emitter_.move(out, mv.gcode, qk, std::span<const double>(exact, n), *mv.commanded, e, f, inverse_time_out);
+        } else {
+            const auto sent = compensation_.apply(std::span<const double>(exact, n));
+            if (!sent.ok()) throw LineError(1, sent.why);
+            emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, inverse_time_out);
+        }
         prev_share = share;
         qprev = qk;
     }
