@@ -25,9 +25,15 @@ class LimitBox {
 public:
     explicit LimitBox(const Machine& machine);
     bool contains(const std::vector<double>& q) const {
-        bool inside = true;
-        for (std::size_t j = 0; j < lo_.size(); ++j) inside &= (q[j] >= lo_[j]) & (q[j] <= hi_[j]);
-        return inside;
+        // A joint outside (or NaN: both comparisons false) ends the test: two compares and
+        // branches a joint, none taken on the usual move, instead of the flags combined.
+        const double* v = q.data();
+        const double* lo = lo_.data();
+        const double* hi = hi_.data();
+        const std::size_t n = lo_.size();
+        for (std::size_t j = 0; j < n; ++j)
+            if (!(v[j] >= lo[j]) || !(v[j] <= hi[j])) return false;
+        return true;
     }
 
 private:
