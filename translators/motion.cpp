@@ -531,8 +531,9 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
         std::vector<double>& q_eps = scratch_b_;
         const auto& at_start = solutions_of(mv.p0.axis);
         bool on_pole = false;
+        const std::size_t rotaries = kin_.rotary_joints().size();
         for (int b = 0; b < at_start.count; ++b)
-            for (std::size_t k = 0; k < kin_.rotary_joints().size(); ++k) on_pole = on_pole || std::isnan(at_start.angle[b][k]);
+            for (std::size_t k = 0; k < rotaries; ++k) on_pole |= std::isnan(at_start.angle[b][k]);  // no branch a value
         // Probe just off the start, far enough (1e-4 rad) that the joint is no longer free.
         const double turn_angle = on_pole ? std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0)) : 0.0;
         const double probe = turn_angle > 1e-4 ? 1e-4 / turn_angle : 1.0;
