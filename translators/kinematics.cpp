@@ -427,6 +427,37 @@ inline double distance_from(const V3& x, const AxisLine& line) {
     return std::sqrt(off.x * off.x + off.y * off.y + off.z * off.z);
 }
 
+// The position solve's end (both solves): the lever arms at the solution from the walk's own
+// lines. The linear joints moved by `moved` carry the tip `tt` (those of the tool chain) and the
+// axis lines behind them (those ahead of each line in its chain, `shifts`) along their
+// directions; nothing turns. The solve is exact up to rounding (the tip is affine in the linear
+// joints), which the bound's own slack covers as it does the FK's. (A template only because the
+// shifts' type is Kinematics' own.)
+template <class Shifts>
+[[gnu::always_inline]] inline void fill_solved_end(const Shifts& shifts, const std::vector<int>& tool_linear, std::size_t n, const double* moved, V3 tt,
+                     const AxisLine* lines, int count, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,
+                     const Eigen::Vector3d& tip, const std::vector<double>& q, Kinematics::SolvedEnd& end) {
+    V3 x = tt;
+    for (const int j : tool_linear) x = x + v3(tool_dirs[j]) * moved[j];
+    Kinematics::PathEnd& e = end.end;
+    e.lever_arm = 0;
+    e.tip_slack = e.axis_slack = 0;
+    for (int i = 0; i < count; ++i) {
+        AxisLine line = lines[i];
+        const auto& ls = shifts[std::size_t(i)];
+        if (ls.linear) {
+            const Eigen::Vector3d* dirs = ls.tool ? tool_dirs : part_dirs;
+            for (std::size_t j = 0; j < n; ++j)
+                if (ls.linear >> j & 1u) line.point = line.point + v3(dirs[j]) * moved[j];
+        }
+        e.arm[i] = distance_from(x, line);
+        e.lever_arm = std::max(e.lever_arm, e.arm[i]);
+    }
+    e.pose.tip = tip;
+    end.q = q;
+    end.valid = true;
+}
+
 // Base -> the chain's end: rotation R and translation t. `linear_dirs`, when given, receives each
 // linear joint's direction (indexed by joint); `lines` each rotary joint's axis.
 //
@@ -774,25 +805,7 @@ IkResult Kinematics::solve_scalar(const Eigen::Vector3d& tip, std::vector<double
         moved[linear_[0]] = dq.x;
         moved[linear_[1]] = dq.y;
         moved[linear_[2]] = dq.z;
-        V3 x = tt;
-        for (const int j : tool_linear_) x = x + v3(tool_dirs[j]) * moved[j];
-        PathEnd& e = end->end;
-        e.lever_arm = 0;
-        e.tip_slack = e.axis_slack = 0;
-        for (int i = 0; i < count; ++i) {
-            AxisLine line = lines[i];
-            const LineShift& ls = line_shifts_[std::size_t(i)];
-            if (ls.linear) {
-                const Eigen::Vector3d* dirs = ls.tool ? tool_dirs : part_dirs;
-                for (std::size_t j = 0; j < n; ++j)
-                    if (ls.linear >> j & 1u) line.point = line.point + v3(dirs[j]) * moved[j];
-            }
-            e.arm[i] = distance_from(x, line);
-            e.lever_arm = std::max(e.lever_arm, e.arm[i]);
-        }
-        e.pose.tip = tip;
-        end->q = q;
-        end->valid = true;
+        fill_solved_end(line_shifts_, tool_linear_, n, moved, tt, lines, count, part_dirs, tool_dirs, tip, q, *end);
     }
     return {};
 }
@@ -837,27 +850,7 @@ IkResult Kinematics::solve_position_general(const Eigen::Vector3d& tip, std::vec
         // of each line in its chain) along their directions; nothing turns.
         double moved[8] = {};
         for (int i = 0; i < 3; ++i) moved[linear_[std::size_t(i)]] = dq[i];
-        V3 x = v3(tt);
-        for (const int j : tool_linear_) x = x + v3(tool_dirs[j]) * moved[j];
-        PathEnd& e = end->end;
-        e.lever_arm = 0;
-        e.tip_slack = e.axis_slack = 0;
-        for (int i = 0; i < count; ++i) {
-            AxisLine line = lines[i];
-            const LineShift& ls = line_shifts_[std::size_t(i)];
-            if (ls.linear) {
-                const Eigen::Vector3d* dirs = ls.tool ? tool_dirs : part_dirs;
-                for (std::size_t j = 0; j < n; ++j)
-                    if (ls.linear >> j & 1u) line.point = line.point + v3(dirs[j]) * moved[j];
-            }
-            e.arm[i] = distance_from(x, line);
-            e.lever_arm = std::max(e.lever_arm, e.arm[i]);
-        }
-        // The solve is exact up to rounding (the tip is affine in the linear joints), which the
-        // bound's own slack covers as it does the FK's.
-        e.pose.tip = tip;
-        end->q = q;
-        end->valid = true;
+        fill_solved_end(line_shifts_, tool_linear_, n, moved, v3(tt), lines, count, part_dirs, tool_dirs, tip, q, *end);
     }
     return {};
 }
