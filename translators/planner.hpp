@@ -59,44 +59,37 @@ inline void copy_joints(std::vector<double>& to, const std::vector<double>& from
     }
 }
 
-// What the planner keeps between moves: where the machine is.
+// Joint values whose copy assignment reuses the buffer value by value (copy_joints): the
+// look-back copies the planner's state with every line, and a vector's own assignment calls
+// memmove for five doubles. Otherwise a vector.
+struct JointValues : std::vector<double> {
+    using std::vector<double>::vector;
+    JointValues() = default;
+    JointValues(const std::vector<double>& v) : std::vector<double>(v) {}
+    JointValues(const JointValues&) = default;
+    JointValues(JointValues&&) = default;
+    JointValues& operator=(JointValues&&) = default;
+    JointValues& operator=(const JointValues& o) {
+        copy_joints(*this, o);
+        return *this;
+    }
+    JointValues& operator=(const std::vector<double>& o) {
+        copy_joints(*this, o);
+        return *this;
+    }
+};
+
+// What the planner keeps between moves: where the machine is. (Copied by its members' own
+// copies: a member added later is copied too.)
 struct PlannerState {
-    std::vector<double> q;   // joint values the firmware will be at
+    JointValues q;           // joint values the firmware will be at
     Pose pose;               // tip and tool axis in the part frame
     bool tip_known = false;  // has the program placed the tip since start or G28?
     AngleImage image;        // G43.4: programmed angles -> joints
     // Per rotary (rotary_joints() order): the whole turns re-zeros took off the joint since the
     // program last set it (G92, G28), in degrees. The program's angles go on without them.
     double rezeroed[2] = {0, 0};
-
-    PlannerState() = default;
-    PlannerState(const PlannerState&) = default;
-    PlannerState(PlannerState&&) = default;
-    PlannerState& operator=(PlannerState&&) = default;
-    // The look-back copies the state with every line: the joints through copy_joints. Every
-    // member is copied (the static_assert below counts them by size).
-    PlannerState& operator=(const PlannerState& o) {
-        copy_joints(q, o.q);
-        pose = o.pose;
-        tip_known = o.tip_known;
-        image = o.image;
-        rezeroed[0] = o.rezeroed[0];
-        rezeroed[1] = o.rezeroed[1];
-        return *this;
-    }
 };
-namespace planner_detail {
-// The members PlannerState's copy assignment copies, in their order: a member added there and
-// not here changes the size and stops the build.
-struct PlannerStateMembers {
-    std::vector<double> q;
-    Pose pose;
-    bool tip_known;
-    AngleImage image;
-    double rezeroed[2];
-};
-static_assert(sizeof(PlannerState) == sizeof(PlannerStateMembers), "PlannerState's copy assignment must copy every member");
-}  // namespace planner_detail
 
 // One input line's dealings with the look-back: what it asks of the line's moves, and what they
 // did. An argument of every move, never a member left set for the next call.
