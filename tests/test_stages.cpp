@@ -162,8 +162,8 @@ TEST_CASE("compensation stage: nominal joints in, the table's error taken off, o
     }
     const auto out = stage.apply(std::vector<double>{10, 20, 30, 100, 0});
     CHECK_FALSE(out.ok());
-    CHECK(contains(out.why, "test table"));
-    CHECK(contains(out.why, "-90.000 .. 90.000"));
+    CHECK(contains(out.why(), "test table"));
+    CHECK(contains(out.why(), "-90.000 .. 90.000"));
     // Nothing to correct: the joints go on as they are.
     const Compensation none;
     CompensationStage pass(none);

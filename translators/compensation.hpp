@@ -43,21 +43,24 @@ public:
     explicit CompensationStage(const Compensation& compensation) : compensation_(&compensation) {}
 
     struct Result {
-        std::span<const double> sent;  // q itself when there is nothing to correct
-        std::string why;               // empty, or why the joints cannot be corrected
-        bool ok() const { return why.empty(); }
+        std::span<const double> sent;          // q itself when there is nothing to correct
+        const std::string* failure = nullptr;  // the stage's text of why the joints cannot be corrected, or none
+        bool ok() const { return failure == nullptr; }
+        const std::string& why() const { return *failure; }
     };
-    // Nominal joints -> what the firmware is sent (valid until the next call).
+    // Nominal joints -> what the firmware is sent (valid until the next call). The usual answer
+    // (nothing to correct, or corrected) builds no text: a move asks with every piece.
     Result apply(std::span<const double> q) {
-        if (compensation_->empty()) return {q, {}};
+        if (compensation_->empty()) return {q};
         sent_.assign(q.begin(), q.end());
-        std::string why = compensation_->apply(sent_);
-        return {sent_, std::move(why)};
+        why_ = compensation_->apply(sent_);
+        return {sent_, why_.empty() ? nullptr : &why_};
     }
 
 private:
     const Compensation* compensation_;
     std::vector<double> sent_;
+    std::string why_;
 };
 
 }  // namespace xlate5

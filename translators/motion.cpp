@@ -25,9 +25,12 @@ constexpr double kSampleMargin = 0.97;
 // A piece's length predicted from a failing try's error aims this far short of the limit.
 constexpr double kPredictAim = 0.98;
 
+// The decimals joint j is printed with.
+int printed_decimals(const Machine& m, std::size_t j) { return m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals; }
+
 double printed(const Machine& m, std::size_t j, double v) {
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
-    const int d = m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals;
+    const int d = printed_decimals(m, j);
     long long units = 0;
     if (!to_units(v, d, units)) return v;
     return double(units) / kPow10[d];
@@ -106,7 +109,7 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
     }
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
     for (std::size_t j = 0; j < machine_.joints.size() && j < kPrintJoints; ++j) {
-        const int d = machine_.joints[j].rotary ? machine_.dialect.rotary_decimals : machine_.dialect.linear_decimals;
+        const int d = printed_decimals(machine_, j);
         if (d < 0 || d > 9) {
             print_scale_[j] = 1;
             print_below_[j] = -1;  // never: printed() for every value
@@ -783,14 +786,9 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         // Compensated from the joints as solved: the emitter rounds once (without compensation
         // that gives exactly the rounded joints checked above).
         const double* exact = whole_ ? mv.q1->data() : &qs_exact_[std::size_t(k) * n];
-        if (machine_.compensation.empty()) {
-            // The stage's own answer without compensation (the joints themselves), without its result.
-            emitter_.move(out, mv.gcode, qk, std::span<const double>(exact, n), *mv.commanded, e, f, inverse_time_out);
-        } else {
-            const auto sent = compensation_.apply(std::span<const double>(exact, n));
-            if (!sent.ok()) throw LineError(1, sent.why);
-            emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, inverse_time_out);
-        }
+        const auto sent = compensation_.apply(std::span<const double>(exact, n));
+        if (!sent.ok()) throw LineError(1, sent.why());
+        emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, inverse_time_out);
         prev_share = share;
         qprev = qk;
     }

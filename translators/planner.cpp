@@ -489,7 +489,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
 void Planner::send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
                           std::string& out) {
     const auto sent = compensation_.apply(q);
-    if (!sent.ok()) throw LineError(1, sent.why);
+    if (!sent.ok()) throw LineError(1, sent.why());
     emitter_.set_position(out, q, sent.sent, which, e);
 }
 
@@ -499,7 +499,7 @@ void Planner::joint_move(const JointMove& mv, std::string& out) {
     state_.pose = kin_.forward(state_.q);
     state_.tip_known = state_.tip_known || mv.any_linear;
     const auto sent = compensation_.apply(state_.q);
-    if (!sent.ok()) throw LineError(1, sent.why);
+    if (!sent.ok()) throw LineError(1, sent.why());
     // Under G93 every move keeps its F.
     emitter_.move(out, mv.gcode, state_.q, sent.sent, *mv.commanded, mv.e, mv.f, mv.inverse_time);
 }
