@@ -156,10 +156,10 @@ Pose MotionStage::pose_at(const MoveSpec& mv, double s) const {
 
 IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<double>& previous, std::vector<double>& q,
                                int branch) const {
-    const auto& q0 = *mv.q0;
-    const auto& q1 = *mv.q1;
-    q = previous;
     if (mv.mode == OrientationMode::Angles) {
+        const auto& q0 = *mv.q0;
+        const auto& q1 = *mv.q1;
+        q = previous;
         // The angles are the programmed orientation: they move linearly, as the firmware moves
         // them. Only the tip is solved for (no point on the axes' arc is needed).
         for (std::size_t j = 0; j < q.size(); ++j)
@@ -167,17 +167,39 @@ IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<d
         if (auto r = kin_.solve_position(mv.p0.tip + s * (mv.p1.tip - mv.p0.tip), q); !r.ok()) return r;
         return check_limits(machine_, q);
     }
-    const Pose target = pose_at(mv, s);
+    Target target;
+    target_at(mv, s, target);
+    if (auto r = orient_at(mv, s, target, previous, q, branch); !r.ok()) return r;
+    return place(target, q);
+}
+
+void MotionStage::target_at(const MoveSpec& mv, double s, Target& target) const {
+    target.pose = pose_at(mv, s);
+    target.solutions = kin_.orientation_solutions(target.pose.axis);
+}
+
+IkResult MotionStage::orient_at(const MoveSpec& mv, double s, const Target& target, const std::vector<double>& previous,
+                                std::vector<double>& q, int branch) const {
+    const auto& q0 = *mv.q0;
+    const auto& q1 = *mv.q1;
+    q = previous;
     // A free joint (axis along the tool) follows the line from its start to its end value.
     std::vector<double>& hint = const_cast<std::vector<double>&>(lerp_);
     hint.resize(q.size());
     for (std::size_t j = 0; j < q.size(); ++j) hint[j] = q0[j] + s * (q1[j] - q0[j]);
-    const auto solutions = kin_.orientation_solutions(target.axis);
-    const IkResult r = branch < 0 ? orient_within_limits(machine_, kin_.rotary_joints(), solutions, previous, hint, q)
-                                  : orient_on_branch(machine_, kin_.rotary_joints(), solutions, branch, previous, hint, q);
-    if (!r.ok()) return r;
-    if (auto rp = kin_.solve_position(target.tip, q); !rp.ok()) return rp;
+    return branch < 0 ? orient_within_limits(machine_, kin_.rotary_joints(), target.solutions, previous, hint, q)
+                      : orient_on_branch(machine_, kin_.rotary_joints(), target.solutions, branch, previous, hint, q);
+}
+
+IkResult MotionStage::place(const Target& target, std::vector<double>& q) const {
+    if (auto rp = kin_.solve_position(target.pose.tip, q); !rp.ok()) return rp;
     return check_limits(machine_, q);
+}
+
+bool MotionStage::same_rotaries(const std::vector<double>& a, const std::vector<double>& b) const {
+    for (const int j : kin_.rotary_joints())
+        if (std::memcmp(&a[std::size_t(j)], &b[std::size_t(j)], sizeof(double)) != 0) return false;
+    return true;
 }
 
 IkResult MotionStage::leaves_limits(const MoveSpec& mv, double s, const std::vector<double>& previous) const {
@@ -314,15 +336,35 @@ void MotionStage::remember_solutions(const Kinematics::Solutions& solutions) con
 }
 
 const Kinematics::PathEnd& MotionStage::path_end(const double* q) const {
+    // The move's start as printed, when it is the last move's end and that end's slot still
+    // holds it: that slot is the one the search below would find (a slot is filled only when no
+    // slot holds its joints, so no two hold the same).
+    if (q == q0_printed_.data() && start_slot_ >= 0) return ends_[start_slot_].end;
     const std::size_t n = machine_.joints.size();
-    for (CachedEnd& c : ends_)
-        if (c.q.size() == n && std::equal(q, q + n, c.q.begin())) return c.end;
-    CachedEnd& c = ends_[ends_next_];
+    const bool is_end = q == q1_printed_.data();
+    for (int i = 0; i < 2; ++i) {
+        CachedEnd& c = ends_[i];
+        if (c.n == n && std::equal(q, q + n, c.q)) {
+            if (is_end) end_slot_ = i;
+            return c.end;
+        }
+    }
+    const int k = ends_next_;
+    CachedEnd& c = ends_[k];
     ends_next_ = 1 - ends_next_;
-    c.q.assign(q, q + n);
+    if (start_slot_ == k) start_slot_ = -1;
+    if (end_slot_ == k) end_slot_ = -1;
+    c.n = 0;  // (no machine has more joints than a slot holds: kinematics takes at most 8)
+    if (n <= kPrintJoints) {
+        c.n = n;
+        std::copy(q, q + n, c.q);
+        // The slot found again for the next move's start (not for a NaN joint, which the
+        // search never finds).
+        if (is_end && std::all_of(q, q + n, [](double v) { return v == v; })) end_slot_ = k;
+    }
     // The move's printed end (split passes q1_printed_ itself), a rounding of the solve's own
     // end: bounded from it, no FK.
-    if (solved_end_ && q == q1_printed_.data() && kin_.near_end(*solved_end_, q, c.end)) return c.end;
+    if (solved_end_ && is_end && kin_.near_end(*solved_end_, q, c.end)) return c.end;
     c.end = kin_.path_end(q);
     return c.end;
 }
@@ -383,11 +425,15 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     const bool from_last = *mv.q0 == last_end_q_;
     const bool start_on_line = from_last && mv.p0.tip == last_end_tip_;
     // q1_printed_ holds the last move's end as printed (last_end_q_ rounded): taken, then refilled.
+    // The ends' slots (path_end) follow: the last end's is the start's now.
     if (from_last) {
         q0_printed_.swap(q1_printed_);
+        start_slot_ = end_slot_;
     } else {
         round_printed(machine_, *mv.q0, q0_printed_);
+        start_slot_ = -1;
     }
+    end_slot_ = -1;
     const std::size_t n = machine_.joints.size();
     bool rotates = false;
     if (n <= kPrintJoints && mv.q1->size() == n && q0_printed_.size() == n && q1_printed_.size() == n && last_end_q_.size() == n) {
@@ -411,10 +457,17 @@ IkResult MotionStage::split(const MoveSpec& mv) {
     if (!rotates || mv.mode == OrientationMode::Joints || !machine_.motion.segment) return {};
     if (mv.end && mv.end->valid && mv.end->q == *mv.q1) solved_end_ = mv.end;
 
-    const double tol = kSampleMargin * machine_.motion.tolerance, atol = sample_angle_.degrees();
-    double tip = 0, ang = 0;
+    const double tol = kSampleMargin * machine_.motion.tolerance;
     if (start_on_line && reach_clears(mv, tol)) return {};
     if (bounded_within(mv, 0, 1, q0.data(), q1.data(), tol)) return {};
+    return march(mv, tol);
+}
+
+IkResult MotionStage::march(const MoveSpec& mv, double tol) {
+    const auto& q0 = q0_printed_;
+    const auto& q1 = q1_printed_;
+    const double atol = sample_angle_.degrees();
+    double tip = 0, ang = 0;
     piece_error(mv, 0, 1, q0.data(), q1.data(), kCheckSamples, tip, ang);
     const double ratio = std::max(tip / tol, ang / atol);
     if (ratio <= 1) return {};
@@ -444,8 +497,16 @@ IkResult MotionStage::split(const MoveSpec& mv) {
         for (int refine = 0;;) {
             const double sb = sa + len;
             IkResult r;
-            if (sb >= 1.0 && mv.mode == OrientationMode::Angles) qb = q1;  // angle form fixes the end
-            else r = solve_at(mv, std::min(sb, 1.0), qa, qb);
+            if (sb >= 1.0 && mv.mode == OrientationMode::Angles) {
+                qb = q1;  // angle form fixes the end
+            } else if (mv.mode == OrientationMode::Vector) {
+                // solve_at's steps, the target kept for the other branches' tries below.
+                target_at(mv, std::min(sb, 1.0), target_);
+                r = orient_at(mv, std::min(sb, 1.0), target_, qa, qb, -1);
+                if (r.ok()) r = place(target_, qb);
+            } else {
+                r = solve_at(mv, std::min(sb, 1.0), qa, qb);
+            }
             if (!r.ok()) {
                 r.message += " (at " + std::to_string(int(std::lround(std::min(sb, 1.0) * 100))) + "% of the move)";
                 return r;
@@ -461,7 +522,13 @@ IkResult MotionStage::split(const MoveSpec& mv) {
                 // cut across within the tolerance (a tilt through zero instead of a half turn).
                 std::vector<double>& alt = scratch_b_;
                 for (int b = 0; b < 2 && !pass; ++b) {
-                    if (!solve_at(mv, std::min(sb, 1.0), qa, alt, b).ok()) continue;
+                    // solve_at(mv, sb, qa, alt, b), on the try's own target. A branch whose
+                    // rotaries are the continuous solve's to the bit is the branch it took: the
+                    // position solve would give exact_b_ again, qb once rounded, which the test
+                    // below skips; it is skipped here, before that solve.
+                    if (!orient_at(mv, std::min(sb, 1.0), target_, qa, alt, b).ok()) continue;
+                    if (same_rotaries(alt, exact_b_)) continue;
+                    if (!place(target_, alt).ok()) continue;
                     std::vector<double>& alt_exact = alt_exact_;  // a member: no allocation per try
                     alt_exact = alt;
                     round_printed(machine_, alt);

@@ -105,7 +105,24 @@ private:
     double split_rotary_travel() const;
     IkResult solve_at(const MoveSpec& move, double s, const std::vector<double>& previous, std::vector<double>& q,
                       int branch = -1) const;
+    // solve_at's steps under the vector form: the programmed pose at s and its orientation
+    // solutions (the split's try at s and its tries of the other branch share them); the rotaries
+    // from `previous` (the continuous solution, or `branch`'s); the linear joints and the limits.
+    struct Target {
+        Pose pose;
+        Kinematics::Solutions solutions;
+    };
+    void target_at(const MoveSpec& move, double s, Target& target) const;
+    IkResult orient_at(const MoveSpec& move, double s, const Target& target, const std::vector<double>& previous,
+                       std::vector<double>& q, int branch) const;
+    IkResult place(const Target& target, std::vector<double>& q) const;
+    // The rotary joints of a and b are the same to the bit.
+    bool same_rotaries(const std::vector<double>& a, const std::vector<double>& b) const;
+    Target target_;  // the split's current try
     IkResult split(const MoveSpec& move);
+    // The rest of split for a move that the bounds did not clear whole: sampled, and split if
+    // it must be (split's usual move never gets here, and its code stays small).
+    IkResult march(const MoveSpec& move, double tol);
     Pose pose_at(const MoveSpec& move, double s) const;
     // An OutOfLimits result when the continuous solution at s (from `previous`) is outside a
     // rotary joint's limits.
@@ -113,11 +130,16 @@ private:
 
     // The ends bounded_within met last (the end of one move is the start of the next).
     const Kinematics::PathEnd& path_end(const double* q) const;
+    static constexpr std::size_t kPrintJoints = 8;
     struct CachedEnd {
-        std::vector<double> q;
+        std::size_t n = 0;  // joints held (0: none)
+        double q[kPrintJoints];
         Kinematics::PathEnd end;
     };
     mutable CachedEnd ends_[2];
+    // The slots holding the ends of q0_printed_ and q1_printed_ as they are now (-1: not known;
+    // the search finds them then).
+    mutable int start_slot_ = -1, end_slot_ = -1;
     // The move's solved end while it is split (split() sets it when it holds for the move's q1):
     // path_end bounds q1_printed_ from it.
     const Kinematics::SolvedEnd* solved_end_ = nullptr;
@@ -157,7 +179,6 @@ private:
     // a value whose |value * print_scale_| is below print_below_ is rounded at once (to_units'
     // own arithmetic, its range tests passed by that one); any other goes through printed().
     // print_rotary_: the joint is one of kinematics' rotaries (split's test whether they turn).
-    static constexpr std::size_t kPrintJoints = 8;
     double print_scale_[kPrintJoints] = {};
     double print_below_[kPrintJoints] = {};
     bool print_rotary_[kPrintJoints] = {};
