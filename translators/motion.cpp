@@ -121,7 +121,7 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
         print_below_[j] = 0.5 * std::min(1e15, kMaxWritten * kPow10[d]);
     }
     for (const int j : kin_.rotary_joints())
-        if (std::size_t(j) < kPrintJoints) print_rotary_[j] = true;
+        if (std::size_t(j) < kPrintJoints) print_rotaries_[print_rotary_count_++] = std::size_t(j);
 }
 
 bool MotionStage::print_end(const double* q1) {
@@ -137,8 +137,8 @@ bool MotionStage::print_end(const double* q1) {
         // printed(): to_units' units over the same power of ten.
         const double p = std::abs(scaled) < print_below_[j] ? double(round_half_away(scaled)) / print_scale_[j] : printed(machine_, j, v);
         to[j] = p;
-        rotates |= print_rotary_[j] & (p != q0[j]);
     }
+    for (std::size_t k = 0; k < print_rotary_count_; ++k) rotates |= to[print_rotaries_[k]] != q0[print_rotaries_[k]];
     return rotates;
 }
 
@@ -335,11 +335,7 @@ void MotionStage::remember_solutions(const Kinematics::Solutions& solutions) con
     if (!cached_solutions(solutions.axis)) cache_solutions(solutions.axis, solutions);
 }
 
-const Kinematics::PathEnd& MotionStage::path_end(const double* q) const {
-    // The move's start as printed, when it is the last move's end and that end's slot still
-    // holds it: that slot is the one the search below would find (a slot is filled only when no
-    // slot holds its joints, so no two hold the same).
-    if (q == q0_printed_.data() && start_slot_ >= 0) return ends_[start_slot_].end;
+const Kinematics::PathEnd& MotionStage::find_end(const double* q) const {
     const std::size_t n = machine_.joints.size();
     const bool is_end = q == q1_printed_.data();
     for (int i = 0; i < 2; ++i) {

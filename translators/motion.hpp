@@ -129,7 +129,15 @@ private:
     IkResult leaves_limits(const MoveSpec& move, double s, const std::vector<double>& previous) const;
 
     // The ends bounded_within met last (the end of one move is the start of the next).
-    const Kinematics::PathEnd& path_end(const double* q) const;
+    const Kinematics::PathEnd& path_end(const double* q) const {
+        // The move's start as printed, when it is the last move's end and that end's slot still
+        // holds it: that slot is the one the search would find (a slot is filled only when no
+        // slot holds its joints, so no two hold the same).
+        if (q == q0_printed_.data() && start_slot_ >= 0) return ends_[start_slot_].end;
+        return find_end(q);
+    }
+    // path_end's search of the slots, and its FK (or near_end) when neither holds q.
+    const Kinematics::PathEnd& find_end(const double* q) const;
     static constexpr std::size_t kPrintJoints = 8;
     struct CachedEnd {
         std::size_t n = 0;  // joints held (0: none)
@@ -178,10 +186,11 @@ private:
     // printed()'s usual case worked out once per joint (machines of up to kPrintJoints joints):
     // a value whose |value * print_scale_| is below print_below_ is rounded at once (to_units'
     // own arithmetic, its range tests passed by that one); any other goes through printed().
-    // print_rotary_: the joint is one of kinematics' rotaries (split's test whether they turn).
+    // print_rotaries_: kinematics' rotaries (split's test whether they turn).
     double print_scale_[kPrintJoints] = {};
     double print_below_[kPrintJoints] = {};
-    bool print_rotary_[kPrintJoints] = {};
+    std::size_t print_rotaries_[kPrintJoints] = {};
+    std::size_t print_rotary_count_ = 0;
     // split's start for a move whose joints have the stage's own size (n <= kPrintJoints): q1
     // rounded into q1_printed_ and copied into last_end_q_ in one pass; true when a rotary's
     // printed value differs from q0_printed_'s.
