@@ -65,6 +65,9 @@ double end_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Ei
 }  // namespace
 
 namespace {
+// The dialect's rule from the squared linear and rotary moves and the largest rotary one.
+double rule_length(const Machine& m, double lin2, double rot2, double rot_max);
+
 // The dialect's rule; `round` false when both ends are already as printed (rounding is idempotent:
 // a printed value scaled back differs from its integer units by far less than half a unit).
 double dialect_length(const Machine& m, std::span<const double> q0, std::span<const double> q1, bool round) {
@@ -78,6 +81,10 @@ double dialect_length(const Machine& m, std::span<const double> q0, std::span<co
             lin2 += d * d;
         }
     }
+    return rule_length(m, lin2, rot2, rot_max);
+}
+
+double rule_length(const Machine& m, double lin2, double rot2, double rot_max) {
     switch (m.dialect.firmware) {
         case FirmwareDialect::MarlinArticulated:
             return std::sqrt(lin2 + rot2);  // every axis counts, mm and degrees alike
@@ -101,10 +108,11 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
       chord_limit_(chord_within(sample_angle_.degrees() - 1e-6)),
       kin_(kinematics),
       machine_(kinematics.machine()),
+      limits_(kinematics.machine()),
       compensation_(kinematics.machine().compensation),
       emitter_(emitter) {
     for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
-        if (machine_.joints[j].rotary) rotary_.push_back(j);
+        (machine_.joints[j].rotary ? rotary_ : linear_).push_back(j);
         if (machine_.joints[j].max_feed > 0) feed_limits_.push_back({j, machine_.joints[j].max_feed});
     }
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
@@ -122,6 +130,22 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
     }
     for (const int j : kin_.rotary_joints())
         if (std::size_t(j) < kPrintJoints) print_rotaries_[print_rotary_count_++] = std::size_t(j);
+}
+
+double MotionStage::piece_length(const double* q0, const double* q1) const {
+    // dialect_length's sums without rounding, each over its own joints in the same order (the
+    // same additions), with no test of which kind a joint is.
+    double lin2 = 0, rot2 = 0, rot_max = 0;
+    for (const std::size_t j : linear_) {
+        const double d = q1[j] - q0[j];
+        lin2 += d * d;
+    }
+    for (const std::size_t j : rotary_) {
+        const double d = q1[j] - q0[j];
+        rot2 += d * d;
+        rot_max = std::max(rot_max, std::abs(d));
+    }
+    return rule_length(machine_, lin2, rot2, rot_max);
 }
 
 bool MotionStage::print_end(const double* q1) {
@@ -165,7 +189,7 @@ IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<d
         for (std::size_t j = 0; j < q.size(); ++j)
             if (machine_.joints[j].rotary) q[j] = q0[j] + s * (q1[j] - q0[j]);
         if (auto r = kin_.solve_position(mv.p0.tip + s * (mv.p1.tip - mv.p0.tip), q); !r.ok()) return r;
-        return check_limits(machine_, q);
+        return limits_.contains(q) ? IkResult{} : check_limits(machine_, q);
     }
     Target target;
     target_at(mv, s, target);
@@ -193,7 +217,7 @@ IkResult MotionStage::orient_at(const MoveSpec& mv, double s, const Target& targ
 
 IkResult MotionStage::place(const Target& target, std::vector<double>& q) const {
     if (auto rp = kin_.solve_position(target.pose.tip, q); !rp.ok()) return rp;
-    return check_limits(machine_, q);
+    return limits_.contains(q) ? IkResult{} : check_limits(machine_, q);
 }
 
 bool MotionStage::same_rotaries(const std::vector<double>& a, const std::vector<double>& b) const {
@@ -833,7 +857,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
                 t = std::max(t, rot_max / machine_.motion.rotary_feed);
             }
             piece_time_[std::size_t(k)] = t;
-            const double d_fw = dialect_length(machine_, qprev, qk, false);  // both ends come from the split, rounded
+            const double d_fw = piece_length(qprev.data(), qk.data());  // both ends come from the split, rounded
             if (inverse_time_out) {
                 // RepRapFirmware's G93: F is 1 / the piece's duration in minutes. An E-only piece
                 // takes its extrusion at the programmed feed.

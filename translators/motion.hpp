@@ -13,6 +13,7 @@
 #include "translators/compensation.hpp"
 #include "translators/emitter.hpp"
 #include "translators/great_arc.hpp"
+#include "translators/joint_limits.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 
@@ -174,6 +175,7 @@ private:
 
     const Kinematics& kin_;
     const Machine& machine_;
+    LimitBox limits_;  // check_limits' verdict for the split's points (nearly all inside: no result built)
     CompensationStage compensation_;
     JointEmitter& emitter_;
     std::vector<double> s_, qs_;                 // the pieces, joints as printed
@@ -206,8 +208,10 @@ private:
     std::vector<double> scratch_a_, scratch_b_, alt_exact_, lerp_, march_a_, march_b_;
     mutable std::vector<double> sample_;
     std::vector<double> piece_time_;  // minutes each piece of the last move takes
-    // The rotary joints, and the joints with a known top speed, looked up once.
-    std::vector<std::size_t> rotary_;
+    // The rotary and the linear joints, and the joints with a known top speed, looked up once.
+    std::vector<std::size_t> rotary_, linear_;
+    // dialect_length of two rounded ends (a piece's, as printed).
+    double piece_length(const double* q0, const double* q1) const;
     struct FeedLimit {
         std::size_t joint;
         double max_feed;
