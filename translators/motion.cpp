@@ -108,6 +108,7 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
       chord_limit_(chord_within(sample_angle_.degrees() - 1e-6)),
       kin_(kinematics),
       machine_(kinematics.machine()),
+      joints_(kinematics.machine().joints.size()),
       limits_(kinematics.machine()),
       compensation_(kinematics.machine().compensation),
       emitter_(emitter) {
@@ -149,7 +150,7 @@ double MotionStage::piece_length(const double* q0, const double* q1) const {
 }
 
 bool MotionStage::print_end(const double* q1) {
-    const std::size_t n = machine_.joints.size();
+    const std::size_t n = joints_;
     double* to = q1_printed_.data();
     double* last = last_end_q_.data();
     const double* q0 = q0_printed_.data();
@@ -247,7 +248,7 @@ void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const do
     tip = 0;
     angle = 0;
     std::vector<double>& q = sample_;
-    q.resize(machine_.joints.size());
+    q.resize(joints_);
     const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
     for (int i = 1; i <= samples; ++i) {
         const double t = double(i) / double(samples + 1);
@@ -269,7 +270,7 @@ bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const d
     // exactly when piece_error's largest values would pass.
     static constexpr int kOrder[kCheckSamples] = {4, 2, 6, 1, 3, 5, 7};
     std::vector<double>& q = sample_;
-    q.resize(machine_.joints.size());
+    q.resize(joints_);
     const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
     // Once the middle point has passed, the other points are checked against kinematics' bound
     // first, and computed only where it does not clear them. At parameter t the path lies within
@@ -360,7 +361,7 @@ void MotionStage::remember_solutions(const Kinematics::Solutions& solutions) con
 }
 
 const Kinematics::PathEnd& MotionStage::find_end(const double* q) const {
-    const std::size_t n = machine_.joints.size();
+    const std::size_t n = joints_;
     const bool is_end = q == q1_printed_.data();
     for (int i = 0; i < 2; ++i) {
         CachedEnd& c = ends_[i];
@@ -398,7 +399,14 @@ bool MotionStage::reach_clears(const MoveSpec& mv, double tol) const {
     constexpr double kSlack = 1e-9;  // as bounded_within's
     const Kinematics::PathBound b = kin_.joint_path_bound(kin_.reach(), q0_printed_.data(), q1_printed_.data());
     if (!(b.tip <= tol - kSlack)) return false;
-    const double ends = std::max(kin_.reach_shift(mv.q0->data(), q0_printed_.data()), kin_.reach_shift(mv.q1->data(), q1_printed_.data()));
+    // The start's shift is the last move's end's, measured by the split before this one when it
+    // got here (split calls this only for a move that starts at the last one's end, joints and
+    // tip): the same values, the same sum.
+    const double start = shift_split_ + 1 == splits_ ? end_shift_ : kin_.reach_shift(mv.q0->data(), q0_printed_.data());
+    const double end = kin_.reach_shift(mv.q1->data(), q1_printed_.data());
+    end_shift_ = end;
+    shift_split_ = splits_;
+    const double ends = std::max(start, end);
     return b.tip + ends <= tol - kSlack;
 }
 
@@ -439,6 +447,7 @@ bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const
 }
 
 IkResult MotionStage::split(const MoveSpec& mv) {
+    ++splits_;
     // A move usually starts where the one before ended: its start as printed is known then.
     // And every move ends exactly on its programmed tip (the planner solves the linear joints
     // for it): a move that starts at the last one's end, joints and tip, starts on its line.
@@ -454,7 +463,7 @@ IkResult MotionStage::split(const MoveSpec& mv) {
         start_slot_ = -1;
     }
     end_slot_ = -1;
-    const std::size_t n = machine_.joints.size();
+    const std::size_t n = joints_;
     bool rotates = false;
     if (n <= kPrintJoints && mv.q1->size() == n && q0_printed_.size() == n && q1_printed_.size() == n && last_end_q_.size() == n) {
         // The usual move (every one after the first): one pass, no copies or calls.
@@ -791,7 +800,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     if (split_for_ != &mv)
         if (auto r = split(mv); !r.ok()) return r;
     split_for_ = nullptr;
-    const std::size_t n = machine_.joints.size();
+    const std::size_t n = joints_;
     const int pieces = int(s_.size());
     const double length = (mv.p1.tip - mv.p0.tip).norm();
     const std::vector<double>& q0 = q0_printed_;  // where the firmware starts

@@ -93,6 +93,10 @@ private:
     bool bounded_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol) const;
     // The same for the whole move under the angle form, from the machine's reach: no FK at all.
     bool reach_clears(const MoveSpec& move, double tol) const;
+    // Splits made so far; the end's reach_shift reach_clears measured last, and in which split.
+    std::uint64_t splits_ = 0;
+    mutable std::uint64_t shift_split_ = std::numeric_limits<std::uint64_t>::max();  // (none: max + 1 is 0, no split's number)
+    mutable double end_shift_ = 0;
     // piece_error's verdict against `tol` and the split's angle limit (sample_angle_), stopping at
     // the first point outside them. `middle_ratio`, when given, receives the error over its
     // tolerance when the verdict is no at the middle point (left as it is otherwise).
@@ -175,6 +179,7 @@ private:
 
     const Kinematics& kin_;
     const Machine& machine_;
+    const std::size_t joints_;  // the machine's joints (read where each move needs their number)
     LimitBox limits_;  // check_limits' verdict for the split's points (nearly all inside: no result built)
     CompensationStage compensation_;
     JointEmitter& emitter_;
