@@ -357,7 +357,10 @@ const Kinematics::Solutions& MotionStage::solutions_of(const Eigen::Vector3d& ax
 }
 
 void MotionStage::remember_solutions(const Kinematics::Solutions& solutions) const {
-    if (!cached_solutions(solutions.axis)) cache_solutions(solutions.axis, solutions);
+    // Written without a search: a slot holding the same axis holds the same solutions (a pure
+    // function of its bits), so a second copy changes no answer; the other slot keeps the axis
+    // remembered before, this move's start.
+    cache_solutions(solutions.axis, solutions);
 }
 
 const Kinematics::PathEnd& MotionStage::find_end(const double* q) const {
