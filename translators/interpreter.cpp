@@ -260,8 +260,10 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
     std::uint32_t ijk_column = column;
     ToolMove mv;  // its E and F are written as the words are read
     std::uint32_t commanded = 0;  // one bit a joint, written to move_commanded_ at the end
-    // Under G43.4 the rotary words are programmed angles; the joints are their image.
-    planner_.programmed_angles(angles_);
+    // Under G43.4 the rotary words are programmed angles; the joints are their image. Under G43.5
+    // nothing reads them (rotary words are refused, the planner reads angles under G43.4 only,
+    // and the keep-out stage refuses G43.5): they are left as they are, not made on every line.
+    if (m.mode != OrientationMode::Vector) planner_.programmed_angles(angles_);
     const bool angles_allowed = !plane.active && m.mode != OrientationMode::Vector;  // rotary words' own checks pass
     for (const Param& p : words) {
         // X Y Z (three words of most lines) before the switch's jump, as its case did.
