@@ -91,13 +91,9 @@ inline char* write_units3(char* p, long long units) {
     return put_short(p, kFraction3Text[u % 1000]);
 }
 
-// A joint value on to_units' path but not the move's usual one: past 1000 at three decimals (a
-// multi-turn rotary) below a million by write_units3, any other by write_units. Out of line, so
-// the move's loop is laid out for its usual joint alone.
-[[gnu::noinline]] char* write_joint_units(char* p, long long units, int decimals) {
-    if (decimals == 3 && units > -1000000000 && units < 1000000000) return write_units3(p, units);
-    return write_units(p, units, decimals);
-}
+// A joint value on to_units' path but not the move's usual two (three decimals below a million):
+// write_units. Out of line, so the move's loop is laid out for the usual joints alone.
+[[gnu::noinline]] char* write_joint_units(char* p, long long units, int decimals) { return write_units(p, units, decimals); }
 
 // The word append_word would write, into a buffer at p (room: 2 + max(kPassedChars,
 // kUnitsChars)): a passed text up to kPassedChars, or a computed value on to_units' path (what
@@ -133,6 +129,8 @@ JointEmitter::JointEmitter(const Machine& machine) : machine_(&machine), joints_
         // |v * 1000| < 999999.5: to_units gives |units| < 1000000 (v * 1000 is its scaled value, v
         // far inside kMaxWritten), write_units' three-decimal inline case.
         small_below_[j] = decimals_[j] == 3 ? 999999.5 : -1.0;
+        // The same below 999999999.5: |units| < 1000000000, write_units3's range (a multi-turn rotary).
+        wide_below_[j] = decimals_[j] == 3 ? 999999999.5 : -1.0;
     }
 }
 
@@ -177,11 +175,13 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         long long units = 0;
         const int d = decimals(j);
         // The usual joint (three decimals, below 1000 in magnitude): one test, then what to_units
-        // and write_units do for it. Any other: to_units' own tests.
+        // and write_units do for it; the same for a multi-turn rotary past 1000 (below a million)
+        // by a second test. Any other: to_units' own tests.
         const double scaled = sent[j] * 1e3;
         const bool small = std::abs(scaled) < small_below_[j];
-        bool fast = true;
+        bool wide = false, fast = true;
         if (small) units = round_half_away(scaled);
+        else if ((wide = std::abs(scaled) < wide_below_[j])) units = round_half_away(scaled);
         else fast = to_units(sent[j], d, units);
         if (!fast) units = std::numeric_limits<long long>::min();  // never equal: always written
         const bool write = known_[j] ? units != last_[j] : (commanded[j] || q[j] != believed_[j]);
@@ -193,6 +193,8 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         p += 2;
         if (small) {
             p = write_units3_small(p, units);
+        } else if (wide) {
+            p = write_units3(p, units);
         } else if (fast) {
             p = write_joint_units(p, units, d);
         } else {

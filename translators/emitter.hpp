@@ -42,6 +42,7 @@ public:
             word_ = o.word_;
             decimals_ = o.decimals_;
             small_below_ = o.small_below_;
+            wide_below_ = o.wide_below_;
         }
         last_ = o.last_;
         known_ = o.known_;
@@ -103,6 +104,9 @@ private:
     // Per joint: a value whose |value * 1000| is below this is written by the inline three-decimal
     // path with no other test (999999.5 for three decimals, the usual; -1 for others: never).
     std::array<double, kMaxJoints> small_below_{};
+    // The same for the three-decimal path of values up to a million (a multi-turn rotary):
+    // 999999999.5 for three decimals, -1 for others.
+    std::array<double, kMaxJoints> wide_below_{};
     // What the firmware was last sent per joint, in units of its last printed digit.
     std::array<long long, kMaxJoints> last_{};
     std::array<bool, kMaxJoints> known_{};       // false: not sent since start, homing or probing
