@@ -987,6 +987,22 @@ TEST_CASE("the position solve in scalars equals its Eigen general path bit for b
                                  bed.tool_chain.end());
         cases.emplace_back("pentarod Y in the part chain", bed);
     }
+    for (int t = 0; t < 12; ++t) {
+        // pentarod's shape (two turns about coordinate axes through the origin, three linear
+        // links in the tool chain: the solve's unrolled path) with every pair of axes, both signs,
+        // the tool's axis and linear directions at random.
+        Machine two = pentarod;
+        const int k1 = t % 3, k2 = (k1 + 1 + (t / 3) % 2) % 3;
+        Eigen::Vector3d a1 = Eigen::Vector3d::Zero(), a2 = Eigen::Vector3d::Zero();
+        a1[k1] = U(rng) < 0.5 ? -1 : 1;
+        a2[k2] = U(rng) < 0.5 ? -1 : 1;
+        for (auto& e : two.part_chain)
+            if (e.kind == ChainElement::Kind::Rotary) e.axis = e.joint == joint(pentarod, 'A') ? a1 : a2;
+        for (auto& e : two.tool_chain)
+            if (t % 2) e.axis = Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5);
+        if (t % 4 == 3) two.tool_axis = Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized();
+        cases.emplace_back("pentarod's shape, turns about axes " + std::to_string(k1) + " and " + std::to_string(k2), two);
+    }
     auto same = [](const void* a, const void* b, std::size_t size) { return std::memcmp(a, b, size) == 0; };
     int compared = 0;
     for (const auto& [name, m] : cases) {

@@ -48,6 +48,14 @@ inline M3 operator*(const M3& a, const M3& b) {
     return {c0.x, c1.x, c2.x, c0.y, c1.y, c2.y, c0.z, c1.z, c2.z};
 }
 
+// Eigen's normalized(): v / |v|, the squares summed (a0 + a1) + a2; a zero vector is returned as is.
+inline V3 normalized(const V3& v) {
+    const double n = (v.x * v.x + v.y * v.y) + v.z * v.z;
+    if (!(n > 0)) return v;
+    const double r = std::sqrt(n);
+    return {v.x / r, v.y / r, v.z / r};
+}
+
 inline M3 m3(const Eigen::Ref<const Eigen::Matrix3d>& m) {
     return {m(0, 0), m(0, 1), m(0, 2), m(1, 0), m(1, 1), m(1, 2), m(2, 0), m(2, 1), m(2, 2)};
 }
@@ -401,17 +409,44 @@ Kinematics::Kinematics(const Machine& machine)
         const V3 up = M3{1, 0, 0, 0, 1, 0, 0, 0, 1} * v3(machine.tool_axis);
         tool_up_[0] = up.x, tool_up_[1] = up.y, tool_up_[2] = up.z;
     }
+    // The solve's unrolled shape (see TwoTurns): checked link by link against what solve_scalar
+    // would do with these chains, so that it can do the same with the links' numbers as constants.
+    {
+        using K = ChainLink::Kind;
+        auto coordinate = [](K kind) { return kind == K::RotaryX ? 0 : kind == K::RotaryY ? 1 : kind == K::RotaryZ ? 2 : -1; };
+        bool on = part_links_.size() == 2 && tool_plain_ && tool_links_.size() == 3 && linear_.size() == 3 && line_shifts_.size() == 2;
+        for (std::size_t k = 0; on && k < 3; ++k) on = solve_cols_[k].tool && !solve_cols_[k].part;
+        for (std::size_t m = 0; on && m < 3; ++m)  // three distinct joints: the three unknowns
+            for (std::size_t l = 0; l < m; ++l) on = on && tool_links_[m].joint != tool_links_[l].joint;
+        if (on) {
+            const ChainLink &a = part_links_[0], &b = part_links_[1];
+            const int k1 = coordinate(a.kind), k2 = coordinate(b.kind);
+            on = k1 >= 0 && k2 >= 0 && k1 != k2 && !a.shifts && !b.shifts && a.fresh && !b.fresh;
+            if (on) {
+                TwoTurns& f = turns_;
+                f.pattern = k1 * 3 + k2;
+                f.j1 = a.joint, f.j2 = b.joint;
+                f.sign1 = a.sign, f.sign2 = b.sign;
+                // The walk's first line: R the identity and t zero there.
+                const M3 I{1, 0, 0, 0, 1, 0, 0, 0, 1};
+                const V3 p0 = V3{0, 0, 0} + I * V3{a.point[0], a.point[1], a.point[2]};
+                const V3 d0 = normalized(I * V3{a.axis[0], a.axis[1], a.axis[2]});
+                f.line0_point[0] = p0.x, f.line0_point[1] = p0.y, f.line0_point[2] = p0.z;
+                f.line0_dir[0] = d0.x, f.line0_dir[1] = d0.y, f.line0_dir[2] = d0.z;
+                for (int i = 0; i < 3; ++i) f.point2[i] = b.point[i], f.axis2[i] = b.axis[i];
+                for (std::size_t m = 0; m < 3; ++m) {
+                    f.tool_joint[m] = tool_links_[m].joint;
+                    for (int i = 0; i < 3; ++i) f.tool_dir[m][i] = tool_links_[m].axis[i];
+                    for (std::size_t k = 0; k < 3; ++k)
+                        if (linear_[k] == tool_links_[m].joint)
+                            for (int i = 0; i < 3; ++i) f.col_dir[k][i] = tool_links_[m].axis[i];
+                }
+            }
+        }
+    }
 }
 
 namespace {
-
-// Eigen's normalized(): v / |v|, the squares summed (a0 + a1) + a2; a zero vector is returned as is.
-inline V3 normalized(const V3& v) {
-    const double n = (v.x * v.x + v.y * v.y) + v.z * v.z;
-    if (!(n > 0)) return v;
-    const double r = std::sqrt(n);
-    return {v.x / r, v.y / r, v.z / r};
-}
 
 // A rotary joint's axis in the base frame (dir unit); only the bound's lever arms use it, so it
 // need not match Eigen's rounding (the bound keeps a slack).
@@ -735,7 +770,86 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
         q[std::size_t(linear_[2])] += dq.z;
         return {};
     }
-    return solve_scalar(tip, q, axis, end);
+    switch (turns_.pattern) {
+        case 0 * 3 + 1: return solve_two_turns<0, 1>(tip, q, axis, end);
+        case 0 * 3 + 2: return solve_two_turns<0, 2>(tip, q, axis, end);
+        case 1 * 3 + 0: return solve_two_turns<1, 0>(tip, q, axis, end);
+        case 1 * 3 + 2: return solve_two_turns<1, 2>(tip, q, axis, end);
+        case 2 * 3 + 0: return solve_two_turns<2, 0>(tip, q, axis, end);
+        case 2 * 3 + 1: return solve_two_turns<2, 1>(tip, q, axis, end);
+        default: return solve_scalar(tip, q, axis, end);
+    }
+}
+
+// solve_scalar's steps for the TwoTurns shape, in the same order with the same operations (the
+// walk's turn_about_axis for each turn, its lines, the tool chain's fresh linear links), each
+// link's numbers read from TwoTurns; test_kinematics holds it against the general solve too.
+template <int k1, int k2>
+IkResult Kinematics::solve_two_turns(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const {
+    const TwoTurns& f = turns_;
+    if (end) end->valid = false;
+    const bool want_end = end && solved_ends_;
+    // The part chain: R the identity and t zero, then the two turns (neither shifts t).
+    M3 Rp{1, 0, 0, 0, 1, 0, 0, 0, 1};
+    const V3 tp{0, 0, 0};
+    V3 t = tp;
+    turn_about_axis<k1, false>(f.sign1, q[std::size_t(f.j1)], nullptr, Rp, t, true);
+    AxisLine lines[2];
+    if (want_end) {
+        lines[0] = {V3{f.line0_point[0], f.line0_point[1], f.line0_point[2]}, V3{f.line0_dir[0], f.line0_dir[1], f.line0_dir[2]}};
+        lines[1] = {tp + Rp * V3{f.point2[0], f.point2[1], f.point2[2]}, normalized(Rp * V3{f.axis2[0], f.axis2[1], f.axis2[2]})};
+    }
+    turn_about_axis<k2, false>(f.sign2, q[std::size_t(f.j2)], nullptr, Rp, t, false);
+    // The tool chain: fresh linear links.
+    V3 tt{0, 0, 0};
+    for (int m = 0; m < 3; ++m) tt = tt + V3{f.tool_dir[m][0], f.tool_dir[m][1], f.tool_dir[m][2]} * q[std::size_t(f.tool_joint[m])];
+    const V3 up{tool_up_[0], tool_up_[1], tool_up_[2]};
+    V3 u{0, 0, 0};
+    if (axis || want_end) {
+        u = normalized(transposed_times(Rp, up));
+        if (axis) *axis = Eigen::Vector3d(u.x, u.y, u.z);
+    }
+    const V3 current = transposed_times(Rp, tt - tp);
+    V3 col[3];
+    for (int k = 0; k < 3; ++k) col[k] = transposed_times(Rp, V3{f.col_dir[k][0], f.col_dir[k][1], f.col_dir[k][2]});
+    const double m00 = col[0].x, m10 = col[0].y, m20 = col[0].z, m01 = col[1].x, m11 = col[1].y, m21 = col[1].z, m02 = col[2].x,
+                 m12 = col[2].y, m22 = col[2].z;
+    const double det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)) + m02 * (m10 * m21 - m11 * m20);
+    if (!(std::abs(det) > 1e-9)) {
+        if (want_end) end->end.pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
+        return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+    }
+    const double c00 = m11 * m22 - m12 * m21, c10 = m21 * m02 - m22 * m01, c20 = m01 * m12 - m02 * m11;
+    const double invdet = 1.0 / ((c00 * m00 + c10 * m10) + c20 * m20);
+    const M3 Ji{c00 * invdet, c10 * invdet, c20 * invdet,
+                (m12 * m20 - m10 * m22) * invdet, (m22 * m00 - m20 * m02) * invdet, (m02 * m10 - m00 * m12) * invdet,
+                (m10 * m21 - m11 * m20) * invdet, (m20 * m01 - m21 * m00) * invdet, (m00 * m11 - m01 * m10) * invdet};
+    const V3 dq = Ji * (v3(tip) - current);
+    q[std::size_t(linear_[0])] += dq.x;
+    q[std::size_t(linear_[1])] += dq.y;
+    q[std::size_t(linear_[2])] += dq.z;
+    if (want_end) {
+        // fill_solved_end's steps: the tool links' joints are the three unknowns, so each moves
+        // by its own dq; the part chain's lines are moved by no linear joint.
+        double moved[8] = {};
+        moved[linear_[0]] = dq.x;
+        moved[linear_[1]] = dq.y;
+        moved[linear_[2]] = dq.z;
+        V3 x = tt;
+        for (int m = 0; m < 3; ++m) x = x + V3{f.tool_dir[m][0], f.tool_dir[m][1], f.tool_dir[m][2]} * moved[f.tool_joint[m]];
+        PathEnd& e = end->end;
+        e.pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
+        e.lever_arm = 0;
+        e.tip_slack = e.axis_slack = 0;
+        for (int i = 0; i < 2; ++i) {
+            e.arm[i] = distance_from(x, lines[i]);
+            e.lever_arm = std::max(e.lever_arm, e.arm[i]);
+        }
+        e.pose.tip = tip;
+        end->q = q;
+        end->valid = true;
+    }
+    return {};
 }
 
 // The general solve in the walk's scalars: the same operations in the same order as

@@ -174,6 +174,10 @@ private:
     Pose forward(const double* q, double* lever_arm, double* arms = nullptr) const;
     // solve_position's path for a Jacobian that varies, in the walk's scalars (kinematics.cpp).
     IkResult solve_scalar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
+    // solve_scalar for a machine of the shape TwoTurns describes, the same operations with the
+    // chains unrolled (one instance per pair of coordinate axes, chosen at load).
+    template <int k1, int k2>
+    IkResult solve_two_turns(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
     // The position solve's 3x3 Jacobian from the chains' linear directions; false when singular.
     bool linear_jacobian(const Eigen::Matrix3d& Rp, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,
                          Eigen::Matrix3d& J) const;
@@ -232,6 +236,19 @@ private:
     bool tool_plain_ = false;
     double tool_up_[3] = {};
     std::vector<int> tool_linear_;      // the tool chain's linear joints (they carry the tip)
+    // A part chain of two turns about +-1 times coordinate axes k1 != k2, both through the origin
+    // (no shift), and a tool chain of three fresh linear links giving the three unknowns
+    // (pentarod's A/C table): the position solve's walk unrolled, its constants taken once here.
+    struct TwoTurns {
+        int pattern = -1;  // k1 * 3 + k2; -1: the machine has another shape
+        int j1 = 0, j2 = 0;
+        double sign1 = 1, sign2 = 1;
+        double point2[3] = {}, axis2[3] = {};       // the second turn's link, as the walk reads it
+        double line0_point[3] = {}, line0_dir[3] = {};  // the first turn's axis line (R, t still the identity and zero)
+        int tool_joint[3] = {};
+        double tool_dir[3][3] = {};  // the tool links' axes, in chain order
+        double col_dir[3][3] = {};   // each unknown's direction (the last tool link of its joint)
+    } turns_;
     bool solved_ends_ = false;
     // near_end's terms, looked up once: each linear joint with its mm per unit, each rotary
     // element with its radians per unit and its arm.
