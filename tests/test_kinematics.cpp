@@ -66,6 +66,23 @@ void turn_at_random(Machine& m, std::mt19937& rng) {
     m.tool_axis = unit();
 }
 
+// pentarod's shape (two turns about coordinate axes through the origin, three linear links in
+// the tool chain: the kinematics' unrolled path) with turns about axes k1 != k2 (each +-1 times
+// it), t picking the signs and whether the tool's axis and linear directions are drawn at random.
+Machine two_turns(Machine m, int k1, int k2, int t, std::mt19937& rng) {
+    std::uniform_real_distribution<double> U(0, 1);
+    Eigen::Vector3d a1 = Eigen::Vector3d::Zero(), a2 = Eigen::Vector3d::Zero();
+    a1[k1] = t & 1 ? -1 : 1;
+    a2[k2] = t & 2 ? -1 : 1;
+    bool first = true;
+    for (auto& e : m.part_chain)
+        if (e.kind == ChainElement::Kind::Rotary) e.axis = first ? a1 : a2, first = false;
+    if (t & 4)
+        for (auto& e : m.tool_chain) e.axis = Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5);
+    if (t & 8) m.tool_axis = Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized();
+    return m;
+}
+
 }  // namespace
 
 TEST_CASE("wrap180 gives (-180, 180], as the remainder of a division by 360 defines it") {
@@ -569,14 +586,21 @@ TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit o
         // 0: as shipped; 1: tilted (where the machine has such parameters); 2: every axis and
         // fixed rotation of the chains turned to a random direction, so every product sums three
         // non-zero terms and the order of the sums shows.
-        for (const int variant : {0, 1, 2}) {
+        // 3 to 8 (pentarod): its shape with turns about other coordinate axes (forward's
+        // unrolled path), signs and directions at random.
+        for (const int variant : {0, 1, 2, 3, 4, 5, 6, 7, 8}) {
             if (variant == 1 && !tilted.count(name)) continue;
+            if (variant >= 3 && name != "pentarod") continue;
             CAPTURE(name);
             CAPTURE(variant);
             Machine m = variant == 1 ? load_machine(path, tilted.at(name)) : load_machine(path);
             std::mt19937 rng(std::hash<std::string>{}(name) & 0xffff);
             std::uniform_real_distribution<double> U(0, 1);
             if (variant == 2) turn_at_random(m, rng);
+            if (variant >= 3) {
+                const int k1 = (variant - 3) / 2, k2 = (k1 + 1 + (variant - 3) % 2) % 3;
+                m = two_turns(m, k1, k2, int(U(rng) * 16), rng);
+            }
             const Kinematics k(m);
             int differ = 0;
             for (int i = 0; i < 20000; ++i) {
@@ -987,22 +1011,12 @@ TEST_CASE("the position solve in scalars equals its Eigen general path bit for b
                                  bed.tool_chain.end());
         cases.emplace_back("pentarod Y in the part chain", bed);
     }
-    for (int t = 0; t < 12; ++t) {
-        // pentarod's shape (two turns about coordinate axes through the origin, three linear
-        // links in the tool chain: the solve's unrolled path) with every pair of axes, both signs,
-        // the tool's axis and linear directions at random.
-        Machine two = pentarod;
-        const int k1 = t % 3, k2 = (k1 + 1 + (t / 3) % 2) % 3;
-        Eigen::Vector3d a1 = Eigen::Vector3d::Zero(), a2 = Eigen::Vector3d::Zero();
-        a1[k1] = U(rng) < 0.5 ? -1 : 1;
-        a2[k2] = U(rng) < 0.5 ? -1 : 1;
-        for (auto& e : two.part_chain)
-            if (e.kind == ChainElement::Kind::Rotary) e.axis = e.joint == joint(pentarod, 'A') ? a1 : a2;
-        for (auto& e : two.tool_chain)
-            if (t % 2) e.axis = Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5);
-        if (t % 4 == 3) two.tool_axis = Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized();
-        cases.emplace_back("pentarod's shape, turns about axes " + std::to_string(k1) + " and " + std::to_string(k2), two);
-    }
+    for (int k1 = 0; k1 < 3; ++k1)  // every pair of axes, with signs and directions drawn at random
+        for (int k2 = 0; k2 < 3; ++k2)
+            if (k1 != k2)
+                for (int t = 0; t < 2; ++t)
+                    cases.emplace_back("pentarod's shape, turns about axes " + std::to_string(k1) + " and " + std::to_string(k2),
+                                       two_turns(pentarod, k1, k2, int(U(rng) * 16), rng));
     auto same = [](const void* a, const void* b, std::size_t size) { return std::memcmp(a, b, size) == 0; };
     int compared = 0;
     for (const auto& [name, m] : cases) {

@@ -638,6 +638,15 @@ Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
 
 // With `lever_arm`: also the tip's largest distance from a rotary joint's axis.
 Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const {
+    switch (turns_.pattern) {
+        case 0 * 3 + 1: return forward_two_turns<0, 1>(q, lever_arm, arms);
+        case 0 * 3 + 2: return forward_two_turns<0, 2>(q, lever_arm, arms);
+        case 1 * 3 + 0: return forward_two_turns<1, 0>(q, lever_arm, arms);
+        case 1 * 3 + 2: return forward_two_turns<1, 2>(q, lever_arm, arms);
+        case 2 * 3 + 0: return forward_two_turns<2, 0>(q, lever_arm, arms);
+        case 2 * 3 + 1: return forward_two_turns<2, 1>(q, lever_arm, arms);
+        default: break;
+    }
     M3 Rp, Rt;
     V3 tp, tt;
     AxisLine lines[8];  // at most 5 joints (the loader checks)
@@ -781,6 +790,56 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
     }
 }
 
+namespace {
+
+// The walk of TwoTurns' part chain (walk_links' steps for its two links): R the identity, t zero
+// and unmoved by either turn; with `lines`, the turns' axis lines as the walk records them.
+template <int k1, int k2, class TwoTurns>
+[[gnu::always_inline]] inline M3 walk_two_turns(const TwoTurns& f, const double* q, AxisLine* lines) {
+    M3 R{1, 0, 0, 0, 1, 0, 0, 0, 1};
+    V3 t{0, 0, 0};
+    turn_about_axis<k1, false>(f.sign1, q[f.j1], nullptr, R, t, true);
+    if (lines) {
+        lines[0] = {V3{f.line0_point[0], f.line0_point[1], f.line0_point[2]}, V3{f.line0_dir[0], f.line0_dir[1], f.line0_dir[2]}};
+        lines[1] = {t + R * V3{f.point2[0], f.point2[1], f.point2[2]}, normalized(R * V3{f.axis2[0], f.axis2[1], f.axis2[2]})};
+    }
+    turn_about_axis<k2, false>(f.sign2, q[f.j2], nullptr, R, t, false);
+    return R;
+}
+
+// The error of a singular Jacobian, out of the solve's way.
+[[gnu::noinline, gnu::cold]] IkResult singular_jacobian() {
+    return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+}
+
+}  // namespace
+
+// forward()'s steps for the TwoTurns shape: the part chain as walk_two_turns, the tool chain's
+// fresh linear links (R stays the identity: the identity times the tool axis, made at load).
+template <int k1, int k2>
+Pose Kinematics::forward_two_turns(const double* q, double* lever_arm, double* arms) const {
+    const TwoTurns& f = turns_;
+    AxisLine lines[2];
+    const M3 Rp = walk_two_turns<k1, k2>(f, q, lever_arm ? lines : nullptr);
+    const V3 tp{0, 0, 0};
+    V3 tt{0, 0, 0};
+    for (int m = 0; m < 3; ++m) tt = tt + V3{f.tool_dir[m][0], f.tool_dir[m][1], f.tool_dir[m][2]} * q[f.tool_joint[m]];
+    Pose pose;
+    const V3 tip = transposed_times(Rp, tt - tp);
+    pose.tip = Eigen::Vector3d(tip.x, tip.y, tip.z);
+    const V3 u = normalized(transposed_times(Rp, V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
+    pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
+    if (lever_arm) {
+        *lever_arm = 0;
+        for (int i = 0; i < 2; ++i) {
+            const double arm = distance_from(tt, lines[i]);
+            if (arms) arms[i] = arm;
+            *lever_arm = std::max(*lever_arm, arm);
+        }
+    }
+    return pose;
+}
+
 // solve_scalar's steps for the TwoTurns shape, in the same order with the same operations (the
 // walk's turn_about_axis for each turn, its lines, the tool chain's fresh linear links), each
 // link's numbers read from TwoTurns; test_kinematics holds it against the general solve too.
@@ -789,17 +848,9 @@ IkResult Kinematics::solve_two_turns(const Eigen::Vector3d& tip, std::vector<dou
     const TwoTurns& f = turns_;
     if (end) end->valid = false;
     const bool want_end = end && solved_ends_;
-    // The part chain: R the identity and t zero, then the two turns (neither shifts t).
-    M3 Rp{1, 0, 0, 0, 1, 0, 0, 0, 1};
-    const V3 tp{0, 0, 0};
-    V3 t = tp;
-    turn_about_axis<k1, false>(f.sign1, q[std::size_t(f.j1)], nullptr, Rp, t, true);
     AxisLine lines[2];
-    if (want_end) {
-        lines[0] = {V3{f.line0_point[0], f.line0_point[1], f.line0_point[2]}, V3{f.line0_dir[0], f.line0_dir[1], f.line0_dir[2]}};
-        lines[1] = {tp + Rp * V3{f.point2[0], f.point2[1], f.point2[2]}, normalized(Rp * V3{f.axis2[0], f.axis2[1], f.axis2[2]})};
-    }
-    turn_about_axis<k2, false>(f.sign2, q[std::size_t(f.j2)], nullptr, Rp, t, false);
+    const M3 Rp = walk_two_turns<k1, k2>(f, q.data(), want_end ? lines : nullptr);
+    const V3 tp{0, 0, 0};
     // The tool chain: fresh linear links.
     V3 tt{0, 0, 0};
     for (int m = 0; m < 3; ++m) tt = tt + V3{f.tool_dir[m][0], f.tool_dir[m][1], f.tool_dir[m][2]} * q[std::size_t(f.tool_joint[m])];
@@ -817,7 +868,7 @@ IkResult Kinematics::solve_two_turns(const Eigen::Vector3d& tip, std::vector<dou
     const double det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)) + m02 * (m10 * m21 - m11 * m20);
     if (!(std::abs(det) > 1e-9)) {
         if (want_end) end->end.pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
-        return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+        return singular_jacobian();
     }
     const double c00 = m11 * m22 - m12 * m21, c10 = m21 * m02 - m22 * m01, c20 = m01 * m12 - m02 * m11;
     const double invdet = 1.0 / ((c00 * m00 + c10 * m10) + c20 * m20);
@@ -846,7 +897,8 @@ IkResult Kinematics::solve_two_turns(const Eigen::Vector3d& tip, std::vector<dou
             e.lever_arm = std::max(e.lever_arm, e.arm[i]);
         }
         e.pose.tip = tip;
-        end->q = q;
+        if (end->q.size() == q.size()) std::copy(q.begin(), q.end(), end->q.begin());  // no call for the usual case
+        else end->q = q;
         end->valid = true;
     }
     return {};

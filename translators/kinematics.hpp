@@ -177,6 +177,8 @@ private:
     // solve_scalar for a machine of the shape TwoTurns describes, the same operations with the
     // chains unrolled (one instance per pair of coordinate axes, chosen at load).
     template <int k1, int k2>
+    Pose forward_two_turns(const double* q, double* lever_arm, double* arms) const;
+    template <int k1, int k2>
     IkResult solve_two_turns(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
     // The position solve's 3x3 Jacobian from the chains' linear directions; false when singular.
     bool linear_jacobian(const Eigen::Matrix3d& Rp, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,
