@@ -503,7 +503,7 @@ template <class Shifts>
 // product with it has one term that is an exact zero, and x + 0 is x. (Only the sign of a zero
 // result could differ: nothing downstream divides by one or prints its sign.)
 template <int k, bool kShift>
-inline void turn_about_axis(double sign, double degrees, const double* point, M3& R, V3& t, bool fresh) {
+[[gnu::always_inline]] inline void turn_about_axis(double sign, double degrees, const double* point, M3& R, V3& t, bool fresh) {
     const double angle = degrees * kDeg;
     const double s = std::sin(angle), c = std::cos(angle);
     const double ss = sign * s, d = (1.0 - c) + c;
@@ -779,6 +779,12 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
         q[std::size_t(linear_[2])] += dq.z;
         return {};
     }
+    return solve_varying(tip, q, axis, end);
+}
+
+// Apart from solve_position so that its constant-Jacobian path stays as short as it was, and
+// from solve_scalar so that the unrolled path does not pay for solve_scalar's frame.
+IkResult Kinematics::solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const {
     switch (turns_.pattern) {
         case 0 * 3 + 1: return solve_two_turns<0, 1>(tip, q, axis, end);
         case 0 * 3 + 2: return solve_two_turns<0, 2>(tip, q, axis, end);

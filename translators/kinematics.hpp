@@ -174,6 +174,8 @@ private:
     Pose forward(const double* q, double* lever_arm, double* arms = nullptr) const;
     // solve_position's path for a Jacobian that varies, in the walk's scalars (kinematics.cpp).
     IkResult solve_scalar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
+    // solve_two_turns where the machine has that shape, else solve_scalar.
+    IkResult solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
     // solve_scalar for a machine of the shape TwoTurns describes, the same operations with the
     // chains unrolled (one instance per pair of coordinate axes, chosen at load).
     template <int k1, int k2>
