@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
@@ -618,6 +619,30 @@ inline Eigen::Vector3d part_axis(const M3& Rp, const M3& Rt, const Eigen::Vector
 
 }  // namespace
 
+namespace {
+
+// The walk of TwoTurns' part chain (walk_links' steps for its two links): R the identity, t zero
+// and unmoved by either turn; with `lines`, the turns' axis lines as the walk records them.
+template <int k1, int k2, class TwoTurns>
+[[gnu::always_inline]] inline M3 walk_two_turns(const TwoTurns& f, const double* q, AxisLine* lines) {
+    M3 R{1, 0, 0, 0, 1, 0, 0, 0, 1};
+    V3 t{0, 0, 0};
+    turn_about_axis<k1, false>(f.sign1, q[f.j1], nullptr, R, t, true);
+    if (lines) {
+        lines[0] = {V3{f.line0_point[0], f.line0_point[1], f.line0_point[2]}, V3{f.line0_dir[0], f.line0_dir[1], f.line0_dir[2]}};
+        lines[1] = {t + R * V3{f.point2[0], f.point2[1], f.point2[2]}, normalized(R * V3{f.axis2[0], f.axis2[1], f.axis2[2]})};
+    }
+    turn_about_axis<k2, false>(f.sign2, q[f.j2], nullptr, R, t, false);
+    return R;
+}
+
+// The error of a singular Jacobian, out of the solve's way.
+[[gnu::noinline, gnu::cold]] IkResult singular_jacobian() {
+    return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+}
+
+}  // namespace
+
 void Kinematics::eval(const std::vector<ChainLink>& chain, const double* q, Eigen::Matrix3d& R_out, Eigen::Vector3d& t_out,
                       Eigen::Vector3d* linear_dirs) const {
     M3 R;
@@ -630,6 +655,25 @@ void Kinematics::eval(const std::vector<ChainLink>& chain, const double* q, Eige
 Pose Kinematics::forward(const std::vector<double>& q) const { return forward(q.data(), nullptr); }
 
 Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
+    // TwoTurns' shape: the part chain's rotation as the walk makes it, the tool chain's the
+    // identity (the identity times the tool axis, made at load).
+    const auto two_turns = [&](auto c1, auto c2) {
+        const M3 Rp = walk_two_turns<decltype(c1)::value, decltype(c2)::value>(turns_, q.data(), nullptr);
+        const V3 u = normalized(transposed_times(Rp, V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
+        return Eigen::Vector3d(u.x, u.y, u.z);
+    };
+    using C0 = std::integral_constant<int, 0>;
+    using C1 = std::integral_constant<int, 1>;
+    using C2 = std::integral_constant<int, 2>;
+    switch (turns_.pattern) {
+        case 0 * 3 + 1: return two_turns(C0{}, C1{});
+        case 0 * 3 + 2: return two_turns(C0{}, C2{});
+        case 1 * 3 + 0: return two_turns(C1{}, C0{});
+        case 1 * 3 + 2: return two_turns(C1{}, C2{});
+        case 2 * 3 + 0: return two_turns(C2{}, C0{});
+        case 2 * 3 + 1: return two_turns(C2{}, C1{});
+        default: break;
+    }
     M3 Rp, Rt;
     walk_rotation(part_links_, q.data(), Rp);
     walk_rotation(tool_links_, q.data(), Rt);
@@ -796,29 +840,6 @@ IkResult Kinematics::solve_varying(const Eigen::Vector3d& tip, std::vector<doubl
     }
 }
 
-namespace {
-
-// The walk of TwoTurns' part chain (walk_links' steps for its two links): R the identity, t zero
-// and unmoved by either turn; with `lines`, the turns' axis lines as the walk records them.
-template <int k1, int k2, class TwoTurns>
-[[gnu::always_inline]] inline M3 walk_two_turns(const TwoTurns& f, const double* q, AxisLine* lines) {
-    M3 R{1, 0, 0, 0, 1, 0, 0, 0, 1};
-    V3 t{0, 0, 0};
-    turn_about_axis<k1, false>(f.sign1, q[f.j1], nullptr, R, t, true);
-    if (lines) {
-        lines[0] = {V3{f.line0_point[0], f.line0_point[1], f.line0_point[2]}, V3{f.line0_dir[0], f.line0_dir[1], f.line0_dir[2]}};
-        lines[1] = {t + R * V3{f.point2[0], f.point2[1], f.point2[2]}, normalized(R * V3{f.axis2[0], f.axis2[1], f.axis2[2]})};
-    }
-    turn_about_axis<k2, false>(f.sign2, q[f.j2], nullptr, R, t, false);
-    return R;
-}
-
-// The error of a singular Jacobian, out of the solve's way.
-[[gnu::noinline, gnu::cold]] IkResult singular_jacobian() {
-    return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
-}
-
-}  // namespace
 
 // forward()'s steps for the TwoTurns shape: the part chain as walk_two_turns, the tool chain's
 // fresh linear links (R stays the identity: the identity times the tool axis, made at load).
