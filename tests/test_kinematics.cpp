@@ -74,9 +74,9 @@ Machine two_turns(Machine m, int k1, int k2, int t, std::mt19937& rng) {
     Eigen::Vector3d a1 = Eigen::Vector3d::Zero(), a2 = Eigen::Vector3d::Zero();
     a1[k1] = t & 1 ? -1 : 1;
     a2[k2] = t & 2 ? -1 : 1;
-    bool first = true;
+    int turns = 0;
     for (auto& e : m.part_chain)
-        if (e.kind == ChainElement::Kind::Rotary) e.axis = first ? a1 : a2, first = false;
+        if (e.kind == ChainElement::Kind::Rotary) e.axis = turns++ == 0 ? a1 : a2;
     if (t & 4)
         for (auto& e : m.tool_chain) e.axis = Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5);
     if (t & 8) m.tool_axis = Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized();

@@ -176,8 +176,9 @@ private:
     IkResult solve_scalar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
     // solve_two_turns where the machine has that shape, else solve_scalar.
     IkResult solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
-    // solve_scalar for a machine of the shape TwoTurns describes, the same operations with the
-    // chains unrolled (one instance per pair of coordinate axes, chosen at load).
+    // forward() and solve_scalar for a machine of the shape TwoTurns describes: the same
+    // operations with the chains unrolled (one instance per pair of coordinate axes, chosen at
+    // load; tool_axis() has its own, in kinematics.cpp).
     template <int k1, int k2>
     Pose forward_two_turns(const double* q, double* lever_arm, double* arms) const;
     template <int k1, int k2>
@@ -242,7 +243,8 @@ private:
     std::vector<int> tool_linear_;      // the tool chain's linear joints (they carry the tip)
     // A part chain of two turns about +-1 times coordinate axes k1 != k2, both through the origin
     // (no shift), and a tool chain of three fresh linear links giving the three unknowns
-    // (pentarod's A/C table): the position solve's walk unrolled, its constants taken once here.
+    // (pentarod's A/C table): the walks of forward(), tool_axis() and the position solve
+    // unrolled, their constants taken once here.
     struct TwoTurns {
         int pattern = -1;  // k1 * 3 + k2; -1: the machine has another shape
         int j1 = 0, j2 = 0;
