@@ -19,11 +19,50 @@ std::string fmt(double v) {
     return buf;
 }
 
+// inside_limits, for the functions below to inline.
+inline bool inside(const Joint& J, double v) { return v >= J.min - kLimitSlack && v <= J.max + kLimitSlack; }
+
+// orient_within_limits's shortcut for two rotaries, two solutions, no joint free, each joint's
+// nearest turn taken at once (choose's first test): choose's own operations in the same order,
+// without its bookkeeping. True when it placed q; anything else, a failure included, goes
+// choose's general way. Apart from choose, so the usual move builds no result and pays for no
+// more registers than it uses.
+bool nearest_two(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
+                 const std::vector<double>& previous, std::vector<double>& q) {
+    if (rotary.size() != 2 || solutions.count != 2) return false;
+    const std::size_t j0 = std::size_t(rotary[0]), j1 = std::size_t(rotary[1]);
+    const Joint& J0 = machine.joints[j0];
+    const Joint& J1 = machine.joints[j1];
+    const double p0 = previous[j0], p1 = previous[j1];
+    const double a00 = solutions.angle[0][0], a01 = solutions.angle[0][1];
+    const double a10 = solutions.angle[1][0], a11 = solutions.angle[1][1];
+    auto at_once = [](const Joint& J, double prev, double nearest) {
+        return !J.bounded() || (inside(J, nearest) && std::abs(nearest - prev) < 179.0);
+    };
+    if (std::isnan(a00) || std::isnan(a01) || std::isnan(a10) || std::isnan(a11)) return false;
+    const double n00 = p0 + wrap180(a00 - p0), n01 = p1 + wrap180(a01 - p1);
+    const double n10 = p0 + wrap180(a10 - p0), n11 = p1 + wrap180(a11 - p1);
+    if (!(at_once(J0, p0, n00) && at_once(J1, p1, n01) && at_once(J0, p0, n10) && at_once(J1, p1, n11))) return false;
+    // cost starts at 0 and adds a square (never -0): 0 + x is x.
+    const double cost0 = (n00 - p0) * (n00 - p0) + (n01 - p1) * (n01 - p1);
+    const double cost1 = (n10 - p0) * (n10 - p0) + (n11 - p1) * (n11 - p1);
+    const double inf = std::numeric_limits<double>::infinity();
+    const bool take0 = cost0 < inf;
+    if (cost1 < (take0 ? cost0 : inf)) {
+        q[j0] = n10, q[j1] = n11;
+        return true;
+    }
+    if (take0) {
+        q[j0] = n00, q[j1] = n01;
+        return true;
+    }
+    return false;
+}
+
 // Of `solutions`, the turn of each rotary nearest its previous value (inside the limits when
 // `limited`), and of those the solution nearest `previous` overall.
 IkResult choose(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
-                const std::vector<double>& previous, const std::vector<double>& free_value, bool limited, std::vector<double>& q,
-                bool shortcut = true) {
+                const std::vector<double>& previous, const std::vector<double>& free_value, bool limited, std::vector<double>& q) {
     const Eigen::Vector3d& axis = solutions.axis;
     if (solutions.empty()) {
         char buf[160];
@@ -31,39 +70,6 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
         return {IkStatus::Unreachable, buf};
     }
     const std::size_t n = rotary.size();
-    // Two rotaries, two solutions, no joint free, each joint's nearest turn taken at once (the
-    // first test below): the loop's own operations in the same order, without its bookkeeping.
-    // Anything else, a failure included, goes the general way.
-    if (shortcut && n == 2 && solutions.count == 2 && limited) {
-        const std::size_t j0 = std::size_t(rotary[0]), j1 = std::size_t(rotary[1]);
-        const Joint& J0 = machine.joints[j0];
-        const Joint& J1 = machine.joints[j1];
-        const double p0 = previous[j0], p1 = previous[j1];
-        const double a00 = solutions.angle[0][0], a01 = solutions.angle[0][1];
-        const double a10 = solutions.angle[1][0], a11 = solutions.angle[1][1];
-        auto at_once = [](const Joint& J, double prev, double nearest) {
-            return !J.bounded() || (inside_limits(J, nearest) && std::abs(nearest - prev) < 179.0);
-        };
-        if (!std::isnan(a00) && !std::isnan(a01) && !std::isnan(a10) && !std::isnan(a11)) {
-            const double n00 = p0 + wrap180(a00 - p0), n01 = p1 + wrap180(a01 - p1);
-            const double n10 = p0 + wrap180(a10 - p0), n11 = p1 + wrap180(a11 - p1);
-            if (at_once(J0, p0, n00) && at_once(J1, p1, n01) && at_once(J0, p0, n10) && at_once(J1, p1, n11)) {
-                // cost starts at 0 and adds a square (never -0): 0 + x is x.
-                const double cost0 = (n00 - p0) * (n00 - p0) + (n01 - p1) * (n01 - p1);
-                const double cost1 = (n10 - p0) * (n10 - p0) + (n11 - p1) * (n11 - p1);
-                const double inf = std::numeric_limits<double>::infinity();
-                const bool take0 = cost0 < inf;
-                if (cost1 < (take0 ? cost0 : inf)) {
-                    q[j0] = n10, q[j1] = n11;
-                    return {};
-                }
-                if (take0) {
-                    q[j0] = n00, q[j1] = n01;
-                    return {};
-                }
-            }
-        }
-    }
     double best_cost = std::numeric_limits<double>::infinity();
     double best[2] = {0, 0};
     bool found = false;
@@ -121,7 +127,7 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
 
 }  // namespace
 
-bool inside_limits(const Joint& J, double v) { return v >= J.min - kLimitSlack && v <= J.max + kLimitSlack; }
+bool inside_limits(const Joint& J, double v) { return inside(J, v); }
 
 bool within_limits(const Machine& machine, const std::vector<double>& q) {
     bool inside = true;
@@ -155,12 +161,13 @@ IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
 
 IkResult orient_within_limits(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
                               const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q) {
+    if (nearest_two(machine, rotary, solutions, previous, q)) return {};
     return choose(machine, rotary, solutions, previous, free_value, true, q);
 }
 
 IkResult orient_within_limits_general(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
                                       const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q) {
-    return choose(machine, rotary, solutions, previous, free_value, true, q, false);
+    return choose(machine, rotary, solutions, previous, free_value, true, q);
 }
 
 IkResult orient_on_branch(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions, int branch,
