@@ -109,7 +109,7 @@ struct ToolMove {
     bool any_xyz = false;
     Eigen::Vector3d tip = Eigen::Vector3d::Zero();   // part frame (the current tip when no X Y Z)
     bool any_rotary = false;
-    const std::vector<double>* angles = nullptr;     // programmed angle per joint (rotaries; always given: G43.4 words, or the current ones)
+    const std::vector<double>* angles = nullptr;     // programmed angle per joint (rotaries): under G43.4 the words, or the current ones; not filled under G43.5 (tool-vector mode), where nothing reads them
     bool any_ijk = false;
     Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // G43.5: the tool axis, unit (when any_ijk)
     const std::vector<bool>* commanded = nullptr;    // joints the line names (directly or through the tip)
