@@ -141,6 +141,9 @@ double MotionStage::piece_length(const double* q0, const double* q1) const {
         const double d = q1[j] - q0[j];
         lin2 += d * d;
     }
+    // Every rule but Marlin's articulated one takes the linear length when there is one: the
+    // rotaries' sums are not needed then (the usual printing piece).
+    if (lin2 > 0 && machine_.dialect.firmware != FirmwareDialect::MarlinArticulated) return std::sqrt(lin2);
     for (const std::size_t j : rotary_) {
         const double d = q1[j] - q0[j];
         rot2 += d * d;
