@@ -240,6 +240,13 @@ Kinematics::Kinematics(const Machine& machine)
             f.aw2p = f.a * f.w2p;
             f.psq = p_.squaredNorm();
             f.nn = n.squaredNorm();
+            // x / 2^m and x * 2^-m round the same real number (2^-m exact), so they agree to the bit.
+            auto power_of_two = [](double v) {
+                int e = 0;
+                return std::isfinite(v) && std::abs(std::frexp(v, &e)) == 0.5;
+            };
+            f.den_inv = 1.0 / f.den, f.nn_inv = 1.0 / f.nn;
+            f.exact_inv = power_of_two(f.den) && power_of_two(f.nn) && power_of_two(f.den_inv) && power_of_two(f.nn_inv);
             for (int m = 0; m < 3; ++m) f.pp2[m] = pp2[m];
             f.free2 = pp2.norm() < kFreeEps;
             f.g0_identity = g0_ == Eigen::Matrix3d::Identity();
@@ -387,6 +394,7 @@ Kinematics::Kinematics(const Machine& machine)
             near_terms_.push_back({int(j), shift_per_unit_[j], -1, shift_per_unit_[j]});
             counted[j] = true;
         }
+    near_linear_ = near_terms_.size();
     for (const BoundTerm& e : terms_)
         if (e.rotary) {
             const std::size_t j = std::size_t(e.joint);
@@ -1054,17 +1062,23 @@ bool Kinematics::near_end(const SolvedEnd& solved, const double* q, PathEnd& out
     // Along the joint-linear path from the solution to q the tip moves (relative to any axis)
     // by at most `grow` (reach_shift's sum, made in the same pass), so each arm stays within its
     // value at the solution plus that: a rotary's term is its turn times (arm + grow).
+    // The linear terms come first (near_terms_), each with its reach term equal to its mm per
+    // unit: one product serves both sums, in the same order as one loop over all terms.
     double grow = 0, tip = 0, axis = 0;
-    for (const NearTerm& t : near_terms_) {
-        const double d = std::abs(q[t.joint] - s[t.joint]);
-        grow += d * t.reach_per_unit;
-        const double move = d * t.per_unit;  // mm, or radians
-        if (t.arm < 0) {
-            tip += move;
-        } else {
-            tip += move * solved.end.arm[t.arm];
-            axis += move;  // a unit vector turned by that angle moves at most that far
-        }
+    const NearTerm* t = near_terms_.data();
+    const NearTerm* const rotary = t + near_linear_;
+    const NearTerm* const end = t + near_terms_.size();
+    for (; t != rotary; ++t) {
+        const double move = std::abs(q[t->joint] - s[t->joint]) * t->per_unit;  // mm
+        grow += move;
+        tip += move;
+    }
+    for (; t != end; ++t) {
+        const double d = std::abs(q[t->joint] - s[t->joint]);
+        grow += d * t->reach_per_unit;
+        const double move = d * t->per_unit;  // radians
+        tip += move * solved.end.arm[t->arm];
+        axis += move;  // a unit vector turned by that angle moves at most that far
     }
     tip += axis * grow;
     out.pose = solved.end.pose;
@@ -1120,9 +1134,15 @@ bool Kinematics::orientation_shortcut(const Eigen::Vector3d& axis, Solutions& ou
         constexpr int i = decltype(ci)::value, j = decltype(cj)::value, k = 3 - i - j;
         constexpr int i1 = (i + 1) % 3, i2 = (i + 2) % 3, j1 = (j + 1) % 3, j2 = (j + 2) % 3;
         const double w1u = f.w1i * u[i];  // w1 . u
-        const double alpha = (f.aw2p - w1u) / f.den;
-        const double beta = (f.a * w1u - f.w2p) / f.den;
-        const double gamma2 = (f.psq - alpha * alpha - beta * beta - 2.0 * alpha * beta * f.a) / f.nn;
+        const double na = f.aw2p - w1u, nb = f.a * w1u - f.w2p;
+        double alpha, beta, gamma2;
+        if (f.exact_inv) {  // the quotients below as products, to the bit (see OrientShortcut)
+            alpha = na * f.den_inv, beta = nb * f.den_inv;
+            gamma2 = (f.psq - alpha * alpha - beta * beta - 2.0 * alpha * beta * f.a) * f.nn_inv;
+        } else {
+            alpha = na / f.den, beta = nb / f.den;
+            gamma2 = (f.psq - alpha * alpha - beta * beta - 2.0 * alpha * beta * f.a) / f.nn;
+        }
         if (gamma2 < -kReachEps * kReachEps) return void(status = 1);
         const double gamma = std::sqrt(std::max(gamma2, 0.0));
         if (gamma == 0.0) return void(status = 2);

@@ -213,6 +213,10 @@ private:
         double w1i = 1, w2j = 1, nk = 1;
         double sign1 = 1, sign2 = 1;  // sign_
         double a = 0, den = -1, w2p = 0, aw2p = 0, psq = 1, nn = 1;
+        // den and nn both powers of two (+-1 for coordinate axes at right angles, as pentarod's):
+        // a quotient by either is then the product with its exact reciprocal, to the last bit.
+        bool exact_inv = false;
+        double den_inv = -1, nn_inv = 1;
         double pp2[3] = {};  // p projected off w2
         double g0[9] = {};   // row by row
         double free_sq = 0;  // |v|^2 below this: |v| < kFreeEps
@@ -265,6 +269,7 @@ private:
         double reach_per_unit = 0;  // the joint's shift_per_unit_ (reach_shift's term), on its first term only
     };
     std::vector<NearTerm> near_terms_;
+    std::size_t near_linear_ = 0;  // near_terms_' linear joints, all ahead of its rotary elements
     int arm_count_ = 0;  // rotary elements, the entries of PathEnd::arm in use
 };
 
