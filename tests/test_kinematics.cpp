@@ -465,6 +465,32 @@ TEST_CASE("the tool axis's bound holds for turns of any size on every shipped ma
     }
 }
 
+TEST_CASE("the joint-path bound's shorter path equals its general one bit for bit on every shipped machine") {
+    for (const auto& [name, path] : bundled_machines()) {
+        CAPTURE(name);
+        const Machine m = load_machine(path);
+        const Kinematics k(m);
+        std::mt19937 rng(std::hash<std::string>{}(name) & 0xffff);
+        std::uniform_real_distribution<double> U(0, 1);
+        int differ = 0;
+        for (int i = 0; i < 3000; ++i) {
+            const double scale = std::pow(10.0, -3.0 + 3.5 * U(rng));
+            std::vector<double> qa(m.joints.size()), qb(m.joints.size());
+            for (std::size_t j = 0; j < qa.size(); ++j) {
+                const Joint& J = m.joints[j];
+                const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
+                qa[j] = lo + (hi - lo) * U(rng);
+                qb[j] = i % 7 == 0 ? qa[j] : qa[j] + (2 * U(rng) - 1) * scale * (J.rotary ? 10.0 : 20.0);
+            }
+            const auto a = k.path_end(qa.data());
+            const auto fast = k.joint_path_bound(a, qa.data(), qb.data());
+            const auto general = k.joint_path_bound_general(a, qa.data(), qb.data());
+            if (std::memcmp(&fast.tip, &general.tip, sizeof fast.tip) != 0 || std::memcmp(&fast.axis, &general.axis, sizeof fast.axis) != 0) ++differ;
+        }
+        CHECK(differ == 0);
+    }
+}
+
 TEST_CASE("the joint-path bound holds against dense sampling of the path on every shipped machine") {
     // The firmware moves every joint at a constant rate from qa to qb: the tip and the tool axis
     // (sampled at 400 points by FK) must stay within the bound of the chords between their ends.

@@ -285,6 +285,14 @@ Kinematics::Kinematics(const Machine& machine)
     std::size_t lead = 0;
     while (lead < terms_.size() && !terms_[lead].rotary) ++lead;
     terms_.erase(terms_.begin(), terms_.begin() + std::ptrdiff_t(lead));
+    // joint_path_bound_split's shape: the rotaries, then the linear joints alone.
+    bound_count_ = int(terms_.size());
+    while (bound_rotary_ < bound_count_ && terms_[std::size_t(bound_rotary_)].rotary) ++bound_rotary_;
+    bound_split_ = bound_count_ <= 8;
+    for (int k = 0; k < bound_count_ && bound_split_; ++k) {
+        bound_split_ = terms_[std::size_t(k)].rotary == (k < bound_rotary_);
+        bound_[k] = terms_[std::size_t(k)];
+    }
 
     // The machine's reach, for a bound that needs no FK (reach()): how far the tip can be from
     // each rotary element's axis, for any joint values inside the limits (rotaries at any
@@ -746,6 +754,47 @@ Kinematics::PathEnd Kinematics::path_end(const double* q) const {
 }
 
 Kinematics::PathBound Kinematics::joint_path_bound(const PathEnd& a, const double* qa, const double* qb) const {
+    if (bound_split_) return joint_path_bound_split(a, qa, qb);
+    return joint_path_bound_general(a, qa, qb);
+}
+
+// joint_path_bound_general's sums for terms_ of rotaries alone and then linear joints alone
+// (pentarod's A/C table and X/Y/Z tool chain, rw2's head), read from bound_ in that order: every
+// sum takes the same terms in the same order, without a test of each term's kind.
+Kinematics::PathBound Kinematics::joint_path_bound_split(const PathEnd& a, const double* qa, const double* qb) const {
+    PathBound out;
+    double rate[8];
+    const int nr = bound_rotary_, n = bound_count_;
+    double w = 0, s = 0, l = 0;
+    for (int k = 0; k < nr; ++k) {
+        const BoundTerm& e = bound_[k];
+        rate[k] = std::abs(qb[e.joint] - qa[e.joint]) * e.scale * kDeg;
+        w += rate[k];
+        s += rate[k] * rate[k];
+    }
+    for (int k = nr; k < n; ++k) {
+        const BoundTerm& e = bound_[k];
+        rate[k] = std::abs(qb[e.joint] - qa[e.joint]) * e.scale;
+        l += rate[k];
+    }
+    if (!(w < 0.5)) {
+        out.tip = out.axis = std::numeric_limits<double>::infinity();
+        return out;
+    }
+    const double r = (a.lever_arm + l) / (1.0 - w);
+    double curve = 2 * w * l, w_after = 0, l_after = 0;
+    for (int k = n; k-- > nr;) l_after += rate[k];
+    for (int k = nr; k-- > 0;) {
+        const double ri = std::min(r, a.arm[bound_[k].arm] + w_after * r + l_after);
+        curve += rate[k] * ri * (2 * w - rate[k]);
+        w_after += rate[k];
+    }
+    out.tip = curve / 8.0;
+    out.axis = (2 * w * w - s) / 8.0;
+    return out;
+}
+
+Kinematics::PathBound Kinematics::joint_path_bound_general(const PathEnd& a, const double* qa, const double* qb) const {
     PathBound out;
     double rate[8];  // each term's w_i (radians) or v_k (mm); the loader allows at most 5 joints, two rotary
     const std::size_t n = terms_.size();

@@ -121,6 +121,9 @@ public:
         double tip = 0, axis = 0;
     };
     PathBound joint_path_bound(const PathEnd& a, const double* qa, const double* qb) const;
+    // joint_path_bound for any order of the terms (it takes a shorter path for some orders; the
+    // tests hold it against this one).
+    PathBound joint_path_bound_general(const PathEnd& a, const double* qa, const double* qb) const;
     // joint_path_bound's bound for the tool axis alone, for a turn of any size.
     double axis_path_bound(const double* qa, const double* qb) const;
     // The machine's reach as a path end (lever arms only, no pose): the tip's largest distance
@@ -196,6 +199,11 @@ private:
         int arm = 0;       // rotary: its index in PathEnd::arm
     };
     std::vector<BoundTerm> terms_;
+    // terms_ when it is its rotaries and then its linear joints alone (joint_path_bound_split).
+    bool bound_split_ = false;
+    int bound_rotary_ = 0, bound_count_ = 0;
+    BoundTerm bound_[8];
+    PathBound joint_path_bound_split(const PathEnd& a, const double* qa, const double* qb) const;
 
     Machine machine_;
     std::vector<ChainLink> part_links_, tool_links_;  // machine_'s chains, compiled for the walk
