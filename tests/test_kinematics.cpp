@@ -465,6 +465,25 @@ TEST_CASE("the tool axis's bound holds for turns of any size on every shipped ma
     }
 }
 
+namespace {
+
+// A random start inside the machine's limits (an unbounded rotary within two turns) and a step
+// from it of up to `scale` times 10 degrees (rotary) or 20 mm (linear) for each joint; none when
+// scale is 0.
+void random_step(const Machine& m, std::mt19937& rng, double scale, std::vector<double>& qa, std::vector<double>& qb) {
+    std::uniform_real_distribution<double> U(0, 1);
+    qa.resize(m.joints.size());
+    qb.resize(m.joints.size());
+    for (std::size_t j = 0; j < qa.size(); ++j) {
+        const Joint& J = m.joints[j];
+        const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
+        qa[j] = lo + (hi - lo) * U(rng);
+        qb[j] = scale == 0 ? qa[j] : qa[j] + (2 * U(rng) - 1) * scale * (J.rotary ? 10.0 : 20.0);
+    }
+}
+
+}  // namespace
+
 TEST_CASE("the joint-path bound's shorter path equals its general one bit for bit on every shipped machine") {
     for (const auto& [name, path] : bundled_machines()) {
         CAPTURE(name);
@@ -475,13 +494,8 @@ TEST_CASE("the joint-path bound's shorter path equals its general one bit for bi
         int differ = 0;
         for (int i = 0; i < 3000; ++i) {
             const double scale = std::pow(10.0, -3.0 + 3.5 * U(rng));
-            std::vector<double> qa(m.joints.size()), qb(m.joints.size());
-            for (std::size_t j = 0; j < qa.size(); ++j) {
-                const Joint& J = m.joints[j];
-                const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
-                qa[j] = lo + (hi - lo) * U(rng);
-                qb[j] = i % 7 == 0 ? qa[j] : qa[j] + (2 * U(rng) - 1) * scale * (J.rotary ? 10.0 : 20.0);
-            }
+            std::vector<double> qa, qb;
+            random_step(m, rng, i % 7 == 0 ? 0.0 : scale, qa, qb);
             const auto a = k.path_end(qa.data());
             const auto fast = k.joint_path_bound(a, qa.data(), qb.data());
             const auto general = k.joint_path_bound_general(a, qa.data(), qb.data());
@@ -504,13 +518,8 @@ TEST_CASE("the joint-path bound holds against dense sampling of the path on ever
         for (int i = 0; i < 1500; ++i) {
             // Steps from small (a printing move) to large (a travel turn): up to 0.3 .. 30 degrees.
             const double scale = std::pow(10.0, -1.5 + 2.0 * U(rng));
-            std::vector<double> qa(m.joints.size()), qb(m.joints.size());
-            for (std::size_t j = 0; j < qa.size(); ++j) {
-                const Joint& J = m.joints[j];
-                const double lo = J.bounded() ? J.min : -720, hi = J.bounded() ? J.max : 720;
-                qa[j] = lo + (hi - lo) * U(rng);
-                qb[j] = qa[j] + (2 * U(rng) - 1) * scale * (J.rotary ? 10.0 : 20.0);
-            }
+            std::vector<double> qa, qb;
+            random_step(m, rng, scale, qa, qb);
             const auto a = k.path_end(qa.data());
             const auto bound = k.joint_path_bound(a, qa.data(), qb.data());
             const Pose pa = k.forward(qa), pb = k.forward(qb);

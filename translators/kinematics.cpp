@@ -652,6 +652,24 @@ template <int k1, int k2, class TwoTurns>
     return R;
 }
 
+// The linear joints' step dq = J^-1 (tip - current) from J's columns, as Eigen computes a fixed-size 3x3:
+// the determinant as bruteforce_det3_helper sums it, the inverse from the first column's
+// cofactors with one division (so the same bits as solve_position_general's). False when J is
+// singular. Shared by both varying-Jacobian solves.
+[[gnu::always_inline]] inline bool jacobian_step(const V3 (&col)[3], const Eigen::Vector3d& tip, const V3& current, V3& dq) {
+    const double m00 = col[0].x, m10 = col[0].y, m20 = col[0].z, m01 = col[1].x, m11 = col[1].y, m21 = col[1].z, m02 = col[2].x,
+                 m12 = col[2].y, m22 = col[2].z;
+    const double det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)) + m02 * (m10 * m21 - m11 * m20);
+    if (!(std::abs(det) > 1e-9)) return false;
+    const double c00 = m11 * m22 - m12 * m21, c10 = m21 * m02 - m22 * m01, c20 = m01 * m12 - m02 * m11;
+    const double invdet = 1.0 / ((c00 * m00 + c10 * m10) + c20 * m20);
+    const M3 Ji{c00 * invdet, c10 * invdet, c20 * invdet,
+                (m12 * m20 - m10 * m22) * invdet, (m22 * m00 - m20 * m02) * invdet, (m02 * m10 - m00 * m12) * invdet,
+                (m10 * m21 - m11 * m20) * invdet, (m20 * m01 - m21 * m00) * invdet, (m00 * m11 - m01 * m10) * invdet};
+    dq = Ji * (v3(tip) - current);
+    return true;
+}
+
 // The error of a singular Jacobian, out of the solve's way.
 [[gnu::noinline, gnu::cold]] IkResult singular_jacobian() {
     return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
@@ -947,19 +965,11 @@ IkResult Kinematics::solve_two_turns(const Eigen::Vector3d& tip, std::vector<dou
     const V3 current = transposed_times(Rp, tt - tp);
     V3 col[3];
     for (int k = 0; k < 3; ++k) col[k] = transposed_times(Rp, V3{f.col_dir[k][0], f.col_dir[k][1], f.col_dir[k][2]});
-    const double m00 = col[0].x, m10 = col[0].y, m20 = col[0].z, m01 = col[1].x, m11 = col[1].y, m21 = col[1].z, m02 = col[2].x,
-                 m12 = col[2].y, m22 = col[2].z;
-    const double det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)) + m02 * (m10 * m21 - m11 * m20);
-    if (!(std::abs(det) > 1e-9)) {
+    V3 dq;
+    if (!jacobian_step(col, tip, current, dq)) {
         if (want_end) end->end.pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
         return singular_jacobian();
     }
-    const double c00 = m11 * m22 - m12 * m21, c10 = m21 * m02 - m22 * m01, c20 = m01 * m12 - m02 * m11;
-    const double invdet = 1.0 / ((c00 * m00 + c10 * m10) + c20 * m20);
-    const M3 Ji{c00 * invdet, c10 * invdet, c20 * invdet,
-                (m12 * m20 - m10 * m22) * invdet, (m22 * m00 - m20 * m02) * invdet, (m02 * m10 - m00 * m12) * invdet,
-                (m10 * m21 - m11 * m20) * invdet, (m20 * m01 - m21 * m00) * invdet, (m00 * m11 - m01 * m10) * invdet};
-    const V3 dq = Ji * (v3(tip) - current);
     q[std::size_t(linear_[0])] += dq.x;
     q[std::size_t(linear_[1])] += dq.y;
     q[std::size_t(linear_[2])] += dq.z;
@@ -1035,18 +1045,8 @@ IkResult Kinematics::solve_scalar(const Eigen::Vector3d& tip, std::vector<double
         if (solve_cols_[k].part) d = d - v3(part_dirs[j]);
         col[k] = transposed_times(Rp, d);
     }
-    const double m00 = col[0].x, m10 = col[0].y, m20 = col[0].z, m01 = col[1].x, m11 = col[1].y, m21 = col[1].z, m02 = col[2].x,
-                 m12 = col[2].y, m22 = col[2].z;
-    // J.determinant() (Eigen's bruteforce_det3_helper sum)
-    const double det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)) + m02 * (m10 * m21 - m11 * m20);
-    if (!(std::abs(det) > 1e-9)) return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
-    // J.inverse(): the first column's cofactors, their dot with column 0, one division.
-    const double c00 = m11 * m22 - m12 * m21, c10 = m21 * m02 - m22 * m01, c20 = m01 * m12 - m02 * m11;
-    const double invdet = 1.0 / ((c00 * m00 + c10 * m10) + c20 * m20);
-    const M3 Ji{c00 * invdet, c10 * invdet, c20 * invdet,
-                (m12 * m20 - m10 * m22) * invdet, (m22 * m00 - m20 * m02) * invdet, (m02 * m10 - m00 * m12) * invdet,
-                (m10 * m21 - m11 * m20) * invdet, (m20 * m01 - m21 * m00) * invdet, (m00 * m11 - m01 * m10) * invdet};
-    const V3 dq = Ji * (v3(tip) - current);
+    V3 dq;
+    if (!jacobian_step(col, tip, current, dq)) return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
     q[std::size_t(linear_[0])] += dq.x;
     q[std::size_t(linear_[1])] += dq.y;
     q[std::size_t(linear_[2])] += dq.z;
