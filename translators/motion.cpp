@@ -65,15 +65,24 @@ double end_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Ei
 }  // namespace
 
 namespace {
-// The dialect's rule from the squared linear and rotary moves and the largest rotary one.
-double rule_length(const Machine& m, double lin2, double rot2, double rot_max);
+// Every firmware rule but Marlin's articulated one takes the XYZ length alone whenever a linear
+// joint moves (piece_length leaves the rotaries' sums out then).
+bool linear_length_rules(const Machine& m) { return m.dialect.firmware != FirmwareDialect::MarlinArticulated; }
 
-// The dialect's rule; `round` false when both ends are already as printed (rounding is idempotent:
-// a printed value scaled back differs from its integer units by far less than half a unit).
-double dialect_length(const Machine& m, std::span<const double> q0, std::span<const double> q1, bool round) {
+// The dialect's rule from the squared linear and rotary moves and the largest rotary one.
+double rule_length(const Machine& m, double lin2, double rot2, double rot_max) {
+    if (!linear_length_rules(m)) return std::sqrt(lin2 + rot2);  // Marlin articulated: every axis counts, mm and degrees alike
+    if (lin2 > 0) return std::sqrt(lin2);                          // XYZ length if any moves
+    // No linear move: Klipper takes the largest single-axis move, the NIST rule (Marlin, RepRap,
+    // generic) the rotaries' length.
+    return m.dialect.firmware == FirmwareDialect::Klipper ? rot_max : std::sqrt(rot2);
+}
+}  // namespace
+
+double firmware_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1) {
     double lin2 = 0, rot2 = 0, rot_max = 0;
     for (std::size_t j = 0; j < q0.size(); ++j) {
-        const double d = round ? printed(m, j, q1[j]) - printed(m, j, q0[j]) : q1[j] - q0[j];
+        const double d = printed(m, j, q1[j]) - printed(m, j, q0[j]);
         if (m.joints[j].rotary) {
             rot2 += d * d;
             rot_max = std::max(rot_max, std::abs(d));
@@ -82,25 +91,6 @@ double dialect_length(const Machine& m, std::span<const double> q0, std::span<co
         }
     }
     return rule_length(m, lin2, rot2, rot_max);
-}
-
-double rule_length(const Machine& m, double lin2, double rot2, double rot_max) {
-    switch (m.dialect.firmware) {
-        case FirmwareDialect::MarlinArticulated:
-            return std::sqrt(lin2 + rot2);  // every axis counts, mm and degrees alike
-        case FirmwareDialect::Klipper:
-            return lin2 > 0 ? std::sqrt(lin2) : rot_max;  // XYZ length, else the largest single-axis move
-        case FirmwareDialect::Marlin:
-        case FirmwareDialect::RepRap:
-        case FirmwareDialect::Generic:
-        default:
-            return lin2 > 0 ? std::sqrt(lin2) : std::sqrt(rot2);  // NIST rule: XYZ if any moves, else rotaries
-    }
-}
-}  // namespace
-
-double firmware_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1) {
-    return dialect_length(m, q0, q1, true);
 }
 
 MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
@@ -134,16 +124,16 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
 }
 
 double MotionStage::piece_length(const double* q0, const double* q1) const {
-    // dialect_length's sums without rounding, each over its own joints in the same order (the
-    // same additions), with no test of which kind a joint is.
+    // firmware_length's sums without its rounding (both ends are already as printed: rounding is
+    // idempotent), each over its own joints in the same order (the same additions), with no test
+    // of which kind a joint is.
     double lin2 = 0, rot2 = 0, rot_max = 0;
     for (const std::size_t j : linear_) {
         const double d = q1[j] - q0[j];
         lin2 += d * d;
     }
-    // Every rule but Marlin's articulated one takes the linear length when there is one: the
-    // rotaries' sums are not needed then (the usual printing piece).
-    if (lin2 > 0 && machine_.dialect.firmware != FirmwareDialect::MarlinArticulated) return std::sqrt(lin2);
+    // The rotaries' sums are not needed when the rule takes the linear length (the usual printing piece).
+    if (lin2 > 0 && linear_length_rules(machine_)) return std::sqrt(lin2);
     for (const std::size_t j : rotary_) {
         const double d = q1[j] - q0[j];
         rot2 += d * d;
