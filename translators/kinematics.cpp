@@ -637,6 +637,24 @@ inline Eigen::Vector3d part_axis(const M3& Rp, const M3& Rt, const Eigen::Vector
 
 namespace {
 
+// fn(k1, k2) for TwoTurns' pattern (k1 * 3 + k2, one of the six pairs of distinct coordinate
+// axes), the axes as compile-time constants (std::integral_constant): the one place the six
+// instances are named. The caller has checked that the machine has the shape (pattern >= 0).
+template <class Fn>
+[[gnu::always_inline]] inline decltype(auto) on_two_turns(int pattern, Fn&& fn) {
+    using C0 = std::integral_constant<int, 0>;
+    using C1 = std::integral_constant<int, 1>;
+    using C2 = std::integral_constant<int, 2>;
+    switch (pattern) {
+        case 0 * 3 + 1: return fn(C0{}, C1{});
+        case 0 * 3 + 2: return fn(C0{}, C2{});
+        case 1 * 3 + 0: return fn(C1{}, C0{});
+        case 1 * 3 + 2: return fn(C1{}, C2{});
+        case 2 * 3 + 0: return fn(C2{}, C0{});
+        default: return fn(C2{}, C1{});  // 2 * 3 + 1
+    }
+}
+
 // The walk of TwoTurns' part chain (walk_links' steps for its two links): R the identity, t zero
 // and unmoved by either turn; with `lines`, the turns' axis lines as the walk records them.
 template <int k1, int k2, class TwoTurns>
@@ -691,23 +709,12 @@ Pose Kinematics::forward(const std::vector<double>& q) const { return forward(q.
 Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
     // TwoTurns' shape: the part chain's rotation as the walk makes it, the tool chain's the
     // identity (the identity times the tool axis, made at load).
-    const auto two_turns = [&](auto c1, auto c2) {
-        const M3 Rp = walk_two_turns<decltype(c1)::value, decltype(c2)::value>(turns_, q.data(), nullptr);
-        const V3 u = normalized(transposed_times(Rp, V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
-        return Eigen::Vector3d(u.x, u.y, u.z);
-    };
-    using C0 = std::integral_constant<int, 0>;
-    using C1 = std::integral_constant<int, 1>;
-    using C2 = std::integral_constant<int, 2>;
-    switch (turns_.pattern) {
-        case 0 * 3 + 1: return two_turns(C0{}, C1{});
-        case 0 * 3 + 2: return two_turns(C0{}, C2{});
-        case 1 * 3 + 0: return two_turns(C1{}, C0{});
-        case 1 * 3 + 2: return two_turns(C1{}, C2{});
-        case 2 * 3 + 0: return two_turns(C2{}, C0{});
-        case 2 * 3 + 1: return two_turns(C2{}, C1{});
-        default: break;
-    }
+    if (turns_.pattern >= 0)
+        return on_two_turns(turns_.pattern, [&](auto c1, auto c2) {
+            const M3 Rp = walk_two_turns<decltype(c1)::value, decltype(c2)::value>(turns_, q.data(), nullptr);
+            const V3 u = normalized(transposed_times(Rp, V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
+            return Eigen::Vector3d(u.x, u.y, u.z);
+        });
     M3 Rp, Rt;
     walk_rotation(part_links_, q.data(), Rp);
     walk_rotation(tool_links_, q.data(), Rt);
@@ -716,15 +723,10 @@ Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
 
 // With `lever_arm`: also the tip's largest distance from a rotary joint's axis.
 Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const {
-    switch (turns_.pattern) {
-        case 0 * 3 + 1: return forward_two_turns<0, 1>(q, lever_arm, arms);
-        case 0 * 3 + 2: return forward_two_turns<0, 2>(q, lever_arm, arms);
-        case 1 * 3 + 0: return forward_two_turns<1, 0>(q, lever_arm, arms);
-        case 1 * 3 + 2: return forward_two_turns<1, 2>(q, lever_arm, arms);
-        case 2 * 3 + 0: return forward_two_turns<2, 0>(q, lever_arm, arms);
-        case 2 * 3 + 1: return forward_two_turns<2, 1>(q, lever_arm, arms);
-        default: break;
-    }
+    if (turns_.pattern >= 0)
+        return on_two_turns(turns_.pattern, [&](auto c1, auto c2) {
+            return forward_two_turns<decltype(c1)::value, decltype(c2)::value>(q, lever_arm, arms);
+        });
     M3 Rp, Rt;
     V3 tp, tt;
     AxisLine lines[8];  // at most 5 joints (the loader checks)
@@ -904,15 +906,10 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
 // Apart from solve_position so that its constant-Jacobian path stays as short as it was, and
 // from solve_scalar so that the unrolled path does not pay for solve_scalar's frame.
 IkResult Kinematics::solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const {
-    switch (turns_.pattern) {
-        case 0 * 3 + 1: return solve_two_turns<0, 1>(tip, q, axis, end);
-        case 0 * 3 + 2: return solve_two_turns<0, 2>(tip, q, axis, end);
-        case 1 * 3 + 0: return solve_two_turns<1, 0>(tip, q, axis, end);
-        case 1 * 3 + 2: return solve_two_turns<1, 2>(tip, q, axis, end);
-        case 2 * 3 + 0: return solve_two_turns<2, 0>(tip, q, axis, end);
-        case 2 * 3 + 1: return solve_two_turns<2, 1>(tip, q, axis, end);
-        default: return solve_scalar(tip, q, axis, end);
-    }
+    if (turns_.pattern < 0) return solve_scalar(tip, q, axis, end);
+    return on_two_turns(turns_.pattern, [&](auto c1, auto c2) {
+        return solve_two_turns<decltype(c1)::value, decltype(c2)::value>(tip, q, axis, end);
+    });
 }
 
 
