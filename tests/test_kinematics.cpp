@@ -608,9 +608,15 @@ bool same_bits(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
     return std::memcmp(a.data(), b.data(), sizeof(double) * 3) == 0;
 }
 
+// The closed form of a two-turn table (Kinematics::has_two_turns) against the chain's products:
+// equal to rounding, not to the bit. Tips and lever arms in mm (at most a few hundred here: some
+// 1e-13 of rounding), unit vectors' components.
+constexpr double kRoundingMm = 1e-9, kRoundingUnit = 1e-12;
+bool within(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double tol) { return (a - b).cwiseAbs().maxCoeff() <= tol; }
+
 }  // namespace
 
-TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit on every shipped machine") {
+TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit on every shipped machine (a two-turn table to rounding)") {
     // Tilted plates and offsets too (wpi5's rho and psi, pentarod's A offset and C centre), so the
     // fixed rotations in the chains are not the identity.
     const std::map<std::string, std::map<std::string, double>> tilted = {
@@ -654,15 +660,19 @@ TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit o
                 }
                 const Pose p = k.forward(q);
                 const auto end = k.path_end(q.data());
-                if (!same_bits(p.tip, tip) || !same_bits(p.axis, axis) || !same_bits(k.tool_axis(q), axis) || !same_bits(end.pose.tip, tip) ||
-                    std::memcmp(&end.lever_arm, &lever, sizeof lever) != 0)
+                if (k.has_two_turns()) {
+                    if (!within(p.tip, tip, kRoundingMm) || !within(p.axis, axis, kRoundingUnit) || !same_bits(k.tool_axis(q), p.axis) ||
+                        !same_bits(end.pose.tip, p.tip) || !(std::abs(end.lever_arm - lever) <= kRoundingMm))
+                        ++differ;
+                } else if (!same_bits(p.tip, tip) || !same_bits(p.axis, axis) || !same_bits(k.tool_axis(q), axis) || !same_bits(end.pose.tip, tip) ||
+                           std::memcmp(&end.lever_arm, &lever, sizeof lever) != 0)
                     ++differ;
                 // The position solve's tool axis (the planner keeps it for the next move's pole
                 // check): the same bits; it moves only the linear joints.
                 std::vector<double> solved = q;
                 Eigen::Vector3d solved_axis;
                 if (k.solve_position(tip + Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5), solved, &solved_axis).ok() &&
-                    !same_bits(solved_axis, axis))
+                    !(k.has_two_turns() ? same_bits(solved_axis, p.axis) : same_bits(solved_axis, axis)))
                     ++differ;
             }
             CHECK(differ == 0);
@@ -1014,10 +1024,39 @@ TEST_CASE("the orientation solve's shortcut equals its general path bit for bit,
     MESSAGE("orientation shortcut: " << with_shortcut << " machines, " << answered << " of " << asked << " axes answered");
 }
 
+TEST_CASE("pentarod's closed-form solve is Grutle's pseudo code 4.1: machine XYZ = R_x(A) R_z(C) p") {
+    // The source's transform written out here on its own (Grutle, Oslo 2015): the position solve
+    // gives it, forward() inverts it, and the tool axis is (sin A sin C, sin A cos C, cos A), on
+    // random tips and angles across A's range and several turns of C.
+    const Machine m = machine("pentarod");
+    const Kinematics k(m);
+    REQUIRE(k.has_two_turns());
+    const int X = joint(m, 'X'), Y = joint(m, 'Y'), Z = joint(m, 'Z'), A = joint(m, 'A'), C = joint(m, 'C');
+    std::mt19937 rng(41);
+    std::uniform_real_distribution<double> U(-1, 1);
+    int bad = 0;
+    for (int i = 0; i < 100000; ++i) {
+        const Eigen::Vector3d p(80 * U(rng), 80 * U(rng), 60 * U(rng));
+        std::vector<double> q(m.joints.size(), 0.0);
+        q[std::size_t(A)] = 90 * U(rng);
+        q[std::size_t(C)] = 1000 * U(rng);
+        REQUIRE(k.solve_position(p, q).ok());
+        const double a = q[std::size_t(A)] * kPi / 180, c = q[std::size_t(C)] * kPi / 180;
+        const double x1 = std::cos(c) * p.x() - std::sin(c) * p.y(), y1 = std::sin(c) * p.x() + std::cos(c) * p.y();  // R_z(C) p
+        const Eigen::Vector3d want(x1, std::cos(a) * y1 - std::sin(a) * p.z(), std::sin(a) * y1 + std::cos(a) * p.z());  // R_x(A)
+        const Eigen::Vector3d got(q[std::size_t(X)], q[std::size_t(Y)], q[std::size_t(Z)]);
+        const Pose back = k.forward(q);
+        const Eigen::Vector3d axis(std::sin(a) * std::sin(c), std::sin(a) * std::cos(c), std::cos(a));
+        if (!within(got, want, kRoundingMm) || !within(back.tip, p, kRoundingMm) || !within(back.axis, axis, kRoundingUnit)) ++bad;
+    }
+    CHECK(bad == 0);
+}
+
 TEST_CASE("the position solve in scalars equals its Eigen general path bit for bit, on random machines and joints") {
     // solve_position's general path (walk, then the scalar products, determinant and inverse)
     // against solve_position_general (the same walk, then Eigen's products): every output to the
-    // last bit, with and without the axis and the end, on every shipped machine as shipped, with
+    // last bit (a two-turn table's closed form: to rounding, kRoundingMm), with and without the
+    // axis and the end, on every shipped machine as shipped, with
     // its calibration offsets, turned at random, and with linear joints moved into the part chain
     // (a direction from the part chain alone, and from both).
     std::mt19937 rng(915);
@@ -1052,11 +1091,18 @@ TEST_CASE("the position solve in scalars equals its Eigen general path bit for b
                 for (int t = 0; t < 2; ++t)
                     cases.emplace_back("pentarod's shape, turns about axes " + std::to_string(k1) + " and " + std::to_string(k2),
                                        two_turns(pentarod, k1, k2, int(U(rng) * 16), rng));
-    auto same = [](const void* a, const void* b, std::size_t size) { return std::memcmp(a, b, size) == 0; };
     int compared = 0;
     for (const auto& [name, m] : cases) {
         CAPTURE(name);
         const Kinematics k(m);
+        // n doubles the same to the bit; for the closed form of a two-turn table, within `tol`.
+        auto same_n = [&](const double* a, const double* b, std::size_t n, double tol) {
+            if (!k.has_two_turns()) return std::memcmp(a, b, n * sizeof(double)) == 0;
+            for (std::size_t i = 0; i < n; ++i)
+                if (!(std::abs(a[i] - b[i]) <= tol)) return false;
+            return true;
+        };
+        auto same = [&](const void* a, const void* b, std::size_t size) { return std::memcmp(a, b, size) == 0; };
         int differ = 0;
         for (int i = 0; i < 3000; ++i) {
             const std::vector<double> q = random_joints(m, rng);
@@ -1069,12 +1115,13 @@ TEST_CASE("the position solve in scalars equals its Eigen general path bit for b
                 const IkResult ra = k.solve_position(tip, qa, ask & 1 ? &aa : nullptr, ask & 2 ? &ea : nullptr);
                 const IkResult rb = k.solve_position_general(tip, qb, ask & 1 ? &ab : nullptr, ask & 2 ? &eb : nullptr);
                 bool ok = ra.status == rb.status && ra.message == rb.message && qa.size() == qb.size() &&
-                          same(qa.data(), qb.data(), qa.size() * sizeof(double)) && same(aa.data(), ab.data(), sizeof(double) * 3) &&
+                          same_n(qa.data(), qb.data(), qa.size(), kRoundingMm) && same_n(aa.data(), ab.data(), 3, kRoundingUnit) &&
                           ea.valid == eb.valid;
                 if (ea.valid && eb.valid)
-                    ok = ok && ea.q.size() == eb.q.size() && same(ea.q.data(), eb.q.data(), ea.q.size() * sizeof(double)) &&
-                         same(ea.end.pose.tip.data(), eb.end.pose.tip.data(), 24) && same(ea.end.pose.axis.data(), eb.end.pose.axis.data(), 24) &&
-                         same(&ea.end.lever_arm, &eb.end.lever_arm, 8) && same(ea.end.arm, eb.end.arm, sizeof ea.end.arm) &&
+                    ok = ok && ea.q.size() == eb.q.size() && same_n(ea.q.data(), eb.q.data(), ea.q.size(), kRoundingMm) &&
+                         same(ea.end.pose.tip.data(), eb.end.pose.tip.data(), 24) &&
+                         same_n(ea.end.pose.axis.data(), eb.end.pose.axis.data(), 3, kRoundingUnit) &&
+                         same_n(&ea.end.lever_arm, &eb.end.lever_arm, 1, kRoundingMm) && same_n(ea.end.arm, eb.end.arm, 8, kRoundingMm) &&
                          same(&ea.end.tip_slack, &eb.end.tip_slack, 8) && same(&ea.end.axis_slack, &eb.end.axis_slack, 8);
                 if (!ok) ++differ;
                 ++compared;

@@ -458,6 +458,15 @@ Kinematics::Kinematics(const Machine& machine)
                         if (linear_[k] == tool_links_[m].joint)
                             for (int i = 0; i < 3; ++i) f.col_dir[k][i] = tool_links_[m].axis[i];
                 }
+                Eigen::Matrix3d C;
+                for (int k = 0; k < 3; ++k) C.col(k) = Eigen::Vector3d(f.col_dir[k][0], f.col_dir[k][1], f.col_dir[k][2]);
+                // As the general solve's test of its Jacobian Rp^T C, whose determinant is C's.
+                f.singular = !(std::abs(C.determinant()) > 1e-9);
+                if (!f.singular) {
+                    const Eigen::Matrix3d Ci = C.inverse();
+                    for (int row = 0; row < 3; ++row)
+                        for (int col = 0; col < 3; ++col) f.col_inv[row * 3 + col] = Ci(row, col);
+                }
             }
         }
     }
@@ -655,19 +664,42 @@ template <class Fn>
     }
 }
 
-// The walk of TwoTurns' part chain (walk_links' steps for its two links): R the identity, t zero
-// and unmoved by either turn; with `lines`, the turns' axis lines as the walk records them.
-template <int k1, int k2, class TwoTurns>
-[[gnu::always_inline]] inline M3 walk_two_turns(const TwoTurns& f, const double* q, AxisLine* lines) {
-    M3 R{1, 0, 0, 0, 1, 0, 0, 0, 1};
-    V3 t{0, 0, 0};
-    turn_about_axis<k1, false>(f.sign1, q[f.j1], nullptr, R, t, true);
-    if (lines) {
-        lines[0] = {V3{f.line0_point[0], f.line0_point[1], f.line0_point[2]}, V3{f.line0_dir[0], f.line0_dir[1], f.line0_dir[2]}};
-        lines[1] = {t + R * V3{f.point2[0], f.point2[1], f.point2[2]}, normalized(R * V3{f.axis2[0], f.axis2[1], f.axis2[2]})};
+// TwoTurns' part rotation Rp = R1 R2 (R1 about coordinate axis k1 by the first joint's angle
+// times its sign, R2 about k2 likewise) as the two turns' cosines and signed sines: vectors are
+// turned in closed form, two planar turns each, as Grutle (Oslo 2015) writes machine XYZ =
+// R_x(A) R_z(C) p in pseudo code 4.1 (the case k1 = x, k2 = z). Not the chain walk's bits (its
+// products also sum the exact zeros of each turn's matrix, and (1 - c) + c on the axis):
+// test_kinematics holds the two together to rounding.
+template <int k1, int k2>
+struct TwoTurnRotation {
+    double c1, s1, c2, s2;
+    // The turn about coordinate axis k by (c, s) of v, or with kBack its inverse.
+    template <int k, bool kBack>
+    [[gnu::always_inline]] static V3 turn(double c, double s, const V3& v) {
+        constexpr int i = (k + 1) % 3, j = (k + 2) % 3;
+        double a[3] = {v.x, v.y, v.z};
+        const double vi = a[i], vj = a[j];
+        if (kBack) a[i] = c * vi + s * vj, a[j] = c * vj - s * vi;
+        else a[i] = c * vi - s * vj, a[j] = s * vi + c * vj;
+        return {a[0], a[1], a[2]};
     }
-    turn_about_axis<k2, false>(f.sign2, q[f.j2], nullptr, R, t, false);
-    return R;
+    V3 apply(const V3& v) const { return turn<k1, false>(c1, s1, turn<k2, false>(c2, s2, v)); }  // Rp v
+    V3 back(const V3& v) const { return turn<k2, true>(c2, s2, turn<k1, true>(c1, s1, v)); }     // Rp^T v
+};
+
+template <int k1, int k2, class TwoTurns>
+[[gnu::always_inline]] inline TwoTurnRotation<k1, k2> two_turn_rotation(const TwoTurns& f, const double* q) {
+    const double a1 = q[f.j1] * kDeg, a2 = q[f.j2] * kDeg;
+    return {std::cos(a1), f.sign1 * std::sin(a1), std::cos(a2), f.sign2 * std::sin(a2)};
+}
+
+// The two turns' axis lines in the base frame: the first fixed, the second turned by the first.
+template <int k1, int k2, class TwoTurns>
+[[gnu::always_inline]] inline void two_turn_lines(const TwoTurns& f, const TwoTurnRotation<k1, k2>& r, AxisLine* lines) {
+    using R = TwoTurnRotation<k1, k2>;
+    lines[0] = {V3{f.line0_point[0], f.line0_point[1], f.line0_point[2]}, V3{f.line0_dir[0], f.line0_dir[1], f.line0_dir[2]}};
+    lines[1] = {R::template turn<k1, false>(r.c1, r.s1, V3{f.point2[0], f.point2[1], f.point2[2]}),
+                R::template turn<k1, false>(r.c1, r.s1, V3{f.axis2[0], f.axis2[1], f.axis2[2]})};
 }
 
 // The linear joints' step dq = J^-1 (tip - current) from J's columns, as Eigen computes a fixed-size 3x3:
@@ -707,12 +739,11 @@ void Kinematics::eval(const std::vector<ChainLink>& chain, const double* q, Eige
 Pose Kinematics::forward(const std::vector<double>& q) const { return forward(q.data(), nullptr); }
 
 Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
-    // TwoTurns' shape: the part chain's rotation as the walk makes it, the tool chain's the
-    // identity (the identity times the tool axis, made at load).
+    // TwoTurns' shape: the part chain's rotation in closed form, the tool chain's the identity.
     if (turns_.pattern >= 0)
         return on_two_turns(turns_.pattern, [&](auto c1, auto c2) {
-            const M3 Rp = walk_two_turns<decltype(c1)::value, decltype(c2)::value>(turns_, q.data(), nullptr);
-            const V3 u = normalized(transposed_times(Rp, V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
+            const auto r = two_turn_rotation<decltype(c1)::value, decltype(c2)::value>(turns_, q.data());
+            const V3 u = normalized(r.back(V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
             return Eigen::Vector3d(u.x, u.y, u.z);
         });
     M3 Rp, Rt;
@@ -913,22 +944,22 @@ IkResult Kinematics::solve_varying(const Eigen::Vector3d& tip, std::vector<doubl
 }
 
 
-// forward()'s steps for the TwoTurns shape: the part chain as walk_two_turns, the tool chain's
-// fresh linear links (R stays the identity: the identity times the tool axis, made at load).
+// forward() for the TwoTurns shape: the tool chain's fresh linear links give the tip in the
+// base frame, the part rotation's inverse takes it (and the tool axis) to the part frame.
 template <int k1, int k2>
 Pose Kinematics::forward_two_turns(const double* q, double* lever_arm, double* arms) const {
     const TwoTurns& f = turns_;
-    AxisLine lines[2];
-    const M3 Rp = walk_two_turns<k1, k2>(f, q, lever_arm ? lines : nullptr);
-    const V3 tp{0, 0, 0};
+    const auto r = two_turn_rotation<k1, k2>(f, q);
     V3 tt{0, 0, 0};
     for (int m = 0; m < 3; ++m) tt = tt + V3{f.tool_dir[m][0], f.tool_dir[m][1], f.tool_dir[m][2]} * q[f.tool_joint[m]];
     Pose pose;
-    const V3 tip = transposed_times(Rp, tt - tp);
+    const V3 tip = r.back(tt);
     pose.tip = Eigen::Vector3d(tip.x, tip.y, tip.z);
-    const V3 u = normalized(transposed_times(Rp, V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
+    const V3 u = normalized(r.back(V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
     pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
     if (lever_arm) {
+        AxisLine lines[2];
+        two_turn_lines(f, r, lines);
         *lever_arm = 0;
         for (int i = 0; i < 2; ++i) {
             const double arm = distance_from(tt, lines[i]);
@@ -939,46 +970,34 @@ Pose Kinematics::forward_two_turns(const double* q, double* lever_arm, double* a
     return pose;
 }
 
-// solve_scalar's steps for the TwoTurns shape, in the same order with the same operations (the
-// walk's turn_about_axis for each turn, its lines, the tool chain's fresh linear links), each
-// link's numbers read from TwoTurns; test_kinematics holds it against the general solve too.
+// The position solve for the TwoTurns shape in closed form: the tip wanted in the part frame,
+// turned into the base frame (Rp tip), is where the tool chain's linear links must put it, so
+// the three unknowns are C^-1 Rp tip (C: their directions, inverted at load). The general solve's
+// step q += J^-1 (tip - current), with J = Rp^T C, is the same up to rounding.
 template <int k1, int k2>
 IkResult Kinematics::solve_two_turns(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const {
     const TwoTurns& f = turns_;
     if (end) end->valid = false;
     const bool want_end = end && solved_ends_;
-    AxisLine lines[2];
-    const M3 Rp = walk_two_turns<k1, k2>(f, q.data(), want_end ? lines : nullptr);
-    const V3 tp{0, 0, 0};
-    // The tool chain: fresh linear links.
-    V3 tt{0, 0, 0};
-    for (int m = 0; m < 3; ++m) tt = tt + V3{f.tool_dir[m][0], f.tool_dir[m][1], f.tool_dir[m][2]} * q[std::size_t(f.tool_joint[m])];
-    const V3 up{tool_up_[0], tool_up_[1], tool_up_[2]};
+    const auto r = two_turn_rotation<k1, k2>(f, q.data());
     V3 u{0, 0, 0};
     if (axis || want_end) {
-        u = normalized(transposed_times(Rp, up));
+        u = normalized(r.back(V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
         if (axis) *axis = Eigen::Vector3d(u.x, u.y, u.z);
     }
-    const V3 current = transposed_times(Rp, tt - tp);
-    V3 col[3];
-    for (int k = 0; k < 3; ++k) col[k] = transposed_times(Rp, V3{f.col_dir[k][0], f.col_dir[k][1], f.col_dir[k][2]});
-    V3 dq;
-    if (!jacobian_step(col, tip, current, dq)) {
+    if (f.singular) {
         if (want_end) end->end.pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
         return singular_jacobian();
     }
-    q[std::size_t(linear_[0])] += dq.x;
-    q[std::size_t(linear_[1])] += dq.y;
-    q[std::size_t(linear_[2])] += dq.z;
+    const V3 x = r.apply(v3(tip));  // the tip in the base frame: where the tool chain puts it
+    const V3 lin = M3{f.col_inv[0], f.col_inv[1], f.col_inv[2], f.col_inv[3], f.col_inv[4], f.col_inv[5], f.col_inv[6], f.col_inv[7], f.col_inv[8]} * x;
+    q[std::size_t(linear_[0])] = lin.x;
+    q[std::size_t(linear_[1])] = lin.y;
+    q[std::size_t(linear_[2])] = lin.z;
     if (want_end) {
-        // fill_solved_end's steps: the tool links' joints are the three unknowns, so each moves
-        // by its own dq; the part chain's lines are moved by no linear joint.
-        double moved[8] = {};
-        moved[linear_[0]] = dq.x;
-        moved[linear_[1]] = dq.y;
-        moved[linear_[2]] = dq.z;
-        V3 x = tt;
-        for (int m = 0; m < 3; ++m) x = x + V3{f.tool_dir[m][0], f.tool_dir[m][1], f.tool_dir[m][2]} * moved[f.tool_joint[m]];
+        // The lever arms at the solution: the tip's distance from each turn's axis line.
+        AxisLine lines[2];
+        two_turn_lines(f, r, lines);
         PathEnd& e = end->end;
         e.pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
         e.lever_arm = 0;

@@ -147,7 +147,8 @@ public:
     IkResult solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr,
                             SolvedEnd* end = nullptr) const;
     // solve_position's general path in Eigen's own products, which the scalar solve equals bit
-    // for bit. Apart for the tests that hold the two against each other.
+    // for bit (the closed form of has_two_turns() to rounding). Apart for the tests that hold the
+    // two against each other.
     IkResult solve_position_general(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr,
                                     SolvedEnd* end = nullptr) const;
 
@@ -168,6 +169,11 @@ public:
     // image of the first, so angle-form moves can be carried over to it exactly.
     bool has_flip() const { return flip_; }
 
+    // The machine has the TwoTurns shape (pentarod's A/C table): forward(), tool_axis() and the
+    // position solve are in closed form there, equal to the chain walk's products to rounding
+    // rather than to the bit (the tests hold them to it).
+    bool has_two_turns() const { return turns_.pattern >= 0; }
+
 private:
     struct Factor;
     // Base -> a chain's end (rotation, translation); `linear_dirs`, when given, receives each linear
@@ -179,9 +185,9 @@ private:
     IkResult solve_scalar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
     // solve_two_turns where the machine has that shape, else solve_scalar.
     IkResult solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
-    // forward() and solve_scalar for a machine of the shape TwoTurns describes: the same
-    // operations with the chains unrolled (one instance per pair of coordinate axes, chosen at
-    // load; tool_axis() has its own, in kinematics.cpp).
+    // forward() and the position solve for a machine of the shape TwoTurns describes, in closed
+    // form (one instance per pair of coordinate axes, chosen at load; tool_axis() has its own, in
+    // kinematics.cpp).
     template <int k1, int k2>
     Pose forward_two_turns(const double* q, double* lever_arm, double* arms) const;
     template <int k1, int k2>
@@ -255,8 +261,8 @@ private:
     std::vector<int> tool_linear_;      // the tool chain's linear joints (they carry the tip)
     // A part chain of two turns about +-1 times coordinate axes k1 != k2, both through the origin
     // (no shift), and a tool chain of three fresh linear links giving the three unknowns
-    // (pentarod's A/C table): the walks of forward(), tool_axis() and the position solve
-    // unrolled, their constants taken once here.
+    // (pentarod's A/C table): forward(), tool_axis() and the position solve in closed form, their
+    // constants taken once here.
     struct TwoTurns {
         int pattern = -1;  // k1 * 3 + k2; -1: the machine has another shape
         int j1 = 0, j2 = 0;
@@ -266,6 +272,8 @@ private:
         int tool_joint[3] = {};
         double tool_dir[3][3] = {};  // the tool links' axes, in chain order
         double col_dir[3][3] = {};   // each unknown's direction (the last tool link of its joint)
+        double col_inv[9] = {};      // the inverse of the matrix of those directions (columns), row by row
+        bool singular = false;       // the directions do not span space: no position solve
     } turns_;
     bool solved_ends_ = false;
     // near_end's terms, looked up once: each linear joint with its mm per unit, each rotary
