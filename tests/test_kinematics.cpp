@@ -12,6 +12,7 @@
 #include <random>
 
 #include "translators/error.hpp"
+#include "translators/joint_limits.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 
@@ -1050,6 +1051,54 @@ TEST_CASE("pentarod's closed-form solve is Grutle's pseudo code 4.1: machine XYZ
         if (!within(got, want, kRoundingMm) || !within(back.tip, p, kRoundingMm) || !within(back.axis, axis, kRoundingUnit)) ++bad;
     }
     CHECK(bad == 0);
+}
+
+TEST_CASE("the position solve at a chosen orientation solution takes its cosines and sines from the solve's terms, to rounding") {
+    // orient_within_limits reports which solution the rotaries took; the solve then reads the
+    // rotaries' cosines and sines from that solution's atan2 terms instead of calling sincos. On
+    // every two-turn machine shipped and pentarod's shape about other axes, random tool axes from
+    // random previous joints (several turns of a multi-turn joint): the same joints as the solve
+    // without the report, to rounding; and the report names a solution for nearly every axis.
+    std::mt19937 rng(77);
+    std::uniform_real_distribution<double> U(0, 1);
+    std::vector<std::pair<std::string, Machine>> cases;
+    for (const auto& [name, path] : bundled_machines()) cases.emplace_back(name, load_machine(path));
+    for (int k1 = 0; k1 < 3; ++k1)
+        for (int k2 = 0; k2 < 3; ++k2)
+            if (k1 != k2) cases.emplace_back("pentarod's shape " + std::to_string(k1) + std::to_string(k2), two_turns(machine("pentarod"), k1, k2, int(U(rng) * 16), rng));
+    int machines = 0, total = 0;
+    for (const auto& [name, m] : cases) {
+        CAPTURE(name);
+        const Kinematics k(m);
+        if (!k.has_two_turns() || !k.has_orientation_shortcut()) continue;
+        ++machines;
+        int asked = 0, named = 0, differ = 0;
+        for (int i = 0; i < 20000; ++i) {
+            const std::vector<double> previous = random_joints(m, rng);
+            const Eigen::Vector3d axis = Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5).normalized();
+            const Eigen::Vector3d tip(100 * U(rng) - 50, 100 * U(rng) - 50, 100 * U(rng) - 50);
+            const auto solutions = k.orientation_solutions(axis);
+            std::vector<double> q = previous;
+            ChosenSolution chosen;
+            if (!orient_within_limits(m, k.rotary_joints(), solutions, previous, previous, q, &chosen).ok()) continue;
+            ++asked;
+            if (chosen.branch < 0) continue;
+            ++named;
+            std::vector<double> with = q, without = q;
+            Eigen::Vector3d axis_with, axis_without;
+            const IkResult a = k.solve_position(tip, with, &axis_with, nullptr, chosen);
+            const IkResult b = k.solve_position(tip, without, &axis_without);
+            bool ok = a.status == b.status && within(axis_with, axis_without, kRoundingUnit) && within(axis_with, axis, 1e-9);
+            for (std::size_t j = 0; j < q.size(); ++j) ok = ok && std::abs(with[j] - without[j]) <= kRoundingMm;
+            if (!ok) ++differ;
+        }
+        CHECK(differ == 0);
+        CHECK(named >= asked * 9 / 10);  // (a shape whose tool axis reaches few axes may have none)
+        MESSAGE(name << ": " << named << " of " << asked << " solves at a named solution");
+        total += named;
+    }
+    CHECK(machines >= 7);  // pentarod's six shapes and the shipped two-turn tables
+    CHECK(total > 100000);
 }
 
 TEST_CASE("the position solve in scalars equals its Eigen general path bit for bit, on random machines and joints") {

@@ -28,7 +28,7 @@ inline bool inside(const Joint& J, double v) { return v >= J.min - kLimitSlack &
 // choose's general way. Apart from choose, so the usual move builds no result and pays for no
 // more registers than it uses.
 bool nearest_two(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
-                 const std::vector<double>& previous, std::vector<double>& q) {
+                 const std::vector<double>& previous, std::vector<double>& q, int& branch) {
     if (rotary.size() != 2 || solutions.count != 2) return false;
     const std::size_t j0 = std::size_t(rotary[0]), j1 = std::size_t(rotary[1]);
     const Joint& J0 = machine.joints[j0];
@@ -50,19 +50,23 @@ bool nearest_two(const Machine& machine, const std::vector<int>& rotary, const O
     const bool take0 = cost0 < inf;
     if (cost1 < (take0 ? cost0 : inf)) {
         q[j0] = n10, q[j1] = n11;
+        branch = 1;
         return true;
     }
     if (take0) {
         q[j0] = n00, q[j1] = n01;
+        branch = 0;
         return true;
     }
     return false;
 }
 
 // Of `solutions`, the turn of each rotary nearest its previous value (inside the limits when
-// `limited`), and of those the solution nearest `previous` overall.
+// `limited`), and of those the solution nearest `previous` overall; `branch` its index, or -1
+// when a joint of it is free.
 IkResult choose(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
-                const std::vector<double>& previous, const std::vector<double>& free_value, bool limited, std::vector<double>& q) {
+                const std::vector<double>& previous, const std::vector<double>& free_value, bool limited, std::vector<double>& q,
+                int& branch) {
     const Eigen::Vector3d& axis = solutions.axis;
     if (solutions.empty()) {
         char buf[160];
@@ -73,12 +77,13 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
     double best_cost = std::numeric_limits<double>::infinity();
     double best[2] = {0, 0};
     bool found = false;
+    int best_branch = -1;
     int failed_joint = -1;
     double failed_angle = 0;
     for (int s = 0; s < solutions.count; ++s) {
         double cand[2] = {0, 0};
         double cost = 0;
-        bool ok = true;
+        bool ok = true, free = false;
         for (std::size_t k = 0; k < n && ok; ++k) {
             const int j = rotary[k];
             const Joint& J = machine.joints[std::size_t(j)];
@@ -86,6 +91,7 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
             const double sol = solutions.angle[s][k];
             if (std::isnan(sol)) {  // on the pole: the joint is free
                 cand[k] = free_value[std::size_t(j)];
+                free = true;
                 continue;
             }
             // Of sol + 360 k, the turn nearest the previous angle that is inside the limits.
@@ -114,6 +120,7 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
             best[0] = cand[0];
             best[1] = cand[1];
             found = true;
+            best_branch = free ? -1 : s;
         }
     }
     if (!found) {
@@ -122,6 +129,7 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
                                            " degrees, outside its limits " + fmt(J.min) + " .. " + fmt(J.max)};
     }
     for (std::size_t k = 0; k < n; ++k) q[std::size_t(rotary[k])] = best[k];
+    branch = best_branch;
     return {};
 }
 
@@ -160,29 +168,42 @@ IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
 }
 
 IkResult orient_within_limits(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
-                              const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q) {
-    if (nearest_two(machine, rotary, solutions, previous, q)) return {};
-    return choose(machine, rotary, solutions, previous, free_value, true, q);
+                              const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q,
+                              ChosenSolution* chosen) {
+    int branch = -1;
+    if (nearest_two(machine, rotary, solutions, previous, q, branch)) {
+        if (chosen) *chosen = {&solutions, branch};
+        return {};
+    }
+    IkResult r = choose(machine, rotary, solutions, previous, free_value, true, q, branch);
+    if (chosen) *chosen = {&solutions, r.ok() ? branch : -1};
+    return r;
 }
 
 IkResult orient_within_limits_general(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
                                       const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q) {
-    return choose(machine, rotary, solutions, previous, free_value, true, q);
+    int branch = -1;
+    return choose(machine, rotary, solutions, previous, free_value, true, q, branch);
 }
 
 IkResult orient_on_branch(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions, int branch,
-                          const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q) {
+                          const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q,
+                          ChosenSolution* chosen) {
     if (branch < 0 || branch >= solutions.count) return {IkStatus::Unreachable, "no such orientation branch"};
     OrientationSolutions one = solutions;
     one.angle[0][0] = solutions.angle[branch][0];
     one.angle[0][1] = solutions.angle[branch][1];
     one.count = 1;
-    return choose(machine, rotary, one, previous, free_value, true, q);
+    int placed = -1;
+    IkResult r = choose(machine, rotary, one, previous, free_value, true, q, placed);
+    if (chosen) *chosen = {&solutions, r.ok() && placed == 0 ? branch : -1};
+    return r;
 }
 
 IkResult orient_continuous(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
                            const std::vector<double>& previous, std::vector<double>& q) {
-    return choose(machine, rotary, solutions, previous, previous, false, q);
+    int branch = -1;
+    return choose(machine, rotary, solutions, previous, previous, false, q, branch);
 }
 
 }  // namespace xlate5

@@ -47,8 +47,10 @@ IkResult check_limits(const Machine& machine, const std::vector<double>& q);
 // Kinematics::rotary_joints()): of the solutions and their 360-degree turns, the one inside the
 // limits nearest `previous`. A joint on its pole (parallel to the tool axis) is free and takes
 // free_value[j] (its previous value, or where the motion stage interpolates it across a move).
+// `chosen`, when given, is told which solution q now holds (ChosenSolution).
 IkResult orient_within_limits(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions,
-                              const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q);
+                              const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q,
+                              ChosenSolution* chosen = nullptr);
 
 // The same without its shortcut for two rotaries and two solutions: for the tests that hold the
 // shortcut against it.
@@ -58,7 +60,8 @@ IkResult orient_within_limits_general(const Machine& machine, const std::vector<
 // The same, restricted to solution `branch` (0 or 1): the motion stage tries the other branch
 // where the continuous one would swing a joint round a pole.
 IkResult orient_on_branch(const Machine& machine, const std::vector<int>& rotary, const OrientationSolutions& solutions, int branch,
-                          const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q);
+                          const std::vector<double>& previous, const std::vector<double>& free_value, std::vector<double>& q,
+                          ChosenSolution* chosen = nullptr);
 
 // The nearest turn of the nearest solution whatever the limits: the continuous solution, to tell
 // where a path leaves them. Free joints keep their previous value.

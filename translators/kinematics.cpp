@@ -462,6 +462,12 @@ Kinematics::Kinematics(const Machine& machine)
                 for (int k = 0; k < 3; ++k) C.col(k) = Eigen::Vector3d(f.col_dir[k][0], f.col_dir[k][1], f.col_dir[k][2]);
                 // As the general solve's test of its Jacobian Rp^T C, whose determinant is C's.
                 f.singular = !(std::abs(C.determinant()) > 1e-9);
+                if (orient_.on)  // the shortcut's solutions carry their atan2 terms
+                    for (int r = 0; r < 2; ++r) {
+                        if (rotary_[std::size_t(r)] == f.j1) f.r1 = r;
+                        if (rotary_[std::size_t(r)] == f.j2) f.r2 = r;
+                    }
+                if (f.r1 < 0 || f.r2 < 0) f.r1 = f.r2 = -1;
                 if (!f.singular) {
                     const Eigen::Matrix3d Ci = C.inverse();
                     for (int row = 0; row < 3; ++row)
@@ -693,6 +699,21 @@ template <int k1, int k2, class TwoTurns>
     return {std::cos(a1), f.sign1 * std::sin(a1), std::cos(a2), f.sign2 * std::sin(a2)};
 }
 
+// The rotation at q from the orientation solve's terms, q's two turns being solution `chosen`'s
+// angles (a whole number of turns from them): cos = x / |(x, y)|, sin = y / |(x, y)| of the atan2
+// that gave each. False when the solution carries no terms.
+template <int k1, int k2, class TwoTurns>
+[[gnu::always_inline]] inline bool two_turn_rotation_from(const TwoTurns& f, const ChosenSolution& chosen, TwoTurnRotation<k1, k2>& r) {
+    if (!chosen.from || chosen.branch < 0 || !chosen.from->has_terms || f.r1 < 0) return false;
+    const OrientationSolutions& s = *chosen.from;
+    const double* t1 = s.terms[chosen.branch][f.r1];
+    const double* t2 = s.terms[chosen.branch][f.r2];
+    const double i1 = 1.0 / std::sqrt(t1[0] * t1[0] + t1[1] * t1[1]), i2 = 1.0 / std::sqrt(t2[0] * t2[0] + t2[1] * t2[1]);
+    // The joint's angle is term_sign times the atan2: its sine takes that sign, then the turn's own.
+    r = {t1[1] * i1, f.sign1 * s.term_sign[f.r1] * t1[0] * i1, t2[1] * i2, f.sign2 * s.term_sign[f.r2] * t2[0] * i2};
+    return true;
+}
+
 // The two turns' axis lines in the base frame: the first fixed, the second turned by the first.
 template <int k1, int k2, class TwoTurns>
 [[gnu::always_inline]] inline void two_turn_lines(const TwoTurns& f, const TwoTurnRotation<k1, k2>& r, AxisLine* lines) {
@@ -902,7 +923,8 @@ double Kinematics::axis_path_bound(const double* qa, const double* qb) const {
     return (2 * w * w - s) / 8.0;
 }
 
-IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const {
+IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
+                                    ChosenSolution chosen) const {
     // With the rotary joints fixed the tip is affine in the linear joints: one 3x3 solve is exact.
     if (constant_jacobian_) {
         if (end) end->valid = false;  // this path walks no axis lines: the motion stage measures the end instead
@@ -931,15 +953,16 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
         q[std::size_t(linear_[2])] += dq.z;
         return {};
     }
-    return solve_varying(tip, q, axis, end);
+    return solve_varying(tip, q, axis, end, chosen);
 }
 
 // Apart from solve_position so that its constant-Jacobian path stays as short as it was, and
 // from solve_scalar so that the unrolled path does not pay for solve_scalar's frame.
-IkResult Kinematics::solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const {
+IkResult Kinematics::solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
+                                   ChosenSolution chosen) const {
     if (turns_.pattern < 0) return solve_scalar(tip, q, axis, end);
     return on_two_turns(turns_.pattern, [&](auto c1, auto c2) {
-        return solve_two_turns<decltype(c1)::value, decltype(c2)::value>(tip, q, axis, end);
+        return solve_two_turns<decltype(c1)::value, decltype(c2)::value>(tip, q, axis, end, chosen);
     });
 }
 
@@ -975,11 +998,13 @@ Pose Kinematics::forward_two_turns(const double* q, double* lever_arm, double* a
 // the three unknowns are C^-1 Rp tip (C: their directions, inverted at load). The general solve's
 // step q += J^-1 (tip - current), with J = Rp^T C, is the same up to rounding.
 template <int k1, int k2>
-IkResult Kinematics::solve_two_turns(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const {
+IkResult Kinematics::solve_two_turns(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
+                                     ChosenSolution chosen) const {
     const TwoTurns& f = turns_;
     if (end) end->valid = false;
     const bool want_end = end && solved_ends_;
-    const auto r = two_turn_rotation<k1, k2>(f, q.data());
+    TwoTurnRotation<k1, k2> r;
+    if (!two_turn_rotation_from(f, chosen, r)) r = two_turn_rotation<k1, k2>(f, q.data());
     V3 u{0, 0, 0};
     if (axis || want_end) {
         u = normalized(r.back(V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
@@ -1193,7 +1218,7 @@ bool Kinematics::orientation_shortcut(const Eigen::Vector3d& axis, Solutions& ou
     }
     // The atan2 terms (y, x) of each branch's phi1 and phi2: t[0..3] branch 1, t[4..7] branch 2;
     // false where the general path must answer.
-    double t[8];
+    double t[8] = {};  // (set before every use: the zeros only tell the compiler so)
     int status = 0;  // 0: both branches, 1: unreachable, 2: the general path
     auto terms = [&](auto ci, auto cj) {
         constexpr int i = decltype(ci)::value, j = decltype(cj)::value, k = 3 - i - j;
@@ -1253,6 +1278,10 @@ bool Kinematics::orientation_shortcut(const Eigen::Vector3d& axis, Solutions& ou
     out.angle[1][0] = f.sign1 * phi1b / kDeg;
     out.angle[1][1] = f.sign2 * phi2b / kDeg;
     out.count = 2;
+    out.has_terms = true;
+    for (int b = 0; b < 2; ++b)
+        for (int r = 0; r < 2; ++r) out.terms[b][r][0] = t[4 * b + 2 * r], out.terms[b][r][1] = t[4 * b + 2 * r + 1];
+    out.term_sign[0] = f.sign1, out.term_sign[1] = f.sign2;
     return true;
 }
 

@@ -144,8 +144,10 @@ public:
     // Sets the linear joints of q so the tip reaches `tip`, rotary joints as they are in q;
     // `axis`, when given, receives the tool axis of that configuration.
     // `end`, when given, receives the solution's SolvedEnd where the solve can give it cheaply.
+    // `chosen`, when it names a solution, says that q's rotaries are that orientation solution's
+    // angles (orient_within_limits's report): the solve may take their cosines and sines from it.
     IkResult solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr,
-                            SolvedEnd* end = nullptr) const;
+                            SolvedEnd* end = nullptr, ChosenSolution chosen = {}) const;
     // solve_position's general path in Eigen's own products, which the scalar solve equals bit
     // for bit (the closed form of has_two_turns() to rounding). Apart for the tests that hold the
     // two against each other.
@@ -184,14 +186,16 @@ private:
     // solve_position's path for a Jacobian that varies, in the walk's scalars (kinematics.cpp).
     IkResult solve_scalar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
     // solve_two_turns where the machine has that shape, else solve_scalar.
-    IkResult solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
+    IkResult solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
+                           ChosenSolution chosen) const;
     // forward() and the position solve for a machine of the shape TwoTurns describes, in closed
     // form (one instance per pair of coordinate axes, chosen at load; tool_axis() has its own, in
     // kinematics.cpp).
     template <int k1, int k2>
     Pose forward_two_turns(const double* q, double* lever_arm, double* arms) const;
     template <int k1, int k2>
-    IkResult solve_two_turns(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
+    IkResult solve_two_turns(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
+                             ChosenSolution chosen) const;
     // The position solve's 3x3 Jacobian from the chains' linear directions; false when singular.
     bool linear_jacobian(const Eigen::Matrix3d& Rp, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,
                          Eigen::Matrix3d& J) const;
@@ -274,6 +278,7 @@ private:
         double col_dir[3][3] = {};   // each unknown's direction (the last tool link of its joint)
         double col_inv[9] = {};      // the inverse of the matrix of those directions (columns), row by row
         bool singular = false;       // the directions do not span space: no position solve
+        int r1 = -1, r2 = -1;        // the turns' columns of OrientationSolutions::angle (-1: no shortcut gives them)
     } turns_;
     bool solved_ends_ = false;
     // near_end's terms, looked up once: each linear joint with its mm per unit, each rotary

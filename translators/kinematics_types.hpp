@@ -29,8 +29,22 @@ struct OrientationSolutions {
     Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // the axis they reach, as asked
     int count = 0;
     double angle[2][2] = {};
+    // From the orientation shortcut (has_terms): the (y, x) whose atan2 gave each angle's
+    // radians before its joint's sign (+-1, term_sign), so that a position solve at these angles
+    // takes their cosines and sines from them instead of calling sincos.
+    bool has_terms = false;
+    double terms[2][2][2] = {};
+    double term_sign[2] = {1, 1};
     std::size_t size() const { return std::size_t(count); }
     bool empty() const { return count == 0; }
+};
+
+// The orientation solution whose angles (each a whole number of turns from them) a joint vector's
+// rotaries hold, as orient_within_limits reports it; branch -1: none (a free joint, a failure).
+// The position solve takes the rotaries' cosines and sines from its terms.
+struct ChosenSolution {
+    const OrientationSolutions* from = nullptr;
+    int branch = -1;
 };
 
 // Wraps an angle in degrees to (-180, 180].

@@ -187,8 +187,9 @@ IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<d
     }
     Target target;
     target_at(mv, s, target);
-    if (auto r = orient_at(mv, s, target, previous, q, branch); !r.ok()) return r;
-    return place(target, q);
+    ChosenSolution chosen;
+    if (auto r = orient_at(mv, s, target, previous, q, branch, chosen); !r.ok()) return r;
+    return place(target, q, chosen);
 }
 
 void MotionStage::target_at(const MoveSpec& mv, double s, Target& target) const {
@@ -197,7 +198,7 @@ void MotionStage::target_at(const MoveSpec& mv, double s, Target& target) const 
 }
 
 IkResult MotionStage::orient_at(const MoveSpec& mv, double s, const Target& target, const std::vector<double>& previous,
-                                std::vector<double>& q, int branch) const {
+                                std::vector<double>& q, int branch, ChosenSolution& chosen) const {
     const auto& q0 = *mv.q0;
     const auto& q1 = *mv.q1;
     q = previous;
@@ -205,12 +206,12 @@ IkResult MotionStage::orient_at(const MoveSpec& mv, double s, const Target& targ
     std::vector<double>& hint = const_cast<std::vector<double>&>(lerp_);
     hint.resize(q.size());
     for (std::size_t j = 0; j < q.size(); ++j) hint[j] = q0[j] + s * (q1[j] - q0[j]);
-    return branch < 0 ? orient_within_limits(machine_, kin_.rotary_joints(), target.solutions, previous, hint, q)
-                      : orient_on_branch(machine_, kin_.rotary_joints(), target.solutions, branch, previous, hint, q);
+    return branch < 0 ? orient_within_limits(machine_, kin_.rotary_joints(), target.solutions, previous, hint, q, &chosen)
+                      : orient_on_branch(machine_, kin_.rotary_joints(), target.solutions, branch, previous, hint, q, &chosen);
 }
 
-IkResult MotionStage::place(const Target& target, std::vector<double>& q) const {
-    if (auto rp = kin_.solve_position(target.pose.tip, q); !rp.ok()) return rp;
+IkResult MotionStage::place(const Target& target, std::vector<double>& q, ChosenSolution chosen) const {
+    if (auto rp = kin_.solve_position(target.pose.tip, q, nullptr, nullptr, chosen); !rp.ok()) return rp;
     return limits_.contains(q) ? IkResult{} : check_limits(machine_, q);
 }
 
@@ -527,8 +528,9 @@ IkResult MotionStage::march(const MoveSpec& mv, double tol) {
             } else if (mv.mode == OrientationMode::Vector) {
                 // solve_at's steps, the target kept for the other branches' tries below.
                 target_at(mv, std::min(sb, 1.0), target_);
-                r = orient_at(mv, std::min(sb, 1.0), target_, qa, qb, -1);
-                if (r.ok()) r = place(target_, qb);
+                ChosenSolution chosen;
+                r = orient_at(mv, std::min(sb, 1.0), target_, qa, qb, -1, chosen);
+                if (r.ok()) r = place(target_, qb, chosen);
             } else {
                 r = solve_at(mv, std::min(sb, 1.0), qa, qb);
             }
@@ -551,9 +553,10 @@ IkResult MotionStage::march(const MoveSpec& mv, double tol) {
                     // rotaries are the continuous solve's to the bit is the branch it took: the
                     // position solve would give exact_b_ again, qb once rounded, which the test
                     // below skips; it is skipped here, before that solve.
-                    if (!orient_at(mv, std::min(sb, 1.0), target_, qa, alt, b).ok()) continue;
+                    ChosenSolution chosen;
+                    if (!orient_at(mv, std::min(sb, 1.0), target_, qa, alt, b, chosen).ok()) continue;
                     if (same_rotaries(alt, exact_b_)) continue;
-                    if (!place(target_, alt).ok()) continue;
+                    if (!place(target_, alt, chosen).ok()) continue;
                     std::vector<double>& alt_exact = alt_exact_;  // a member: no allocation per try
                     alt_exact = alt;
                     round_printed(machine_, alt);

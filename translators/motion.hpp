@@ -118,9 +118,10 @@ private:
         Kinematics::Solutions solutions;
     };
     void target_at(const MoveSpec& move, double s, Target& target) const;
+    // `chosen` receives which of target.solutions q's rotaries took, for place.
     IkResult orient_at(const MoveSpec& move, double s, const Target& target, const std::vector<double>& previous,
-                       std::vector<double>& q, int branch) const;
-    IkResult place(const Target& target, std::vector<double>& q) const;
+                       std::vector<double>& q, int branch, ChosenSolution& chosen) const;
+    IkResult place(const Target& target, std::vector<double>& q, ChosenSolution chosen) const;
     // The rotary joints of a and b are the same to the bit.
     bool same_rotaries(const std::vector<double>& a, const std::vector<double>& b) const;
     Target target_;  // the split's current try

@@ -328,12 +328,13 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     copy_joints(q_next_, s.q);
     if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
     end_solved_.valid = false;
+    ChosenSolution chosen;  // the solution the rotaries take (a tool vector's): the solve reuses its terms
     // Returned in place (prvalues): no result moved in, nor its message.
     IkResult r = [&] {
         if (!mv.any_ijk) return IkResult{};
         end_solutions_ = kin_.orientation_solutions(mv.axis);
         motion_.remember_solutions(end_solutions_);  // the move's end axis: the motion stage asks for it again
-        return orient_within_limits(machine_, kin_.rotary_joints(), end_solutions_, s.q, s.q, q_next_);
+        return orient_within_limits(machine_, kin_.rotary_joints(), end_solutions_, s.q, s.q, q_next_, &chosen);
     }();
     Pose next = s.pose;
     if (r.ok()) {
@@ -348,12 +349,12 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
                 // asks for it at the next move's start.
                 Eigen::Vector3d at_end;
                 // r is ok here: only a failure needs moving in.
-                if (auto solved = kin_.solve_position(next.tip, q_next_, &at_end, &end_solved_); solved.ok())
+                if (auto solved = kin_.solve_position(next.tip, q_next_, &at_end, &end_solved_, chosen); solved.ok())
                     remember_axis(q_next_, at_end);
                 else
                     r = std::move(solved);
                 if (mv.any_rotary) next.axis = at_end;
-            } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr, &end_solved_); !solved.ok()) {
+            } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr, &end_solved_, chosen); !solved.ok()) {
                 r = std::move(solved);  // r is ok here: only a failure needs moving in
             }
             if (mv.any_ijk) next.axis = mv.axis;
