@@ -931,6 +931,41 @@ TEST_CASE("atan2 is odd in y to the last bit, as the orientation solve's second 
     CHECK(differ == 0);
 }
 
+TEST_CASE("both orientation solutions reach the asked axis on every shipped machine, the second's turn half a turn from the first where its terms are negated") {
+    // The second solution's first angle is taken half a turn from the first's (opposite_angle)
+    // where its atan2 terms are the first's negated (pentarod's A/C table): each solution's FK
+    // gives the asked axis, on random axes; on pentarod the two are (A, C) and (-A, C + 180).
+    std::mt19937 rng(12);
+    std::uniform_real_distribution<double> U(-1, 1);
+    int checked = 0, bad = 0;
+    for (const auto& [name, path] : bundled_machines()) {
+        CAPTURE(name);
+        const Machine m = load_machine(path);
+        const Kinematics k(m);
+        const auto& rot = k.rotary_joints();
+        if (rot.size() != 2) continue;
+        for (int i = 0; i < 20000; ++i) {
+            const Eigen::Vector3d axis = Eigen::Vector3d(U(rng), U(rng), U(rng)).normalized();
+            const auto sol = k.orientation_solutions(axis);
+            for (int b = 0; b < sol.count; ++b) {
+                if (std::isnan(sol.angle[b][0]) || std::isnan(sol.angle[b][1])) continue;
+                std::vector<double> q(m.joints.size(), 0.0);
+                q[std::size_t(rot[0])] = sol.angle[b][0];
+                q[std::size_t(rot[1])] = sol.angle[b][1];
+                if (!within(k.tool_axis(q), axis, 1e-9)) ++bad;
+                ++checked;
+            }
+            if (name == "pentarod" && sol.count == 2) {
+                const int a = rot[0] == joint(m, 'A') ? 0 : 1, c = 1 - a;
+                if (!(std::abs(sol.angle[0][a] + sol.angle[1][a]) <= 1e-9 && std::abs(std::abs(wrap180(sol.angle[0][c] - sol.angle[1][c])) - 180) <= 1e-9))
+                    ++bad;
+            }
+        }
+    }
+    CHECK(bad == 0);
+    CHECK(checked > 100000);
+}
+
 TEST_CASE("the orientation solve's shortcut equals its general path bit for bit, on every shipped machine and random axes") {
     // The shortcut (two rotaries along coordinate axes) leaves out the products with the axes'
     // zero entries; it must give the general path's bits, signed zeros and NaNs included, or

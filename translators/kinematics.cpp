@@ -85,6 +85,10 @@ Subproblem1 subproblem1_terms(const Eigen::Vector3d& w, const Eigen::Vector3d& p
     return {w.dot(pp.cross(qq)), pp.dot(qq), false};
 }
 double angle_of(const Subproblem1& t) { return t.free ? std::numeric_limits<double>::quiet_NaN() : std::atan2(t.y, t.x); }
+// atan2(-y, -x) from phi = atan2(y, x), y non-zero: the opposite direction, half a turn away, in
+// (-pi, pi] as atan2 gives it (to an ulp of it, not atan2's own bits). Both orientation paths use
+// it where a second solution's terms are the first's negated, so they stay the same to the bit.
+double opposite_angle(double phi) { return phi > 0 ? phi - kPi : phi + kPi; }
 double subproblem1(const Eigen::Vector3d& w, const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
     return angle_of(subproblem1_terms(w, p, q));
 }
@@ -1270,7 +1274,9 @@ bool Kinematics::orientation_shortcut(const Eigen::Vector3d& axis, Solutions& ou
     if (status == 1) return true;  // out of reach
     // The second tilt from the first when its terms are the first's with y negated (as in the
     // general path below).
-    const double phi1 = std::atan2(t[0], t[1]), phi2 = std::atan2(t[2], t[3]), phi1b = std::atan2(t[4], t[5]);
+    const double phi1 = std::atan2(t[0], t[1]), phi2 = std::atan2(t[2], t[3]);
+    // (t[0] is not zero here.)
+    const double phi1b = t[4] == -t[0] && t[5] == -t[1] ? opposite_angle(phi1) : std::atan2(t[4], t[5]);
     const bool odd = t[7] == t[3] && std::signbit(t[7]) == std::signbit(t[3]) && -t[6] == t[2] && std::signbit(t[6]) != std::signbit(t[2]);
     const double phi2b = odd ? -phi2 : std::atan2(t[6], t[7]);
     out.angle[0][0] = f.sign1 * phi1 / kDeg;
@@ -1311,8 +1317,8 @@ Kinematics::Solutions Kinematics::orientation_solutions_general(const Eigen::Vec
     const double gamma2 = (p_.squaredNorm() - alpha * alpha - beta * beta - 2.0 * alpha * beta * a) / n.squaredNorm();
     if (gamma2 < -kReachEps * kReachEps) return out;
     const double gamma = std::sqrt(std::max(gamma2, 0.0));
-    Subproblem1 first{};
-    double first_phi2 = 0;
+    Subproblem1 first{}, first1{};
+    double first_phi2 = 0, first_phi1 = 0;
     for (double s : {1.0, -1.0}) {
         const Eigen::Vector3d c = alpha * w1 + beta * w2 + s * gamma * n;
         // The second solution's tilt: when its terms are the first one's with y negated, bit for
@@ -1329,7 +1335,16 @@ Kinematics::Solutions Kinematics::orientation_solutions_general(const Eigen::Vec
             phi2 = angle_of(terms2);
         first = terms2;
         first_phi2 = phi2;
-        const double phi1 = subproblem1(w1, c, u);
+        // The second solution's turn: when its terms are the first one's negated (pentarod's A/C
+        // table), half a turn from the first (opposite_angle). No atan2 then.
+        const Subproblem1 terms1 = subproblem1_terms(w1, c, u);
+        double phi1;
+        if (s < 0 && !terms1.free && !first1.free && terms1.y != 0 && terms1.y == -first1.y && terms1.x == -first1.x)
+            phi1 = opposite_angle(first_phi1);
+        else
+            phi1 = angle_of(terms1);
+        first1 = terms1;
+        first_phi1 = phi1;
         out.angle[out.count][0] = std::isnan(phi1) ? nan : sign_[0] * phi1 / kDeg;
         out.angle[out.count][1] = std::isnan(phi2) ? nan : sign_[1] * phi2 / kDeg;
         ++out.count;
