@@ -713,8 +713,8 @@ template <int k1, int k2, class TwoTurns>
     const double* t1 = s.terms[chosen.branch][f.r1];
     const double* t2 = s.terms[chosen.branch][f.r2];
     const double i1 = 1.0 / std::sqrt(t1[0] * t1[0] + t1[1] * t1[1]), i2 = 1.0 / std::sqrt(t2[0] * t2[0] + t2[1] * t2[1]);
-    // The joint's angle is term_sign times the atan2: its sine takes that sign, then the turn's own.
-    r = {t1[1] * i1, f.sign1 * s.term_sign[f.r1] * t1[0] * i1, t2[1] * i2, f.sign2 * s.term_sign[f.r2] * t2[0] * i2};
+    // The turn's sine is the joint's angle's times the turn's sign.
+    r = {t1[1] * i1, f.sign1 * t1[0] * i1, t2[1] * i2, f.sign2 * t2[0] * i2};
     return true;
 }
 
@@ -1285,9 +1285,9 @@ bool Kinematics::orientation_shortcut(const Eigen::Vector3d& axis, Solutions& ou
     out.angle[1][1] = f.sign2 * phi2b / kDeg;
     out.count = 2;
     out.has_terms = true;
+    // (The angle is sign * atan2(y, x), so atan2(sign * y, x): the sign is +-1.)
     for (int b = 0; b < 2; ++b)
-        for (int r = 0; r < 2; ++r) out.terms[b][r][0] = t[4 * b + 2 * r], out.terms[b][r][1] = t[4 * b + 2 * r + 1];
-    out.term_sign[0] = f.sign1, out.term_sign[1] = f.sign2;
+        for (int r = 0; r < 2; ++r) out.terms[b][r][0] = (r == 0 ? f.sign1 : f.sign2) * t[4 * b + 2 * r], out.terms[b][r][1] = t[4 * b + 2 * r + 1];
     return true;
 }
 

@@ -29,12 +29,11 @@ struct OrientationSolutions {
     Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // the axis they reach, as asked
     int count = 0;
     double angle[2][2] = {};
-    // From the orientation shortcut (has_terms): the (y, x) whose atan2 gave each angle's
-    // radians before its joint's sign (+-1, term_sign), so that a position solve at these angles
-    // takes their cosines and sines from them instead of calling sincos.
+    // From the orientation shortcut (has_terms): for each angle, (y, x) with atan2(y, x) its
+    // radians (y carries the joint's sign), so that a position solve at these angles takes their
+    // cosines and sines from them instead of calling sincos.
     bool has_terms = false;
     double terms[2][2][2] = {};
-    double term_sign[2] = {1, 1};
     std::size_t size() const { return std::size_t(count); }
     bool empty() const { return count == 0; }
 };
