@@ -68,7 +68,7 @@ void turn_at_random(Machine& m, std::mt19937& rng) {
 }
 
 // pentarod's shape (two turns about coordinate axes through the origin, three linear links in
-// the tool chain: the kinematics' unrolled path) with turns about axes k1 != k2 (each +-1 times
+// the tool chain: the kinematics' closed form) with turns about axes k1 != k2 (each +-1 times
 // it), t picking the signs and whether the tool's axis and linear directions are drawn at random.
 Machine two_turns(Machine m, int k1, int k2, int t, std::mt19937& rng) {
     std::uniform_real_distribution<double> U(0, 1);
@@ -629,7 +629,7 @@ TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit o
         // fixed rotation of the chains turned to a random direction, so every product sums three
         // non-zero terms and the order of the sums shows.
         // 3 to 8 (pentarod): its shape with turns about other coordinate axes (forward's
-        // unrolled path), signs and directions at random.
+        // closed form), signs and directions at random.
         for (const int variant : {0, 1, 2, 3, 4, 5, 6, 7, 8}) {
             if (variant == 1 && !tilted.count(name)) continue;
             if (variant >= 3 && name != "pentarod") continue;

@@ -430,8 +430,7 @@ Kinematics::Kinematics(const Machine& machine)
         const V3 up = M3{1, 0, 0, 0, 1, 0, 0, 0, 1} * v3(machine.tool_axis);
         tool_up_[0] = up.x, tool_up_[1] = up.y, tool_up_[2] = up.z;
     }
-    // The solve's unrolled shape (see TwoTurns): checked link by link against what solve_scalar
-    // would do with these chains, so that it can do the same with the links' numbers as constants.
+    // The closed form's shape (see TwoTurns), checked link by link; its constants taken once.
     {
         using K = ChainLink::Kind;
         auto coordinate = [](K kind) { return kind == K::RotaryX ? 0 : kind == K::RotaryY ? 1 : kind == K::RotaryZ ? 2 : -1; };
@@ -961,7 +960,7 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
 }
 
 // Apart from solve_position so that its constant-Jacobian path stays as short as it was, and
-// from solve_scalar so that the unrolled path does not pay for solve_scalar's frame.
+// from solve_scalar so that the closed form does not pay for solve_scalar's frame.
 IkResult Kinematics::solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
                                    ChosenSolution chosen) const {
     if (turns_.pattern < 0) return solve_scalar(tip, q, axis, end);
