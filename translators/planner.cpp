@@ -72,9 +72,11 @@ Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter
 // The tool axis at q's rotaries: a remembered one when they are the same to the bit (a move's
 // end is the next one's start), else tool_axis(q). pole_passage's machines only (two rotaries).
 // The older slot first: it holds the end of the move before, this move's start (the newer one
-// holds this move's usual end). Should both hold q's rotaries, their axes are the same bits: the
-// position solve's axis (test_kinematics: tool_axis(q) to the bit) is computed from the rotaries
-// alone (rotations; the linear joints only translate), the same operations on the same bits.
+// holds this move's usual end). The remembered axes are the position solve's, computed from the
+// rotaries alone (rotations; the linear joints only translate): tool_axis(q) to the bit, or to
+// rounding where the solve took the rotaries' sines from the orientation solve (a two-turn
+// table's closed form); either way the slots are tried in a fixed order, so the answer is the
+// same on every run.
 inline Eigen::Vector3d Planner::axis_at(const std::vector<double>& q) const {
     const std::uint64_t qc = std::bit_cast<std::uint64_t>(q[pole_c_]), qb = std::bit_cast<std::uint64_t>(q[pole_b_]);
     const KnownAxis& older = known_axes_[known_next_];
@@ -270,8 +272,8 @@ bool Planner::pole_hold(const Pose& from, const Pose& to, const Kinematics::Solu
     lerp.resize(q0.size());
     const GreatArc arc(from.axis, to.axis);
     const double limit = kPoleMargin * tolerance;
-    // The tool axis at joints p: the start's and the end's are known (the same bits as
-    // tool_axis: it reads only the rotaries, compared to the bit), and the cache may hold others.
+    // The tool axis at joints p: the start's and the end's are known (tool_axis's, or the solve's
+    // to rounding: see axis_at; rotaries compared to the bit), and the cache may hold others.
     const std::uint64_t c0 = std::bit_cast<std::uint64_t>(q0[c]), b0 = std::bit_cast<std::uint64_t>(q0[b]);
     auto axis_of = [&](const std::vector<double>& p) -> Eigen::Vector3d {
         const std::uint64_t pc = std::bit_cast<std::uint64_t>(p[c]), pb = std::bit_cast<std::uint64_t>(p[b]);
