@@ -454,15 +454,15 @@ Kinematics::Kinematics(const Machine& machine)
                 f.line0_point[0] = p0.x, f.line0_point[1] = p0.y, f.line0_point[2] = p0.z;
                 f.line0_dir[0] = d0.x, f.line0_dir[1] = d0.y, f.line0_dir[2] = d0.z;
                 for (int i = 0; i < 3; ++i) f.point2[i] = b.point[i], f.axis2[i] = b.axis[i];
+                // C: each unknown's direction (its joint's tool link) as a column.
+                Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
                 for (std::size_t m = 0; m < 3; ++m) {
                     f.tool_joint[m] = tool_links_[m].joint;
                     for (int i = 0; i < 3; ++i) f.tool_dir[m][i] = tool_links_[m].axis[i];
                     for (std::size_t k = 0; k < 3; ++k)
                         if (linear_[k] == tool_links_[m].joint)
-                            for (int i = 0; i < 3; ++i) f.col_dir[k][i] = tool_links_[m].axis[i];
+                            C.col(Eigen::Index(k)) = Eigen::Vector3d(tool_links_[m].axis[0], tool_links_[m].axis[1], tool_links_[m].axis[2]);
                 }
-                Eigen::Matrix3d C;
-                for (int k = 0; k < 3; ++k) C.col(k) = Eigen::Vector3d(f.col_dir[k][0], f.col_dir[k][1], f.col_dir[k][2]);
                 // As the general solve's test of its Jacobian Rp^T C, whose determinant is C's.
                 f.singular = !(std::abs(C.determinant()) > 1e-9);
                 if (orient_.on)  // the shortcut's solutions carry their atan2 terms
@@ -729,7 +729,8 @@ template <int k1, int k2, class TwoTurns>
 // The linear joints' step dq = J^-1 (tip - current) from J's columns, as Eigen computes a fixed-size 3x3:
 // the determinant as bruteforce_det3_helper sums it, the inverse from the first column's
 // cofactors with one division (so the same bits as solve_position_general's). False when J is
-// singular. Shared by both varying-Jacobian solves.
+// singular. The scalar solve's step (a two-turn table's closed form inverts its constant part at
+// load instead).
 [[gnu::always_inline]] inline bool jacobian_step(const V3 (&col)[3], const Eigen::Vector3d& tip, const V3& current, V3& dq) {
     const double m00 = col[0].x, m10 = col[0].y, m20 = col[0].z, m01 = col[1].x, m11 = col[1].y, m21 = col[1].z, m02 = col[2].x,
                  m12 = col[2].y, m22 = col[2].z;
@@ -1079,7 +1080,7 @@ IkResult Kinematics::solve_scalar(const Eigen::Vector3d& tip, std::vector<double
     }
     const V3 current = transposed_times(Rp, tt - tp);
     // (linear_jacobian's refusal, after the axis as there)
-    if (linear_.size() < 3) return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+    if (linear_.size() < 3) return singular_jacobian();
     // J's columns: Rp^T (tool direction - part direction); a direction a chain does not give is
     // zero, and x - 0 is x to the last bit (0 - x is not -x: a zero's sign).
     V3 col[3];
@@ -1090,7 +1091,7 @@ IkResult Kinematics::solve_scalar(const Eigen::Vector3d& tip, std::vector<double
         col[k] = transposed_times(Rp, d);
     }
     V3 dq;
-    if (!jacobian_step(col, tip, current, dq)) return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+    if (!jacobian_step(col, tip, current, dq)) return singular_jacobian();
     q[std::size_t(linear_[0])] += dq.x;
     q[std::size_t(linear_[1])] += dq.y;
     q[std::size_t(linear_[2])] += dq.z;
@@ -1135,7 +1136,7 @@ IkResult Kinematics::solve_position_general(const Eigen::Vector3d& tip, std::vec
     const Eigen::Vector3d current = Rp.transpose() * (tt - tp);
     Eigen::Matrix3d J;
     if (!linear_jacobian(Rp, part_dirs, tool_dirs, J))
-        return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
+        return singular_jacobian();
     const Eigen::Vector3d dq = J.inverse() * (tip - current);  // closed-form 3x3 inverse
     for (int i = 0; i < 3; ++i) q[std::size_t(linear_[std::size_t(i)])] += dq[i];
     if (want_end) {

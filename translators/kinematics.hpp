@@ -275,8 +275,7 @@ private:
         double line0_point[3] = {}, line0_dir[3] = {};  // the first turn's axis line (R, t still the identity and zero)
         int tool_joint[3] = {};
         double tool_dir[3][3] = {};  // the tool links' axes, in chain order
-        double col_dir[3][3] = {};   // each unknown's direction (the last tool link of its joint)
-        double col_inv[9] = {};      // the inverse of the matrix of those directions (columns), row by row
+        double col_inv[9] = {};      // the inverse of the matrix of the unknowns' directions (columns), row by row
         bool singular = false;       // the directions do not span space: no position solve
         int r1 = -1, r2 = -1;        // the turns' columns of OrientationSolutions::angle (-1: no shortcut gives them)
     } turns_;
