@@ -1,9 +1,10 @@
 // Benchmark (not a test): the whole chain, sender -> xlate5 serve -> virtual printer, on real
 // pseudo-terminals in one process. Reports lines/s, how busy the firmware's link is kept when
-// it is the bottleneck (does xlate5 ever starve it?), and the latency xlate5 adds per line:
-// the sender's send-to-ok time through xlate5 against the same sender talking to the virtual
-// printer directly (unlimited link). With a limited link, the send-to-ok time of the lines sent
-// while xlate5's queue had room is printed too (the rest wait for the link, by design). The
+// it is the bottleneck (does xlate5 ever starve it?), and the latency xlate5 adds per line: the
+// sender's send-to-ok time through xlate5 of the lines sent while xlate5's queue had room (the
+// rest wait for the link, by design), whose p99 bounds what xlate5 adds from above (what it adds
+// lies inside the round trip); with the link unlimited, the same sender talking to the virtual
+// printer directly as well, for context. The
 // host's load average and CPU steal over the run are printed next to the figures: on a shared
 // machine they explain most of the spread.
 //   bench_service [lines=20000] [baud=0 (unlimited) | 115200 | 250000 ...] [machine=rw2] [rx_bytes=127]
@@ -305,6 +306,13 @@ int main(int argc, char** argv) {
                 sender.latency.percentile(0.5), sender.latency.percentile(0.99), static_cast<unsigned long long>(sender.with_room.count),
                 sender.with_room.percentile(0.5), sender.with_room.percentile(0.99));
     {
+        // Whatever xlate5 adds to a line's round trip lies inside that round trip, so the round
+        // trips' p99 bounds from above the p99 of what xlate5 adds.
+        const double bound = sender.with_room.percentile(0.99);
+        std::printf("  xlate5 adds at most %.0f us p99 to a round trip with room in the queue (the whole round trip's p99; target < 1000 us: %s)\n",
+                    bound, bound < 1000 ? "met" : "not shown");
+    }
+    {
         const auto& f = parts.service->firmware()->stats();
         std::printf("  firmware link: %llu lines sent, %llu resends, %llu timeouts, %llu probes, %llu busy\n",
                     static_cast<unsigned long long>(f.sent), static_cast<unsigned long long>(f.resend_requests),
@@ -334,8 +342,10 @@ int main(int argc, char** argv) {
         run(io, [&] { return direct.done; }, 3600);
         const double p50 = direct.latency.percentile(0.5), p99 = direct.latency.percentile(0.99);
         std::printf("direct to the virtual printer (the translated lines): p50 %.0f us, p99 %.0f us\n", p50, p99);
-        std::printf("latency xlate5 adds per line against the printer alone: p50 %.0f us, p99 %.0f us (target p99 < 1000 us)\n", sender.latency.percentile(0.5) - p50,
-                    sender.latency.percentile(0.99) - p99);
+        // For context only: figures of two separate runs do not subtract into what xlate5 adds
+        // to a line (a hiccup in either run moves its p99 alone, and here even the medians'
+        // difference has come out negative), so no difference is printed; the bound above is
+        // the figure for the target.
     }
     std::string cmd = std::string("rm -rf ") + dir;
     return std::system(cmd.c_str()) == 0 && ok ? 0 : 1;
