@@ -237,13 +237,29 @@ TEST_CASE("write_units below a million units, its table paths, writes what the g
     }
 }
 
-TEST_CASE("to_units' branch-free rounding and write_units' one-decimal case agree with the plain forms, bit for bit") {
-    // Half away from zero as it was written before: a branch on the sign.
-    auto plain = [](double scaled) { return static_cast<long long>(scaled < 0 ? scaled - 0.5 : scaled + 0.5); };
+TEST_CASE("to_units' branch-free rounding is the C library's llround, and write_units' one-decimal case the general path's, bit for bit") {
+    // Half away from zero, exactly: llround. (Adding 0.5 and truncating, as this rounding was
+    // first written, gives 1 for 0.5 - 2^-54: the sum rounds up.)
+    auto plain = [](double scaled) { return std::llround(scaled); };
     std::mt19937_64 rng(15);
     std::vector<double> values = {0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, 0.49999999999999994, -0.49999999999999994,
                                   4503599627370495.5, -4503599627370495.5, 999999999999999.0, -999999999999999.0,
                                   std::numeric_limits<double>::denorm_min(), -std::numeric_limits<double>::denorm_min()};
+    // Every half from -0.5 to 4096.5 and at each power of two up to 2^49, with the doubles just
+    // either side of it: where an added half can carry into the next binade.
+    for (int p = -1; p <= 49; ++p) {
+        for (const double n : {std::ldexp(1.0, std::max(p, 0)) - 1.0, std::ldexp(1.0, std::max(p, 0))}) {
+            const double half = n + 0.5;
+            for (const double v : {half, std::nextafter(half, 0.0), std::nextafter(half, 1e300), std::nextafter(std::nextafter(half, 0.0), 0.0)}) {
+                values.push_back(v);
+                values.push_back(-v);
+            }
+        }
+    }
+    for (int n = -1; n <= 4096; ++n) {
+        const double half = double(n) + 0.5;
+        for (const double v : {half, std::nextafter(half, -1e300), std::nextafter(half, 1e300)}) values.push_back(v);
+    }
     for (int i = 0; i < 1000000; ++i) {
         const int kind = int(rng() % 4);
         double v;

@@ -36,11 +36,15 @@ void append_fixed(std::string& out, double v, int decimals);
 // UnwritableNumber as append_fixed.
 void append_shortest(std::string& out, double v);
 
-// Half away from zero, as llround, without the library call or a branch: ±0.5 by scaled's sign
-// (scaled - 0.5 and scaled + -0.5 are the same sum; -0 gives -0.5, truncated to 0 as +0.5 is).
+// Half away from zero, as llround, without the library call or a branch: the largest double
+// below 0.5 added with scaled's sign, then truncated. (With 0.5 itself the sum rounds up for
+// 0.5 - 2^-54, the one double in [0.25, 0.5) whose sum with 0.5 is a tie in [0.5, 1): it gave 1
+// where llround gives 0. With the double below 0.5 an exact half still sums past the integer
+// above it, or ties to it in a coarser binade, and anything below a half stays below: the same as
+// llround for every |scaled| < 1e15, as test_stream checks at each n + 0.5 and its neighbours.)
 // For |scaled| < 1e15 (fits exactly), not NaN.
 inline long long round_half_away(double scaled) {
-    return static_cast<long long>(scaled + std::copysign(0.5, scaled));
+    return static_cast<long long>(scaled + std::copysign(0.49999999999999994, scaled));
 }
 
 // v in units of 10^-decimals, rounded half away from zero: what append_fixed prints. False if
