@@ -247,8 +247,8 @@ TEST_CASE("to_units' branch-free rounding is the C library's llround, and write_
                                   std::numeric_limits<double>::denorm_min(), -std::numeric_limits<double>::denorm_min()};
     // Every half from -0.5 to 4096.5 and at each power of two up to 2^49, with the doubles just
     // either side of it: where an added half can carry into the next binade.
-    for (int p = -1; p <= 49; ++p) {
-        for (const double n : {std::ldexp(1.0, std::max(p, 0)) - 1.0, std::ldexp(1.0, std::max(p, 0))}) {
+    for (int p = 0; p <= 49; ++p) {
+        for (const double n : {std::ldexp(1.0, p) - 1.0, std::ldexp(1.0, p)}) {
             const double half = n + 0.5;
             for (const double v : {half, std::nextafter(half, 0.0), std::nextafter(half, 1e300), std::nextafter(std::nextafter(half, 0.0), 0.0)}) {
                 values.push_back(v);
