@@ -20,6 +20,19 @@
 
 namespace xlate5::test {
 
+// Built with AddressSanitizer: gcc says so with __SANITIZE_ADDRESS__, clang with __has_feature.
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kAddressSanitized = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+inline constexpr bool kAddressSanitized = true;
+#else
+inline constexpr bool kAddressSanitized = false;
+#endif
+#else
+inline constexpr bool kAddressSanitized = false;
+#endif
+
 // A whole file as text ("" when it cannot be read).
 inline std::string read(const std::filesystem::path& p) {
     std::ifstream in(p, std::ios::binary);

@@ -27,11 +27,7 @@ std::size_t fault_lines() {
         const long n = std::strtol(v, nullptr, 10);
         if (n >= 100 && n <= 10'000'000) return std::size_t(n);
     }
-#if defined(__SANITIZE_ADDRESS__)
-    return 5'000;
-#else
-    return 20'000;
-#endif
+    return kAddressSanitized ? 5'000 : 20'000;
 }
 
 struct FaultRun {

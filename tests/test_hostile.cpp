@@ -292,13 +292,7 @@ TEST_CASE("sender side: a line longer than the line-length bound is refused whol
 // The sanitizer runtime needs descriptors of its own (UndefinedBehaviorSanitizer's vptr check
 // opens a pipe to probe memory): with none left it reports an "invalid vptr" that is not there.
 // So this one runs in the optimised build only.
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
-
-TEST_CASE("TCP: with the file limit reached, accepting resumes once descriptors are free again" * doctest::skip(kSanitized)) {
+TEST_CASE("TCP: with the file limit reached, accepting resumes once descriptors are free again" * doctest::skip(kAddressSanitized)) {
     // In a child process: its lowered RLIMIT_NOFILE and the descriptors it fills stay its own.
     const pid_t pid = ::fork();
     REQUIRE(pid >= 0);

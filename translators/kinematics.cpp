@@ -57,10 +57,6 @@ inline V3 normalized(const V3& v) {
     return {v.x / r, v.y / r, v.z / r};
 }
 
-inline M3 m3(const Eigen::Ref<const Eigen::Matrix3d>& m) {
-    return {m(0, 0), m(0, 1), m(0, 2), m(1, 0), m(1, 1), m(1, 2), m(2, 0), m(2, 1), m(2, 2)};
-}
-
 // Eigen's AngleAxis::toRotationMatrix, entry for entry.
 inline M3 rot(const V3& axis, double degrees) {
     const double angle = degrees * kDeg;
