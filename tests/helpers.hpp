@@ -18,6 +18,12 @@
 
 #include "translators/machine.hpp"
 
+// doctest's CAPTURE reads its argument inside a lambda, and clang 14 cannot capture a structured
+// binding there: this captures a reference to it, under the binding's own name in the message.
+#define CAPTURE_BINDING(x)              \
+    const auto& x##_captured = (x);     \
+    INFO(#x " := ", x##_captured)
+
 namespace xlate5::test {
 
 // Built with AddressSanitizer: gcc says so with __SANITIZE_ADDRESS__, clang with __has_feature.

@@ -753,8 +753,7 @@ TEST_CASE("cli: what a user reads names its sources by author, place and year, n
                 texts.emplace_back(e.path().string(), read(e.path()));
     CHECK(texts.size() > 20);
     for (const auto& [where, text] : texts) {
-        const auto& where_ = where;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(where_);
+        CAPTURE_BINDING(where);
         CHECK(numbered(text).empty());
     }
     CHECK(contains(run(d, "machines").out, "Andersons, Twente 2023"));
@@ -786,10 +785,8 @@ std::string triple(double a, double b, double c) {
 TEST_CASE("cli: pose gives pentarod's tip and tool axis per Grutle's pseudo code 4.1") {
     TempDir d;
     for (const auto& [x, y, z, a, c] : std::vector<std::array<double, 5>>{{0, 0, 0, 30, 20}, {12.5, -7, 3, -45, 170}, {40, 30, 20, 80, -95}}) {
-        const auto& a_ = a;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(a_);
-        const auto& c_ = c;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(c_);
+        CAPTURE_BINDING(a);
+        CAPTURE_BINDING(c);
         char args[200];
         std::snprintf(args, sizeof args, "-m pentarod pose X=%g Y=%g Z=%g A=%g C=%g", x, y, z, a, c);
         const Result r = run(d, args);
@@ -843,8 +840,7 @@ TEST_CASE("cli: pose round trips: joints -> tip and axis -> joints -> the same t
                                                 triple(axis.at("I"), axis.at("J"), axis.at("K")))
                                          .out);
         for (const auto& [name, v] : p.at("joints")) {
-            const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-            CAPTURE(name_);
+            CAPTURE_BINDING(name);
             CHECK(std::abs(same.at("joints").at(name) - v) <= 2e-3);
         }
     }

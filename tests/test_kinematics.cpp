@@ -11,6 +11,7 @@
 #include <memory>
 #include <random>
 
+#include "helpers.hpp"
 #include "translators/error.hpp"
 #include "translators/joint_limits.hpp"
 #include "translators/kinematics.hpp"
@@ -298,8 +299,7 @@ TEST_CASE("xyzac-trt equals LinuxCNC's xyzac-trt inverse, both rotation senses")
 
 TEST_CASE("FK o IK and IK o FK round trips to 1e-9 on every shipped machine") {
     for (const auto& [name, path] : bundled_machines()) {
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         const Machine m = load_machine(path);
         const Kinematics k(m);
         std::mt19937 rng(std::hash<std::string>{}(name) & 0xffff);
@@ -402,8 +402,7 @@ TEST_CASE("the machine's reach bounds every lever arm and every shift inside the
     for (const auto& [name, path] : bundled_machines()) {
         for (const int variant : {0, 1}) {
             if (variant == 1 && !tilted.count(name)) continue;
-            const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-            CAPTURE(name_);
+            CAPTURE_BINDING(name);
             const Machine m = variant == 1 ? load_machine(path, tilted.at(name)) : load_machine(path);
             const Kinematics k(m);
             REQUIRE(k.has_reach());
@@ -440,8 +439,7 @@ TEST_CASE("the tool axis's bound holds for turns of any size on every shipped ma
     // turntable may swing by a half turn or more: sampled at 400 points, the axis stays within
     // the bound (scaled by 4 t (1 - t)) of the chord between its ends, for turns up to 300 degrees.
     for (const auto& [name, path] : bundled_machines()) {
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         const Machine m = load_machine(path);
         const Kinematics k(m);
         std::mt19937 rng(std::hash<std::string>{}(name) & 0xfff);
@@ -490,8 +488,7 @@ void random_step(const Machine& m, std::mt19937& rng, double scale, std::vector<
 
 TEST_CASE("the joint-path bound's shorter path equals its general one bit for bit on every shipped machine") {
     for (const auto& [name, path] : bundled_machines()) {
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         const Machine m = load_machine(path);
         const Kinematics k(m);
         std::mt19937 rng(std::hash<std::string>{}(name) & 0xffff);
@@ -514,8 +511,7 @@ TEST_CASE("the joint-path bound holds against dense sampling of the path on ever
     // The firmware moves every joint at a constant rate from qa to qb: the tip and the tool axis
     // (sampled at 400 points by FK) must stay within the bound of the chords between their ends.
     for (const auto& [name, path] : bundled_machines()) {
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         const Machine m = load_machine(path);
         const Kinematics k(m);
         std::mt19937 rng(std::hash<std::string>{}(name) & 0xffff);
@@ -638,8 +634,7 @@ TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit o
         for (const int variant : {0, 1, 2, 3, 4, 5, 6, 7, 8}) {
             if (variant == 1 && !tilted.count(name)) continue;
             if (variant >= 3 && name != "pentarod") continue;
-            const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-            CAPTURE(name_);
+            CAPTURE_BINDING(name);
             CAPTURE(variant);
             Machine m = variant == 1 ? load_machine(path, tilted.at(name)) : load_machine(path);
             std::mt19937 rng(std::hash<std::string>{}(name) & 0xffff);
@@ -697,8 +692,7 @@ TEST_CASE("the position solve without a part chain equals the general products w
         const Machine m = load_machine(path);
         if (!m.part_chain.empty()) continue;
         ++machines;
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         Machine general = m;
         ChainElement nudge;
         nudge.kind = ChainElement::Kind::Fixed;
@@ -769,8 +763,7 @@ TEST_CASE("the position solve's own end is the FK at its solution, and near_end 
     int given = 0;
     double printed_slack = 0;  // the largest tip slack of a printed rounding on pentarod as shipped
     for (const auto& [name, m] : cases) {
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         const Kinematics k(m);
         int wrong = 0, loose = 0;
         for (int i = 0; i < 2000; ++i) {
@@ -947,8 +940,7 @@ TEST_CASE("both orientation solutions reach the asked axis on every shipped mach
     std::uniform_real_distribution<double> U(-1, 1);
     int checked = 0, bad = 0;
     for (const auto& [name, path] : bundled_machines()) {
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         const Machine m = load_machine(path);
         const Kinematics k(m);
         const auto& rot = k.rotary_joints();
@@ -994,8 +986,7 @@ TEST_CASE("the orientation solve's shortcut equals its general path bit for bit,
     for (const auto& [name, path] : bundled_machines()) {
         for (int variant = 0; variant < 42; ++variant) {
             if (variant == 1 && !tilted.count(name)) continue;
-            const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-            CAPTURE(name_);
+            CAPTURE_BINDING(name);
             CAPTURE(variant);
             Machine m = variant == 1 ? load_machine(path, tilted.at(name)) : load_machine(path);
             if (variant >= 2) {
@@ -1113,8 +1104,7 @@ TEST_CASE("the position solve at a chosen orientation solution takes its cosines
             if (k1 != k2) cases.emplace_back("pentarod's shape " + std::to_string(k1) + std::to_string(k2), two_turns(machine("pentarod"), k1, k2, int(U(rng) * 16), rng));
     int machines = 0, total = 0;
     for (const auto& [name, m] : cases) {
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         const Kinematics k(m);
         if (!k.has_two_turns() || !k.has_orientation_shortcut()) continue;
         ++machines;
@@ -1188,8 +1178,7 @@ TEST_CASE("the position solve in scalars equals its Eigen general path bit for b
                                        two_turns(pentarod, k1, k2, int(U(rng) * 16), rng));
     int compared = 0;
     for (const auto& [name, m] : cases) {
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         const Kinematics k(m);
         // n doubles the same to the bit; for the closed form of a two-turn table, within `tol`.
         auto same_n = [&](const double* a, const double* b, std::size_t n, double tol) {

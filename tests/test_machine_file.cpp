@@ -6,6 +6,7 @@
 #include <sstream>
 #include <string>
 
+#include "helpers.hpp"
 #include "translators/error.hpp"
 #include "translators/expr.hpp"
 #include "translators/kinematics.hpp"
@@ -151,8 +152,7 @@ TEST_CASE("a machine parsed once and built with other parameters is the machine 
     std::mt19937 rng(19);
     std::uniform_real_distribution<double> u(-1, 1);
     for (const auto& [name, path] : bundled_machines()) {
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         std::ifstream in(path);
         std::ostringstream text;
         text << in.rdbuf();
@@ -206,8 +206,7 @@ TEST_CASE("an expression nested deeper than kMaxExpressionDepth is a MachineErro
 
 TEST_CASE("bundled machines: every joint's home is inside its limits, and the tip is not below the bed there") {
     for (const auto& [name, path] : bundled_machines()) {
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         const Machine m = load_machine(path);
         for (const Joint& j : m.joints) {
             CAPTURE(j.name);

@@ -1395,8 +1395,7 @@ TEST_CASE("the pole passage's verdict without a report (fewer points, a bound be
         const Kinematics k(m);
         if (k.rotary_joints().size() != 2 || !k.has_flip() || !m.motion.segment) continue;
         ++machines;
-        const auto& name_ = name;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(name_);
+        CAPTURE_BINDING(name);
         const double atol = m.motion.angle_tolerance;
         int lines = 0;
         // Round the tip where the linear joints are mid-range (rotaries at zero).

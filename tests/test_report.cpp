@@ -300,8 +300,7 @@ TEST_CASE("the plot's deviation axis is logarithmic with decade ticks written pl
     for (const auto& [label, pos] : x) {
         const double v = std::stod(label);
         const double m = v / std::pow(10.0, std::floor(std::log10(v)));  // leading digits: multiples of 1, 2 or 5 steps
-        const auto& label_ = label;  // (clang 14 cannot capture a structured binding)
-        CAPTURE(label_);
+        CAPTURE_BINDING(label);
         CHECK((std::abs(m - std::round(m)) < 1e-9));
         CHECK(label.find('e') == std::string::npos);
     }
