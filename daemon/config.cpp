@@ -56,11 +56,15 @@ const std::vector<ServeSetting> kSettings = {
     {"sender.hold_seconds", "--hold-seconds", Kind::Number, 0.01, 60, "s", "", "a pause this long in the sender's stream ends the look-back window"},
     {"sender.max_pending", "--max-pending", Kind::Whole, 2, 1 << 20, "lines", "",
      "lines a sender may write ahead of the queue before it is read no further"},
+    {"sender.max_tcp", "--max-tcp", Kind::Whole, 1, 1024, "connections", "", "TCP senders connected at once; more are turned away"},
+    {"sender.idle_seconds", "--idle-seconds", Kind::Number, 1, 86400, "s", "",
+     "a TCP sender that sends nothing this long (and is not printing) is disconnected"},
     {"sim.flavor", "--sim-flavor", Kind::Choice, 0, 0, "", "marlin|reprap", "virtual printer personality"},
     {"sim.advanced_ok", "--sim-advanced-ok", Kind::Switch, 0, 0, "", "", "virtual printer: Marlin's ADVANCED_OK"},
     {"sim.buffer", "--sim-buffer", Kind::Whole, 1, 64, "lines", "", "virtual printer: command buffer (BUFSIZE)"},
     {"sim.planner", "--sim-planner", Kind::Whole, 1, 256, "moves", "", "virtual printer: planner slots"},
     {"sim.baud", "--sim-baud", Kind::Whole, 0, 4000000, "", "", "virtual printer: the link's speed, 0 for unlimited"},
+    {"sim.usb", "--sim-usb", Kind::Switch, 0, 0, "", "", "virtual printer: a native-USB board (writes arrive whole, read once a 1 ms frame)"},
     {"sim.rx_size", "--sim-rx-size", Kind::Whole, 16, 1 << 20, "bytes", "", "virtual printer: serial receive buffer (RX_BUFFER_SIZE)"},
     {"sim.record", "--record", Kind::Text, 0, 0, "", "", "virtual printer: write every executed command to this file"},
     {"log.level", "--log-level", Kind::Choice, 0, 0, "", "trace|debug|info|warn|error", "how much the service logs"},
@@ -133,11 +137,14 @@ void store(ServeConfig& c, const std::string& k, const Value& v) {
     else if (k == "sender.busy_interval") c.busy_interval = v.number;
     else if (k == "sender.hold_seconds") c.hold_seconds = v.number;
     else if (k == "sender.max_pending") c.max_pending = std::size_t(whole());
+    else if (k == "sender.max_tcp") c.max_tcp = std::size_t(whole());
+    else if (k == "sender.idle_seconds") c.idle_seconds = v.number;
     else if (k == "sim.flavor") c.sim.reprap = v.text == "reprap";
     else if (k == "sim.advanced_ok") c.sim.advanced_ok = v.on;
     else if (k == "sim.buffer") c.sim.buffer = int(whole());
     else if (k == "sim.planner") c.sim.planner = int(whole());
     else if (k == "sim.baud") c.sim.baud = int(whole());
+    else if (k == "sim.usb") c.sim.usb = v.on;
     else if (k == "sim.rx_size") c.sim.rx_size = std::size_t(whole());
     else if (k == "sim.record") c.sim.record_path = v.text;
     else if (k == "log.level") c.log_level = v.text;
@@ -227,11 +234,14 @@ std::string serve_setting_text(const ServeConfig& c, const ServeSetting& s) {
     if (k == "sender.busy_interval") return num(c.busy_interval);
     if (k == "sender.hold_seconds") return num(c.hold_seconds);
     if (k == "sender.max_pending") return num(double(c.max_pending));
+    if (k == "sender.max_tcp") return num(double(c.max_tcp));
+    if (k == "sender.idle_seconds") return num(c.idle_seconds);
     if (k == "sim.flavor") return c.sim.reprap ? "reprap" : "marlin";
     if (k == "sim.advanced_ok") return c.sim.advanced_ok ? "true" : "false";
     if (k == "sim.buffer") return num(c.sim.buffer);
     if (k == "sim.planner") return num(c.sim.planner);
     if (k == "sim.baud") return num(c.sim.baud);
+    if (k == "sim.usb") return c.sim.usb ? "true" : "false";
     if (k == "sim.rx_size") return num(double(c.sim.rx_size));
     if (k == "sim.record") return c.sim.record_path;
     if (k == "log.level") return c.log_level;
@@ -291,6 +301,7 @@ void set_sim_fault(SimFaults& f, const std::string& k, double d) {
     else if (k == "no_ok_after_resend") f.no_ok_after_resend = d != 0;
     else if (k == "greeting_resend") f.greeting_resend = d != 0;
     else if (k == "quiet_planner") f.quiet_planner = d != 0;
+    else if (k == "junk_position") f.junk_position = d != 0;
     else if (k == "stale_oks") count(f.stale_oks);
     else if (k == "busy") probability(f.busy);
     else if (k == "busy_seconds") seconds(f.busy_seconds);

@@ -37,6 +37,8 @@ struct ServeConfig {
     double busy_interval = 2;           // seconds between "busy: processing" to a sender held by a full queue
     double hold_seconds = 1;            // a pause this long in the stream ends the look-back window
     std::size_t max_pending = 256;      // lines a sender may write ahead before it is read no further
+    std::size_t max_tcp = 16;           // TCP senders at once (each holds a descriptor and buffers)
+    double idle_seconds = 600;          // a TCP sender silent this long, not printing, is disconnected
     double drain_timeout = 60;          // seconds SIGTERM waits for the queue to drain
     // Virtual printer
     SimOptions sim;

@@ -33,8 +33,8 @@ void FirmwareLink::restart() {
     after_event();
 }
 
-void FirmwareLink::enqueue(std::string command, std::uint64_t tag) {
-    proto_.enqueue(std::move(command), tag, now());
+void FirmwareLink::enqueue(std::string command, std::uint64_t tag, std::uint64_t origin) {
+    proto_.enqueue(std::move(command), tag, now(), origin);
     after_event();
 }
 

@@ -36,8 +36,10 @@ public:
     void restart();  // after a fault: forget everything queued, greet again
     // Queues one command (no line number, checksum or comment; it must fit: see fits()).
     // `tag` != 0 is reported back through firmware_acked with the ok's payload.
-    void enqueue(std::string command, std::uint64_t tag = 0);
+    void enqueue(std::string command, std::uint64_t tag = 0, std::uint64_t origin = 0);
     bool fits(std::string_view command) const { return proto_.fits(command); }
+    std::size_t max_command() const { return proto_.max_command(); }
+    std::size_t sender_lines_queued() const { return proto_.sender_lines_queued(); }
     std::size_t drop_unsent() { return proto_.drop_unsent(); }
     // Sends at once, unnumbered, ahead of the queue (the firmware's emergency parser). M112 also
     // stops: one fault, with the count of lines not executed.

@@ -64,10 +64,16 @@ int FirmwareProtocol::window() const {
     return learned_window_ > 0 ? learned_window_ : 2;
 }
 
-bool FirmwareProtocol::fits(std::string_view command) const {
-    // "N<n> " with up to 8 digits, "*<cs>" with up to 3, and the newline.
-    constexpr std::size_t kNumberRoom = 10, kChecksumRoom = 4, kNewline = 1;
-    return command.size() + kNumberRoom + kChecksumRoom + kNewline <= opt_.max_line;
+namespace {
+// "N<n> " with up to 8 digits, "*<cs>" with up to 3, and the newline.
+constexpr std::size_t kNumberRoom = 10, kChecksumRoom = 4, kNewline = 1;
+}  // namespace
+
+bool FirmwareProtocol::fits(std::string_view command) const { return command.size() <= max_command(); }
+
+std::size_t FirmwareProtocol::max_command() const {
+    const std::size_t frame = kNumberRoom + kChecksumRoom + kNewline;
+    return opt_.max_line > frame ? opt_.max_line - frame : 0;
 }
 
 std::optional<Time> FirmwareProtocol::deadline() const {
@@ -117,6 +123,8 @@ void FirmwareProtocol::greet(Time now) {
     in_flight_.clear();
     history_.clear();
     error_next_.reset();
+    renumber_ = false;
+    extra_oks_ = false;
     bytes_in_flight_ = tagged_in_flight_ = 0;
     next_n_ = 0;
     credited_n_ = -1;
@@ -138,9 +146,15 @@ void FirmwareProtocol::send_greeting(Time now) {
         return;
     }
     ++stats_.greetings;
-    // Line 0 sets the numbering (M110 skips the number check); M115 says what the firmware is.
-    write_line(proto::numbered(0, "M110 N0") + "\n");
-    write_line(proto::numbered(1, "M115") + "\n");
+    // M110 sets the numbering (it skips the number check); M115 says what the firmware is.
+    // Marlin sets the number again when M110 runs, and both lines are often in its buffer before
+    // it does (one USB packet; a busy loop): a numbered M115 taken as the next line would be
+    // forgotten and the line after it refused. Unnumbered, M115 is not counted; its answer comes
+    // after M110 ran, and only then does numbering go on. M110 sets 1, so the lines are numbered
+    // from 2 as they were when M115 was line 1.
+    write_line(proto::numbered(0, "M110 N1") + "\n");
+    write_line("M115\n");
+    last_m110_ = 1;
     next_n_ = 2;
     greet_ = Greet::AwaitReport;
     quiet_deadline_.reset();
@@ -169,9 +183,9 @@ void FirmwareProtocol::become_ready() {
     emit(Action::Kind::Ready);
 }
 
-void FirmwareProtocol::enqueue(std::string command, std::uint64_t tag, Time now) {
+void FirmwareProtocol::enqueue(std::string command, std::uint64_t tag, Time now, std::uint64_t origin) {
     if (state_ == State::Faulted) return;
-    unsent_.push_back({std::move(command), tag});
+    unsent_.push_back({std::move(command), tag, origin});
     transmit(now);
 }
 
@@ -247,6 +261,23 @@ void FirmwareProtocol::on_nudge() {
 void FirmwareProtocol::transmit(Time now) {
     if (state_ != State::Ready || sync_ != Sync::None) return;
     if (!tail_.empty() && !write_tail()) return;  // a line in two parts is finished before any other
+    if (extra_oks_ && !advanced_ok_) {
+        // Plain oks cannot be counted: a group of lines goes with an M105 behind it, and the next
+        // group only once its "ok T:" said that all of them were taken.
+        if (!in_flight_.empty() || unsent_.empty()) return;
+        const std::size_t group = std::size_t(window());
+        constexpr std::size_t kAnchorBytes = 16;  // "N<n> M105*<cs>\n"
+        while (!unsent_.empty() && in_flight_.size() < group) {
+            const std::size_t bytes = unsent_.front().command.size() + std::to_string(next_n_).size() + 7;
+            if (!in_flight_.empty() && bytes_in_flight_ + bytes + kAnchorBytes > opt_.rx_bytes) break;
+            Item item = std::move(unsent_.front());
+            unsent_.pop_front();
+            const bool anchor = proto::command_code(item.command).is('M', 105);  // its own "ok T:" names it
+            send_entry({next_n_++, std::move(item.command), item.tag, 0, anchor, false, item.origin}, now);
+        }
+        send_entry({next_n_++, std::string(kProbe), 0, 0, true, true, 0}, now);
+        return;
+    }
     const std::size_t limit = std::size_t(window());
     while (!unsent_.empty() && in_flight_.size() < limit) {
         // Without ADVANCED_OK a line a sender waits on travels alone, so the ok that comes is its own.
@@ -262,7 +293,7 @@ void FirmwareProtocol::transmit(Time now) {
         const std::size_t room = fits_whole ? SIZE_MAX : opt_.rx_bytes - std::min(opt_.rx_bytes, bytes_in_flight_);
         if (!fits_whole && (opt_.reprap || !opt_.two_parts || room == 0)) break;  // the firmware's receive buffer is full
         const bool anchor = !opt_.reprap && proto::command_code(item.command).is('M', 105);
-        Entry e{next_n_++, std::move(unsent_.front().command), item.tag, 0, anchor, false};
+        Entry e{next_n_++, std::move(unsent_.front().command), item.tag, 0, anchor, false, item.origin};
         unsent_.pop_front();
         send_entry(std::move(e), now, room);
         if (!tail_.empty()) break;
@@ -307,7 +338,7 @@ void FirmwareProtocol::credit_through(std::size_t index, std::string_view payloa
         if (e.n >= 0) credited_n_ = std::max(credited_n_, e.n);
         if (!e.probe) ++stats_.acked;
         if (e.n >= 0 && !e.probe) {
-            history_.push_back({e.n, e.command, 0, e.bytes, false, false});
+            history_.push_back({e.n, e.command, 0, e.bytes, false, false, e.origin});
             if (history_.size() > opt_.history) history_.pop_front();
         }
         if (e.tag) emit(Action::Kind::Acked, j == index ? std::string(payload) : std::string(), e.tag);
@@ -348,8 +379,18 @@ void FirmwareProtocol::on_ok(const proto::Reply& r, Time now) {
     } else if (sync_ != Sync::None) {
         // During a resync a plain ok may be the one after a Resend: it names nothing.
         ++stats_.stray_oks;
-    } else if (in_flight_.empty() || (advanced_ok_ && in_flight_.front().n >= 0) || in_flight_.front().anchor) {
-        ++stats_.stray_oks;  // not the answer to anything xlate5 waits for in this order
+    } else if (in_flight_.empty() || (advanced_ok_ && in_flight_.front().n >= 0) || in_flight_.front().anchor || extra_oks_) {
+        // Not the answer to anything xlate5 waits for in this order. With nothing in flight, it
+        // is more: the firmware answers some lines more than once, and every plain ok credited
+        // may have been one of those (its buffer would then hold lines xlate5 counts as taken,
+        // without bound). From then on only an M105's "ok T:" credits lines (transmit).
+        ++stats_.stray_oks;
+        // An M105 in front: every line before it is credited, so a plain ok now answers nothing.
+        const bool extra = in_flight_.empty() || (in_flight_.front().anchor && in_flight_.front().n >= 0);
+        if (extra && !extra_oks_ && !advanced_ok_ && !opt_.reprap) {
+            extra_oks_ = true;
+            spdlog::warn("firmware: an ok with no line in flight: it answers more than once; each group of lines is now confirmed by M105");
+        }
     } else {
         credit_front(r.payload);
     }
@@ -366,6 +407,10 @@ void FirmwareProtocol::on_refusal(std::optional<std::int64_t> next, bool confirm
         const bool beyond_credit = *next > credited_n_;
         const bool in_history = !history_.empty() && *next >= history_.front().n;
         if (beyond_credit || (confirmed && in_history)) resend_from_ = *next;
+        // The line after xlate5's latest M110, long acknowledged: the firmware ran that M110
+        // again after it had taken later lines (PROTOCOL rule 6). A probe would be refused the
+        // same way for ever; its count is set back to where xlate5's is instead.
+        else if (confirmed && *next == last_m110_ + 1 && !in_history) renumber_ = true;
     }
     if (sync_ != Sync::Quiet) {
         ++stats_.resyncs;
@@ -397,7 +442,7 @@ void FirmwareProtocol::rewind(std::int64_t k) {
     // them) come first; their senders were answered already.
     std::size_t cut = history_.size();
     while (cut > 0 && history_[cut - 1].n >= k) --cut;
-    for (std::size_t i = cut; i < history_.size(); ++i) back.push_back({std::move(history_[i].command), 0});
+    for (std::size_t i = cut; i < history_.size(); ++i) back.push_back({std::move(history_[i].command), 0, history_[i].origin});
     history_.erase(history_.begin() + std::ptrdiff_t(cut), history_.end());
     if (credited_n_ >= k) credited_n_ = k - 1;
     bool past = false;
@@ -407,7 +452,7 @@ void FirmwareProtocol::rewind(std::int64_t k) {
             keep.push_back(std::move(e));
             continue;
         }
-        if (e.n >= 0 && !e.probe) back.push_back({std::move(e.command), e.tag});
+        if (e.n >= 0 && !e.probe) back.push_back({std::move(e.command), e.tag, e.origin});
     }
     in_flight_ = std::move(keep);
     bytes_in_flight_ = tagged_in_flight_ = 0;
@@ -434,10 +479,36 @@ void FirmwareProtocol::send_probe(std::int64_t n, Time now) {
     sync_ = Sync::Probing;
 }
 
+void FirmwareProtocol::send_renumber(Time now) {
+    ++stats_.renumbers;
+    spdlog::warn("firmware: it counts lines from {} again (an M110 ran late): re-numbering it to {}", last_m110_, credited_n_);
+    tail_.clear();
+    write_line("\n");
+    // Unnumbered, so nothing numbered follows the M110 before it ran: the M105 behind it is
+    // answered only after it, and its "ok T:" ends the resync.
+    std::string m110 = "M110 N" + std::to_string(credited_n_);
+    write_line(m110 + "\n");
+    write_line(std::string(kProbe) + "\n");
+    const std::size_t bytes = 1 + m110.size() + 1 + kProbe.size() + 1;
+    in_flight_.push_back({-1, std::move(m110), 0, 0, false, true, 0});
+    in_flight_.push_back({-1, std::string(kProbe), 0, bytes, true, true, 0});
+    bytes_in_flight_ += bytes;
+    last_m110_ = credited_n_;
+    next_n_ = credited_n_ + 1;
+    ++stats_.probes;
+    sync_ = Sync::Probing;
+    reply_deadline_ = now + seconds(opt_.reply_timeout);
+}
+
 void FirmwareProtocol::end_quiet(Time now) {
     quiet_deadline_.reset();
     const auto from = resend_from_;
     resend_from_.reset();
+    if (std::exchange(renumber_, false) && !from) {
+        rewind(credited_n_ + 1);
+        send_renumber(now);
+        return;
+    }
     if (from) {
         spdlog::debug("firmware: resync from line {}", *from);
         rewind(*from);
@@ -533,7 +604,10 @@ void FirmwareProtocol::on_line(std::string_view line, Time now) {
             greet(now);
             return;
         }
-        if (state_ == State::Faulted && r.kind != proto::ReplyKind::Ok) emit(Action::Kind::Message, std::string(line));
+        // The firmware's own numbering (Resend:, "Last Line") means nothing to the sender.
+        const bool numbering = r.kind == proto::ReplyKind::Ok || r.kind == proto::ReplyKind::Resend ||
+                               r.kind == proto::ReplyKind::LineError;
+        if (state_ == State::Faulted && !numbering) emit(Action::Kind::Message, std::string(line));
         else spdlog::info("firmware: {}", line);
         return;
     }
@@ -605,14 +679,50 @@ void FirmwareProtocol::on_line(std::string_view line, Time now) {
             fault("the firmware restarted (it sent 'start'): its position and temperatures are lost");
             return;
         default:
+            if (own_fragment(line)) {
+                spdlog::info("firmware, of a piece of a line xlate5 cut: {}", line);
+                return;
+            }
             emit(Action::Kind::Message, std::string(line));
             return;
     }
 }
 
+bool FirmwareProtocol::own_fragment(std::string_view line) const {
+    // Marlin echoes what it could not run: `echo:Unknown command: "<text>"`. A command of the
+    // sender's begins with a letter; the tail of a line xlate5 sent in two parts begins with a
+    // digit (head_within), and one that a resync cut elsewhere is part of a line in flight.
+    constexpr std::string_view kUnknown = "echo:Unknown command:";
+    if (line.rfind(kUnknown, 0) != 0) return false;
+    std::string_view text = line.substr(kUnknown.size());
+    while (!text.empty() && (text.front() == ' ' || text.front() == '"')) text.remove_prefix(1);
+    if (!text.empty() && text.back() == '"') text.remove_suffix(1);
+    if (text.empty()) return true;
+    const char c = text.front();
+    if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z'))) return true;
+    if (sync_ == Sync::None) return false;
+    for (const auto& e : in_flight_)
+        if (e.n >= 0 && proto::numbered(e.n, e.command).find(text) != std::string::npos) return true;
+    return false;
+}
+
+std::size_t FirmwareProtocol::sender_lines_queued() const {
+    // Lines of the sender's, not the firmware lines they became nor xlate5's probes: one sender
+    // line may be many moves, queued in order, so its pieces are neighbours.
+    std::size_t n = 0;
+    std::uint64_t last = 0;
+    const auto count = [&](std::uint64_t origin) {
+        if (origin != 0 && origin != last) ++n;
+        if (origin != 0) last = origin;
+    };
+    for (const auto& e : in_flight_) count(e.origin);
+    for (const auto& i : unsent_) count(i.origin);
+    return n;
+}
+
 void FirmwareProtocol::fault(const std::string& why) {
     if (state_ == State::Faulted) return;
-    const std::size_t lost = queued();
+    const std::size_t lost = sender_lines_queued();
     // A line half sent stays so: ending it now would draw a refusal the sender would be shown;
     // restart() ends it before M999.
     state_ = State::Faulted;
@@ -624,7 +734,7 @@ void FirmwareProtocol::fault(const std::string& why) {
     quiet_deadline_.reset();
     reply_deadline_.reset();
     nudge_deadline_.reset();
-    spdlog::error("firmware: {} ({} lines not executed or not confirmed)", why, lost);
+    spdlog::error("firmware: {} ({} of the sender's lines not executed or not confirmed)", why, lost);
     emit(Action::Kind::Fault, why, 0, lost);
 }
 

@@ -11,6 +11,10 @@
 //    quiet for `settle` seconds (the reply timeout does not cut that wait short); then it is asked where it is with a harmless numbered M105 (the
 //    probe), whose "ok T:" is the only reply that names itself; lines continue from the number
 //    the firmware named (or after the probe, which it took);
+//  - an ok with nothing in flight, or with an M105 first in flight (the oks before it all came),
+//    means the firmware answers some lines more than once: from then
+//    on (until the next greeting) lines go in groups, each with an M105 behind it, and only its
+//    "ok T:" credits them, so what is in the firmware's buffer stays bounded;
 //  - without ADVANCED_OK, plain oks are credited in order only while nothing went wrong; an
 //    "ok T:" credits everything up to the M105 it answers; a line a sender waits on (M400, M114,
 //    M105) goes alone, so its ok is its own; with ADVANCED_OK, "ok N<n>" credits up to n;
@@ -19,8 +23,13 @@
 //  - Marlin only: a short silence (`nudge`) with lines in flight and nothing sent since is
 //    answered first with one empty line: it ends a line whose newline was lost, and Marlin skips
 //    an empty line without a reply, so it costs one byte and no reply timeout;
-//  - the greeting (and M999) waits for quiet, sends M110 N0 and M115, takes the firmware's word
-//    only from the FIRMWARE_NAME report on, waits for quiet again, and checks the flavour.
+//  - the greeting (and M999) waits for quiet, sends M110 N0 and an unnumbered M115, takes the
+//    firmware's word only from the FIRMWARE_NAME report on, waits for quiet again, and checks the
+//    flavour. Marlin sets its line number again when M110 *runs* (PROTOCOL rule 6), so nothing
+//    numbered follows an M110 until the firmware has answered a command queued behind it;
+//  - a Resend that names the line after xlate5's latest M110, for a line already acknowledged,
+//    means the firmware re-ran that M110: it is re-numbered (unnumbered M110, then an M105 whose
+//    "ok T:" shows the M110 ran) rather than probed, which it would refuse again and again.
 #pragma once
 #include <chrono>
 #include <cstdint>
@@ -63,7 +72,7 @@ struct FirmwareOptions {
 
 struct FirmwareStats {
     std::uint64_t sent = 0, acked = 0, resent = 0, resend_requests = 0, timeouts = 0, busy = 0;
-    std::uint64_t probes = 0, resyncs = 0, stray_oks = 0, greetings = 0, nudges = 0;
+    std::uint64_t probes = 0, resyncs = 0, stray_oks = 0, greetings = 0, nudges = 0, renumbers = 0;
 };
 
 class FirmwareProtocol {
@@ -86,7 +95,9 @@ public:
     void restart(Time now);                                // M999: forget the queue, greet again
     void on_line(std::string_view line, Time now);
     void on_time(Time now);                                // the clock reached deadline()
-    void enqueue(std::string command, std::uint64_t tag, Time now);  // tag != 0: reported with Acked
+    // tag != 0: reported with Acked. origin: the sender's line it comes from (0: none), so a
+    // fault counts the sender's lines not executed, not the firmware lines they became.
+    void enqueue(std::string command, std::uint64_t tag, Time now, std::uint64_t origin = 0);
     void send_unnumbered(std::string_view command, Time now);        // M108, M410: ahead of the queue
     void emergency_stop(std::string_view command, Time now);         // M112: ahead of everything; one Fault
     void port_closed(const std::string& why);
@@ -97,8 +108,10 @@ public:
     std::optional<Time> deadline() const;
 
     bool fits(std::string_view command) const;  // within the firmware's line buffer with N and checksum
+    std::size_t max_command() const;            // the longest command that fits
     std::size_t queued() const { return unsent_.size() + in_flight_.size(); }
     bool idle() const { return queued() == 0; }
+    std::size_t sender_lines_queued() const;  // of the sender's lines (Item::origin), queued or unconfirmed
     State state() const { return state_; }
     int window() const;
     bool advanced_ok() const { return advanced_ok_; }
@@ -106,7 +119,7 @@ public:
     const std::vector<std::string>& m115() const { return m115_; }
 
 private:
-    struct Item { std::string command; std::uint64_t tag = 0; };
+    struct Item { std::string command; std::uint64_t tag = 0; std::uint64_t origin = 0; };
     struct Entry {
         std::int64_t n = -1;      // -1: unnumbered
         std::string command;
@@ -114,6 +127,7 @@ private:
         std::size_t bytes = 0;
         bool anchor = false;      // an M105: its "ok T:" names it
         bool probe = false;       // sent by xlate5 to learn where the firmware is
+        std::uint64_t origin = 0; // the sender's line (Item::origin)
     };
     enum class Sync { None, Quiet, Probing };
     enum class Greet { Quiet, AwaitReport, Settle };
@@ -136,6 +150,8 @@ private:
     void on_refusal(std::optional<std::int64_t> next, bool confirmed, Time now);
     void end_quiet(Time now);
     void send_probe(std::int64_t n, Time now);
+    void send_renumber(Time now);
+    bool own_fragment(std::string_view line) const;
     void rewind(std::int64_t k);
     void on_reply_timeout(Time now);
     void arm_nudge(Time now);
@@ -161,6 +177,9 @@ private:
     Sync sync_ = Sync::None;
     std::optional<std::int64_t> resend_from_;  // the line the firmware named in this resync
     std::optional<std::int64_t> error_next_;   // the line after "Last Line: n" of the latest Error
+    std::int64_t last_m110_ = 0;               // the number xlate5's latest M110 set
+    bool renumber_ = false;                    // this resync ends with a re-numbering, not a probe
+    bool extra_oks_ = false;                   // the firmware answered a line more than once: only M105 anchors credit
     Greet greet_ = Greet::Quiet;
     int greetings_ = 0;
 

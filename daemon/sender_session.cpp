@@ -50,6 +50,7 @@ void SenderSession::refuse(std::string_view why) {
 
 void SenderSession::on_line(std::string_view raw) {
     ++received_;
+    last_heard_ = std::chrono::steady_clock::now();
     if (link_->line_cut()) {
         // Its middle is gone: neither its checksum nor its command can be trusted. Refused
         // clearly, never run cut (a numbered one ends the print; resending it would not help).

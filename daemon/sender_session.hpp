@@ -4,6 +4,7 @@
 // once the command is in xlate5's queue. Stage: the service, sender end; may call
 // line_checker, line_protocol, link.
 #pragma once
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -52,6 +53,8 @@ public:
     void pause_reading() { link_->pause_reading(); }
     void resume_reading() { link_->resume_reading(); }
     std::size_t in_service = 0;  // its lines the service holds, not yet translated (kept by the service)
+    bool tcp = false;            // a TCP connection (bounded in number, closed when idle)
+    std::chrono::steady_clock::time_point last_heard() const { return last_heard_; }
     // Replies not yet written that make a sender "not reading": the session is closed.
     static constexpr std::size_t kMaxUnreadBytes = std::size_t(1) << 20;
 
@@ -64,6 +67,7 @@ private:
     std::string name_;
     proto::LineChecker checker_{/*strict_unnumbered=*/true};
     std::uint64_t received_ = 0;
+    std::chrono::steady_clock::time_point last_heard_ = std::chrono::steady_clock::now();
     Lifetime lifetime_;
 };
 

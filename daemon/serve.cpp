@@ -67,6 +67,8 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
     sopt.busy_interval = config.busy_interval;
     sopt.hold_seconds = config.hold_seconds;
     sopt.max_pending = config.max_pending;
+    sopt.max_tcp = config.max_tcp;
+    sopt.idle_seconds = config.idle_seconds;
     sopt.translator.input_name = "sender";
     sopt.translator.start_mode = config.mode;
     sopt.translator.extruder_letter = config.extruder_letter;
@@ -81,6 +83,11 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
     SimOptions so = config.sim;
     so.axes.clear();
     for (const auto& j : machine.joints) so.axes += j.output;
+    if (so.start.empty()) {
+        // The virtual machine powers up where xlate5's offline translation starts: at home.
+        so.start = machine.home_joints();
+        machine.compensation.apply(so.start);
+    }
     auto open = [&io, &a, config, so]() -> std::shared_ptr<Link> {
         std::string device = config.port;
         if (config.port == "sim") {
@@ -154,7 +161,7 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
                 boost::system::error_code pe;
                 const auto rep = socket.remote_endpoint(pe);
                 const auto peer = "tcp " + rep.address().to_string() + ":" + std::to_string(rep.port());
-                service.add_sender(std::make_shared<TcpLink>(std::move(socket), peer), peer);
+                service.add_sender(std::make_shared<TcpLink>(std::move(socket), peer), peer, true);
                 if (auto n = next.lock()) (*n)();
             });
         };
@@ -275,7 +282,11 @@ int run_serve(const ServeConfig& config) {
                 return;
             }
             if (stopping || !parts.service) {
-                if (stopping) spdlog::warn("second signal: stopping now, between lines");
+                if (stopping && parts.service)
+                    spdlog::warn("second signal: stopping now, between lines: {} acknowledged lines of the senders not executed{}",
+                                 parts.service->acknowledged_not_run(),
+                                 parts.service->holding() ? ", and the moves the look-back still held" : "");
+                else if (stopping) spdlog::warn("second signal: stopping now");
                 stopping = true;
                 io.stop();
                 return;

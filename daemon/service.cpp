@@ -1,5 +1,8 @@
 #include "daemon/service.hpp"
 
+#include <algorithm>
+#include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <spdlog/spdlog.h>
@@ -9,6 +12,9 @@
 
 namespace xlate5 {
 namespace {
+
+// M114 prints joints to two decimals: a report this close to the translator's joints is them.
+constexpr double kReportResolution = 0.005;
 
 // Commands whose answer comes with (or before) the firmware's ok: the sender gets that ok, so
 // reports arrive where it expects them and waits (M400, M109) stay truthful.
@@ -54,6 +60,29 @@ bool split_for_firmware(const Firmware& fw, const std::string& cmd, std::vector<
         return true;
     }
     return false;
+}
+
+// G28 with no axis named homes every axis: the position is known again.
+bool homes_all(std::string_view command) {
+    const std::string text = proto::strip_comment(command);
+    const auto space = text.find(' ');
+    if (space == std::string::npos) return true;
+    for (std::size_t i = space; i < text.size(); ++i)
+        if (std::string_view("XYZABCUVWxyzabcuvw").find(text[i]) != std::string_view::npos) return false;
+    return true;
+}
+
+// A command the translator passes on as written (not a move) that no firmware line could hold:
+// refused before the sender is answered, so that the lines acknowledged before it never wait
+// behind a line that cannot be sent (docs/service.md).
+template <class Firmware>
+std::optional<std::string> unsendable(const Firmware& fw, const proto::Code& code, std::string_view command) {
+    if (code.letter == 'G' && code.code10 <= 30 && code.code10 % 10 == 0) return std::nullopt;  // G0-G3: written anew
+    const std::string text = proto::strip_comment(command);
+    std::vector<std::string> parts;
+    if (split_for_firmware(fw, text, parts)) return std::nullopt;
+    return "'" + text + "' is longer than the firmware's line buffer (" + std::to_string(fw.max_command()) +
+           " characters with its line number and checksum)";
 }
 
 }  // namespace
@@ -119,6 +148,12 @@ ServePlan plan_as_serve(const Machine& machine, const std::vector<std::string>& 
             if (!take(n, line)) return plan;
             continue;
         }
+        if (const auto why = unsendable(fw, code, line)) {
+            plan.cancel = ServePlan::Point{n, line};
+            plan.cause = *why;
+            plan.too_long = true;
+            return plan;
+        }
         if (answered_by_firmware(code)) {
             t.finish(text);
             if (!text.empty()) plan.releases.push_back({n, line});
@@ -141,7 +176,7 @@ ServePlan plan_as_serve(const Machine& machine, const std::vector<std::string>& 
 }
 
 Service::Service(asio::io_context& io, const Machine& machine, ServiceOptions options)
-    : io_(io), machine_(machine), opt_(std::move(options)), busy_timer_(io), drain_timer_(io), hold_timer_(io) {
+    : io_(io), machine_(machine), opt_(std::move(options)), busy_timer_(io), drain_timer_(io), hold_timer_(io), idle_timer_(io) {
     kin_ = std::make_unique<Kinematics>(machine_);
     reset_translator();
 }
@@ -173,7 +208,7 @@ void Service::release_held() {
         stop("'" + bad + "' is longer than the firmware's line buffer");
         return;
     }
-    enqueue_all(lines, 0, {});
+    enqueue_all(lines, 0, {}, window_first_, stats_.lines_in - window_first_ + 1);
 }
 
 bool Service::split_all(const std::vector<std::string>& commands, std::vector<std::string>& lines, std::string& bad) {
@@ -206,11 +241,50 @@ void Service::attach_firmware(std::shared_ptr<Link> link, FirmwareOptions option
     firmware_->start();
 }
 
-void Service::add_sender(std::shared_ptr<Link> link, const std::string& name) {
+void Service::add_sender(std::shared_ptr<Link> link, const std::string& name, bool tcp) {
+    if (tcp) {
+        const auto connected = std::count_if(sessions_.begin(), sessions_.end(), [](const auto& x) { return x->tcp && x->open(); });
+        if (std::size_t(connected) >= opt_.max_tcp) {
+            // Each connection holds a descriptor and buffers: past the bound, a newcomer is told
+            // why and closed, and the ones connected keep working.
+            spdlog::warn("{}: turned away: {} TCP senders are connected (sender.max_tcp)", name, connected);
+            link->send("echo:xlate5: too many senders connected (" + std::to_string(connected) + "); try again later\n");
+            link->close();
+            return;
+        }
+    }
     auto s = std::make_shared<SenderSession>(std::move(link), *this, name);
+    s->tcp = tcp;
     sessions_.push_back(s);
     s->start();
     spdlog::info("sender connected: {}", name);
+    if (tcp) arm_idle_check();
+}
+
+void Service::arm_idle_check() {
+    // A TCP sender that went quiet without closing (a crashed host, a half-open connection) would
+    // hold its place for ever: after idle_seconds of silence it is closed, unless it is printing.
+    if (idle_armed_) return;
+    idle_armed_ = true;
+    idle_timer_.expires_after(std::chrono::milliseconds(std::int64_t(opt_.idle_seconds * 250)));
+    idle_timer_.async_wait(lifetime_.guard([this](boost::system::error_code ec) {
+        idle_armed_ = false;
+        if (ec) return;
+        const auto now = std::chrono::steady_clock::now();
+        const auto owner = owner_.lock();
+        bool any = false;
+        for (auto& s : sessions_) {
+            if (!s->tcp || !s->open()) continue;
+            any = true;
+            const bool printing = owner == s && !idle();
+            if (printing || now - s->last_heard() < std::chrono::milliseconds(std::int64_t(opt_.idle_seconds * 1000))) continue;
+            spdlog::info("{}: nothing received for {:.0f} s: disconnected (sender.idle_seconds)", s->name(), opt_.idle_seconds);
+            s->send_line("echo:xlate5: disconnected after " + std::to_string(int(opt_.idle_seconds)) + " s without a line");
+            s->close();
+            sender_gone(*s);
+        }
+        if (any) arm_idle_check();
+    }));
 }
 
 void Service::sender_left(SenderSession& s) {
@@ -231,7 +305,8 @@ void Service::sender_left(SenderSession& s) {
     }
     s.in_service = 0;
     if (!stopped() && firmware_ && firmware_->state() == FirmwareLink::State::Ready) release_held();
-    reset_translator();
+    // The translator stays where the machine is (and in the modes the sender left, as a
+    // firmware would): the next sender's moves start from there, not from home.
     if (dropped) spdlog::warn("{} left with {} lines not yet answered: dropped, not run", s.name(), dropped);
     check_drained();
 }
@@ -250,7 +325,8 @@ void Service::clear_stop() {
     pending_.clear();
     for (auto& x : sessions_) x->in_service = 0;
     deferred_.clear();
-    reset_translator();
+    // The translator is where the lines that ran left the machine (a fault reset it, and the
+    // firmware's greeting will place it).
 }
 
 void Service::sender_gone(SenderSession& s) {
@@ -377,6 +453,10 @@ void Service::arm_hold() {
 void Service::pump() {
     // While draining for a stop, lines not yet acknowledged stay with the sender, unsent.
     while (!pending_.empty() && !draining_) {
+        if (!stopped() && position_ == Position::Asking) {
+            arm_busy();  // the firmware is asked where it is: nothing is translated before it answers
+            return;
+        }
         if (!stopped() && firmware_ && (firmware_->state() != FirmwareLink::State::Ready || firmware_->queued() >= opt_.queue_lines)) {
             arm_busy();  // the sender waits for its ok: keep it from timing out
             return;
@@ -422,14 +502,20 @@ void Service::refuse_line(const Pending& p, const std::string& cause) {
     stop("print cancelled at " + quoted);
 }
 
-void Service::enqueue_all(std::vector<std::string>& commands, std::uint64_t tag, const std::weak_ptr<SenderSession>& who) {
+void Service::enqueue_all(std::vector<std::string>& commands, std::uint64_t tag, const std::weak_ptr<SenderSession>& who,
+                          std::uint64_t first, std::uint64_t span) {
+    // Each firmware line is marked with the sender line it comes from, so a fault counts sender
+    // lines. Output the look-back released covers the lines of its window, which the translator
+    // does not mark one by one: they are spread over it in order (an estimate within a line or
+    // two when each sender line became a similar number of moves).
     for (std::size_t i = 0; i < commands.size(); ++i) {
+        const std::uint64_t origin = first + (span > 1 ? std::uint64_t(i) * span / commands.size() : 0);
         std::uint64_t t = 0;
         if (tag && i + 1 == commands.size()) {
             t = tag;
             deferred_[tag] = who;
         }
-        firmware_->enqueue(std::move(commands[i]), t);
+        firmware_->enqueue(std::move(commands[i]), t, origin);
         ++stats_.lines_out;
     }
 }
@@ -452,9 +538,15 @@ void Service::process(const Pending& p) {
         return;
     }
     if (!p.refused.empty()) return refuse_line(p, p.refused);
+    if (const auto why = unplaceable(p)) return refuse_line(p, *why);
+    if (firmware_)
+        if (const auto why = unsendable(*firmware_, p.code, p.command)) return refuse_line(p, *why);
     ++stats_.lines_in;
     const bool wait_for_firmware = answered_by_firmware(p.code);
     std::vector<std::string> commands;
+    // The sender lines this line's output stands for: its own, and those of the look-back window
+    // it may release (see enqueue_all).
+    std::uint64_t first = stats_.lines_in;
     if (p.code.is('M', 105)) {
         // Temperatures: nothing to translate, and no reason to end the look-back window.
         commands.push_back(proto::strip_comment(p.command));
@@ -462,6 +554,8 @@ void Service::process(const Pending& p) {
         // A wait or a report (M400, M114, M109 …) is answered by the firmware once everything
         // before it ran: the look-back window ends there.
         if (wait_for_firmware) release_held();
+        const bool was_holding = holding_;
+        if (was_holding) first = window_first_;
         out_.clear();
         try {
             translator_->feed(p.command, p.line_no, out_);
@@ -472,7 +566,11 @@ void Service::process(const Pending& p) {
         // Held only while a look-back window is open: with none, there is nothing undecided to
         // wait for (no hold_seconds at the end of a print whose last window has closed).
         holding_ = translator_->holding();
+        // A window opens here (or a new one after the old one's output came out).
+        if (holding_ && (!was_holding || !out_.empty())) window_first_ = stats_.lines_in;
+        if (out_.empty()) first = stats_.lines_in;
         proto::append_commands(out_, commands);
+        if (p.code.is('G', 28) && position_ == Position::Unknown && homes_all(p.command)) position_ = Position::Known;
     }
     std::vector<std::string> lines;
     std::string bad;
@@ -483,7 +581,7 @@ void Service::process(const Pending& p) {
     // All or nothing: a line that fails above leaves nothing of itself in the queue.
     std::uint64_t tag = 0;
     if (wait_for_firmware && !lines.empty()) tag = next_tag_++;
-    enqueue_all(lines, tag, p.session);
+    enqueue_all(lines, tag, p.session, first, stats_.lines_in - first + 1);
     if (session && tag == 0) session->ok();
 }
 
@@ -511,10 +609,75 @@ void Service::arm_busy() {
 }
 
 void Service::firmware_ready(const std::vector<std::string>&) {
+    ask_position();
     pump();
 }
 
+void Service::ask_position() {
+    // Nothing of a sender's is translated before the answer: a move translated from an assumed
+    // position (the machine's home) can run far from where the sender meant.
+    if (!firmware_ || firmware_->state() != FirmwareLink::State::Ready || holding_) return;
+    position_ = Position::Asking;
+    position_tag_ = next_tag_++;
+    firmware_->enqueue("M114", position_tag_);
+}
+
+std::optional<Service::Reported> Service::read_position(std::string_view report, std::string& why) const {
+    // "X:7.00 Y:0.00 Z:0.00 A:10.00 B:5.00 E:0.00 Count X:560 …": the words before "Count".
+    Reported r;
+    r.q.assign(machine_.joints.size(), 0.0);
+    std::vector<bool> seen(machine_.joints.size(), false);
+    std::string_view words = report.substr(0, report.find("Count"));
+    for (std::size_t i = 0; i + 1 < words.size(); ++i) {
+        if (words[i + 1] != ':' || (i > 0 && words[i - 1] != ' ')) continue;
+        std::string_view v = words.substr(i + 2);
+        while (!v.empty() && v.front() == ' ') v.remove_prefix(1);
+        const std::string_view token = v.substr(0, v.find(' '));
+        double x = 0;
+        const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), x);
+        const bool number = ec == std::errc() && end == token.data() + token.size() && std::isfinite(x);
+        if (words[i] == 'E') {
+            if (number) r.e = x;
+            continue;
+        }
+        for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
+            if (machine_.joints[j].output != words[i]) continue;
+            if (!number) {
+                why = std::string("its ") + words[i] + " is '" + std::string(token) + "', not a number";
+                return std::nullopt;
+            }
+            r.q[j] = x;
+            seen[j] = true;
+        }
+    }
+    for (std::size_t j = 0; j < machine_.joints.size(); ++j)
+        if (!seen[j]) {
+            why = std::string("it has no ") + machine_.joints[j].output;
+            return std::nullopt;
+        }
+    machine_.compensation.undo(r.q);
+    return r;
+}
+
+std::optional<std::string> Service::unplaceable(const Pending& p) const {
+    // While the position is unknown, only homing may move the machine.
+    if (position_ != Position::Unknown || p.code.letter != 'G') return std::nullopt;
+    const int g = p.code.code10;
+    if (g != 0 && g != 10 && g != 20 && g != 30) return std::nullopt;
+    return "the printer's position is not known (" + position_why_ + "): home it (G28) first";
+}
+
 void Service::firmware_acked(std::uint64_t tag, std::string_view ok_payload) {
+    if (tag != 0 && tag == position_tag_) {
+        position_tag_ = 0;
+        if (position_ == Position::Asking) {
+            position_ = Position::Unknown;
+            position_why_ = "the firmware did not answer M114 with a position";
+            spdlog::warn("position: {}", position_why_);
+        }
+        pump();
+        return;
+    }
     auto it = deferred_.find(tag);
     if (it == deferred_.end()) return;
     if (auto s = it->second.lock()) s->ok(ok_payload);
@@ -525,6 +688,8 @@ void Service::firmware_progress() { pump(); }
 
 void Service::firmware_fault(const std::string& why, std::size_t lines_not_executed) {
     stop_healthy_ = false;
+    position_ = Position::Unknown;
+    position_why_ = "the firmware stopped: " + why;
     ++stats_.faults;
     broadcast("Error:xlate5: " + why + "; print stopped, " + std::to_string(lines_not_executed) +
               " queued lines not executed or not confirmed (nothing is replayed). Send M999 to restart.");
@@ -573,6 +738,25 @@ std::string Service::tool_space_position(std::string_view report) const {
 
 void Service::firmware_message(std::string_view line) {
     if (line.rfind("X:", 0) == 0 && line.find(" Y:") != std::string_view::npos) {
+        std::string why;
+        const auto at = read_position(line, why);
+        if (position_ == Position::Asking && position_tag_ != 0) {
+            // The service's own question: the answer places the translator; no sender asked.
+            if (at) {
+                translator_->place_at(at->q, at->e, kReportResolution);
+                position_ = Position::Known;
+                spdlog::info("position: the firmware reports {}", line);
+            } else {
+                position_ = Position::Unknown;
+                position_why_ = "the firmware's M114 answer could not be read: " + why;
+                spdlog::warn("position: {} ('{}')", position_why_, line);
+            }
+            return;
+        }
+        if (!at) {
+            broadcast("echo:xlate5: the firmware's position report could not be read (" + why + "): " + std::string(line));
+            return;
+        }
         broadcast(tool_space_position(line));
         return;
     }

@@ -27,6 +27,8 @@ struct ServiceOptions {
     double busy_interval = marlin::kKeepaliveSeconds;  // seconds between "busy: processing" to a sender held by a full queue
     double hold_seconds = 1.0;        // a pause this long in the senders' stream ends the look-back window
     std::size_t max_pending = 256;    // lines of one sender read ahead of the queue before it is read no further
+    std::size_t max_tcp = 16;         // TCP senders at once; more are turned away (docs/limits.md)
+    double idle_seconds = 600;        // a TCP sender silent this long, and not printing, is disconnected
     TranslatorOptions translator;
 };
 
@@ -70,12 +72,16 @@ public:
     // IoError when it is still not there.
     void set_reopen(std::function<std::shared_ptr<Link>()> reopen) { reopen_ = std::move(reopen); }
     // A sender end (the pseudo-terminal, or a TCP connection).
-    void add_sender(std::shared_ptr<Link> link, const std::string& name);
+    void add_sender(std::shared_ptr<Link> link, const std::string& name, bool tcp = false);
 
     // Stop taking lines from senders and call `done` once every accepted line is executed (or
     // the firmware faulted); after `timeout` seconds, the unsent lines are dropped explicitly.
     void drain(double timeout, std::function<void(const std::string& outcome)> done);
     bool idle() const;
+    // Of the lines senders were answered ok for: how many are not yet executed (or confirmed),
+    // and whether the look-back still holds output of theirs.
+    std::size_t acknowledged_not_run() const { return firmware_ ? firmware_->sender_lines_queued() : 0; }
+    bool holding() const { return holding_; }
     // Calls `f` once the service is idle (at once if it is): nothing queued, held or in flight.
     void when_idle(std::function<void()> f);
     bool stopped() const { return !stop_reason_.empty(); }
@@ -117,14 +123,22 @@ private:
     void arm_busy();
     void check_drained();
     std::string tool_space_position(std::string_view report) const;
+    // The joints (nominal) and E of a firmware's M114 report; nullopt, with why, when any of the
+    // machine's joints is missing or not a number.
+    struct Reported { std::vector<double> q; std::optional<double> e; };
+    std::optional<Reported> read_position(std::string_view report, std::string& why) const;
+    void ask_position();
+    std::optional<std::string> unplaceable(const Pending& p) const;
     void reset_translator();
     void release_held();
     bool split_all(const std::vector<std::string>& commands, std::vector<std::string>& lines, std::string& bad);
     void arm_hold();
+    void arm_idle_check();
     bool claim(SenderSession& s);
     void clear_stop();
     void refuse_line(const Pending& p, const std::string& cause);
-    void enqueue_all(std::vector<std::string>& commands, std::uint64_t tag, const std::weak_ptr<SenderSession>& who);
+    void enqueue_all(std::vector<std::string>& commands, std::uint64_t tag, const std::weak_ptr<SenderSession>& who,
+                     std::uint64_t first, std::uint64_t span);
 
     asio::io_context& io_;
     Machine machine_;
@@ -138,6 +152,15 @@ private:
     std::deque<Pending> pending_;                                   // received, not yet in the queue
     std::map<std::uint64_t, std::weak_ptr<SenderSession>> deferred_;  // tag -> who waits for the firmware's ok
     std::uint64_t next_tag_ = 1;
+    // Where the machine is: the translator starts every move from its joints, so they must be
+    // the firmware's. Asked with M114 whenever the firmware is greeted; kept across senders.
+    enum class Position { Unknown, Asking, Known };
+    Position position_ = Position::Unknown;
+    std::string position_why_ = "the firmware has not reported it yet";
+    std::uint64_t position_tag_ = 0;  // the service's own M114
+    std::uint64_t window_first_ = 0;
+    asio::steady_timer idle_timer_;
+    bool idle_armed_ = false;  // the serial (stats_.lines_in) of the look-back window's first line
     std::string stop_reason_;
     bool draining_ = false;
     std::function<void(const std::string&)> drained_;

@@ -50,7 +50,7 @@ constexpr std::string_view kStopped =
 }  // namespace
 
 VirtualPrinter::VirtualPrinter(asio::io_context& io, int master_fd, SimOptions options)
-    : opt_(std::move(options)), rng_(opt_.faults.seed), run_timer_(io), wire_timer_(io), busy_timer_(io) {
+    : opt_(std::move(options)), rng_(opt_.faults.seed), run_timer_(io), wire_timer_(io), busy_timer_(io), usb_timer_(io) {
     link_ = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, master_fd), "virtual printer");
     link_->eio_is_transient = true;  // xlate5 may close and reopen its end
     pos_.assign(opt_.axes.size() + 1, 0.0);
@@ -90,6 +90,10 @@ void VirtualPrinter::boot() {
     front_ready_.reset();
     processing_ = false;
     halted_ = stopped_ = false;
+    relative_ = relative_e_ = false;
+    // A reset forgets the position: the axes count from where they were at power-up.
+    pos_.assign(opt_.axes.size() + 1, 0.0);
+    for (std::size_t i = 0; i < opt_.start.size() && i < opt_.axes.size(); ++i) pos_[i] = opt_.start[i];
     run_timer_.cancel();
     busy_timer_.cancel();
     running_ = false;
@@ -107,6 +111,7 @@ void VirtualPrinter::unplug() {
     run_timer_.cancel();
     wire_timer_.cancel();
     busy_timer_.cancel();
+    usb_timer_.cancel();
     link_->close();
 }
 
@@ -235,13 +240,19 @@ void VirtualPrinter::schedule() {
     if (scheduled_) return;
     scheduled_ = true;
     std::weak_ptr<VirtualPrinter> weak = shared_from_this();
-    asio::post(link_->stream_executor(), [weak] {
+    auto loop = [weak](boost::system::error_code ec = {}) {
         auto self = weak.lock();
-        if (!self) return;
+        if (!self || ec) return;
         self->scheduled_ = false;
         if (!self->processing_) self->read_serial();  // a main loop busy with a command reads nothing
         self->run_queue();
-    });
+    };
+    if (opt_.usb && opt_.baud <= 0) {
+        usb_timer_.expires_after(std::chrono::milliseconds(1));
+        usb_timer_.async_wait(loop);
+    } else {
+        asio::post(link_->stream_executor(), [loop] { loop(); });
+    }
 }
 
 void VirtualPrinter::read_serial() {
@@ -437,14 +448,24 @@ void VirtualPrinter::execute(const Command& c) {
     if ((stopped_ && is_move(code)) || unknown) {
         if (unknown) reply("echo:Unknown command: \"" + c.text.substr(0, c.text.find(' ')) + "\"");
     } else if (code.is('G', 0) || code.is('G', 1) || code.is('G', 92)) {
-        // Track the position for M114 (absolute words only: xlate5 always sends absolute joints).
+        // The position for M114, as of the commands run so far: G92 sets, moves go to absolute
+        // words or by relative ones (G91; M83 for E).
+        const bool set = code.is('G', 92);
         for (std::size_t i = 0; i < c.text.size(); ++i) {
             const char l = c.text[i];
             if (i == 0 || c.text[i - 1] != ' ') continue;
+            const double v = std::strtod(c.text.c_str() + i + 1, nullptr);
             const auto p = opt_.axes.find(l);
-            if (p != std::string::npos) pos_[p] = std::strtod(c.text.c_str() + i + 1, nullptr);
-            if (l == 'E') pos_.back() = std::strtod(c.text.c_str() + i + 1, nullptr);
+            if (p != std::string::npos) pos_[p] = (!set && relative_ ? pos_[p] : 0.0) + v;
+            if (l == 'E') pos_.back() = (!set && relative_e_ ? pos_.back() : 0.0) + v;
         }
+    } else if (code.is('G', 90) || code.is('G', 91)) {
+        relative_ = relative_e_ = code.is('G', 91);  // Marlin: G90/G91 set E's mode too
+    } else if (code.is('M', 82) || code.is('M', 83)) {
+        relative_e_ = code.is('M', 83);
+    } else if (code.is('M', 110) && !opt_.reprap) {
+        // gcode/host/M110.cpp: the number is set again as the command runs.
+        if (const auto n = proto::m110_line(c.text)) checker_.set_last_line(*n);
     } else if (code.is('M', 115)) {
         if (!opt_.firmware_name.empty()) {
             reply("FIRMWARE_NAME:" + opt_.firmware_name);
@@ -461,7 +482,7 @@ void VirtualPrinter::execute(const Command& c) {
             reply("Cap:HOST_ACTION_COMMANDS:0");
         }
     } else if (code.is('M', 114)) {
-        reply(position_report());
+        reply(opt_.faults.junk_position ? "X:abc Y:0.00 E:0.00 Count X:0 Y:0" : position_report());
     } else if (code.is('M', 105)) {
         ok = "ok T:21.50 /0.00 B:20.10 /0.00 @:0 B@:0";
     } else if (code.is('M', 999) && !opt_.reprap) {

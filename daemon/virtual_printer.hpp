@@ -13,6 +13,13 @@
 // refusal emptying the whole receive buffer, and "ok" only once a command is taken (a move: once
 // the planner has room). M112 acts as its bytes arrive (EMERGENCY_PARSER).
 //
+// What Marlin does when a command RUNS, not when it is received, happens here when it runs too:
+// M110 N<n> sets the line number again (gcode/host/M110.cpp; lines taken between receipt and run
+// are then counted from n again), M999 asks for the line after the last one, G92 sets positions,
+// G90/G91 and M82/M83 change how later moves' words are read, M114 reports the position of the
+// moves run so far. The line number on receipt, M112 (EMERGENCY_PARSER) and the "stopped"
+// refusal of moves are the receive-time effects.
+//
 // What it leaves out: temperatures (M105 reports fixed values, M109/M190 only take time), real
 // motion (a move takes `move_ms`; positions are the last commanded), SD cards, host action
 // commands, multiple serial ports, the exact text of most echo: messages, and what Marlin's
@@ -46,6 +53,7 @@ struct SimFaults {
     bool no_ok_after_resend = false;  // some Marlin versions send Resend without an ok
     bool greeting_resend = false;     // the firmware still holds an old line number: the first line it gets draws a stale Resend
     std::uint64_t stale_oks = 0;      // oks of earlier lines still on their way when the host greets again
+    bool junk_position = false;  // M114 answers with a report that names no Z and an X that is no number
     bool quiet_planner = false;  // no busy: keepalives while a move waits for the planner (HOST_KEEPALIVE off)
     double busy = 0;             // per executed move: a busy period with "busy: processing" keepalives
     double busy_seconds = 3;
@@ -71,7 +79,12 @@ struct SimOptions {
     int planner = marlin::kPlannerSize;    // planner slots
     std::size_t rx_size = marlin::kRxBufferSize;  // serial receive buffer (RX_BUFFER_SIZE)
     std::string axes = "XYZAB";  // the firmware's axis letters
-    int baud = 0;              // 0: unlimited; else bytes arrive no faster than baud/10 per second
+    std::vector<double> start;   // per axis letter: where the axes are at power-up (empty: all 0)
+    int baud = 0;              // 0: unlimited; else bytes arrive no faster than baud/10 per second (a UART, paced)
+    // Native USB (baud 0 only): the host's writes arrive whole, and the main loop reads the
+    // receive buffer once per USB frame (1 ms), so lines written together are taken together,
+    // before the first of them runs.
+    bool usb = false;
     SimFaults faults;
     std::string record_path;   // write executed commands here, one a line
     bool keep_executed = false;  // also keep them in memory (tests); off, memory stays flat however long the print
@@ -131,7 +144,7 @@ private:
     std::string line_;                    // the line being read
     std::deque<Command> ring_;            // command buffer: taken, not yet executed
     std::deque<std::chrono::steady_clock::time_point> planner_;  // when each planned move finishes
-    asio::steady_timer run_timer_, wire_timer_, busy_timer_;
+    asio::steady_timer run_timer_, wire_timer_, busy_timer_, usb_timer_;
     std::deque<std::pair<std::chrono::steady_clock::time_point, std::string>> wire_;  // baud-limited arrival
     std::chrono::steady_clock::time_point wire_free_{};
     // The wire by the byte: each read's bytes, as the count read so far and when its last byte is across.
@@ -155,6 +168,8 @@ private:
     std::vector<std::string> executed_;
     std::ofstream record_;
     std::vector<double> pos_;  // per axis letter, plus E last
+    bool relative_ = false;    // G91: axis words are offsets (as of the moves run so far)
+    bool relative_e_ = false;  // M83 (or G91): E words are offsets
     SimStats stats_;
 };
 

@@ -150,13 +150,14 @@ struct Rig {
     bool ready() {
         return run_until([&] { return service().firmware()->state() == FirmwareLink::State::Ready; }, 5);
     }
-    // What the virtual printer executed after its greeting (M110 N0, M115), without the M105
-    // probes xlate5 sends to resynchronise (they report temperatures and move nothing).
+    // What the virtual printer executed after its greeting (M110, M115, and the service's M114
+    // that asks where the machine is), without the M105 probes xlate5 sends to resynchronise
+    // (they report temperatures and move nothing).
     std::vector<std::string> executed_after_hello() const {
         const auto& e = parts.sim->executed();
         std::vector<std::string> out;
         std::size_t i = 0;
-        while (i < e.size() && (e[i] == "M110 N0" || e[i] == "M115")) ++i;
+        while (i < e.size() && (e[i].rfind("M110 ", 0) == 0 || e[i] == "M115" || e[i] == "M114")) ++i;
         for (; i < e.size(); ++i)
             if (e[i] != "M105") out.push_back(e[i]);
         return out;

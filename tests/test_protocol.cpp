@@ -85,8 +85,9 @@ struct Script {
         p.on_line(line, t);
         collect();
     }
+    std::uint64_t origin = 0;  // each command enqueued is a sender's line of its own
     void enqueue(const std::string& c, std::uint64_t tag = 0) {
-        p.enqueue(c, tag, t);
+        p.enqueue(c, tag, t, ++origin);
         collect();
     }
     std::vector<std::string> take_writes() { return std::exchange(writes, {}); }
@@ -98,8 +99,8 @@ struct Script {
         pass(opt.settle + std::min(0.1, opt.reply_timeout / 2));  // quiet (0.2 s with the defaults)
         const auto w = take_writes();
         REQUIRE(w.size() == 2);
-        CHECK(w[0] == proto::numbered(0, "M110 N0"));
-        CHECK(w[1] == proto::numbered(1, "M115"));
+        CHECK(w[0] == proto::numbered(0, "M110 N1"));
+        CHECK(w[1] == "M115");
         reply("ok");
         reply(name);
         reply("Cap:EMERGENCY_PARSER:1");
@@ -191,8 +192,8 @@ TEST_CASE("protocol: a Resend during the greeting greets again; it never becomes
     s.pass(0.2);
     const auto w = s.take_writes();
     REQUIRE(w.size() == 2);  // greeted again from the start
-    CHECK(w[0] == proto::numbered(0, "M110 N0"));
-    CHECK(w[1] == proto::numbered(1, "M115"));
+    CHECK(w[0] == proto::numbered(0, "M110 N1"));
+    CHECK(w[1] == "M115");
     s.reply("ok");
     s.reply("FIRMWARE_NAME:Marlin 2.1.2");
     s.reply("ok");
@@ -605,8 +606,8 @@ TEST_CASE("protocol: M999 after a stop with a line half sent: the line is ended,
     s.pass(0.2);
     const auto w = s.take_writes();
     REQUIRE(w.size() >= 2);
-    CHECK(w[w.size() - 2] == proto::numbered(0, "M110 N0"));
-    CHECK(w.back() == proto::numbered(1, "M115"));
+    CHECK(w[w.size() - 2] == proto::numbered(0, "M110 N1"));
+    CHECK(w.back() == "M115");
 }
 
 TEST_CASE("protocol: M108 or M112 while a line is half sent: the line is finished first, never ended early") {
@@ -844,4 +845,184 @@ TEST_CASE("line checker: Marlin's order of checks and its silent drop of repeats
     CHECK(c.check(first + "N102 G1 X").verdict == V::Take);
     CHECK(c.last_line() == 101);
     CHECK(proto::LineChecker(true).check("G1 X5*12").why == proto::kErrNoLineNumber);
+}
+
+// Marlin as its source has it (queue.cpp, gcode/host/M110.cpp): every line waiting in its receive
+// buffer is taken into the command queue before the command in front runs, and M110 sets the
+// line number a second time when it runs. `answer` takes everything written since its last call
+// as one read (a native-USB packet), then runs the queue.
+struct MarlinRunsM110 {
+    proto::LineChecker checker;
+    std::vector<std::string> queue, ran;
+    void answer(Script& s) {
+        for (const auto& line : s.take_writes()) {
+            const auto r = checker.check(line);
+            if (r.verdict == proto::LineChecker::Verdict::Duplicate) continue;
+            if (r.verdict == proto::LineChecker::Verdict::Refuse) {
+                s.reply(checker.error_line(r.why));
+                s.reply(checker.resend_line());
+                s.reply("ok");
+                break;  // the receive buffer is emptied
+            }
+            queue.emplace_back(proto::strip_comment(r.command));
+        }
+        for (const auto& c : std::exchange(queue, {})) {
+            ran.push_back(c);
+            if (proto::command_code(c).is('M', 110))
+                if (const auto n = proto::m110_line(c)) checker.set_last_line(*n);
+            if (c == "M115") {
+                s.reply("FIRMWARE_NAME:Marlin bugfix-2.1.x PROTOCOL_VERSION:1.0");
+                s.reply("Cap:EMERGENCY_PARSER:1");
+            }
+            s.reply(c == "M105" ? "ok T:20.0 /0.0" : "ok");
+        }
+    }
+};
+
+TEST_CASE("protocol: the greeting survives a Marlin that takes both its lines before M110 runs") {
+    // On b1037f8 the greeting was "N0 M110 N0" and "N1 M115": taken together, M110 then set the
+    // count back to 0 and every later line was refused (Last Line: 0, Resend: 1) until the
+    // service gave up. Nothing numbered may follow an M110 before a command behind it is answered.
+    Script s;
+    MarlinRunsM110 marlin;
+    s.p.open(s.t);
+    s.reply("start");
+    s.pass(0.2);
+    marlin.answer(s);
+    s.pass(0.2);
+    REQUIRE(s.ready);
+    for (int i = 1; i <= 20; ++i) {
+        s.enqueue("G1 X" + std::to_string(i));
+        marlin.answer(s);
+    }
+    s.pass(0.2);
+    marlin.answer(s);
+    CHECK(s.faults.empty());
+    CHECK(s.p.idle());
+    CHECK(s.p.stats().resend_requests == 0);
+    std::vector<std::string> moves;
+    for (const auto& c : marlin.ran)
+        if (c.rfind("G1", 0) == 0) moves.push_back(c);
+    REQUIRE(moves.size() == 20);
+    for (int i = 1; i <= 20; ++i) CHECK(moves[std::size_t(i - 1)] == "G1 X" + std::to_string(i));
+}
+
+TEST_CASE("protocol: a Resend that names the line after a re-numbering re-numbers the firmware instead of probing") {
+    // A firmware that ran xlate5's M110 again after it had taken later lines asks for the line
+    // after it (Last Line: 1, Resend: 2) though that line was taken long ago. Probing under a
+    // fresh number is refused for ever; the count is set back to xlate5's with an unnumbered
+    // M110, and an M105 behind it shows it ran before anything numbered goes.
+    FirmwareOptions o;
+    o.history = 4;
+    Script s(o);
+    s.greet();
+    ScriptedMarlin marlin;
+    for (int i = 1; i <= 10; ++i) {
+        s.enqueue("G1 X" + std::to_string(i));
+        marlin.answer(s);
+    }
+    REQUIRE(s.p.idle());
+    marlin.checker.set_last_line(1);  // the firmware ran M110 N1 again
+    s.enqueue("G1 X11");
+    marlin.answer(s);  // refused: Last Line: 1, Resend: 2
+    s.pass(0.2);       // quiet, then the re-numbering
+    const auto w = s.take_writes();
+    REQUIRE(w.size() == 2);
+    CHECK(w[0] == "M110 N11");
+    CHECK(w[1] == "M105");
+    CHECK(s.p.stats().renumbers == 1);
+    marlin.checker.set_last_line(11);  // it runs the M110 (the scripted checker takes unnumbered lines as they are)
+    s.reply("ok");
+    s.reply("ok T:20.0 /0.0");
+    REQUIRE(s.writes.size() == 1);
+    CHECK(s.writes[0] == proto::numbered(12, "G1 X11"));
+    marlin.answer(s);
+    CHECK(s.p.idle());
+    CHECK(s.faults.empty());
+    CHECK(marlin.taken.back() == "G1 X11");
+    CHECK(std::count(marlin.taken.begin(), marlin.taken.end(), "G1 X10") == 1);
+}
+
+TEST_CASE("protocol: after a fault the firmware's numbering never reaches the sender; the count is the sender's lines") {
+    Script s;
+    s.greet();
+    // Sender line 7 became three firmware lines, line 8 two; xlate5's probe is no line of theirs.
+    for (int i = 0; i < 3; ++i) s.p.enqueue("G1 X" + std::to_string(i), 0, s.t, 7);
+    for (int i = 0; i < 2; ++i) s.p.enqueue("G1 Y" + std::to_string(i), 0, s.t, 8);
+    s.collect();
+    s.reply("Error:Line Number is not Last Line Number+1, Last Line: 0");
+    s.reply("Resend: 1");
+    s.reply("ok");
+    s.pass(0.2);  // a probe goes
+    s.p.port_closed("the port closed");
+    s.collect();
+    REQUIRE(s.faults.size() == 1);
+    CHECK(s.lost.back() == 2);
+    s.messages.clear();
+    s.reply("Error:Line Number is not Last Line Number+1, Last Line: 0");
+    s.reply("Resend: 1");
+    s.reply("ok");
+    s.reply("echo:busy: processing");
+    CHECK(s.messages == std::vector<std::string>{"echo:busy: processing"});
+}
+
+TEST_CASE("protocol: Marlin's echo of a piece of a line xlate5 cut is logged, not shown as the sender's command refused") {
+    Script s;
+    s.greet();
+    s.reply("echo:Unknown command: \"5.250 Y12.5*77\"");  // the tail of a line sent in two parts
+    s.reply("echo:Unknown command: \"\"");
+    CHECK(s.messages.empty());
+    s.reply("echo:Unknown command: \"M9999\"");  // the sender's own
+    CHECK(s.messages == std::vector<std::string>{"echo:Unknown command: \"M9999\""});
+}
+
+TEST_CASE("protocol: a firmware that answers lines twice cannot make xlate5 overfill its buffer") {
+    // b1037f8 credited every ok in order: with two per line it sent on as fast as the oks came,
+    // 8,785 bytes in flight against a 127-byte receive buffer. Now a plain ok with an M105 first
+    // in flight (a sender's temperature poll, as OctoPrint's every few seconds) tells it, and from
+    // then on only M105's "ok T:" (which names itself) credits lines.
+    Script s;
+    s.greet();
+    proto::LineChecker checker;
+    checker.set_last_line(1);
+    std::deque<std::string> buffer;  // taken by the firmware, not yet run
+    std::size_t most_bytes = 0, ran = 0;
+    for (int i = 1; i <= 60; ++i) {
+        if (i % 10 == 5) s.enqueue("M105");
+        s.enqueue("G1 X" + std::to_string(i) + " Y" + std::to_string(i) + " Z0.2 E0.05 F1800");
+    }
+    std::size_t most_after = 0;  // after the first poll
+    bool polled = false;
+    for (int step = 0; step < 2000 && ran < 60; ++step) {
+        for (const auto& line : s.take_writes()) {
+            const auto r = checker.check(line);
+            REQUIRE(r.verdict == proto::LineChecker::Verdict::Take);
+            buffer.emplace_back(line + "\n");
+        }
+        std::size_t bytes = 0;
+        for (const auto& b : buffer) bytes += b.size();
+        most_bytes = std::max(most_bytes, bytes);
+        if (polled) most_after = std::max(most_after, bytes);
+        if (buffer.empty()) {
+            s.pass(0.01);
+            continue;
+        }
+        // Runs the oldest line; answers it twice.
+        const std::string command(proto::parse_received(std::string_view(buffer.front()).substr(0, buffer.front().size() - 1)).command);
+        buffer.pop_front();
+        if (command == "M105") {
+            s.reply("ok T:20.0 /0.0");
+            s.reply("ok");
+            polled = true;
+        } else {
+            ++ran;
+            s.reply("ok");
+            s.reply("ok");
+        }
+    }
+    CHECK(ran == 60);
+    CHECK(s.faults.empty());
+    CHECK(most_after <= s.opt.rx_bytes);
+    CHECK(s.p.stats().stray_oks > 0);
+    MESSAGE("most bytes in the firmware's buffer: " << most_bytes << " before the first poll, " << most_after << " after");
 }

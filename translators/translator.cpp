@@ -2,6 +2,8 @@
 // What it may call: see translator.hpp.
 #include "translators/translator.hpp"
 
+#include <cmath>
+
 #include "translators/inverse.hpp"
 #include "translators/keep_out.hpp"
 #include "translators/lookback.hpp"
@@ -64,6 +66,15 @@ bool Translator::holding() const { return forward_ && forward_->lookback.holding
 
 void Translator::finish(std::string& out) {
     if (forward_) forward_->lookback.finish(out);
+}
+
+void Translator::place_at(const std::vector<double>& q, std::optional<double> e, double within) {
+    if (!forward_ || holding()) return;
+    auto& s = forward_->state.line;
+    bool same = q.size() == s.planner.q.size();
+    for (std::size_t j = 0; same && j < q.size(); ++j) same = std::abs(q[j] - s.planner.q[j]) <= within;
+    if (!same) forward_->planner.moved_to(q);
+    if (e) s.modal.modes.e_position = *e;
 }
 
 const std::vector<double>& Translator::joints() const { return inverse_ ? inverse_->joints() : forward_->state.line.planner.q; }

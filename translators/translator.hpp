@@ -60,6 +60,12 @@ public:
     bool holding() const;  // a look-back window is open: finish() would end it
     static constexpr std::size_t kDefaultLookback = 2000;
 
+    // The machine is at joints `q` (nominal: compensation undone), as its firmware reports them,
+    // and its extruder at `e` when given: the next move starts there. Joints within `within` of
+    // where the translator already has them keep its own (more exact) values. Only between
+    // look-back windows (not holding()); the forward direction only.
+    void place_at(const std::vector<double>& q, std::optional<double> e, double within);
+
     const std::vector<double>& joints() const;
     const Pose& pose() const;  // part frame
     const Eigen::Vector3d& program_offset() const;
