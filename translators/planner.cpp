@@ -202,6 +202,7 @@ inline bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinema
     const std::size_t c = pole_c_, b = pole_b_;
     const std::vector<double>& q0 = state_.q;
     const bool start_exact = axis_at(q0).dot(from.axis) >= exact_start_;
+    start_held_ = !start_exact;
     // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
     // files under G43.5: the axis stays on the pole).
     if (start_exact && q_next_[c] == q0[c] && q_next_[b] == q0[b]) return false;
@@ -237,17 +238,29 @@ bool Planner::pole_hold(const Pose& from, const Pose& to, const Kinematics::Solu
         const double st = std::sin(tilt / kDegPerRad), sb = std::sin(budget / kDegPerRad);
         const double off = st > sb ? std::asin(sb / st) * kDegPerRad : 180.0;
         const Kinematics::Solutions solutions = at_end ? *at_end : kin_.orientation_solutions(to.axis);
+        // Each exact angle is taken on a turn inside the joint's limits (the nearest such): held
+        // toward one past them, the turntable would have to leave the region on the far side of
+        // its limit (rw2's A at its -168 home, the axis leaning toward +-180), so it is steered
+        // toward the one it can reach while the axis is still near the pole and any angle will do.
+        const Joint& J = machine_.joints[c];
         double best = q0[c], least = 1e300;
         for (int k = 0; k < solutions.count; ++k) {
             const double exact = solutions.angle[k][0];
-            double value = q0[c];
-            if (!std::isnan(exact)) {
-                const double nearest = q0[c] + wrap180(exact - q0[c]);
-                value = nearest + std::clamp(q0[c] - nearest, -off, off);
+            if (std::isnan(exact)) {  // free (on the pole): it stays
+                least = 0;
+                best = q0[c];
+                continue;
             }
-            if (std::abs(value - q0[c]) < least) {
-                least = std::abs(value - q0[c]);
-                best = value;
+            const double nearest = q0[c] + wrap180(exact - q0[c]);
+            for (const double turn : {0.0, -360.0, 360.0}) {
+                const double target = nearest + turn;
+                if (!inside_limits(J, target)) continue;  // (an unbounded joint: the nearest turn)
+                const double value = target + std::clamp(q0[c] - target, -off, off);
+                if (std::abs(value - q0[c]) < least) {
+                    least = std::abs(value - q0[c]);
+                    best = value;
+                }
+                break;  // the nearest turn inside the limits
             }
         }
         // The tilt: the point of the great circle at that turntable angle nearest the axis
@@ -402,6 +415,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // Near a pole the end may be chosen across moves (see pole_passage): rotaries turn linearly.
     bool passage = false;
     double passage_angle = 0;
+    start_held_ = false;
     if (!unwind && mv.mode == OrientationMode::Vector && (mv.any_xyz || s.tip_known) && pole_passage(s.pose, next, mv.any_ijk ? &end_solutions_ : nullptr, pole_q_, passage_angle, log_ != nullptr)) {
         passage = true;
         q_next_ = pole_q_;
@@ -430,6 +444,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // For a branch flip (rw2: A by 180 degrees, B to -B) the tool passes upright (B = 0) on the
     // way instead of sweeping a full turn at its printing tilt.
     if (unwind || passage) spec.mode = OrientationMode::Angles;
+    spec.start_held = start_held_ && !passage;
     MoveResult* measured = log_ && spec.mode != OrientationMode::Joints ? &move_result_ : nullptr;
     move_result_.pole_crossings = 0;  // set by the move that crosses, not kept from an earlier one
     auto res = motion_.emit(spec, out, measured);

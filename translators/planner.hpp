@@ -212,6 +212,7 @@ private:
     std::vector<double> pole_q_, pole_probe_;  // scratch for pole_passage
     Eigen::Vector3d pole_ = Eigen::Vector3d::UnitZ();  // pole_passage's pole (has_flip machines; see the constructor)
     bool pole_checks_ = false;                         // pole_passage applies to this machine
+    bool start_held_ = false;                          // pole_passage found the move's start held off its axis
     AngleLimit pole_region_, short_turn_;  // pole_passage's tests of the angles it compares
     double exact_start_;                   // and its start within 1e-6 degrees of the axis: a dot at least this
     double pole_chord_limit_;              // pole_hold's chord within its limit (a constant of the machine)
