@@ -431,3 +431,91 @@ TEST_CASE("pole: random curved-layer paths near the pole on every machine family
         CHECK(worst_angle <= m.motion.angle_tolerance + 1e-3);
     }
 }
+
+namespace {
+
+double json_number(const std::string& json, const std::string& key) {
+    const auto at = json.find("\"" + key + "\": ");
+    REQUIRE(at != std::string::npos);
+    return std::stod(json.substr(at + key.size() + 4));
+}
+
+}  // namespace
+
+TEST_CASE("report: the rotary travel's lower bound is the least travel over every choice of solution, and no plan travels less") {
+    // Away from the pole (every tilt 10 to 40 degrees) the bound is the least sum of the rotaries'
+    // distances between consecutive ends over every sequence of exact solutions: here all 2^10
+    // sequences are tried, the turning joint (unbounded) on its nearest turn. Near the pole the
+    // written travel is never below the bound.
+    const Machine m = load("koc5");
+    const Kinematics k(m);
+    const auto& rot = k.rotary_joints();
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<double> U(0, 1);
+    Program p;
+    for (int i = 0; i <= 10; ++i) {
+        const double tilt = rad(10 + 30 * U(rng)), az = 2 * kPi * U(rng);
+        p.move(i == 0, {20 * U(rng) - 10, 20 * U(rng) - 10, 2 + U(rng)},
+               {std::sin(tilt) * std::cos(az), std::sin(tilt) * std::sin(az), std::cos(tilt)}, i == 0 ? " F1500" : " E0.02");
+    }
+    DeviationReport report("t.gcode", "koc5", m.motion.tolerance, m.motion.angle_tolerance);
+    TranslatorOptions o;
+    o.report = &report;
+    Translator t(k, o);
+    std::string out;
+    t.feed("G43.5", 1, out);
+    for (std::size_t i = 0; i < p.lines.size(); ++i) REQUIRE_NOTHROW(t.feed(p.lines[i], i + 2, out));
+    const std::string json = report.json();
+    // Exhaustive: from the start joints (home), every branch sequence.
+    const std::vector<double> home = m.home_joints();
+    double least = 1e300;
+    for (int mask = 0; mask < (1 << 11); ++mask) {
+        double c = home[std::size_t(rot[0])], b = home[std::size_t(rot[1])], sum = 0;
+        for (int i = 0; i <= 10; ++i) {
+            const auto sol = k.orientation_solutions(p.poses[std::size_t(i)].axis);
+            REQUIRE(sol.count == 2);
+            const int pick = (mask >> i) & 1;
+            sum += std::abs(std::remainder(sol.angle[pick][0] - c, 360.0)) + std::abs(sol.angle[pick][1] - b);
+            c = sol.angle[pick][0];
+            b = sol.angle[pick][1];
+        }
+        least = std::min(least, sum);
+    }
+    const double bound = json_number(json, "rotary_travel_lower_bound_deg");
+    const double travel = json_number(json, "rotary_travel_total_deg");
+    MESSAGE("bound " << bound << " deg (exhaustive " << least << "), written " << travel << " deg");
+    CHECK(bound == doctest::Approx(least).epsilon(1e-6));
+    CHECK(travel >= bound - 1e-6);
+    CHECK(json_number(json, "rotary_travel_ratio") == doctest::Approx(travel / bound).epsilon(1e-5));
+    // Near the pole: the random curved-layer paths, the written travel (read from the output)
+    // never below the bound.
+    for (int trial = 0; trial < 12; ++trial) {
+        CAPTURE(trial);
+        const Program q = curved_layers(rng, {0, 0, 2}, trial % 3 == 0);
+        DeviationReport r("t.gcode", "koc5", m.motion.tolerance, m.motion.angle_tolerance);
+        TranslatorOptions oq;
+        oq.report = &r;
+        Translator tq(k, oq);
+        std::string o2;
+        tq.feed("G43.5", 1, o2);
+        tq.feed("M83", 2, o2);
+        for (std::size_t i = 0; i < q.lines.size(); ++i) REQUIRE_NOTHROW(tq.feed(q.lines[i], i + 3, o2));
+        const Emitted e = check_emitted(m, k, o2, q);
+        CHECK(e.rotary_travel >= json_number(r.json(), "rotary_travel_lower_bound_deg") - 1e-3);
+    }
+}
+
+TEST_CASE("report: printing moves turning a rotary more than 90 degrees are counted, travel moves are not") {
+    const Machine m = load("xyzac-trt");
+    const Kinematics k(m);
+    DeviationReport report("t.gcode", "xyzac-trt", m.motion.tolerance, m.motion.angle_tolerance);
+    TranslatorOptions o;
+    o.report = &report;
+    Translator t(k, o);
+    std::string out;
+    for (const char* line : {"G43.4", "M83", "G0 X10 Y0 Z5 A10 C0 F1500", "G1 X11 Y0 Z5 A10 C91 E0.05", "G1 X12 Y0 Z5 A10 C120 E0.05",
+                             "G0 X12 Y0 Z6 A10 C300", "G1 X13 Y0 Z6 A10 C250 E0.05"})
+        t.feed(line, 1, out);
+    // C turns 91 (printing), 29 (printing), 180 (travel), 50 (printing): one.
+    CHECK(json_number(report.json(), "printing_moves_turning_over_90_deg") == 1);
+}

@@ -60,6 +60,7 @@ struct MoveResult {
     std::vector<double> low, high;  // each joint's extremes over the move (its start and every piece's end)
     double minutes = 0;          // time the pieces take at the feeds written (no acceleration)
     SolutionChange change = SolutionChange::None;  // set by the planner
+    bool prints = false;         // set by the planner: the move extrudes
     int rezeros = 0;             // G92s the planner wrote after the move to re-zero a wound-up rotary
     std::uint64_t moves_written = 0;  // the emitter's count of move lines once the move was written (its output's place)
 };
