@@ -696,7 +696,118 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
         }
         return {};
     }
+    if (mv.start_held && mv.mode == OrientationMode::Vector) {
+        // From a start the planner held off its axis: the continuous solution is tried first (the
+        // split is kept), and only where it cannot be followed is the move joined onto it.
+        if (split_for_ != &mv) {
+            if (auto r = split(mv); !r.ok()) {
+                std::string joined;
+                MoveResult whole;
+                if (join_from_held(mv, joined, result ? &whole : nullptr).ok()) {
+                    out += joined;
+                    if (result) *result = whole;
+                    return {};
+                }
+                return r;
+            }
+            split_for_ = &mv;
+        }
+    }
     return emit_one(mv, out, result);
+}
+
+namespace {
+// A second part's figures added to the first's (a move written as two).
+void add_result(MoveResult& into, const MoveResult& part) {
+    into.pieces += part.pieces;
+    into.tip_error = std::max(into.tip_error, part.tip_error);
+    into.angle_error = std::max(into.angle_error, part.angle_error);
+    if (std::abs(part.feed_error) > std::abs(into.feed_error)) into.feed_error = part.feed_error;
+    into.travel.resize(std::max(into.travel.size(), part.travel.size()), 0.0);
+    for (std::size_t j = 0; j < part.travel.size(); ++j) into.travel[j] += part.travel[j];
+    into.minutes += part.minutes;
+    into.pole_crossings += part.pole_crossings;
+    if (into.low.empty()) {
+        into.low = part.low;
+        into.high = part.high;
+    }
+    for (std::size_t j = 0; j < into.low.size() && j < part.low.size(); ++j) {
+        into.low[j] = std::min(into.low[j], part.low[j]);
+        into.high[j] = std::max(into.high[j], part.high[j]);
+    }
+}
+}  // namespace
+
+IkResult MotionStage::join_from_held(const MoveSpec& mv, std::string& out, MoveResult* result) {
+    const auto& q0 = *mv.q0;
+    const GreatArc arc = arc_of(mv);  // a copy: the parts' splits cache their own
+    const double limit = kSampleMargin * machine_.motion.angle_tolerance;
+    constexpr int kAxisSamples = 64;
+    std::vector<double>& q1 = join_q_;
+    std::vector<double>& lerp = join_lerp_;
+    lerp.resize(q0.size());
+    // The longest first part that works: the gentlest turn. Halved down to 2^-12 of the move
+    // (a turn almost in place: the tool axis then stays within the start's own offset, which
+    // the planner kept within half the tolerance, plus the turn's small bulge).
+    double s1 = 0, worst = 0;
+    for (int k = 1; k <= 12 && s1 == 0; ++k) {
+        const double s = std::ldexp(1.0, -k);
+        const Pose at = pose_at(mv, s);
+        q1 = q0;
+        if (!orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(at.axis), q0, q0, q1).ok()) continue;
+        if (!kin_.solve_position(at.tip, q1).ok() || !check_limits(machine_, q1).ok()) continue;
+        double w = 0;
+        for (int i = 1; i <= kAxisSamples && w <= limit; ++i) {
+            const double t = double(i) / kAxisSamples;
+            for (std::size_t j = 0; j < q0.size(); ++j) lerp[j] = q0[j] + t * (q1[j] - q0[j]);
+            w = std::max(w, angle_of_dot(kin_.tool_axis(lerp).dot(arc.at(t * s))));
+        }
+        if (w <= limit) s1 = s, worst = w;
+    }
+    if (s1 == 0) return {IkStatus::Singular, "no join"};
+    const Pose mid = pose_at(mv, s1);
+    const std::vector<double> joined = q1;  // the parts' splits reuse join_q_'s neighbours
+    MoveSpec first = mv, rest = mv;
+    first.mode = OrientationMode::Angles;
+    first.start_held = false;
+    first.q1 = &joined;
+    first.p1 = mid;
+    first.end = nullptr;
+    rest.start_held = false;
+    rest.q0 = &joined;
+    rest.p0 = mid;
+    if (mv.inverse_time > 0) {
+        first.inverse_time = mv.inverse_time / s1;
+        rest.inverse_time = mv.inverse_time / (1 - s1);
+    }
+    if (mv.e) {
+        // E shared by tip length as emit_one shares it among pieces: the first part's at the
+        // dialect's decimals, the rest what is left (the parts add up to the input exactly).
+        const int ed = machine_.dialect.extrusion_decimals;
+        const double escale = std::pow(10.0, ed);
+        const double value = mv.e_relative ? mv.e->value : mv.e->value - mv.e_start;
+        const long long units = std::llround(value * s1 * escale);
+        if (mv.e_relative) {
+            first.e = PassedNumber{double(units) / escale, {}, ed};
+            const double total = value * escale;
+            if (std::abs(total - std::round(total)) < 1e-6)
+                rest.e = PassedNumber{double(std::llround(total) - units) / escale, {}, ed};
+            else
+                rest.e = PassedNumber{value - double(units) / escale, {}};
+        } else {
+            first.e = PassedNumber{double(units) / escale + mv.e_start, {}, ed};
+            rest.e_start = first.e->value;
+        }
+    }
+    MoveResult a, b;
+    if (auto r = emit_one(first, out, result ? &a : nullptr); !r.ok()) return r;
+    if (auto r = emit(rest, out, result ? &b : nullptr); !r.ok()) return r;
+    if (result) {
+        a.angle_error = std::max(a.angle_error, worst);  // the angle form measures the tip: the axis as checked above
+        add_result(a, b);
+        *result = a;
+    }
+    return {};
 }
 
 bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {

@@ -40,6 +40,10 @@ struct MoveSpec {
     double feed = 0;                                 // programmed feed, mm/min (0: none yet)
     std::optional<PassedNumber> f;                   // F as written on this line (passed on under G49)
     double inverse_time = 0;                         // G93 input: the move's duration is 1/F minutes
+    // The planner held the start off its programmed axis near a pole (planner.cpp, pole_hold): the
+    // joints need not be on the continuous solution of p0's axis, and the move may first have to
+    // join it (see MotionStage::join_from_held).
+    bool start_held = false;
 };
 
 // A travel move that ended on another solution of its pose than the usual one.
@@ -56,6 +60,7 @@ struct MoveResult {
     std::vector<double> low, high;  // each joint's extremes over the move (its start and every piece's end)
     double minutes = 0;          // time the pieces take at the feeds written (no acceleration)
     SolutionChange change = SolutionChange::None;  // set by the planner
+    bool prints = false;         // set by the planner: the move extrudes
     int rezeros = 0;             // G92s the planner wrote after the move to re-zero a wound-up rotary
     std::uint64_t moves_written = 0;  // the emitter's count of move lines once the move was written (its output's place)
 };
@@ -107,6 +112,12 @@ private:
     // when that stays within the angle tolerance and turns the rotaries less than the
     // continuous branch. Fills `end` and returns true when that way is the better one.
     bool cross_pole(const MoveSpec& move, std::vector<double>& end);
+    // From a start held off its axis, when the continuous solution cannot be followed from it:
+    // the first part of the move (up to s1) turns the rotaries linearly onto the exact solution
+    // at s1 while the split holds the tip on the line and the tool axis stays within the angle
+    // tolerance of its arc, then the rest is the usual vector move. Not ok when no s1 does that.
+    IkResult join_from_held(const MoveSpec& move, std::string& out, MoveResult* result);
+    std::vector<double> join_q_, join_lerp_;
     double split_rotary_travel() const;
     IkResult solve_at(const MoveSpec& move, double s, const std::vector<double>& previous, std::vector<double>& q,
                       int branch = -1) const;

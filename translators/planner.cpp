@@ -202,6 +202,7 @@ inline bool Planner::pole_passage(const Pose& from, const Pose& to, const Kinema
     const std::size_t c = pole_c_, b = pole_b_;
     const std::vector<double>& q0 = state_.q;
     const bool start_exact = axis_at(q0).dot(from.axis) >= exact_start_;
+    start_held_ = !start_exact;
     // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
     // files under G43.5: the axis stays on the pole).
     if (start_exact && q_next_[c] == q0[c] && q_next_[b] == q0[b]) return false;
@@ -237,17 +238,29 @@ bool Planner::pole_hold(const Pose& from, const Pose& to, const Kinematics::Solu
         const double st = std::sin(tilt / kDegPerRad), sb = std::sin(budget / kDegPerRad);
         const double off = st > sb ? std::asin(sb / st) * kDegPerRad : 180.0;
         const Kinematics::Solutions solutions = at_end ? *at_end : kin_.orientation_solutions(to.axis);
+        // Each exact angle is taken on a turn inside the joint's limits (the nearest such): held
+        // toward one past them, the turntable would have to leave the region on the far side of
+        // its limit (rw2's A at its -168 home, the axis leaning toward +-180), so it is steered
+        // toward the one it can reach while the axis is still near the pole and any angle will do.
+        const Joint& J = machine_.joints[c];
         double best = q0[c], least = 1e300;
         for (int k = 0; k < solutions.count; ++k) {
             const double exact = solutions.angle[k][0];
-            double value = q0[c];
-            if (!std::isnan(exact)) {
-                const double nearest = q0[c] + wrap180(exact - q0[c]);
-                value = nearest + std::clamp(q0[c] - nearest, -off, off);
+            if (std::isnan(exact)) {  // free (on the pole): it stays
+                least = 0;
+                best = q0[c];
+                continue;
             }
-            if (std::abs(value - q0[c]) < least) {
-                least = std::abs(value - q0[c]);
-                best = value;
+            const double nearest = q0[c] + wrap180(exact - q0[c]);
+            for (const double turn : {0.0, -360.0, 360.0}) {
+                const double target = nearest + turn;
+                if (!inside_limits(J, target)) continue;  // (an unbounded joint: the nearest turn)
+                const double value = target + std::clamp(q0[c] - target, -off, off);
+                if (std::abs(value - q0[c]) < least) {
+                    least = std::abs(value - q0[c]);
+                    best = value;
+                }
+                break;  // the nearest turn inside the limits
             }
         }
         // The tilt: the point of the great circle at that turntable angle nearest the axis
@@ -402,6 +415,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // Near a pole the end may be chosen across moves (see pole_passage): rotaries turn linearly.
     bool passage = false;
     double passage_angle = 0;
+    start_held_ = false;
     if (!unwind && mv.mode == OrientationMode::Vector && (mv.any_xyz || s.tip_known) && pole_passage(s.pose, next, mv.any_ijk ? &end_solutions_ : nullptr, pole_q_, passage_angle, log_ != nullptr)) {
         passage = true;
         q_next_ = pole_q_;
@@ -430,6 +444,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // For a branch flip (rw2: A by 180 degrees, B to -B) the tool passes upright (B = 0) on the
     // way instead of sweeping a full turn at its printing tilt.
     if (unwind || passage) spec.mode = OrientationMode::Angles;
+    spec.start_held = start_held_ && !passage;
     MoveResult* measured = log_ && spec.mode != OrientationMode::Joints ? &move_result_ : nullptr;
     move_result_.pole_crossings = 0;  // set by the move that crosses, not kept from an earlier one
     auto res = motion_.emit(spec, out, measured);
@@ -445,6 +460,8 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
         throw LineError(mv.column, res.message);
     }
     if (measured) {
+        measured->prints = prints;
+        bound_rotary_travel(next.axis);
         measured->change = change;
         measured->moves_written = emitter_.moves_written();
         if (passage) {
@@ -487,6 +504,58 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     s.q.swap(q_next_);
     s.pose = next;
     s.tip_known = s.tip_known || mv.any_xyz;
+}
+
+// A lower bound on the rotary travel of any plan whose moves end on their programmed axes, but
+// within the pole region, where an end may be held off it by up to kPoleHold of the tolerance
+// (as this planner's are): the report's, with the travel's ratio to it. There the tilt joint
+// ends within that of one of the axis's exact solutions and the turning one within
+// asin(sin hold / sin tilt) of it (any angle at a tilt below the hold); the joints travel at
+// least the distance between consecutive ends. The least sum of those distances, each taken
+// less both ends' slacks, over every choice of solution per move (two per axis: a dynamic
+// programme over the moves) is at most any plan's travel. An unbounded turning joint is taken
+// on its nearest turn.
+void Planner::bound_rotary_travel(const Eigen::Vector3d& axis) {
+    const auto& rot = kin_.rotary_joints();
+    if (rot.size() != 2 || !kin_.has_flip()) return;
+    PlannerState::RotaryBound& d = state_.bound;
+    const std::size_t c = std::size_t(rot[0]), b = std::size_t(rot[1]);
+    const Joint& Jc = machine_.joints[c];
+    const Joint& Jb = machine_.joints[b];
+    if (d.n == 0) {  // from where the machine is
+        d.n = 1;
+        d.best[0] = 0;
+        d.c[0] = state_.q[c];
+        d.b[0] = state_.q[b];
+        d.slack_c = d.slack_b = 0;
+    }
+    const double tol = machine_.motion.angle_tolerance, hold = kPoleHold * tol;
+    const double tilt = std::min(angle_between(axis, pole_), angle_between(axis, -pole_));
+    const double st = std::sin(tilt / kDegPerRad), sh = std::sin(hold / kDegPerRad);
+    const bool region = tilt < kPoleRegion * tol;
+    const double slack_c = !region ? 0.0 : st > sh ? std::asin(sh / st) * kDegPerRad : 180.0, slack_b = region ? hold : 0.0;
+    const Kinematics::Solutions solutions = kin_.orientation_solutions(axis);
+    PlannerState::RotaryBound next;
+    for (int k = 0; k < solutions.count && next.n < 2; ++k) {
+        const double nc = solutions.angle[k][0], nb = solutions.angle[k][1];
+        if (!inside_limits(Jb, nb) || (!std::isnan(nc) && Jc.bounded() && !inside_limits(Jc, nc))) continue;
+        double least = 1e300;
+        for (int i = 0; i < d.n; ++i) {
+            double dc = 0;
+            if (!std::isnan(nc) && !std::isnan(d.c[i])) dc = Jc.bounded() ? std::abs(nc - d.c[i]) : std::abs(wrap180(nc - d.c[i]));
+            const double cost = std::max(0.0, dc - slack_c - d.slack_c) + std::max(0.0, std::abs(nb - d.b[i]) - slack_b - d.slack_b);
+            least = std::min(least, d.best[i] + cost);
+        }
+        next.best[next.n] = least;
+        next.c[next.n] = nc;
+        next.b[next.n] = nb;
+        ++next.n;
+    }
+    if (next.n == 0) return;  // no solution inside the limits: the move is refused anyway
+    next.slack_c = slack_c;
+    next.slack_b = slack_b;
+    d = next;
+    log_->set_rotary_bound(std::min(d.best[0], d.n > 1 ? d.best[1] : 1e300));
 }
 
 void Planner::send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,

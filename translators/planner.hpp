@@ -89,6 +89,14 @@ struct PlannerState {
     // Per rotary (rotary_joints() order): the whole turns re-zeros took off the joint since the
     // program last set it (G92, G28), in degrees. The program's angles go on without them.
     double rezeroed[2] = {0, 0};
+    // With a report: the least rotary travel to each solution of the last move's end axis, by
+    // dynamic programming over the moves so far (Planner::bound_rotary_travel). Here so that a
+    // look-back replay takes it back with the rest.
+    struct RotaryBound {
+        int n = 0;  // solutions held (0: not started)
+        double best[2] = {0, 0}, c[2] = {0, 0}, b[2] = {0, 0};
+        double slack_c = 0, slack_b = 0;
+    } bound;
 };
 
 // One input line's dealings with the look-back: what it asks of the line's moves, and what they
@@ -191,6 +199,8 @@ private:
     // end is the next one's start), else tool_axis(q). Where pole_passage applies only.
     Eigen::Vector3d axis_at(const std::vector<double>& q) const;
     void remember_axis(const std::vector<double>& q, const Eigen::Vector3d& axis);
+    // The report's lower bound on rotary travel, advanced by a move ending on `axis`.
+    void bound_rotary_travel(const Eigen::Vector3d& axis);
 
     struct Candidate {
         std::vector<double> q;
@@ -212,6 +222,7 @@ private:
     std::vector<double> pole_q_, pole_probe_;  // scratch for pole_passage
     Eigen::Vector3d pole_ = Eigen::Vector3d::UnitZ();  // pole_passage's pole (has_flip machines; see the constructor)
     bool pole_checks_ = false;                         // pole_passage applies to this machine
+    bool start_held_ = false;                          // pole_passage found the move's start held off its axis
     AngleLimit pole_region_, short_turn_;  // pole_passage's tests of the angles it compares
     double exact_start_;                   // and its start within 1e-6 degrees of the axis: a dot at least this
     double pole_chord_limit_;              // pole_hold's chord within its limit (a constant of the machine)

@@ -159,6 +159,16 @@ std::string DeviationReport::json() const {
     for (std::size_t i = 0; i < travel_.size(); ++i)
         o += std::string(i ? ", " : "") + "\"" + travel_[i].first + "\": " + num(travel_[i].second);
     o += "},\n";
+    // The least travel any plan within the tolerance could have (planner.cpp: a bound by dynamic
+    // programming over the programmed axes' solutions), and the travel over it.
+    if (rotary_bound_ >= 0) {
+        double travel = 0;
+        for (const auto& t : travel_) travel += t.second;
+        o += "  \"rotary_travel_total_deg\": " + num(travel) + ",\n";
+        o += "  \"rotary_travel_lower_bound_deg\": " + num(rotary_bound_) + ",\n";
+        o += "  \"rotary_travel_ratio\": " + (rotary_bound_ > 0 ? num(travel / rotary_bound_) : std::string("null")) + ",\n";
+    }
+    o += "  \"printing_moves_turning_over_90_deg\": " + std::to_string(printing_turns_) + ",\n";
     // Extremes over the translated tool-space moves (joint-space G49 moves are passed on as written).
     o += "  \"joint_range\": {";
     for (std::size_t i = 0; i < ranges_.size(); ++i)
@@ -248,10 +258,11 @@ std::string DeviationReport::svg() const {
 }
 
 void MoveLog::add(std::uint64_t line, const MoveResult& m) {
-    bool half_turn = false;
+    bool half_turn = false, printing_turn = false;
     for (std::size_t j = 0; j < m.travel.size(); ++j) {
         if (!machine_.joints[j].rotary) continue;
         half_turn = half_turn || m.travel[j] >= DeviationReport::kHalfTurnDeg;
+        printing_turn = printing_turn || (m.prints && m.travel[j] > DeviationReport::kPrintingTurnDeg);
         if (hold_) held_.travel.emplace_back(machine_.joints[j].name, m.travel[j]);
         else report_.add_rotary_travel(machine_.joints[j].name, m.travel[j]);
     }
@@ -259,7 +270,7 @@ void MoveLog::add(std::uint64_t line, const MoveResult& m) {
     const bool ranged = m.low.size() == n && m.high.size() == n;
     if (hold_) {
         held_.moves.push_back({line, m.tip_error, m.angle_error, m.feed_error, m.pieces, held_.travel.size(), m.minutes, int(m.change), m.pole_crossings, half_turn,
-                               m.rezeros, m.moves_written, true});
+                               m.rezeros, printing_turn, m.moves_written, true});
         for (std::size_t j = 0; j < n; ++j) held_.ranges.push_back(ranged ? m.low[j] : NAN);
         for (std::size_t j = 0; j < n; ++j) held_.ranges.push_back(ranged ? m.high[j] : NAN);
         return;
@@ -269,7 +280,7 @@ void MoveLog::add(std::uint64_t line, const MoveResult& m) {
     for (std::size_t j = 0; j < n; ++j) ranges_.push_back(ranged ? m.low[j] : NAN);
     for (std::size_t j = 0; j < n; ++j) ranges_.push_back(ranged ? m.high[j] : NAN);
     add_rest(ranges_.data(), m.minutes, int(m.change));
-    report_.add_route(m.pole_crossings, half_turn);
+    report_.add_route(m.pole_crossings, half_turn, printing_turn);
     report_.add_marks(line, m.moves_written, m.pole_crossings, int(m.change), m.rezeros);
 }
 
@@ -278,7 +289,7 @@ void MoveLog::add_rezeros(std::uint64_t line, std::uint64_t moves_written, int r
         report_.add_marks(line, moves_written, 0, int(SolutionChange::None), rezeros);
         return;
     }
-    held_.moves.push_back({line, 0, 0, 0, 0, held_.travel.size(), 0, int(SolutionChange::None), 0, false, rezeros, moves_written, false});
+    held_.moves.push_back({line, 0, 0, 0, 0, held_.travel.size(), 0, int(SolutionChange::None), 0, false, rezeros, false, moves_written, false});
     held_.ranges.insert(held_.ranges.end(), 2 * machine_.joints.size(), NAN);
 }
 
@@ -305,7 +316,7 @@ void MoveLog::release(std::size_t moves) {
         const Pending& m = held_.moves[i];
         if (m.measured) {
             report_.add_move(m.line, m.tip, m.angle, m.feed, m.pieces);
-            report_.add_route(m.pole_crossings, m.half_turn);
+            report_.add_route(m.pole_crossings, m.half_turn, m.printing_turn);
             add_rest(&held_.ranges[i * 2 * n], m.minutes, m.change);
         }
         report_.add_marks(m.line, m.moves_written, m.pole_crossings, m.change, m.rezeros);

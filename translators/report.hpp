@@ -22,7 +22,13 @@ public:
     void add_rotary_travel(char joint, double degrees);
     // How a move went near a pole: it changed branch across it (a pole crossing), and whether
     // a rotary turned by kHalfTurnDeg or more within it (a half turn of the table or head).
-    void add_route(int pole_crossings, bool half_turn) { pole_crossings_ += std::uint64_t(pole_crossings), half_turns_ += half_turn; }
+    void add_route(int pole_crossings, bool half_turn, bool printing_turn = false) {
+        pole_crossings_ += std::uint64_t(pole_crossings), half_turns_ += half_turn, printing_turns_ += printing_turn;
+    }
+    static constexpr double kPrintingTurnDeg = 90;  // a printing move turning a rotary more than this is counted
+    // The least rotary travel of any plan (the planner's bound, see planner.cpp): its figure and
+    // the travel's ratio to it go into the JSON.
+    void set_rotary_bound(double degrees) { rotary_bound_ = degrees; }
     static constexpr double kHalfTurnDeg = 150;
     // The rest of what a move did: where each joint went (its extremes over the move), how long
     // the firmware takes for it, and whether it ended on another solution of its pose.
@@ -73,7 +79,8 @@ private:
 
     std::string file_, machine_;
     double tolerance_, angle_tolerance_;
-    std::uint64_t lines_in_ = 0, lines_out_ = 0, moves_ = 0, split_moves_ = 0, pieces_ = 0, pole_crossings_ = 0, half_turns_ = 0;
+    std::uint64_t lines_in_ = 0, lines_out_ = 0, moves_ = 0, split_moves_ = 0, pieces_ = 0, pole_crossings_ = 0, half_turns_ = 0, printing_turns_ = 0;
+    double rotary_bound_ = -1;  // not computed
     Distribution tip_, angle_, feed_;
     std::vector<std::pair<char, double>> travel_;
     struct Range {
@@ -100,6 +107,7 @@ public:
     MoveLog(DeviationReport& report, const Machine& machine) : report_(report), machine_(machine) {}
 
     void hold(bool on) { hold_ = on; }
+    void set_rotary_bound(double degrees) { report_.set_rotary_bound(degrees); }
     void add(std::uint64_t line, const MoveResult& m);
     // G92s that re-zeroed a rotary after a move that is not measured (a joint move before the
     // program placed the tip): counted and marked like a measured move's.
@@ -116,6 +124,7 @@ public:
         int pole_crossings;
         bool half_turn;
         int rezeros;
+        bool printing_turn;
         std::uint64_t moves_written;
         bool measured;  // false: only its re-zeros (add_rezeros)
     };
