@@ -167,7 +167,7 @@ TEST_CASE("serve: every configuration key has a flag, and file and flag refuse t
     CHECK(numeric >= 20);
     // Flags override the file; --check shows what the link will use.
     const auto cfg = d.write("c.toml", "[firmware]\nport = \"/dev/ttyUSB7\"\nrx_bytes = 255\nwindow = 3\n");
-    const Result over = run(d, "serve --config " + quote(cfg.string()) + " --window 4 --max-line 120 --check " + quote(file.string()));
+    const Result over = run(d, "serve -m rw2 --config " + quote(cfg.string()) + " --window 4 --max-line 120 --check " + quote(file.string()));
     CHECK(over.code == 0);
     CHECK(contains(over.out, "/dev/ttyUSB7, marlin, 115200 baud; 4 lines in flight, at most 255 bytes in flight"));
     CHECK(contains(over.out, "lines up to 120 bytes"));
@@ -182,6 +182,42 @@ TEST_CASE("serve: a port must be given; the shipped configuration gives none") {
     CHECK(contains(r.err, "--port DEVICE"));
     CHECK(contains(r.err, "[firmware] port"));
     CHECK_FALSE(fs::exists(fs::symlink_status(pty)));
+}
+
+TEST_CASE("serve: the machine must be given, by --machine or the configuration's machine; none is assumed") {
+    TempDir d;
+    const auto file = d.write("p.gcode", "G28\nG1 X10 Y10 Z10 F600\n");
+    const std::string pty = (d.path / "printer").string();
+    // Without one: refused before anything starts (no pseudo-terminal), --check included.
+    for (const std::string& args : std::vector<std::string>{"serve --printer sim --pty " + quote(pty),
+                                                            "serve --printer sim --no-pty --tcp 127.0.0.1:0",
+                                                            "serve --printer sim --check " + quote(file.string())}) {
+        CAPTURE(args);
+        const Result r = run(d, args);
+        CHECK(r.code == 2);
+        CHECK(r.err.rfind("xlate5: ", 0) == 0);
+        CHECK(contains(r.err, "needs the machine: --machine NAME|PATH"));
+        CHECK(contains(r.err, "in --config FILE"));
+        CHECK(r.out.empty());
+        CHECK_FALSE(fs::exists(fs::symlink_status(pty)));
+    }
+    // The shipped configuration names none either (it says the key is required).
+    const auto shipped = fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path() / "config" / "xlate5.toml";
+    CHECK(load_serve_config(shipped.string()).machine.empty());
+    const Result from_shipped = run(d, "serve --config " + quote(shipped.string()) + " --printer sim --check " + quote(file.string()));
+    CHECK(from_shipped.code == 2);
+    CHECK(contains(from_shipped.err, "needs the machine"));
+    // Given either way, it is the one used.
+    const auto cfg = d.write("m.toml", "machine = \"pentarod\"\n[firmware]\nport = \"sim\"\n");
+    const Result by_file = run(d, "serve --config " + quote(cfg.string()) + " --check " + quote(file.string()));
+    CHECK(by_file.code == 0);
+    CHECK(contains(by_file.out, "(machine pentarod)"));
+    const Result by_flag = run(d, "serve --config " + quote(cfg.string()) + " -m rw2 --check " + quote(file.string()));
+    CHECK(by_flag.code == 0);
+    CHECK(contains(by_flag.out, "(machine rw2)"));
+    const Result top = run(d, "--machine wpi5 serve --printer sim --check " + quote(file.string()));
+    CHECK(top.code == 0);
+    CHECK(contains(top.out, "(machine wpi5)"));
 }
 
 TEST_CASE("serve --check: where serve releases held output, and where it would cancel what offline keeps") {
@@ -325,3 +361,4 @@ TEST_CASE("serve: a firmware port that appears late is waited for, said once; st
     CHECK(contains(text, "1 lines from senders"));
     CHECK(contains(text, "0 firmware faults"));
 }
+
