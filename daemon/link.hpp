@@ -47,6 +47,10 @@ public:
     // Raw bytes: called with each read's byte count before its lines are handed on (the virtual
     // printer times its wire by the byte, so a line sent in two parts crosses in two parts).
     std::function<void(std::size_t)> on_bytes;
+    // Someone at the other end: true with the first bytes read (at first, or after a hang-up),
+    // false at a hang-up after that. A pseudo-terminal cannot tell that its slave was opened
+    // until bytes come, so "connected" is when the sender first writes.
+    std::function<void(bool present)> on_presence;
     // While a line is handled: the count of bytes read up to and including its '\n'.
     std::uint64_t line_end() const { return line_end_; }
 
@@ -76,7 +80,7 @@ private:
     bool overlong_ = false;
     bool cut_ = false;
     std::uint64_t bytes_read_ = 0, line_end_ = 0;
-    bool paused_ = false, reading_ = false, hung_up_ = false;
+    bool paused_ = false, reading_ = false, hung_up_ = false, present_ = false;
     std::function<void()> on_hangup_;
     std::unique_ptr<asio::steady_timer> retry_;
 };

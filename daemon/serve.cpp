@@ -15,6 +15,7 @@
 #include <spdlog/sinks/systemd_sink.h>
 #include <spdlog/spdlog.h>
 
+#include "daemon/log_policy.hpp"
 #include "daemon/notify.hpp"
 #include "daemon/ports.hpp"
 #include "daemon/service.hpp"
@@ -25,9 +26,10 @@ namespace xlate5 {
 namespace {
 
 void setup_logging(const std::string& level) {
-    // Under systemd (JOURNAL_STREAM is set), log straight to the journal with priorities.
+    // Under systemd (standard error is the journal's stream), log straight to the journal with
+    // priorities; anywhere else (JOURNAL_STREAM inherited, stderr redirected), to standard error.
     std::shared_ptr<spdlog::logger> logger;
-    if (std::getenv("JOURNAL_STREAM")) logger = std::make_shared<spdlog::logger>("xlate5", std::make_shared<spdlog::sinks::systemd_sink_mt>());
+    if (journal_stream_is(STDERR_FILENO, std::getenv("JOURNAL_STREAM"))) logger = std::make_shared<spdlog::logger>("xlate5", std::make_shared<spdlog::sinks::systemd_sink_mt>());
     else logger = spdlog::stderr_color_mt("xlate5");
     spdlog::set_default_logger(logger);
     spdlog::set_level(spdlog::level::from_str(level));
@@ -106,6 +108,10 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
         a.sender_pty = std::make_unique<Pty>(config.pty, config.pty_group);
         auto sl = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, a.sender_pty->release_master()), a.sender_pty->link());
         sl->eio_is_transient = true;  // a sender closing the port is not the end of the service
+        sl->on_presence = [name = "pty " + config.pty](bool present) {
+            if (present) spdlog::info("sender connected: {}", name);
+            else spdlog::info("sender closed {}", name.substr(4));
+        };
         service.add_sender(sl, "pty " + config.pty);
         spdlog::info("senders: open {} (-> {}) as the printer's serial port", config.pty, a.sender_pty->path());
     }
@@ -154,6 +160,7 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
                 boost::system::error_code pe;
                 const auto rep = socket.remote_endpoint(pe);
                 const auto peer = "tcp " + rep.address().to_string() + ":" + std::to_string(rep.port());
+                spdlog::info("sender connected: {}", peer);
                 service.add_sender(std::make_shared<TcpLink>(std::move(socket), peer), peer);
                 if (auto n = next.lock()) (*n)();
             });

@@ -15,6 +15,7 @@
 
 #include "daemon/firmware_link.hpp"
 #include "daemon/lifetime.hpp"
+#include "daemon/log_policy.hpp"
 #include "daemon/sender_session.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
@@ -124,6 +125,7 @@ private:
     bool claim(SenderSession& s);
     void clear_stop();
     void refuse_line(const Pending& p, const std::string& cause);
+    void log_refusal(const std::shared_ptr<SenderSession>& s, const std::string& what);
     void enqueue_all(std::vector<std::string>& commands, std::uint64_t tag, const std::weak_ptr<SenderSession>& who);
 
     asio::io_context& io_;
@@ -152,6 +154,7 @@ private:
     bool busy_armed_ = false;
     std::string out_;  // translator output scratch
     ServiceStats stats_;
+    LogBudget refusal_log_{10, std::chrono::seconds(60)};  // each refused line logged, 10 a minute at most
     Lifetime lifetime_;  // last member: handlers check it first
 };
 

@@ -9,6 +9,7 @@
 #include <poll.h>
 #include <signal.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/un.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -19,11 +20,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "daemon/config.hpp"
+#include "daemon/log_policy.hpp"
 #include "daemon/ports.hpp"
 #include "daemon/virtual_printer.hpp"
 #include "translators/error.hpp"
@@ -362,3 +365,142 @@ TEST_CASE("serve: a firmware port that appears late is waited for, said once; st
     CHECK(contains(text, "0 firmware faults"));
 }
 
+TEST_CASE("serve's log: the journal only when standard error is the journal's stream (systemd's rule)") {
+    TempDir d;
+    const auto file = d.write("stderr.txt", "");
+    const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+    REQUIRE(fd >= 0);
+    struct stat st {};
+    REQUIRE(::fstat(fd, &st) == 0);
+    const std::string same = std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino);
+    CHECK(journal_stream_is(fd, same.c_str()));
+    CHECK_FALSE(journal_stream_is(fd, (std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino + 1)).c_str()));
+    CHECK_FALSE(journal_stream_is(fd, (std::to_string(st.st_dev + 1) + ":" + std::to_string(st.st_ino)).c_str()));
+    CHECK_FALSE(journal_stream_is(fd, "8:12345"));
+    CHECK_FALSE(journal_stream_is(fd, (same + "x").c_str()));
+    CHECK_FALSE(journal_stream_is(fd, (":" + std::to_string(st.st_ino)).c_str()));
+    CHECK_FALSE(journal_stream_is(fd, ""));
+    CHECK_FALSE(journal_stream_is(fd, nullptr));
+    ::close(fd);
+}
+
+TEST_CASE("serve's log budget: the first messages of a window whole, the rest counted and told with the next one") {
+    using namespace std::chrono_literals;
+    LogBudget b(3, 60s);
+    const auto t0 = LogBudget::Clock::time_point{} + 1h;
+    std::uint64_t skipped = 99;
+    for (int i = 0; i < 3; ++i) {
+        CHECK(b.allow(t0 + std::chrono::seconds(i), skipped));
+        CHECK(skipped == 0);
+    }
+    CHECK_FALSE(b.allow(t0 + 10s, skipped));
+    CHECK_FALSE(b.allow(t0 + 59s, skipped));
+    CHECK(b.allow(t0 + 60s, skipped));
+    CHECK(skipped == 2);
+    CHECK(b.allow(t0 + 61s, skipped));
+    CHECK(skipped == 0);
+}
+
+namespace {
+
+// `xlate5 serve` on the virtual printer with a pseudo-terminal for senders, standard error into
+// `log`, JOURNAL_STREAM set to `journal` (or unset when empty).
+pid_t start_serve(const std::string& log, const std::string& printer, const std::function<std::string(int)>& journal) {
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+        const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        ::dup2(fd, 2);
+        const std::string j = journal(2);
+        if (j.empty()) ::unsetenv("JOURNAL_STREAM");
+        else ::setenv("JOURNAL_STREAM", j.c_str(), 1);
+        ::unsetenv("NOTIFY_SOCKET");
+        ::execl(XLATE5_BINARY, "xlate5", "serve", "-m", "rw2", "--printer", "sim", "--pty", printer.c_str(), "--boot-wait", "0.2",
+                static_cast<char*>(nullptr));
+        ::_exit(127);
+    }
+    return pid;
+}
+
+bool wait_for_path(const std::string& p) {
+    for (int i = 0; i < 200; ++i) {
+        if (fs::exists(fs::symlink_status(p))) return true;
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return false;
+}
+
+int stop_serve(pid_t pid) {
+    ::kill(pid, SIGTERM);
+    int status = 0;
+    if (::waitpid(pid, &status, 0) != pid || !WIFEXITED(status)) return -1;
+    return WEXITSTATUS(status);
+}
+
+}  // namespace
+
+TEST_CASE("serve's log: on standard error when JOURNAL_STREAM names another file; 'sender connected' when one does; each refused line") {
+    TempDir d;
+    const std::string log = (d.path / "serve.log").string(), printer = (d.path / "printer").string();
+    // The issue's reproducer: JOURNAL_STREAM inherited from somewhere else.
+    const pid_t pid = start_serve(log, printer, [](int) { return std::string("8:12345"); });
+    REQUIRE(pid > 0);
+    REQUIRE(wait_for_path(printer));
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    const std::string before = read(log);
+    CAPTURE(before);
+    CHECK(contains(before, "serve: machine rw2"));
+    CHECK(contains(before, "senders: open " + printer));
+    CHECK_FALSE(contains(before, "sender connected"));  // nobody has opened the printer yet
+    // A sender opens it and types lines the translator refuses (no print: nothing is cancelled).
+    const int s = ::open(printer.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
+    REQUIRE(s >= 0);
+    make_raw(s);
+    std::string got;
+    const int bad = 14;
+    for (int i = 0; i < bad; ++i) {
+        const std::string line = "G1 X" + std::to_string(i) + " Y..2\n";
+        CHECK(::write(s, line.data(), line.size()) == ssize_t(line.size()));
+    }
+    for (int i = 0; i < 100 && count_of(got, "ok") < std::size_t(bad); ++i) {
+        pollfd p{s, POLLIN, 0};
+        char buf[4096];
+        if (::poll(&p, 1, 100) > 0) {
+            const auto n = ::read(s, buf, sizeof buf);
+            if (n > 0) got.append(buf, std::size_t(n));
+        }
+    }
+    CAPTURE(got);
+    CHECK(count_of(got, "echo:xlate5: refused line ") == std::size_t(bad));
+    ::close(s);
+    std::this_thread::sleep_for(std::chrono::milliseconds(400));
+    CHECK(stop_serve(pid) == 0);
+    const std::string text = read(log);
+    CAPTURE(text);
+    CHECK(count_of(text, "sender connected: pty " + printer) == 1);
+    CHECK(contains(text, "sender closed " + printer));
+    // Each refused line with its text and cause, ten a minute at most: the burst is cut there.
+    CHECK(contains(text, "pty " + printer + ": refused line 1 'G1 X0 Y..2': "));
+    CHECK(count_of(text, ": refused line ") == 10);
+    CHECK(contains(text, "14 refused"));
+}
+
+TEST_CASE("serve's log: into the journal, not standard error, when JOURNAL_STREAM is standard error's device and inode") {
+    TempDir d;
+    const std::string log = (d.path / "serve.log").string(), printer = (d.path / "printer").string();
+    const pid_t pid = start_serve(log, printer, [](int fd) {
+        struct stat st {};
+        ::fstat(fd, &st);
+        return std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino);
+    });
+    REQUIRE(pid > 0);
+    REQUIRE(wait_for_path(printer));
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    CHECK(stop_serve(pid) == 0);
+    const std::string text = read(log);
+    CAPTURE(text);
+    // Nothing of the log's own text on standard error (where no journal listens, spdlog may say
+    // that it could not write to it, never the message).
+    CHECK_FALSE(contains(text, "serve: machine rw2"));
+    CHECK_FALSE(contains(text, "senders: open"));
+    CHECK_FALSE(contains(text, "served "));
+}
