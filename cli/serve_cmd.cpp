@@ -35,7 +35,7 @@ std::string metavar(const ServeSetting& s) {
     if (k == "machine") return "NAME|PATH";
     if (k == "firmware.port") return "DEVICE";
     if (k == "sender.pty_group") return "GROUP";
-    if (k == "sender.tcp") return "HOST:PORT";
+    if (k == "sender.tcp" || k == "http") return "HOST:PORT";
     if (k == "extruder_letter") return "LETTER";
     if (k == "sender.pty") return "PATH";
     return "FILE";

@@ -88,8 +88,9 @@ void Link::write() {
     writing_now_ = true;
     writing_.swap(out_);
     auto self = shared_from_this();
-    write_all(asio::buffer(writing_), [this, self](boost::system::error_code ec, std::size_t) {
+    write_all(asio::buffer(writing_), [this, self](boost::system::error_code ec, std::size_t n) {
         writing_now_ = false;
+        bytes_written_ += n;
         writing_.clear();
         if (!open_) return;
         if (ec) {

@@ -40,6 +40,7 @@ public:
     // Called when the other end goes away for now (a pseudo-terminal whose sender closed it).
     void on_hangup(std::function<void()> f) { on_hangup_ = std::move(f); }
     std::size_t unsent_bytes() const { return out_.size() + writing_.size(); }
+    std::uint64_t bytes_written() const { return bytes_written_; }  // all bytes the stream took
     const std::string& name() const { return name_; }
     asio::any_io_executor stream_executor() { return executor(); }
     std::size_t max_line = 1 << 16;  // docs/limits.md
@@ -79,7 +80,7 @@ private:
     bool open_ = true;
     bool overlong_ = false;
     bool cut_ = false;
-    std::uint64_t bytes_read_ = 0, line_end_ = 0;
+    std::uint64_t bytes_read_ = 0, line_end_ = 0, bytes_written_ = 0;
     bool paused_ = false, reading_ = false, hung_up_ = false, present_ = false;
     std::function<void()> on_hangup_;
     std::unique_ptr<asio::steady_timer> retry_;

@@ -424,7 +424,15 @@ void Service::refuse_line(const Pending& p, const std::string& cause) {
     stop("print cancelled at " + quoted);
 }
 
+Service::View Service::view() const {
+    View v;
+    if (const auto owner = owner_.lock()) v.sender = owner->name(), v.line = owner->last_line();
+    if (translator_) v.joints = translator_->joints(), v.pose = translator_->pose();
+    return v;
+}
+
 void Service::log_refusal(const std::shared_ptr<SenderSession>& s, const std::string& what) {
+    last_error_ = what;
     std::uint64_t skipped = 0;
     if (!refusal_log_.allow(std::chrono::steady_clock::now(), skipped)) return;
     if (skipped) spdlog::warn("{} more refused lines were not logged (at most 10 a minute are)", skipped);
@@ -501,6 +509,7 @@ void Service::process(const Pending& p) {
 void Service::stop(const std::string& why) {
     if (stopped()) return;
     stop_reason_ = why;
+    last_error_ = "print stopped: " + why;
     spdlog::error("print stopped: {}", why);
     // Senders waiting on a report get their ok now; the lines they send next are refused.
     for (auto& [tag, w] : deferred_)

@@ -27,6 +27,7 @@
 
 #include "daemon/config.hpp"
 #include "daemon/log_policy.hpp"
+#include "daemon/status_http.hpp"
 #include "daemon/ports.hpp"
 #include "daemon/virtual_printer.hpp"
 #include "translators/error.hpp"
@@ -503,4 +504,30 @@ TEST_CASE("serve's log: into the journal, not standard error, when JOURNAL_STREA
     CHECK_FALSE(contains(text, "serve: machine rw2"));
     CHECK_FALSE(contains(text, "senders: open"));
     CHECK_FALSE(contains(text, "served "));
+}
+
+TEST_CASE("serve --http: the status JSON escapes what a sender wrote and writes no number it cannot") {
+    StatusSnapshot s;
+    s.version = "0.1.0";
+    s.machine = "rw2";
+    s.state = "stopped";
+    s.stop_reason = "print cancelled at line 3 'G1 X\"1\"'";
+    // A control byte, a backslash, a byte that is not UTF-8, a whole two-byte character (é), an
+    // overlong encoding of '/' and a lone continuation byte.
+    s.last_error = std::string("a\x01" "b\\c\xff" "d\xc3\xa9" "e\xc0\xaf" "f\x80", 14);
+    s.joint_names = {"X", "A"};
+    s.joints = {1.5, -0.0};
+    s.pose = std::array<double, 6>{10, 20, NAN, 0, 0, 1};
+    const std::string j = status_json(s);
+    CAPTURE(j);
+    CHECK(contains(j, R"("stop_reason":"print cancelled at line 3 'G1 X\"1\"'")"));
+    CHECK(contains(j, "\"last_error\":\"a\\u0001b\\\\c\xef\xbf\xbd" "d\xc3\xa9" "e\xef\xbf\xbd\xef\xbf\xbd" "f\xef\xbf\xbd\""));
+    CHECK(contains(j, R"("position":{"joints":{"X":1.5,"A":0},"tip":[10,20,null],"axis":[0,0,1]})"));
+    CHECK(contains(j, R"("line":null)"));
+    CHECK(contains(j, R"("link_busy_percent":null)"));
+    CHECK(contains(j, R"("authentication":"none")"));
+    // Before the firmware is there: no position.
+    StatusSnapshot none;
+    none.joint_names = {"X"};
+    CHECK(contains(status_json(none), R"("position":null)"));
 }
