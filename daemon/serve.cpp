@@ -309,9 +309,11 @@ int run_serve(const ServeConfig& config) {
         const auto snapshot = [&] {
             StatusSnapshot s;
             s.version = XLATE5_VERSION_STRING;
-            s.machine = machine.name;
+            // The service's machine once there is one: SIGHUP may have reloaded another.
+            const Machine& m = parts.service ? parts.service->machine() : machine;
+            s.machine = m.name;
             s.port = config.port;
-            for (const auto& j : machine.joints) s.joint_names.emplace_back(1, j.output);
+            for (const auto& j : m.joints) s.joint_names.emplace_back(1, j.output);
             if (!parts.service) {
                 s.state = waiting_for.empty() ? "starting" : "waiting for port";
                 return status_json(s);
