@@ -85,10 +85,11 @@ xlate5 \- translate tool-space 5-axis G-code into joint-space G-code for a given
 .RI [ OPTIONS ]
 .br
 .B xlate5 serve
-.RB [ \-\-config
-.IR FILE ]
-.RB [ \-\-machine
-.IR NAME ]
+.RB ( \-\-machine
+.I NAME
+|
+.B \-\-config
+.IR FILE )
 .RB ( \-\-port
 .I DEVICE
 |

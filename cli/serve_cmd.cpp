@@ -18,6 +18,7 @@ using Kind = ServeSetting::Kind;
 // How the help shows a default that is not simply a value.
 std::string default_text(const ServeConfig& d, const ServeSetting& s) {
     const std::string k = s.key, v = serve_setting_text(d, s);
+    if (k == "machine") return "none: required unless --config gives one";
     if (k == "firmware.port") return "none: required unless --printer sim or --config gives one";
     if (k == "compensation") return "the machine file's";
     if (k == "tolerance") return "0, the machine file's";
@@ -34,7 +35,7 @@ std::string metavar(const ServeSetting& s) {
     if (k == "machine") return "NAME|PATH";
     if (k == "firmware.port") return "DEVICE";
     if (k == "sender.pty_group") return "GROUP";
-    if (k == "sender.tcp") return "HOST:PORT";
+    if (k == "sender.tcp" || k == "http") return "HOST:PORT";
     if (k == "extruder_letter") return "LETTER";
     if (k == "sender.pty") return "PATH";
     return "FILE";
@@ -125,12 +126,22 @@ int run_serve_commands(const ServeCommands& c, const std::string& machine) {
                 throw CLI::ValidationError("--sim-fault", e.what());
             }
         }
-        if (!c.check.empty()) return run_serve_check(cfg, c.check);
+        // The machine decides every joint move: like the port, it is asked for, never assumed.
+        const auto require_machine = [&] {
+            if (cfg.machine.empty())
+                throw CLI::ValidationError("serve", "needs the machine: --machine NAME|PATH (see 'xlate5 machines') or machine = \"NAME\" "
+                                                    "in --config FILE");
+        };
+        if (!c.check.empty()) {
+            require_machine();
+            return run_serve_check(cfg, c.check);
+        }
         // A service that silently drives its simulator when the port was forgotten would look
         // like a working printer: the port (or the simulator) must be asked for.
         if (cfg.port.empty())
             throw CLI::ValidationError("serve", "needs the printer's port: --port DEVICE (see 'xlate5 ports'), --printer sim for the "
                                                 "built-in virtual printer, or [firmware] port in --config FILE");
+        require_machine();
         if (cfg.pty.empty() && cfg.tcp.empty()) throw CLI::ValidationError("--no-pty", "no sender endpoint left: give --tcp");
     } catch (const MachineError& e) {
         std::cerr << "xlate5: configuration error: " << e.what() << "\n";

@@ -12,6 +12,17 @@ install(CODE "
   file(INSTALL \"${PROJECT_BINARY_DIR}/install/xlate5@.service\" DESTINATION \"\${CMAKE_INSTALL_PREFIX}/lib/systemd/system\")
 ")
 
+# Debian's copyright file (machine-readable format 1.0) and the changelog, compressed as Debian
+# does (gzip -9n: no name or time stamp, so the package is reproducible). A native package's
+# changelog is changelog.gz.
+install(FILES ${PROJECT_SOURCE_DIR}/packaging/deb/copyright DESTINATION ${CMAKE_INSTALL_DOCDIR})
+install(CODE "
+  file(MAKE_DIRECTORY \"${PROJECT_BINARY_DIR}/install\")
+  execute_process(COMMAND gzip -9n -c \"${PROJECT_SOURCE_DIR}/packaging/deb/changelog\"
+                  OUTPUT_FILE \"${PROJECT_BINARY_DIR}/install/changelog.gz\" COMMAND_ERROR_IS_FATAL ANY)
+  file(INSTALL \"${PROJECT_BINARY_DIR}/install/changelog.gz\" DESTINATION \"\${CMAKE_INSTALL_PREFIX}/${CMAKE_INSTALL_DOCDIR}\")
+")
+
 # The examples the README's first steps translate and print.
 install(FILES ${PROJECT_SOURCE_DIR}/examples/rw2_flared_wall.gcode ${PROJECT_SOURCE_DIR}/examples/pentarod_dome.gcode
         DESTINATION ${CMAKE_INSTALL_DOCDIR}/examples)
@@ -28,11 +39,19 @@ set(CPACK_PACKAGE_DESCRIPTION "xlate5 translates vendor-neutral 5-axis G-code (t
 into joint-space G-code for stock Marlin or RepRapFirmware with closed-form
 inverse kinematics: offline, as a filter, or as a service between a sender
 (OctoPrint, Printrun) and the printer.")
-set(CPACK_PACKAGE_CONTACT "xlate5 developers <xlate5@invalid>" CACHE STRING "the package's Maintainer field")
+# The Maintainer field (and the changelog's signature): override for a real package build.
+set(XLATE5_MAINTAINER "xlate5 developers <xlate5-dev@example.org>" CACHE STRING "the package's Maintainer field")
+set(CPACK_PACKAGE_CONTACT "${XLATE5_MAINTAINER}")
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SECTION misc)
-set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)  # Depends: from the libraries the binary links
+set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)  # Depends: from the libraries the binary links, and
+set(CPACK_DEBIAN_PACKAGE_DEPENDS "adduser")  # postinst's adduser
+# The maintainer scripts (packaging/deb/): postinst makes the xlate5 user, prerm and postrm stop
+# running xlate5@ instances on removal. Mode 0755, as dpkg and lintian want.
+set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
+    ${PROJECT_SOURCE_DIR}/packaging/deb/postinst ${PROJECT_SOURCE_DIR}/packaging/deb/prerm ${PROJECT_SOURCE_DIR}/packaging/deb/postrm)
+set(CPACK_DEBIAN_PACKAGE_CONTROL_STRICT_PERMISSION ON)
 set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "systemd")
 set(CPACK_STRIP_FILES ON)
 # Only this project's files: no install rules of the test or benchmark programs.

@@ -47,7 +47,9 @@ const std::vector<ServeSetting> kSettings = {
     {"sender.pty_group", "--pty-group", Kind::Text, 0, 0, "", "",
      "give the pseudo-terminal to this group, read-write (e.g. dialout, for OctoPrint)"},
     {"sender.tcp", "--tcp", Kind::Text, 0, 0, "", "", "also accept senders on HOST:PORT (port 0: any free one; loopback unless --allow-remote)"},
-    {"sender.allow_remote", "--allow-remote", Kind::Switch, 0, 0, "", "", "allow --tcp on an address other than loopback"},
+    {"sender.allow_remote", "--allow-remote", Kind::Switch, 0, 0, "", "", "allow --tcp and --http on an address other than loopback"},
+    {"http", "--http", Kind::Text, 0, 0, "", "",
+     "serve a read-only status page and JSON on HOST:PORT, without authentication (port 0: any free one; loopback unless --allow-remote)"},
     {"sender.queue_lines", "--queue-lines", Kind::Whole, 1, 1 << 20, "lines", "",
      "translated lines held for the firmware before a sender's ok waits"},
     {"sender.drain_timeout", "--drain-timeout", Kind::Number, 0, 86400, "s", "", "seconds SIGTERM waits for the queue to drain"},
@@ -106,6 +108,10 @@ struct Value {
 void store(ServeConfig& c, const std::string& k, const Value& v) {
     const auto whole = [&] { return static_cast<long long>(v.number); };  // checked within the row's bounds before
     if (k == "machine") c.machine = v.text;
+    else if (k == "http") {
+        if (!v.text.empty()) parse_tcp_endpoint(v.text);
+        c.http = v.text;
+    }
     else if (k == "compensation") c.compensation = v.text;
     else if (k == "tolerance") c.tolerance = v.number;
     else if (k == "mode") c.mode = v.text == "G43.4" ? OrientationMode::Angles : v.text == "G43.5" ? OrientationMode::Vector : OrientationMode::Joints;
@@ -207,6 +213,7 @@ std::string serve_setting_text(const ServeConfig& c, const ServeSetting& s) {
     const std::string k = s.key;
     const auto num = [](double d) { return bound_text(d); };
     if (k == "machine") return c.machine;
+    if (k == "http") return c.http;
     if (k == "compensation") return c.compensation;
     if (k == "tolerance") return num(c.tolerance);
     if (k == "mode") return !c.mode ? "" : *c.mode == OrientationMode::Angles ? "G43.4" : *c.mode == OrientationMode::Vector ? "G43.5" : "G49";

@@ -19,7 +19,8 @@ namespace xlate5 {
 
 struct ServeConfig {
     std::string source;                 // the file it was read from ("" for defaults)
-    std::string machine = "rw2";
+    std::string machine;                // required: no machine decides moves by default
+    std::string http;                   // HOST:PORT of the read-only status page; empty: none
     std::string compensation;           // a compensation file replacing the machine's own
     double tolerance = 0;               // 0: the machine's
     std::optional<OrientationMode> mode;  // the orientation mode senders' files start in (default: the machine's)

@@ -29,6 +29,10 @@ void Link::read() {
                     hung_up_ = true;
                     if (on_hangup_) on_hangup_();
                 }
+                if (present_) {
+                    present_ = false;
+                    if (on_presence) on_presence(false);
+                }
                 // Nobody holds the other end: look again shortly (a timer, not a busy loop).
                 partial_.clear();
                 if (!retry_) retry_ = std::make_unique<asio::steady_timer>(executor());
@@ -42,6 +46,10 @@ void Link::read() {
             return;
         }
         hung_up_ = false;
+        if (!present_ && n > 0) {
+            present_ = true;
+            if (on_presence) on_presence(true);
+        }
         if (on_bytes) on_bytes(n);
         const std::uint64_t base = bytes_read_;
         bytes_read_ += n;
@@ -80,8 +88,9 @@ void Link::write() {
     writing_now_ = true;
     writing_.swap(out_);
     auto self = shared_from_this();
-    write_all(asio::buffer(writing_), [this, self](boost::system::error_code ec, std::size_t) {
+    write_all(asio::buffer(writing_), [this, self](boost::system::error_code ec, std::size_t n) {
         writing_now_ = false;
+        bytes_written_ += n;
         writing_.clear();
         if (!open_) return;
         if (ec) {

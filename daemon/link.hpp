@@ -40,6 +40,7 @@ public:
     // Called when the other end goes away for now (a pseudo-terminal whose sender closed it).
     void on_hangup(std::function<void()> f) { on_hangup_ = std::move(f); }
     std::size_t unsent_bytes() const { return out_.size() + writing_.size(); }
+    std::uint64_t bytes_written() const { return bytes_written_; }  // all bytes the stream took
     const std::string& name() const { return name_; }
     asio::any_io_executor stream_executor() { return executor(); }
     std::size_t max_line = 1 << 16;  // docs/limits.md
@@ -47,6 +48,10 @@ public:
     // Raw bytes: called with each read's byte count before its lines are handed on (the virtual
     // printer times its wire by the byte, so a line sent in two parts crosses in two parts).
     std::function<void(std::size_t)> on_bytes;
+    // Someone at the other end: true with the first bytes read (at first, or after a hang-up),
+    // false at a hang-up after that. A pseudo-terminal cannot tell that its slave was opened
+    // until bytes come, so "connected" is when the sender first writes.
+    std::function<void(bool present)> on_presence;
     // While a line is handled: the count of bytes read up to and including its '\n'.
     std::uint64_t line_end() const { return line_end_; }
 
@@ -75,8 +80,8 @@ private:
     bool open_ = true;
     bool overlong_ = false;
     bool cut_ = false;
-    std::uint64_t bytes_read_ = 0, line_end_ = 0;
-    bool paused_ = false, reading_ = false, hung_up_ = false;
+    std::uint64_t bytes_read_ = 0, line_end_ = 0, bytes_written_ = 0;
+    bool paused_ = false, reading_ = false, hung_up_ = false, present_ = false;
     std::function<void()> on_hangup_;
     std::unique_ptr<asio::steady_timer> retry_;
 };

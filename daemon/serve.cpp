@@ -15,9 +15,11 @@
 #include <spdlog/sinks/systemd_sink.h>
 #include <spdlog/spdlog.h>
 
+#include "daemon/log_policy.hpp"
 #include "daemon/notify.hpp"
 #include "daemon/ports.hpp"
 #include "daemon/service.hpp"
+#include "daemon/status_http.hpp"
 #include "daemon/virtual_printer.hpp"
 #include "translators/error.hpp"
 
@@ -25,9 +27,10 @@ namespace xlate5 {
 namespace {
 
 void setup_logging(const std::string& level) {
-    // Under systemd (JOURNAL_STREAM is set), log straight to the journal with priorities.
+    // Under systemd (standard error is the journal's stream), log straight to the journal with
+    // priorities; anywhere else (JOURNAL_STREAM inherited, stderr redirected), to standard error.
     std::shared_ptr<spdlog::logger> logger;
-    if (std::getenv("JOURNAL_STREAM")) logger = std::make_shared<spdlog::logger>("xlate5", std::make_shared<spdlog::sinks::systemd_sink_mt>());
+    if (journal_stream_is(STDERR_FILENO, std::getenv("JOURNAL_STREAM"))) logger = std::make_shared<spdlog::logger>("xlate5", std::make_shared<spdlog::sinks::systemd_sink_mt>());
     else logger = spdlog::stderr_color_mt("xlate5");
     spdlog::set_default_logger(logger);
     spdlog::set_level(spdlog::level::from_str(level));
@@ -113,6 +116,10 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
         a.sender_pty = std::make_unique<Pty>(config.pty, config.pty_group);
         auto sl = std::make_shared<DescriptorLink>(asio::posix::stream_descriptor(io, a.sender_pty->release_master()), a.sender_pty->link());
         sl->eio_is_transient = true;  // a sender closing the port is not the end of the service
+        sl->on_presence = [name = "pty " + config.pty](bool present) {
+            if (present) spdlog::info("sender connected: {}", name);
+            else spdlog::info("sender closed {}", name.substr(4));
+        };
         service.add_sender(sl, "pty " + config.pty);
         spdlog::info("senders: open {} (-> {}) as the printer's serial port", config.pty, a.sender_pty->path());
     }
@@ -161,6 +168,7 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
                 boost::system::error_code pe;
                 const auto rep = socket.remote_endpoint(pe);
                 const auto peer = "tcp " + rep.address().to_string() + ":" + std::to_string(rep.port());
+                spdlog::info("sender connected: {}", peer);
                 service.add_sender(std::make_shared<TcpLink>(std::move(socket), peer), peer, true);
                 if (auto n = next.lock()) (*n)();
             });
@@ -302,14 +310,85 @@ int run_serve(const ServeConfig& config) {
         });
     };
     wait_signal();
+
+    // The read-only status page (--http): what the service is doing, for a person or an
+    // integration that does not read the journal. The busy share of the firmware's wire is
+    // sampled by the status tick below.
+    std::optional<double> link_busy;
+    std::unique_ptr<StatusHttp> status_http;
+    if (!config.http.empty()) {
+        const auto snapshot = [&] {
+            StatusSnapshot s;
+            s.version = XLATE5_VERSION_STRING;
+            // The service's machine once there is one: SIGHUP may have reloaded another.
+            const Machine& m = parts.service ? parts.service->machine() : machine;
+            s.machine = m.name;
+            s.port = config.port;
+            for (const auto& j : m.joints) s.joint_names.emplace_back(1, j.output);
+            if (!parts.service) {
+                s.state = waiting_for.empty() ? "starting" : "waiting for port";
+                return status_json(s);
+            }
+            Service& service = *parts.service;
+            s.state = service.stopped() ? "stopped" : service.idle() ? "idle" : "printing";
+            s.stop_reason = service.stop_reason();
+            if (auto* fw = service.firmware()) {
+                using State = FirmwareLink::State;
+                const auto st = fw->state();
+                s.firmware_state = st == State::Booting ? "booting" : st == State::Greeting ? "greeting" : st == State::Ready ? "ready" : "faulted";
+                s.queued = fw->queued();
+                s.window = std::uint64_t(std::max(fw->window(), 0));
+                s.sent = fw->stats().sent;
+                s.acked = fw->stats().acked;
+                s.resends = fw->stats().resend_requests;
+                s.timeouts = fw->stats().timeouts;
+            }
+            s.link_busy_percent = link_busy;
+            const auto& st = service.stats();
+            s.lines_from_senders = st.lines_in;
+            s.lines_to_firmware = st.lines_out;
+            s.refused = st.rejected;
+            s.cancelled = st.cancelled;
+            s.faults = st.faults;
+            const auto v = service.view();
+            s.sender = v.sender;
+            s.line = v.line;
+            s.joints = v.joints;
+            s.pose = std::array<double, 6>{v.pose.tip.x(), v.pose.tip.y(), v.pose.tip.z(), v.pose.axis.x(), v.pose.axis.y(), v.pose.axis.z()};
+            s.last_error = service.last_error();
+            return status_json(s);
+        };
+        try {
+            status_http = std::make_unique<StatusHttp>(io, config.http, config.allow_remote, snapshot);
+        } catch (const std::exception& e) {
+            spdlog::error("{}", e.what());
+            return 4;
+        }
+        spdlog::info("status: {} and {}status.json, read-only, WITHOUT authentication: anyone who can reach it reads the printer's state",
+                     status_http->url(), status_http->url());
+    }
+
     if (config.port == "sim") start();
     else wait_port();
     // STATUS= for systemctl status, when it changed, every 2 s.
     std::string last_status;
+    // The firmware wire's busy share: bytes written over the last tick against what the line
+    // carries at its baud rate (10 bits a byte); the virtual printer's own speed when it has one.
+    const double wire_bytes_per_second = (config.port == "sim" ? config.sim.baud : config.baud) / 10.0;
+    std::uint64_t last_bytes = 0;
+    auto last_sample = std::chrono::steady_clock::now();
     std::function<void()> tick = [&] {
         if (parts.service) {
             auto st = status_line(*parts.service, waiting_for);
             if (st != last_status) notify_systemd(st), last_status = std::move(st);
+            if (auto* fw = parts.service->firmware(); fw && wire_bytes_per_second > 0) {
+                const auto now = std::chrono::steady_clock::now();
+                const auto bytes = fw->link().bytes_written();
+                const double dt = std::chrono::duration<double>(now - last_sample).count();
+                if (bytes >= last_bytes && dt > 0) link_busy = std::min(100.0, 100.0 * double(bytes - last_bytes) / (wire_bytes_per_second * dt));
+                last_bytes = bytes;
+                last_sample = now;
+            }
         }
         status_timer.expires_after(std::chrono::seconds(2));
         status_timer.async_wait([&](boost::system::error_code ec) {

@@ -257,7 +257,8 @@ void Service::add_sender(std::shared_ptr<Link> link, const std::string& name, bo
     s->tcp = tcp;
     sessions_.push_back(s);
     s->start();
-    spdlog::info("sender connected: {}", name);
+    // "sender connected" is logged by the endpoint when one does (serve.cpp): a pseudo-terminal
+    // is added here at start-up, before anyone has opened it.
     if (tcp) arm_idle_check();
 }
 
@@ -479,6 +480,7 @@ void Service::refuse_line(const Pending& p, const std::string& cause) {
     auto session = p.session.lock();
     const std::string quoted = "line " + std::to_string(p.line_no) + " '" + proto::strip_comment(p.command) + "': " + cause;
     ++stats_.rejected;
+    log_refusal(session, "refused " + quoted);
     if (!p.numbered) {
         // Typed in a terminal: refused, and nothing else changes.
         if (session) {
@@ -500,6 +502,21 @@ void Service::refuse_line(const Pending& p, const std::string& cause) {
     stop_healthy_ = true;
     ++stats_.cancelled;
     stop("print cancelled at " + quoted);
+}
+
+Service::View Service::view() const {
+    View v;
+    if (const auto owner = owner_.lock()) v.sender = owner->name(), v.line = owner->last_line();
+    if (translator_) v.joints = translator_->joints(), v.pose = translator_->pose();
+    return v;
+}
+
+void Service::log_refusal(const std::shared_ptr<SenderSession>& s, const std::string& what) {
+    last_error_ = what;
+    std::uint64_t skipped = 0;
+    if (!refusal_log_.allow(std::chrono::steady_clock::now(), skipped)) return;
+    if (skipped) spdlog::warn("{} more refused lines were not logged (at most 10 a minute are)", skipped);
+    spdlog::warn("{}: {}", s ? s->name() : std::string("a sender gone since"), what);
 }
 
 void Service::enqueue_all(std::vector<std::string>& commands, std::uint64_t tag, const std::weak_ptr<SenderSession>& who,
@@ -535,6 +552,8 @@ void Service::process(const Pending& p) {
             session->ok();
         }
         ++stats_.rejected;
+        log_refusal(session, "line " + std::to_string(p.line_no) + " '" + proto::strip_comment(p.command) + "' not run: " +
+                                 (stopped() ? stop_reason_ : std::string("no firmware")));
         return;
     }
     if (!p.refused.empty()) return refuse_line(p, p.refused);
@@ -588,6 +607,7 @@ void Service::process(const Pending& p) {
 void Service::stop(const std::string& why) {
     if (stopped()) return;
     stop_reason_ = why;
+    last_error_ = "print stopped: " + why;
     spdlog::error("print stopped: {}", why);
     // Senders waiting on a report get their ok now; the lines they send next are refused.
     for (auto& [tag, w] : deferred_)

@@ -15,6 +15,7 @@
 
 #include "daemon/firmware_link.hpp"
 #include "daemon/lifetime.hpp"
+#include "daemon/log_policy.hpp"
 #include "daemon/sender_session.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
@@ -107,6 +108,19 @@ public:
     void sender_refused(SenderSession& s, std::string_view command, std::uint64_t line_no, bool numbered, std::string cause) override;
     std::size_t pending_lines() const { return pending_.size(); }
 
+    // Read-only view for the status endpoint (daemon/status_http): the sender printing and its
+    // last numbered line, the translator's latest joints (machine order) and tool pose (what
+    // the service assumes; a new sender starts from home), and the latest stop or refusal.
+    struct View {
+        std::string sender;
+        std::int64_t line = -1;
+        std::vector<double> joints;
+        Pose pose;
+    };
+    View view() const;
+    const std::string& last_error() const { return last_error_; }
+    const Machine& machine() const { return machine_; }
+
 private:
     struct Pending {
         std::weak_ptr<SenderSession> session;
@@ -137,6 +151,7 @@ private:
     bool claim(SenderSession& s);
     void clear_stop();
     void refuse_line(const Pending& p, const std::string& cause);
+    void log_refusal(const std::shared_ptr<SenderSession>& s, const std::string& what);
     void enqueue_all(std::vector<std::string>& commands, std::uint64_t tag, const std::weak_ptr<SenderSession>& who,
                      std::uint64_t first, std::uint64_t span);
 
@@ -175,6 +190,8 @@ private:
     bool busy_armed_ = false;
     std::string out_;  // translator output scratch
     ServiceStats stats_;
+    std::string last_error_;
+    LogBudget refusal_log_{10, std::chrono::seconds(60)};  // each refused line logged, 10 a minute at most
     Lifetime lifetime_;  // last member: handlers check it first
 };
 

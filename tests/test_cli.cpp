@@ -712,7 +712,9 @@ TEST_CASE("cli: serve --help gives every option's default") {
     // The documented ones (config/xlate5.toml, docs/service.md).
     CHECK(contains(r.out, "(default: 115200)"));
     CHECK(contains(r.out, "(default: /run/xlate5/printer)"));
-    CHECK(contains(r.out, "(default: rw2)"));
+    // The machine has no default (issue 36): it decides every joint move.
+    CHECK(contains(r.out, "(default: none: required unless --config gives one)"));
+    CHECK_FALSE(contains(r.out, "(default: rw2)"));
 }
 
 TEST_CASE("cli: serve without a port or --printer sim is an error, not a silent simulator") {

@@ -246,6 +246,40 @@ TEST_CASE("limits: without a travel move before the crossing, a clear error name
     }
 }
 
+TEST_CASE("limits: a linear joint past its travel is told as placement (the slicer's origin), not as a turn back") {
+    const Machine m = load("rw2");
+    const Kinematics k(m);
+    // rw2's X runs -30 .. 250; a part sliced for a 300 mm bed lies partly beyond it. A rotary
+    // past its limit (A over 168, printed with no travel move before) keeps the turning advice.
+    Program linear;
+    linear.lines = {"G1 X100 Y100 Z1 A0 B0 F600", "G1 X200 Y100 Z1 A0 B0 E1", "G1 X290 Y100 Z1 A0 B0 E2"};
+    Program rotary;
+    rotary.lines = {"G1 X100 Y100 Z1 A0 B30 F600", "G1 X101 Y100 Z1 A120 B30 E1", "G1 X102 Y100 Z1 A175 B30 E2"};
+    for (const std::size_t lookback : {std::size_t(0), Translator::kDefaultLookback}) {
+        CAPTURE(lookback);
+        Translator t(k, {});
+        t.set_lookback(lookback);
+        const auto [line, message] = failure_of(t, linear);
+        CAPTURE(message);
+        CHECK(line == 3);
+        CHECK(contains(message, "joint X would go to"));
+        CHECK(contains(message, "-30.000 .. 250.000"));
+        CHECK(contains(message, "outside the machine's travel"));
+        CHECK(contains(message, "slicer's origin"));
+        CHECK(contains(message, "Place the part"));
+        CHECK_FALSE(contains(message, "travel move (G0"));
+        CHECK_FALSE(contains(message, "turn the joint back"));
+        Translator r(k, {});
+        r.set_lookback(lookback);
+        const auto [rline, rmessage] = failure_of(r, rotary);
+        CAPTURE(rmessage);
+        CHECK(rline == 3);
+        CHECK(contains(rmessage, "joint A"));
+        CHECK(contains(rmessage, "turn"));
+        CHECK_FALSE(contains(rmessage, "slicer's origin"));
+    }
+}
+
 TEST_CASE("limits: the look-back window is bounded: a travel move too far back does not help") {
     const Machine m = load("rw2");
     const Kinematics k(m);

@@ -13,6 +13,7 @@
 #include "translators/machine.hpp"
 
 using namespace xlate5;
+using xlate5::test::read;
 
 namespace {
 
@@ -146,6 +147,54 @@ TEST_CASE("bundled machines all load and name themselves") {
         CHECK_NOTHROW(Kinematics{m});
     }
     CHECK_THROWS_WITH_AS(load_machine("no-such-machine"), doctest::Contains("no machine named 'no-such-machine'"), MachineError);
+}
+
+TEST_CASE("a mistyped machine name, parameter or key is answered with the nearest one and where xlate5 looked") {
+    // A name: the nearest machine found, and the directories searched, in their order.
+    try {
+        load_machine("rw3");
+        FAIL("rw3 loaded");
+    } catch (const MachineError& e) {
+        const std::string m = e.what();
+        CAPTURE(m);
+        CHECK(contains(m, "no machine named 'rw3'; did you mean 'rw2'?"));
+        std::string dirs;
+        for (const auto& d : machine_search_path()) dirs += (dirs.empty() ? "" : ", ") + d;
+        CHECK(contains(m, "looked in " + dirs));
+        CHECK(contains(m, "pentarod"));
+    }
+    CHECK_THROWS_WITH_AS(load_machine("zzzzzzzz"), doctest::Contains("no machine named 'zzzzzzzz' (found: "), MachineError);
+    // --set: the machine's own parameters, and the nearest.
+    try {
+        load_machine("rw2", {{"lz", 3}});
+        FAIL("--set lz taken");
+    } catch (const MachineError& e) {
+        const std::string m = e.what();
+        CAPTURE(m);
+        CHECK(contains(m, "--set lz: the machine has no parameter 'lz'; did you mean 'la'?"));
+        CHECK(contains(m, "(its parameters: la, lb)"));
+    }
+    CHECK_THROWS_WITH_AS(load_machine("rw2", {{"wavelength", 3}}), doctest::Contains("'wavelength' (its parameters: la, lb)"), MachineError);
+    // A key of the file: the nearest allowed key at that place, or none when nothing is near.
+    const std::string good = read(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/rw2.toml");
+    const auto broken = [&](const std::string& from, const std::string& to) {
+        const auto at = good.find(from);
+        REQUIRE(at != std::string::npos);
+        std::string t = good;
+        t.replace(at, from.size(), to);
+        return t;
+    };
+    CHECK_THROWS_WITH_AS(load_machine_text(broken("[parameters]", "[parametrs]"), "mine.toml"),
+                         doctest::Contains("parametrs: unknown key; did you mean 'parameters'?"), MachineError);
+    CHECK_THROWS_WITH_AS(load_machine_text(broken("max_feed = 7200", "max_fed = 7200"), "mine.toml"),
+                         doctest::Contains("max_fed: unknown key; did you mean 'max_feed'?"), MachineError);
+    try {
+        load_machine_text(broken("[firmware]", "[firmware]\nwobble = 1"), "mine.toml");
+        FAIL("wobble taken");
+    } catch (const MachineError& e) {
+        CHECK(contains(e.what(), "firmware.wobble: unknown key"));
+        CHECK_FALSE(contains(e.what(), "did you mean"));
+    }
 }
 
 TEST_CASE("a machine parsed once and built with other parameters is the machine load_machine_text gives") {

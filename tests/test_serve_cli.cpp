@@ -9,6 +9,7 @@
 #include <poll.h>
 #include <signal.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/un.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -19,11 +20,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "daemon/config.hpp"
+#include "daemon/log_policy.hpp"
+#include "daemon/status_http.hpp"
 #include "daemon/ports.hpp"
 #include "daemon/virtual_printer.hpp"
 #include "translators/error.hpp"
@@ -167,7 +171,7 @@ TEST_CASE("serve: every configuration key has a flag, and file and flag refuse t
     CHECK(numeric >= 20);
     // Flags override the file; --check shows what the link will use.
     const auto cfg = d.write("c.toml", "[firmware]\nport = \"/dev/ttyUSB7\"\nrx_bytes = 255\nwindow = 3\n");
-    const Result over = run(d, "serve --config " + quote(cfg.string()) + " --window 4 --max-line 120 --check " + quote(file.string()));
+    const Result over = run(d, "serve -m rw2 --config " + quote(cfg.string()) + " --window 4 --max-line 120 --check " + quote(file.string()));
     CHECK(over.code == 0);
     CHECK(contains(over.out, "/dev/ttyUSB7, marlin, 115200 baud; 4 lines in flight, at most 255 bytes in flight"));
     CHECK(contains(over.out, "lines up to 120 bytes"));
@@ -182,6 +186,42 @@ TEST_CASE("serve: a port must be given; the shipped configuration gives none") {
     CHECK(contains(r.err, "--port DEVICE"));
     CHECK(contains(r.err, "[firmware] port"));
     CHECK_FALSE(fs::exists(fs::symlink_status(pty)));
+}
+
+TEST_CASE("serve: the machine must be given, by --machine or the configuration's machine; none is assumed") {
+    TempDir d;
+    const auto file = d.write("p.gcode", "G28\nG1 X10 Y10 Z10 F600\n");
+    const std::string pty = (d.path / "printer").string();
+    // Without one: refused before anything starts (no pseudo-terminal), --check included.
+    for (const std::string& args : std::vector<std::string>{"serve --printer sim --pty " + quote(pty),
+                                                            "serve --printer sim --no-pty --tcp 127.0.0.1:0",
+                                                            "serve --printer sim --check " + quote(file.string())}) {
+        CAPTURE(args);
+        const Result r = run(d, args);
+        CHECK(r.code == 2);
+        CHECK(r.err.rfind("xlate5: ", 0) == 0);
+        CHECK(contains(r.err, "needs the machine: --machine NAME|PATH"));
+        CHECK(contains(r.err, "in --config FILE"));
+        CHECK(r.out.empty());
+        CHECK_FALSE(fs::exists(fs::symlink_status(pty)));
+    }
+    // The shipped configuration names none either (it says the key is required).
+    const auto shipped = fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path() / "config" / "xlate5.toml";
+    CHECK(load_serve_config(shipped.string()).machine.empty());
+    const Result from_shipped = run(d, "serve --config " + quote(shipped.string()) + " --printer sim --check " + quote(file.string()));
+    CHECK(from_shipped.code == 2);
+    CHECK(contains(from_shipped.err, "needs the machine"));
+    // Given either way, it is the one used.
+    const auto cfg = d.write("m.toml", "machine = \"pentarod\"\n[firmware]\nport = \"sim\"\n");
+    const Result by_file = run(d, "serve --config " + quote(cfg.string()) + " --check " + quote(file.string()));
+    CHECK(by_file.code == 0);
+    CHECK(contains(by_file.out, "(machine pentarod)"));
+    const Result by_flag = run(d, "serve --config " + quote(cfg.string()) + " -m rw2 --check " + quote(file.string()));
+    CHECK(by_flag.code == 0);
+    CHECK(contains(by_flag.out, "(machine rw2)"));
+    const Result top = run(d, "--machine wpi5 serve --printer sim --check " + quote(file.string()));
+    CHECK(top.code == 0);
+    CHECK(contains(top.out, "(machine wpi5)"));
 }
 
 TEST_CASE("serve --check: where serve releases held output, and where it would cancel what offline keeps") {
@@ -324,4 +364,170 @@ TEST_CASE("serve: a firmware port that appears late is waited for, said once; st
     CHECK(contains(text, "served "));
     CHECK(contains(text, "1 lines from senders"));
     CHECK(contains(text, "0 firmware faults"));
+}
+
+TEST_CASE("serve's log: the journal only when standard error is the journal's stream (systemd's rule)") {
+    TempDir d;
+    const auto file = d.write("stderr.txt", "");
+    const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+    REQUIRE(fd >= 0);
+    struct stat st {};
+    REQUIRE(::fstat(fd, &st) == 0);
+    const std::string same = std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino);
+    CHECK(journal_stream_is(fd, same.c_str()));
+    CHECK_FALSE(journal_stream_is(fd, (std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino + 1)).c_str()));
+    CHECK_FALSE(journal_stream_is(fd, (std::to_string(st.st_dev + 1) + ":" + std::to_string(st.st_ino)).c_str()));
+    CHECK_FALSE(journal_stream_is(fd, "8:12345"));
+    CHECK_FALSE(journal_stream_is(fd, (same + "x").c_str()));
+    CHECK_FALSE(journal_stream_is(fd, (":" + std::to_string(st.st_ino)).c_str()));
+    CHECK_FALSE(journal_stream_is(fd, ""));
+    CHECK_FALSE(journal_stream_is(fd, nullptr));
+    ::close(fd);
+}
+
+TEST_CASE("serve's log budget: the first messages of a window whole, the rest counted and told with the next one") {
+    using namespace std::chrono_literals;
+    LogBudget b(3, 60s);
+    const auto t0 = LogBudget::Clock::time_point{} + 1h;
+    std::uint64_t skipped = 99;
+    for (int i = 0; i < 3; ++i) {
+        CHECK(b.allow(t0 + std::chrono::seconds(i), skipped));
+        CHECK(skipped == 0);
+    }
+    CHECK_FALSE(b.allow(t0 + 10s, skipped));
+    CHECK_FALSE(b.allow(t0 + 59s, skipped));
+    CHECK(b.allow(t0 + 60s, skipped));
+    CHECK(skipped == 2);
+    CHECK(b.allow(t0 + 61s, skipped));
+    CHECK(skipped == 0);
+}
+
+namespace {
+
+// `xlate5 serve` on the virtual printer with a pseudo-terminal for senders, standard error into
+// `log`, JOURNAL_STREAM set to `journal` (or unset when empty).
+pid_t start_serve(const std::string& log, const std::string& printer, const std::function<std::string(int)>& journal) {
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+        const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        ::dup2(fd, 2);
+        const std::string j = journal(2);
+        if (j.empty()) ::unsetenv("JOURNAL_STREAM");
+        else ::setenv("JOURNAL_STREAM", j.c_str(), 1);
+        ::unsetenv("NOTIFY_SOCKET");
+        ::execl(XLATE5_BINARY, "xlate5", "serve", "-m", "rw2", "--printer", "sim", "--pty", printer.c_str(), "--boot-wait", "0.2",
+                static_cast<char*>(nullptr));
+        ::_exit(127);
+    }
+    return pid;
+}
+
+bool wait_for_path(const std::string& p) {
+    for (int i = 0; i < 200; ++i) {
+        if (fs::exists(fs::symlink_status(p))) return true;
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return false;
+}
+
+int stop_serve(pid_t pid) {
+    ::kill(pid, SIGTERM);
+    int status = 0;
+    if (::waitpid(pid, &status, 0) != pid || !WIFEXITED(status)) return -1;
+    return WEXITSTATUS(status);
+}
+
+}  // namespace
+
+TEST_CASE("serve's log: on standard error when JOURNAL_STREAM names another file; 'sender connected' when one does; each refused line") {
+    TempDir d;
+    const std::string log = (d.path / "serve.log").string(), printer = (d.path / "printer").string();
+    // The issue's reproducer: JOURNAL_STREAM inherited from somewhere else.
+    const pid_t pid = start_serve(log, printer, [](int) { return std::string("8:12345"); });
+    REQUIRE(pid > 0);
+    REQUIRE(wait_for_path(printer));
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    const std::string before = read(log);
+    CAPTURE(before);
+    CHECK(contains(before, "serve: machine rw2"));
+    CHECK(contains(before, "senders: open " + printer));
+    CHECK_FALSE(contains(before, "sender connected"));  // nobody has opened the printer yet
+    // A sender opens it and types lines the translator refuses (no print: nothing is cancelled).
+    const int s = ::open(printer.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
+    REQUIRE(s >= 0);
+    make_raw(s);
+    std::string got;
+    const int bad = 14;
+    for (int i = 0; i < bad; ++i) {
+        const std::string line = "G1 X" + std::to_string(i) + " Y..2\n";
+        CHECK(::write(s, line.data(), line.size()) == ssize_t(line.size()));
+    }
+    for (int i = 0; i < 100 && count_of(got, "ok") < std::size_t(bad); ++i) {
+        pollfd p{s, POLLIN, 0};
+        char buf[4096];
+        if (::poll(&p, 1, 100) > 0) {
+            const auto n = ::read(s, buf, sizeof buf);
+            if (n > 0) got.append(buf, std::size_t(n));
+        }
+    }
+    CAPTURE(got);
+    CHECK(count_of(got, "echo:xlate5: refused line ") == std::size_t(bad));
+    ::close(s);
+    std::this_thread::sleep_for(std::chrono::milliseconds(400));
+    CHECK(stop_serve(pid) == 0);
+    const std::string text = read(log);
+    CAPTURE(text);
+    CHECK(count_of(text, "sender connected: pty " + printer) == 1);
+    CHECK(contains(text, "sender closed " + printer));
+    // Each refused line with its text and cause, ten a minute at most: the burst is cut there.
+    CHECK(contains(text, "pty " + printer + ": refused line 1 'G1 X0 Y..2': "));
+    CHECK(count_of(text, ": refused line ") == 10);
+    CHECK(contains(text, "14 refused"));
+}
+
+TEST_CASE("serve's log: into the journal, not standard error, when JOURNAL_STREAM is standard error's device and inode") {
+    TempDir d;
+    const std::string log = (d.path / "serve.log").string(), printer = (d.path / "printer").string();
+    const pid_t pid = start_serve(log, printer, [](int fd) {
+        struct stat st {};
+        ::fstat(fd, &st);
+        return std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino);
+    });
+    REQUIRE(pid > 0);
+    REQUIRE(wait_for_path(printer));
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    CHECK(stop_serve(pid) == 0);
+    const std::string text = read(log);
+    CAPTURE(text);
+    // Nothing of the log's own text on standard error (where no journal listens, spdlog may say
+    // that it could not write to it, never the message).
+    CHECK_FALSE(contains(text, "serve: machine rw2"));
+    CHECK_FALSE(contains(text, "senders: open"));
+    CHECK_FALSE(contains(text, "served "));
+}
+
+TEST_CASE("serve --http: the status JSON escapes what a sender wrote and writes no number it cannot") {
+    StatusSnapshot s;
+    s.version = "0.1.0";
+    s.machine = "rw2";
+    s.state = "stopped";
+    s.stop_reason = "print cancelled at line 3 'G1 X\"1\"'";
+    // A control byte, a backslash, a byte that is not UTF-8, a whole two-byte character (é), an
+    // overlong encoding of '/' and a lone continuation byte.
+    s.last_error = std::string("a\x01" "b\\c\xff" "d\xc3\xa9" "e\xc0\xaf" "f\x80", 14);
+    s.joint_names = {"X", "A"};
+    s.joints = {1.5, -0.0};
+    s.pose = std::array<double, 6>{10, 20, NAN, 0, 0, 1};
+    const std::string j = status_json(s);
+    CAPTURE(j);
+    CHECK(contains(j, R"("stop_reason":"print cancelled at line 3 'G1 X\"1\"'")"));
+    CHECK(contains(j, "\"last_error\":\"a\\u0001b\\\\c\xef\xbf\xbd" "d\xc3\xa9" "e\xef\xbf\xbd\xef\xbf\xbd" "f\xef\xbf\xbd\""));
+    CHECK(contains(j, R"("position":{"joints":{"X":1.5,"A":0},"tip":[10,20,null],"axis":[0,0,1]})"));
+    CHECK(contains(j, R"("line":null)"));
+    CHECK(contains(j, R"("link_busy_percent":null)"));
+    CHECK(contains(j, R"("authentication":"none")"));
+    // Before the firmware is there: no position.
+    StatusSnapshot none;
+    none.joint_names = {"X"};
+    CHECK(contains(status_json(none), R"("position":null)"));
 }

@@ -160,8 +160,9 @@ IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
             const Joint& J = machine.joints[j];
             if (J.rotary != (pass == 0)) continue;
             if (!inside_limits(J, q[j]))
-                return {IkStatus::OutOfLimits, std::string("joint ") + J.name + " would go to " + fmt(q[j]) + ", outside its limits " +
-                                                   fmt(J.min) + " .. " + fmt(J.max)};
+                return {IkStatus::OutOfLimits,
+                        std::string("joint ") + J.name + " would go to " + fmt(q[j]) + ", outside its limits " + fmt(J.min) + " .. " + fmt(J.max),
+                        !J.rotary};
         }
     }
     return {};

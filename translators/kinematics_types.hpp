@@ -19,6 +19,7 @@ enum class IkStatus { Ok, Unreachable, OutOfLimits, Singular };
 struct IkResult {
     IkStatus status = IkStatus::Ok;
     std::string message;  // what went wrong, for the error that names the input line
+    bool linear = false;  // OutOfLimits: the joint past its limit is a linear one
     bool ok() const { return status == IkStatus::Ok; }
 };
 

@@ -12,6 +12,16 @@ LookBack::LookBack(Interpreter& interpreter, ForwardState& state, MoveLog* log)
     if (log_) log_->hold(true);
 }
 
+namespace {
+// A linear joint past its travel is a placement, not a turn: no travel move fixes it.
+std::string linear_limit_advice() {
+    return "; the part lies outside the machine's travel there: the slicer's origin (a corner or the middle of its bed) is "
+           "not where the machine's is, or the part is too large. Place the part in the slicer so that its moves stay within "
+           "the machine file's limits (xlate5 --machine NAME pose shows where the tip is for given joints), or set the limits "
+           "to the machine's real travel";
+}
+}  // namespace
+
 void LookBack::set_lines(std::size_t lines, int candidates) {
     lines_ = lines;
     candidates_ = candidates < 1 ? 1 : candidates > kMaxCandidates ? kMaxCandidates : candidates;
@@ -28,7 +38,9 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
             if (log_) log_->drop_held_from(moves_start);
             if (!run.hit_limit) throw;
             throw InputError(e.file(), e.line(), e.column(),
-                             e.message() + "; turn the joint back on a travel move before this line, or plan the path within the limits");
+                             e.message() + (run.linear_limit ? linear_limit_advice()
+                                                             : "; turn the joint back on a travel move before this line, or plan the path "
+                                                               "within the limits"));
         }
         if (log_) log_->release(held_moves());
         return;
@@ -54,6 +66,7 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
             throw;
         }
         const bool had_checkpoint = have_checkpoint_;
+        const bool linear = run.linear_limit;
         // Without a window there is nothing to unwind (unwind_before refuses at once), so `to` is
         // still the one written to.
         if (!unwind_before(line, line_no, run)) {
@@ -61,7 +74,9 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
             to.resize(held_start);
             if (log_) log_->drop_held_from(moves_start);
             std::string message = e.message();
-            if (had_checkpoint)
+            if (linear)
+                message += linear_limit_advice();
+            else if (had_checkpoint)
                 message += "; turning it back on the travel move at line " + std::to_string(checkpoint_line_) +
                            " does not keep the printing from there to here within the limits: add a travel move (G0, or G1 "
                            "without E) nearer this line, where the joint can turn back, or plan the path within the limits";

@@ -13,6 +13,7 @@
 #include "translators/error.hpp"
 #include "translators/expr.hpp"
 #include "translators/machine.hpp"
+#include "translators/suggest.hpp"
 
 #ifndef XLATE5_INSTALLED_MACHINE_DIR
 #define XLATE5_INSTALLED_MACHINE_DIR ""
@@ -43,7 +44,10 @@ public:
         for (auto&& [k, v] : t) {
             bool ok = false;
             for (const char* a : allowed) ok = ok || k.str() == a;
-            if (!ok) fail(&v, where.empty() ? std::string(k.str()) : where + "." + std::string(k.str()), "unknown key");
+            if (ok) continue;
+            const std::string guess = nearest_name(std::string(k.str()), std::vector<std::string>(allowed.begin(), allowed.end()));
+            fail(&v, where.empty() ? std::string(k.str()) : where + "." + std::string(k.str()),
+                 guess.empty() ? "unknown key" : "unknown key; did you mean '" + guess + "'?");
         }
     }
 
@@ -116,8 +120,16 @@ void load_parameters(Reader& r, const std::map<std::string, double>& overrides) 
         }
     }
     for (const auto& [name, value] : overrides) {
-        if (!r.params.count(name))
-            throw MachineError(r.path() + ": --set " + name + ": the machine has no parameter '" + name + "'");
+        if (!r.params.count(name)) {
+            std::vector<std::string> names;
+            for (const auto& [n, v] : r.params) names.push_back(n);
+            std::string list;
+            for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+            const std::string guess = nearest_name(name, names);
+            throw MachineError(r.path() + ": --set " + name + ": the machine has no parameter '" + name + "'" +
+                               (guess.empty() ? "" : "; did you mean '" + guess + "'?") +
+                               (names.empty() ? " (it has no [parameters])" : " (its parameters: " + list + ")"));
+        }
         r.params[name] = value;
     }
 }
@@ -453,10 +465,14 @@ Machine load_machine(const std::string& name_or_path, const std::map<std::string
         auto all = bundled_machines();
         auto it = all.find(name_or_path);
         if (it == all.end()) {
-            std::string names;
-            for (const auto& [n, p] : all) names += (names.empty() ? "" : ", ") + n;
-            throw MachineError("no machine named '" + name_or_path + "' (bundled: " + (names.empty() ? "none found" : names) +
-                               "); give a path to a .toml file for your own");
+            std::string names, dirs;
+            std::vector<std::string> known;
+            for (const auto& [n, p] : all) names += (names.empty() ? "" : ", ") + n, known.push_back(n);
+            for (const auto& d : machine_search_path()) dirs += (dirs.empty() ? "" : ", ") + d;
+            const std::string guess = nearest_name(name_or_path, known);
+            throw MachineError("no machine named '" + name_or_path + "'" + (guess.empty() ? "" : "; did you mean '" + guess + "'?") +
+                               " (found: " + (names.empty() ? "none" : names) + "; looked in " + dirs +
+                               "); give a path to a .toml file for your own, or put NAME.toml in one of those directories");
         }
         path = it->second;
     }

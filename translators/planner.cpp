@@ -410,6 +410,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     }
     if (!r.ok()) {
         run.hit_limit = r.status == IkStatus::OutOfLimits;
+        run.linear_limit = run.hit_limit && r.linear;
         throw LineError(mv.column, r.message);
     }
     // Near a pole the end may be chosen across moves (see pole_passage): rotaries turn linearly.
@@ -457,6 +458,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     }
     if (!res.ok()) {
         run.hit_limit = res.status == IkStatus::OutOfLimits;
+        run.linear_limit = run.hit_limit && res.linear;
         throw LineError(mv.column, res.message);
     }
     if (measured) {

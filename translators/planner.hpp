@@ -106,6 +106,7 @@ struct LineRun {
     int end_candidate = -1;          // in: the line's first travel move ends on this other solution (a replay)
     bool travels = false;            // out: the line made a tool-space travel move
     bool hit_limit = false;          // out: it failed on a joint limit
+    bool linear_limit = false;       // out: ... of a linear joint (the part is placed out of reach)
     bool candidate_missing = false;  // out: there is no solution end_candidate
 };
 
