@@ -198,10 +198,11 @@ ParameterFit fit_parameters(const std::string& text, const std::string& source, 
             minus[names[c]] -= h;
             J.col(Eigen::Index(c)) = (residuals(plus) - residuals(minus)) / (2 * h);
         }
-        // The parameters' columns scaled to unit length (their units differ): a parameter the
-        // tips do not depend on is a zero column, two that move the tips alike are near-parallel.
+        // The parameters' columns scaled to unit length (their units differ): two parameters
+        // that move the tips alike are near-parallel. Scaling is blind to size, so first: a
+        // parameter whose unit change moves the tips less than the resolution (RMS) is not measured.
         for (std::size_t c = 0; c < names.size(); ++c)
-            if (!(J.col(Eigen::Index(c)).norm() > 0) || !J.col(Eigen::Index(c)).allFinite())
+            if (!(J.col(Eigen::Index(c)).norm() / std::sqrt(double(tips.size())) >= kResolution) || !J.col(Eigen::Index(c)).allFinite())
                 throw CalibrationError("the measured tips do not depend on '" + names[c] +
                                        "' at these joint values: measure tips at joint values that move it (see docs/calibration.md), "
                                        "or leave it out of --fit");
