@@ -98,7 +98,7 @@ StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& 
     };
     while (reader.next(line)) {
         if (!on_first_line || reader.line_number() != 1 || on_first_line(line, out)) front.feed(line, reader.line_number(), out);
-        check_output(line);
+        if (stats.bytes_out + out.size() > kOutputFloor) check_output(line);  // under the floor, within the bound
         if (out.size() >= kFlushAt || (streaming && !out.empty() && !reader.has_line())) flush();
         if (on_read && reader.bytes_read() != seen) {
             seen = reader.bytes_read();
