@@ -34,8 +34,9 @@ struct Result {
 
 // Address space for one run: several times what any bounded reader here needs (each reads at
 // most 32 MiB of input and its translation), a small part of what an unbounded read of
-// /dev/zero reaches in the timeout.
-constexpr const char* kLimit = "prlimit --as=1073741824 timeout 60 ";
+// /dev/zero reaches in the timeout. AddressSanitizer reserves terabytes of address space for its
+// shadow at start: under it, only the timeout.
+const std::string kLimit = std::string(kAddressSanitized ? "" : "prlimit --as=1073741824 ") + "timeout 60 ";
 
 // The xlate5 binary with `args` (quoted already), standard output and error to files.
 // `prefix` goes before the binary (a limit, a pipe into it); standard input is /dev/null unless
