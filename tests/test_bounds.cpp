@@ -178,3 +178,31 @@ TEST_CASE("bounds: serve --check applies serve's line bound and holds a bounded 
     CHECK(big.code == 1);
     CHECK(contains(big.err, "serve --check holds the translation in memory: at most " + std::to_string(kMaxCheckOutputBytes)));
 }
+
+TEST_CASE("bounds: a reload of an endless machine file keeps the running service and says why") {
+    TempDir d;
+    // The service as the unit runs it, with the virtual printer; the configuration then names
+    // /dev/zero as the machine and the service is told to reload (the issue: 465-650 MB in 8 s,
+    // past the unit's MemoryMax=256M).
+    const fs::path cfg = d.write("xlate5.toml", "machine = \"wpi5\"\n[firmware]\nport = \"sim\"\n[sender]\npty = \"" + (d.path / "printer").string() + "\"\n");
+    const fs::path log = d.path / "serve.log", script = d.path / "reload.sh";
+    d.write("reload.sh", "set -u\n" + kLimit + quote(XLATE5_BINARY) + " serve --config " + quote(cfg.string()) + " >" + quote(log.string()) +
+                             " 2>&1 &\npid=$!\n"
+                             "for i in $(seq 300); do [ -e " + quote((d.path / "printer").string()) + " ] && break; sleep 0.1; done\n"
+                             "printf 'machine = \"/dev/zero\"\\n[firmware]\\nport = \"sim\"\\n[sender]\\npty = \"%s\"\\n' " +
+                             quote((d.path / "printer").string()) + " >" + quote(cfg.string()) + "\n"
+                             "kill -HUP $pid\n"
+                             "for i in $(seq 300); do grep -q 'SIGHUP' " + quote(log.string()) + " && break; sleep 0.1; done\n"
+                             "kill -0 $pid && echo alive\n"
+                             "kill -TERM $pid; wait $pid; echo \"exit $?\"\n");
+    const fs::path out = d.path / "script.out";
+    REQUIRE(std::system(("sh " + quote(script.string()) + " >" + quote(out.string()) + " 2>&1").c_str()) == 0);
+    const std::string said = read(out), logged = read(log);
+    CAPTURE(said);
+    CAPTURE(logged);
+    CHECK(contains(said, "alive\n"));
+    CHECK(contains(said, "exit 0\n"));
+    CHECK(contains(logged, "/dev/zero:1:" + std::to_string(kMaxMachineFileBytes + 1) + ": longer than"));
+    CHECK(contains(logged, "longer than " + std::to_string(kMaxMachineFileBytes) + " bytes, the bound for a machine file"));
+    CHECK(contains(logged, "keeping the running configuration"));
+}
