@@ -417,6 +417,11 @@ TEST_CASE("CLI: degenerate measurements are refused with the reason and what to 
         {"a parameter the tips do not depend on", "--machine rw2 calibrate pivots " + quote(d.write("bzero.csv", b_zero).string()) + " --fit la,lb -o " +
                                                       quote(copy.string()),
          "do not depend on 'lb'", "joint values that move it"},
+        // Tips hundreds of kilometres from any the head can reach: b1037f8 printed la = 295400640.9 with exit 0.
+        {"tips no parameter values fit", "--machine rw2 calibrate pivots " +
+                                             quote(d.write("far.csv", "100,100,20,0,0,5e8,1,1\n100,100,20,90,30,-5e8,1,3\n100,100,20,45,60,1,1e8,2\n").string()) +
+                                             " --fit la,lb -o " + quote(copy.string()),
+         "the fit does not settle", "start from values near the machine's"},
         {"a number past 1e9", "calibrate plate " + quote(d.write("huge.csv", "0,0,0\n1e300,0,0\n0,100,0\n").string()), "huge.csv:2:1: a number beyond +-1e9", ""},
     };
     for (const Case& c : cases) {
