@@ -16,7 +16,9 @@
 #include "translators/calibration.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
+#include "translators/gcode_lexer.hpp"
 #include "translators/machine.hpp"
+#include "translators/small_file.hpp"
 #include "translators/stream.hpp"
 
 namespace xlate5::cli {
@@ -39,44 +41,61 @@ int write_calibrated_copy(const Machine& m, const std::string& text, const std::
     return kOk;
 }
 
-std::string read_text(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream text;
-    text << in.rdbuf();
-    return text.str();
-}
-
-// Rows of numbers from a small measurement file: `columns` comma-separated numbers a line,
-// '#' comments and blank lines skipped. Prints "path:line:1: ..." and returns false on a bad line.
+// Rows of numbers from a small measurement file (at most kMaxMeasurementBytes): `columns`
+// comma-separated numbers a line, each finite and within +-1e9 (the G-code lexer's bound), '#'
+// comments and blank lines skipped. Prints "path:line:column: ..." and returns false on a bad line.
 bool read_rows(const std::string& path, int columns, std::vector<std::vector<double>>& rows, int& exit_code) {
-    std::ifstream in(path);
-    if (!in) {
-        std::cerr << "xlate5: " << path << ": cannot open\n";
-        exit_code = kIoError;
+    std::string text;
+    try {
+        text = read_small_file(path, kMaxMeasurementBytes, "a measurement table");
+    } catch (...) {
+        exit_code = exit_with(std::current_exception());
         return false;
     }
+    std::istringstream in(text);
     std::string l;
     for (int line = 1; std::getline(in, l); ++line) {
         if (auto h = l.find('#'); h != std::string::npos) l.resize(h);
         if (l.find_first_not_of(" \t\r") == std::string::npos) continue;
         std::vector<double> row;
-        std::istringstream fields(l);
-        std::string field;
-        while (std::getline(fields, field, ',')) {
+        std::size_t at = 0;  // where the field starts in the line
+        std::string bad;
+        for (;;) {
+            const std::size_t comma = l.find(',', at);
+            const std::string field = l.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
             char* end = nullptr;
             const double v = std::strtod(field.c_str(), &end);
             while (end && (*end == ' ' || *end == '\t' || *end == '\r')) ++end;
-            if (end == field.c_str() || (end && *end) || !std::isfinite(v)) break;
+            if (end == field.c_str() || (end && *end) || !std::isfinite(v)) {
+                bad = "expected a number";
+            } else if (std::abs(v) > kMaxNumber) {
+                bad = "a number beyond +-1e9";
+            }
+            if (!bad.empty()) {
+                const std::size_t skip = std::min(field.size(), field.find_first_not_of(" \t"));
+                std::cerr << path << ":" << line << ":" << at + skip + 1 << ": " << bad << " (" << columns
+                          << " comma-separated numbers a line)\n";
+                exit_code = kInputError;
+                return false;
+            }
             row.push_back(v);
+            if (comma == std::string::npos) break;
+            at = comma + 1;
         }
-        if (int(row.size()) != columns || std::count(l.begin(), l.end(), ',') != columns - 1) {
-            std::cerr << path << ":" << line << ":1: expected " << columns << " comma-separated numbers\n";
+        if (int(row.size()) != columns) {
+            std::cerr << path << ":" << line << ":1: expected " << columns << " comma-separated numbers, got " << row.size() << "\n";
             exit_code = kInputError;
             return false;
         }
         rows.push_back(row);
     }
     return true;
+}
+
+// A fit that refuses its measurements: the reason and what to measure instead, naming the file.
+int refuse(const std::string& path, const CalibrationError& e) {
+    std::cerr << "xlate5: " << path << ": " << e.what() << "\n";
+    return kInputError;
 }
 
 // calibrate fit: least-squares Fourier series through a measured table, printed as a
@@ -91,9 +110,15 @@ int calibrate_fit(const std::string& path, int order, const std::string& joint, 
         std::cerr << "xlate5: " << path << ": " << angle.size() << " points cannot fit " << order << " harmonics (need " << 2 * order + 1 << ")\n";
         return kInputError;
     }
-    double residual = 0;
-    const auto t = fit_fourier(angle, error, order, residual);
-    std::printf("# fitted to %zu points of %s: largest residual %.4f mm\n", angle.size(), path.c_str(), residual);
+    double residual = 0, condition = 0;
+    CompensationTerm t;
+    try {
+        t = fit_fourier(angle, error, order, residual, &condition);
+    } catch (const CalibrationError& e) {
+        return refuse(path, e);
+    }
+    std::printf("# fitted to %zu points of %s: largest residual %.4f mm (condition number %.3g)\n", angle.size(), path.c_str(), residual,
+                condition);
     std::printf("[[compensation]]\njoint = \"%s\"\nby = \"%s\"\nfourier = { a0 = %.6f, cos = [", joint.c_str(), by.c_str(), t.a0);
     for (std::size_t k = 0; k < t.cosines.size(); ++k) std::printf("%s%.6f", k ? ", " : "", t.cosines[k]);
     std::printf("], sin = [");
@@ -113,9 +138,14 @@ int calibrate_plate(const std::string& path, const std::string& machine_name, co
         std::cerr << "xlate5: " << path << ": a plane needs at least 3 points, got " << points.size() << "\n";
         return kInputError;
     }
-    const auto fit = fit_plate(points);
-    std::printf("plate normal (%.6f, %.6f, %.6f) from %zu points, largest residual %.4f mm\n", fit.normal.x(), fit.normal.y(),
-                fit.normal.z(), points.size(), fit.residual);
+    PlateFit fit;
+    try {
+        fit = fit_plate(points);
+    } catch (const CalibrationError& e) {
+        return refuse(path, e);
+    }
+    std::printf("plate normal (%.6f, %.6f, %.6f) from %zu points, largest residual %.4f mm (condition number %.3g)\n", fit.normal.x(),
+                fit.normal.y(), fit.normal.z(), points.size(), fit.residual, fit.condition);
     std::printf("rho = %.6f\npsi = %.6f\n", fit.rho, fit.psi);
     if (output.empty()) return kOk;
     if (machine_name.empty()) {
@@ -126,7 +156,7 @@ int calibrate_plate(const std::string& path, const std::string& machine_name, co
         const auto m = load_machine(machine_name);
         std::printf("was: rho = %.6f, psi = %.6f (%s)\n", m.parameters.count("rho") ? m.parameters.at("rho") : 0.0,
                     m.parameters.count("psi") ? m.parameters.at("psi") : 0.0, m.source_path.c_str());
-        return write_calibrated_copy(m, read_text(m.source_path), {{"rho", fit.rho}, {"psi", fit.psi}}, output);
+        return write_calibrated_copy(m, read_machine_file(m.source_path), {{"rho", fit.rho}, {"psi", fit.psi}}, output);
     } catch (...) {
         return exit_with(std::current_exception());
     }
@@ -158,7 +188,7 @@ int store_calibration(const char* command, const std::string& machine_name, cons
             set[name] = value;
         }
         if (output.empty()) return kOk;
-        return write_calibrated_copy(m, read_text(m.source_path), set, output);
+        return write_calibrated_copy(m, read_machine_file(m.source_path), set, output);
     } catch (...) {
         return exit_with(std::current_exception());
     }
@@ -187,10 +217,15 @@ int calibrate_pivots(const CalibrateCommands& c, const Common& common) {
             std::cerr << "xlate5: " << tips.size() << " measurements cannot fit " << names.size() << " parameters\n";
             return kInputError;
         }
-        const std::string text = read_text(m.source_path);
-        const auto fit = fit_parameters(text, m.source_path, names, m.parameters, joints, tips);
+        const std::string text = read_machine_file(m.source_path);
+        ParameterFit fit;
+        try {
+            fit = fit_parameters(text, m.source_path, names, m.parameters, joints, tips);
+        } catch (const CalibrationError& e) {
+            return refuse(c.pivots_points, e);
+        }
         for (const auto& name : names) std::printf("%s = %.6f   (was %.6f)\n", name.c_str(), fit.values.at(name), m.parameters.at(name));
-        std::printf("largest residual %.4f mm over %zu measurements\n", fit.residual, tips.size());
+        std::printf("largest residual %.4f mm over %zu measurements (condition number %.3g)\n", fit.residual, tips.size(), fit.condition);
         if (c.pivots_out.empty()) return kOk;
         std::map<std::string, double> values;
         for (const auto& name : names) values[name] = fit.values.at(name);
@@ -213,15 +248,27 @@ int calibrate_offset_or_centre(const CalibrateCommands& c, const Common& common)
         return kInputError;
     }
     std::vector<std::pair<std::string, double>> values;
+    const std::string& path = offset ? c.offset_points : c.centre_points;
     if (offset) {
-        const auto f = fit_rotary_offset(pts);
-        std::printf("rotary offset %.6f deg (atan of dZ/dY over %zu touches), plate Z at Y = 0: %.4f mm, largest residual %.4f mm\n",
-                    f.offset_deg, pts.size(), f.z_error, f.residual);
+        OffsetFit f;
+        try {
+            f = fit_rotary_offset(pts);
+        } catch (const CalibrationError& e) {
+            return refuse(path, e);
+        }
+        std::printf("rotary offset %.6f deg (atan of dZ/dY over %zu touches), plate Z at Y = 0: %.4f mm, largest residual %.4f mm "
+                    "(condition number %.3g)\n",
+                    f.offset_deg, pts.size(), f.z_error, f.residual, f.condition);
         if (!c.offset_param.empty()) values = {{c.offset_param, f.offset_deg}};
     } else {
-        const auto f = fit_circle(pts);
-        std::printf("rotation centre (%.4f, %.4f), radius %.4f mm, largest residual %.4f mm over %zu dots\n", f.centre.x(),
-                    f.centre.y(), f.radius, f.residual, pts.size());
+        CircleFit f;
+        try {
+            f = fit_circle(pts);
+        } catch (const CalibrationError& e) {
+            return refuse(path, e);
+        }
+        std::printf("rotation centre (%.4f, %.4f), radius %.4f mm, largest residual %.4f mm over %zu dots (condition number %.3g)\n",
+                    f.centre.x(), f.centre.y(), f.radius, f.residual, pts.size(), f.condition);
         if (!c.centre_param.empty()) {
             std::vector<std::string> names;
             std::stringstream list(c.centre_param);

@@ -10,6 +10,7 @@
 #include <toml++/toml.h>
 
 #include "translators/error.hpp"
+#include "translators/small_file.hpp"
 
 namespace xlate5 {
 namespace {
@@ -326,9 +327,17 @@ void set_sim_fault(SimFaults& f, const std::string& k, double d) {
 }
 
 ServeConfig load_serve_config(const std::string& path) {
+    std::string text;
+    try {
+        text = read_small_file(path, kMaxConfigBytes, "a configuration file");
+    } catch (const IoError& e) {
+        throw MachineError(e.what());
+    } catch (const InputError& e) {
+        throw MachineError(e.what());
+    }
     toml::table root;
     try {
-        root = toml::parse_file(path);
+        root = toml::parse(text, path);
     } catch (const toml::parse_error& e) {
         std::ostringstream os;
         os << path << ":" << e.source().begin.line << ": " << e.description();

@@ -81,6 +81,9 @@ struct TcpEndpoint {
 };
 TcpEndpoint parse_tcp_endpoint(const std::string& text);
 
+// The largest configuration file read (docs/limits.md); the shipped one, every key commented, is 7 KiB.
+inline constexpr std::size_t kMaxConfigBytes = 64u << 10;
+
 // Reads a configuration file. Throws MachineError-style errors: "path:line: key: cause".
 ServeConfig load_serve_config(const std::string& path);
 

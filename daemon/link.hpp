@@ -43,7 +43,9 @@ public:
     std::uint64_t bytes_written() const { return bytes_written_; }  // all bytes the stream took
     const std::string& name() const { return name_; }
     asio::any_io_executor stream_executor() { return executor(); }
-    std::size_t max_line = 1 << 16;  // docs/limits.md
+    // A sender's line past this is refused whole (docs/limits.md); `serve --check` applies it too.
+    static constexpr std::size_t kMaxLine = 1 << 16;
+    std::size_t max_line = kMaxLine;
     bool line_cut() const { return cut_; }
     // Raw bytes: called with each read's byte count before its lines are handed on (the virtual
     // printer times its wire by the byte, so a line sent in two parts crosses in two parts).

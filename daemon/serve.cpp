@@ -5,6 +5,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstring>
+#include <fcntl.h>
 #include <fstream>
 #include <unistd.h>
 #include <cstdio>
@@ -22,6 +23,7 @@
 #include "daemon/status_http.hpp"
 #include "daemon/virtual_printer.hpp"
 #include "translators/error.hpp"
+#include "translators/line_reader.hpp"
 
 namespace xlate5 {
 namespace {
@@ -427,20 +429,79 @@ int run_serve_check(const ServeConfig& config, const std::string& path) {
         std::fprintf(stderr, "xlate5: machine: %s\n", e.what());
         return 3;
     }
-    std::ifstream in(path);
-    if (!in) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
         std::fprintf(stderr, "xlate5: %s: cannot read: %s\n", path.c_str(), std::strerror(errno));
         return 4;
     }
+    // Serve's line bound (a longer line cancels a numbered print there, so reading stops), and
+    // the check's own bounds on what it holds (docs/limits.md).
     std::vector<std::string> lines;
-    for (std::string l; std::getline(in, l);) {
-        if (!l.empty() && l.back() == '\r') l.pop_back();
-        lines.push_back(std::move(l));
+    std::optional<ServePlan::Point> overlong;
+    const std::string overlong_cause = "longer than " + std::to_string(Link::kMaxLine) + " bytes (the line-length bound)";
+    try {
+        LineReader reader(fd, path, Link::kMaxLine);
+        std::string_view l;
+        while (reader.next(l)) {
+            if (reader.bytes_consumed() > kMaxCheckBytes || reader.line_number() > kMaxCheckLines) {
+                ::close(fd);
+                std::fprintf(stderr,
+                             "%s:%llu:1: serve --check holds the file and its translation in memory: at most %llu bytes and %llu lines "
+                             "(docs/limits.md; serve itself streams): check the file in parts, or translate it offline\n",
+                             path.c_str(), static_cast<unsigned long long>(reader.line_number()),
+                             static_cast<unsigned long long>(kMaxCheckBytes), static_cast<unsigned long long>(kMaxCheckLines));
+                return 1;
+            }
+            if (l.size() > Link::kMaxLine) {  // the reader holds a line longer than its bound when it has it whole
+                overlong = ServePlan::Point{reader.line_number(), "(a line longer than " + std::to_string(Link::kMaxLine) + " bytes)"};
+                break;
+            }
+            if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
+            lines.emplace_back(l);
+        }
+    } catch (const InputError& e) {
+        // Past Link::kMaxLine: what the service's sender session refuses.
+        overlong = ServePlan::Point{e.line(), "(a line longer than " + std::to_string(Link::kMaxLine) + " bytes)"};
+    } catch (const IoError& e) {
+        ::close(fd);
+        std::fprintf(stderr, "xlate5: %s\n", e.what());
+        return 4;
     }
+    ::close(fd);
     TranslatorOptions topt;
     topt.start_mode = config.mode;
     topt.extruder_letter = config.extruder_letter;
-    const auto plan = plan_as_serve(machine, lines, topt, config.firmware);
+    {
+        // The translation's size first, line by line, before three copies of it are kept.
+        const Kinematics kin(machine);
+        TranslatorOptions o = topt;
+        o.input_name = path;
+        Translator t(kin, o);
+        t.set_lookback(Translator::kDefaultLookback);
+        std::uint64_t out_bytes = 0, n = 0;
+        std::string text;
+        try {
+            for (const auto& l : lines) {
+                text.clear();
+                t.feed(l, ++n, text);
+                out_bytes += text.size();
+                if (out_bytes > kMaxCheckOutputBytes) {
+                    std::fprintf(stderr,
+                                 "%s:%llu:1: serve --check holds the translation in memory: at most %llu bytes of it (docs/limits.md; "
+                                 "serve itself streams): check the file in parts, or translate it offline\n",
+                                 path.c_str(), static_cast<unsigned long long>(n), static_cast<unsigned long long>(kMaxCheckOutputBytes));
+                    return 1;
+                }
+            }
+        } catch (const InputError&) {
+            // Both translations below stop here and say so.
+        }
+    }
+    auto plan = plan_as_serve(machine, lines, topt, config.firmware);
+    if (overlong && !plan.cancel) {
+        plan.cancel = *overlong;
+        plan.cause = overlong_cause;
+    }
     std::optional<std::string> offline_error;
     std::vector<std::string> offline;
     try {
@@ -476,6 +537,8 @@ int run_serve_check(const ServeConfig& config, const std::string& path) {
         std::printf("serve would cancel the print at %s: %s\n", quote(*plan.cancel).c_str(), plan.cause.c_str());
         if (plan.too_long) std::printf("  no split fits the firmware's %zu-byte lines (F alone, then the rest): raise max_line if it takes longer ones\n",
                                        config.firmware.max_line);
+        else if (overlong && plan.cancel->line == overlong->line)
+            std::printf("  a sender's line is at most %zu bytes; nothing after it was read\n", Link::kMaxLine);
         else if (!offline_error)
             std::printf("  offline translation keeps it: an unwind it finds by look-back would reach back across a release above\n");
     }

@@ -32,6 +32,12 @@ int run_serve(const ServeConfig& config);
 // `serve --check FILE`: prints what serve would do with the file that offline translation does
 // not, and the link settings it would use; opens nothing. 0 when serve prints the file exactly
 // as offline translation does, 1 when not, 3 for a broken machine, 4 for an unreadable file.
+// A line longer than serve's bound (Link::kMaxLine) is where serve would cancel the print, and
+// nothing after it is read. The check holds the file and its translation (three copies of it) in
+// memory, unlike serve, which streams: it refuses a file past these bounds (docs/limits.md).
+inline constexpr std::uint64_t kMaxCheckBytes = 32u << 20;       // of input
+inline constexpr std::uint64_t kMaxCheckLines = 1u << 21;        // of input
+inline constexpr std::uint64_t kMaxCheckOutputBytes = 32u << 20;  // of its translation
 int run_serve_check(const ServeConfig& config, const std::string& path);
 
 // Lists serial ports with their USB vendor/product and description.

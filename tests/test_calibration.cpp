@@ -314,3 +314,129 @@ TEST_CASE("CLI: calibrate centre writes the C axis position (pentarod cx, cy; ko
     CHECK(d.run("--machine pentarod calibrate centre " + quote(dots.string()) + " --param cx -o " + quote((d.path / "y.toml").string())).code == 2);
     CHECK_FALSE(fs::exists(d.path / "y.toml"));
 }
+
+TEST_CASE("conditioning: the condition numbers of the fits against their closed forms; near-degenerate data that is fine still fits exactly") {
+    // Plate: the corners of an a x b rectangle, centred, have singular values a and b (each
+    // direction's sum of squares is 4 (a/2)^2 = a^2): the condition number is a / b.
+    for (const double b : {4.0, 20.0, 200.0}) {
+        CAPTURE(b);
+        const double a = 200, rho = 0.6, psi = -0.35;
+        const Eigen::Matrix3d R = Ry(rho) * Rx(psi);
+        std::vector<Eigen::Vector3d> corners;
+        for (const double x : {-a / 2, a / 2})
+            for (const double y : {-b / 2, b / 2}) corners.push_back(Eigen::Vector3d(5, -3, 1) + R * Eigen::Vector3d(x, y, 0));
+        const PlateFit f = fit_plate(corners);
+        CHECK(f.condition == doctest::Approx(a / b).epsilon(1e-9));
+        CHECK(f.rho == doctest::Approx(rho).epsilon(1e-9));  // a 200 x 4 mm strip (50): still exact
+        CHECK(f.psi == doctest::Approx(psi).epsilon(1e-9));
+    }
+    {
+        std::vector<Eigen::Vector3d> strip = {{-100, -0.5, 0}, {100, -0.5, 0}, {-100, 0.5, 0.001}, {100, 0.5, 0.001}};  // 200: past the bound
+        CHECK_THROWS_AS(fit_plate(strip), CalibrationError);
+    }
+    // Offset: two touches give the 2 x 2 design (y, 1); its columns scaled to unit length meet
+    // at an angle with cosine c = (y1 + y2) / sqrt(2 (y1^2 + y2^2)), and the singular values of two
+    // unit columns are sqrt(1 +- c): the condition number is sqrt((1 + c) / (1 - c)).
+    for (const auto& [y1, y2] : std::vector<std::pair<double, double>>{{30, -30}, {10, 40}, {60, 90}, {30, 30.5}}) {
+        CAPTURE(y1);
+        CAPTURE(y2);
+        const double c = (y1 + y2) / std::sqrt(2 * (y1 * y1 + y2 * y2));
+        const double expected = std::sqrt((1 + c) / (1 - c));
+        const double offset = 0.7, z0 = 0.12;
+        auto touch = [&](double y) { return Eigen::Vector2d(y, y * std::tan(rad(offset)) + z0); };
+        if (expected > kMaxCondition) {
+            CHECK_THROWS_AS(fit_rotary_offset({touch(y1), touch(y2)}), CalibrationError);
+            continue;
+        }
+        const OffsetFit f = fit_rotary_offset({touch(y1), touch(y2)});
+        CHECK(f.condition == doctest::Approx(expected).epsilon(1e-9));
+        CHECK(f.offset_deg == doctest::Approx(offset).epsilon(1e-9));  // touches on one side only (10, 40): exact still
+        CHECK(std::abs(f.z_error - z0) < 1e-9);
+    }
+    // Circle: four dots 90 degrees apart have orthogonal columns (x, y, 1) about their centroid,
+    // of lengths sqrt(2), sqrt(2) and 2 in units of their RMS spread: the condition number is sqrt(2).
+    const CircleFit square = fit_circle({{12, 3}, {2, 13}, {-8, 3}, {2, -7}});
+    CHECK(square.condition == doctest::Approx(std::sqrt(2.0)).epsilon(1e-9));
+    // Dots over a quarter turn only: ill-conditioned but within the bound, and exact.
+    std::vector<Eigen::Vector2d> quarter, sliver;
+    for (int k = 0; k < 5; ++k) quarter.push_back(Eigen::Vector2d(1.5, -2) + 25 * Eigen::Vector2d(std::cos(rad(22.5 * k)), std::sin(rad(22.5 * k))));
+    const CircleFit q = fit_circle(quarter);
+    MESSAGE("dots over 90 degrees: condition number " << q.condition);
+    CHECK(q.condition > square.condition);
+    CHECK((q.centre - Eigen::Vector2d(1.5, -2)).norm() < 1e-9);
+    CHECK(q.radius == doctest::Approx(25).epsilon(1e-9));
+    // Over one degree the dots are a line to within 0.001 of their spread: refused.
+    for (int k = 0; k < 5; ++k) sliver.push_back(25 * Eigen::Vector2d(std::cos(rad(0.25 * k)), std::sin(rad(0.25 * k))));
+    CHECK_THROWS_AS(fit_circle(sliver), CalibrationError);
+    // Fourier: angles evenly over the turn make the basis's columns orthogonal, 1 of length
+    // sqrt(n) and each cosine and sine of length sqrt(n / 2): the condition number is sqrt(2).
+    std::vector<double> angle, error;
+    for (int a = 0; a < 360; a += 30) angle.push_back(a), error.push_back(0.2 + 0.1 * std::cos(rad(a)) - 0.3 * std::sin(rad(2.0 * a)));
+    double residual = 0, condition = 0;
+    const CompensationTerm t = fit_fourier(angle, error, 2, residual, &condition);
+    CHECK(condition == doctest::Approx(std::sqrt(2.0)).epsilon(1e-9));
+    CHECK(t.a0 == doctest::Approx(0.2).epsilon(1e-9));
+    CHECK(t.sines[1] == doctest::Approx(-0.3).epsilon(1e-9));
+    // Two harmonics from angles over a quarter turn: the basis is near-degenerate: refused.
+    std::vector<double> narrow, narrow_error;
+    for (int a = 0; a <= 90; a += 15) narrow.push_back(a), narrow_error.push_back(0.1 * std::cos(rad(a)));
+    CHECK_THROWS_AS(fit_fourier(narrow, narrow_error, 2, residual), CalibrationError);
+    CHECK_NOTHROW(fit_fourier(narrow, narrow_error, 1, residual));  // one harmonic over 90 degrees is within the bound
+}
+
+TEST_CASE("CLI: degenerate measurements are refused with the reason and what to measure; nothing non-finite is printed or written") {
+    const Scratch d;
+    const fs::path copy = d.path / "calibrated.toml";
+    struct Case {
+        const char* what;
+        std::string args;
+        const char* reason;
+        const char* instead;
+    };
+    // rw2's tips at B = 0 do not depend on lb (eq. 4.5: every lb term has sin B or 1 - cos B).
+    std::string b_zero;
+    for (const double a : {0.0, 45.0, 90.0, -60.0}) {
+        char line[128];
+        std::snprintf(line, sizeof line, "100,100,20,%g,0,%.6f,%.6f,20\n", a, 100 - std::sin(rad(a)) * 26.5, 100 + 26.5 - std::cos(rad(a)) * 26.5);
+        b_zero += line;
+    }
+    const Case cases[] = {
+        // The issue's: three plate probes along one edge (the fit said rho = 180, psi = -90, residual 0).
+        {"plate along an edge", "--machine wpi5 calibrate plate " + quote(d.write("edge.csv", "0,0,0.10\n100,0,0.15\n200,0,0.20\n").string()) + " -o " +
+                                    quote(copy.string()),
+         "lie on a line", "near three corners of the plate"},
+        {"four identical dots", "calibrate centre " + quote(d.write("same.csv", "5,5\n5,5\n5,5\n5,5\n").string()) + " --machine pentarod --param cx,cy -o " +
+                                    quote(copy.string()),
+         "all in one place", "0, 90, 180 and 270 degrees"},
+        {"dots on a line", "calibrate centre " + quote(d.write("line.csv", "0,0\n10,10\n20,20\n30,30\n").string()), "lie on a line", "angles spread around the turn"},
+        {"two touches at one Y", "--machine pentarod calibrate offset " + quote(d.write("oneY.csv", "30,0.10\n30,0.40\n").string()) + " --param a_offset -o " +
+                                     quote(copy.string()),
+         "Y positions are the same or nearly", "both sides of the axis"},
+        {"angles that alias", "calibrate fit " + quote(d.write("alias.csv", "0,1\n180,2\n360,3\n").string()), "cannot separate 1 harmonic",
+         "fit fewer harmonics"},
+        {"a parameter the tips do not depend on", "--machine rw2 calibrate pivots " + quote(d.write("bzero.csv", b_zero).string()) + " --fit la,lb -o " +
+                                                      quote(copy.string()),
+         "do not depend on 'lb'", "joint values that move it"},
+        // Tips hundreds of kilometres from any the head can reach: b1037f8 printed la = 295400640.9 with exit 0.
+        {"tips no parameter values fit", "--machine rw2 calibrate pivots " +
+                                             quote(d.write("far.csv", "100,100,20,0,0,5e8,1,1\n100,100,20,90,30,-5e8,1,3\n100,100,20,45,60,1,1e8,2\n").string()) +
+                                             " --fit la,lb -o " + quote(copy.string()),
+         "the fit does not settle", "start from values near the machine's"},
+        {"a number past 1e9", "calibrate plate " + quote(d.write("huge.csv", "0,0,0\n1e300,0,0\n0,100,0\n").string()), "huge.csv:2:1: a number beyond +-1e9", ""},
+    };
+    for (const Case& c : cases) {
+        CAPTURE(c.what);
+        const Scratch::Result r = d.run(c.args);
+        CAPTURE(r.out);
+        CAPTURE(r.err);
+        CHECK(r.code == 1);
+        CHECK(contains(r.err, c.reason));
+        CHECK(contains(r.err, c.instead));
+        CHECK_FALSE(fs::exists(copy));
+        for (const char* bad : {"nan", "inf", "e+"}) CHECK_FALSE(contains(r.out, bad));
+    }
+    // The same commands on measurements that determine the values: accepted, the condition number shown.
+    const Scratch::Result plate = d.run("--machine wpi5 calibrate plate " + quote(d.write("plate.csv", "0,0,0.10\n200,0,0.15\n0,150,0.12\n").string()));
+    CHECK(plate.code == 0);
+    CHECK(contains(plate.out, "(condition number "));
+}

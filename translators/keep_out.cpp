@@ -11,6 +11,7 @@
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
 #include "translators/gcode_lexer.hpp"
+#include "translators/small_file.hpp"
 
 namespace xlate5 {
 
@@ -63,11 +64,7 @@ KeepOutItems parse_keep_out(const std::string& text, const std::string& name) {
 }
 
 KeepOutItems load_keep_out(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw IoError(path + ": cannot open");
-    std::ostringstream s;
-    s << in.rdbuf();
-    return parse_keep_out(s.str(), path);
+    return parse_keep_out(read_small_file(path, kMaxKeepOutBytes, "a keep-out list"), path);
 }
 
 KeepOutStage::KeepOutStage(const Kinematics& kinematics, const KeepOutItems& items, const PlannerState& state, Planner& planner)

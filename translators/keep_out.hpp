@@ -42,9 +42,13 @@ struct KeepOutItems {
     std::vector<KeepOutItem> items;
 };
 
+// The largest keep-out file read (docs/limits.md): a few thousand items, where a print holds a
+// handful; every printing move is checked against every item.
+inline constexpr std::size_t kMaxKeepOutBytes = 64u << 10;
+
 // Reads `x, y, height` per line (commas or blanks; `#` comments; blank lines). Throws
-// InputError(file, line, column, cause) for anything else, IoError if it cannot be read. Numbers
-// are within +-1e9 (the lexer's bound).
+// InputError(file, line, column, cause) for anything else or a file past kMaxKeepOutBytes,
+// IoError if it cannot be read. Numbers are within +-1e9 (the lexer's bound).
 KeepOutItems load_keep_out(const std::string& path);
 KeepOutItems parse_keep_out(const std::string& text, const std::string& name);
 

@@ -26,7 +26,10 @@ public:
         return next_after_read(line);
     }
     std::uint64_t line_number() const { return line_no_; }
+    const std::string& name() const { return name_; }
     std::uint64_t bytes_read() const { return total_; }
+    // The bytes of the lines returned so far, their '\n's included (bytes_read() less what is buffered).
+    std::uint64_t bytes_consumed() const { return total_ - (end_ - begin_); }
     // True when next() can return a line without reading: when false, the next call may wait on
     // a pipe or a terminal, so a filter writes out what it has first.
     bool has_line() const;

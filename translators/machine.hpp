@@ -89,6 +89,11 @@ struct Machine {
     }
 };
 
+// The largest machine file or compensation file read (docs/limits.md): the bundled machine files
+// are under 3 KiB, and a compensation table of thousands of measured points is under 100 KiB; a
+// longer file is refused before it is parsed, so a reload cannot grow the service's memory.
+inline constexpr std::size_t kMaxMachineFileBytes = 1u << 20;
+
 // Loads a machine by bundled name or by path; `overrides` replace [parameters] values
 // (name -> value) before anything is computed. Throws MachineError naming file, line and key.
 Machine load_machine(const std::string& name_or_path, const std::map<std::string, double>& overrides = {});
@@ -112,6 +117,10 @@ private:
 // Reads a compensation file ([[compensation]] terms, as in a machine file) for `machine`,
 // replacing the machine's own. Throws MachineError naming the file, line and key.
 void load_compensation_file(const std::string& path, Machine& machine);
+
+// The text of a machine or compensation file, at most kMaxMachineFileBytes. Throws MachineError
+// ("cannot open <what>", or the place past the bound).
+std::string read_machine_file(const std::string& path, const std::string& what = "machine file");
 
 // Where machine names are looked up, first match first: $XLATE5_MACHINES, $XDG_CONFIG_HOME/xlate5/machines
 // (~/.config/xlate5/machines), /etc/xlate5/machines, then the shipped ones (../share/xlate5/machines

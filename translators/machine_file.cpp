@@ -14,6 +14,7 @@
 #include "translators/expr.hpp"
 #include "translators/machine.hpp"
 #include "translators/suggest.hpp"
+#include "translators/small_file.hpp"
 
 #ifndef XLATE5_INSTALLED_MACHINE_DIR
 #define XLATE5_INSTALLED_MACHINE_DIR ""
@@ -382,14 +383,21 @@ Machine build(const toml::table& root, const std::string& path, const std::map<s
 
 }  // namespace
 
+std::string read_machine_file(const std::string& path, const std::string& what) {
+    try {
+        return read_small_file(path, kMaxMachineFileBytes, "a " + what);
+    } catch (const IoError&) {
+        throw MachineError(path + ": cannot open " + what);
+    } catch (const InputError& e) {
+        throw MachineError(e.what());
+    }
+}
+
 void load_compensation_file(const std::string& path, Machine& m) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw MachineError(path + ": cannot open compensation file");
-    std::ostringstream text;
-    text << in.rdbuf();
+    const std::string text = read_machine_file(path, "compensation file");
     toml::table root;
     try {
-        root = toml::parse(text.str(), path);
+        root = toml::parse(text, path);
     } catch (const toml::parse_error& e) {
         std::ostringstream os;
         os << path << ":" << e.source().begin.line << ": " << e.description();
@@ -476,11 +484,7 @@ Machine load_machine(const std::string& name_or_path, const std::map<std::string
         }
         path = it->second;
     }
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw MachineError(path + ": cannot open machine file");
-    std::ostringstream text;
-    text << in.rdbuf();
-    return build(parse(text.str(), path), path, overrides);
+    return build(parse(read_machine_file(path), path), path, overrides);
 }
 
 }  // namespace xlate5

@@ -8,6 +8,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "translators/error.hpp"
 #include "translators/input_front.hpp"
 #include "translators/translator.hpp"
 
@@ -83,8 +84,21 @@ StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& 
         out.clear();
     };
     translator.set_lookback(Translator::kDefaultLookback);  // a limit further on can be unwound on an earlier travel move
+    // The output bound (docs/limits.md), checked once a line: the bytes written and pending
+    // against the floor plus the input's share.
+    const auto check_output = [&](std::string_view at) {
+        if (stats.bytes_out + out.size() <= kOutputFloor + kOutputPerInputByte * reader.bytes_consumed()) return;
+        const std::size_t first = at.find_first_not_of(" \t");
+        throw InputError(reader.name(), std::max<std::uint64_t>(reader.line_number(), 1),
+                         std::uint32_t(first == std::string_view::npos ? 1 : first + 1),
+                         "the output would pass its bound, " + std::to_string(kOutputFloor + kOutputPerInputByte * reader.bytes_consumed()) +
+                             " bytes for the first " + std::to_string(reader.bytes_consumed()) + " bytes of input (16 MiB + " +
+                             std::to_string(kOutputPerInputByte) + " a byte, docs/limits.md): arcs with many turns (P) or long "
+                             "splits; give fewer turns or a coarser --tolerance");
+    };
     while (reader.next(line)) {
         if (!on_first_line || reader.line_number() != 1 || on_first_line(line, out)) front.feed(line, reader.line_number(), out);
+        if (stats.bytes_out + out.size() > kOutputFloor) check_output(line);  // under the floor, within the bound
         if (out.size() >= kFlushAt || (streaming && !out.empty() && !reader.has_line())) flush();
         if (on_read && reader.bytes_read() != seen) {
             seen = reader.bytes_read();
@@ -94,6 +108,7 @@ StreamStats translate_stream(LineReader& reader, InputFront& front, OutputSink& 
         }
     }
     front.finish(reader.line_number(), out);
+    check_output({});
     flush();
     stats.lines_in = reader.line_number();
     stats.bytes_in = reader.bytes_read();

@@ -22,6 +22,15 @@ struct StreamStats {
 
 class InputFront;
 
+// The output of a translation is bounded by its input (docs/limits.md): at most kOutputFloor
+// bytes plus kOutputPerInputByte for each byte of the lines read so far. Real files come out at
+// 0.5 to 7 times their size; a full circle of 100 mm radius in one G2 is about 370 times its
+// line's, at the default tolerance. Pieces per line (kMaxPiecesPerLine) bound one line; this
+// bounds the file, so a few KB of arcs with many turns cannot write hundreds of MB. The line at
+// which the output passes it is refused (InputError, at its first word).
+inline constexpr std::uint64_t kOutputFloor = 16u << 20;
+inline constexpr std::uint64_t kOutputPerInputByte = 1024;
+
 // Runs every line of `reader` through `front` (CL data, waypoint tables, or G-code detected by
 // content) into `sink`. Output is written in large blocks; with `streaming` (the input is a pipe
 // or a terminal) also whenever the input has no further line at hand, so a filter between a
