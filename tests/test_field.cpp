@@ -161,3 +161,38 @@ TEST_CASE("fullcontrol-xyzb is FullControl's four-axis inverse kinematics, with 
         CHECK_FALSE(k.inverse({{100, 100, 10}, Eigen::Vector3d(0, std::sin(rad(10)), std::cos(rad(10)))}, m.home_joints(), back).ok());
     }
 }
+
+TEST_CASE("voron-xyzac is the Voron-Trident-5-axis add-on's AC kinematics, at its pivot and another") {
+    for (const double d : {0.0, 35.0}) {
+        CAPTURE(d);
+        const Machine m = machine("voron-xyzac", {{"a_pivot_z", d}});
+        const Kinematics k(m);
+        const int X = joint(m, 'X'), Y = joint(m, 'Y'), Z = joint(m, 'Z'), A = joint(m, 'A'), C = joint(m, 'C');
+        std::mt19937 rng(43);
+        std::uniform_real_distribution<double> U(-1, 1);
+        int tested = 0;
+        for (int i = 0; i < 20000; ++i) {
+            // A build direction in the upper half (the add-on's acos gives A in 0..90).
+            const double a = rad(89 * (U(rng) + 1) / 2), c = rad(179.9 * U(rng));
+            const Eigen::Vector3d K(std::sin(a) * std::sin(c), std::sin(a) * std::cos(c), std::cos(a));
+            const Eigen::Vector3d p(40 * U(rng), 40 * U(rng), 30 * (U(rng) + 1) / 2);
+            // The add-on's calculate_inverse_kinematics and apply_visual_rotations.
+            const double a_out = std::acos(K.z()), c_kin = std::atan2(K.x(), K.y()), c_out = -c_kin;
+            const Eigen::Vector3d pivot(0, 0, d);
+            const Eigen::Vector3d machine_p = Eigen::AngleAxisd(a_out, Eigen::Vector3d::UnitX()) *
+                                                  (Eigen::AngleAxisd(c_kin, Eigen::Vector3d::UnitZ()) * (p - pivot)) + pivot;
+            if (machine_p.z() < 0 || machine_p.z() > 131) continue;  // below the plate's reach (Z0 is the nozzle on it)
+            ++tested;
+            std::vector<double> prev = m.home_joints(), q;
+            prev[A] = a_out * 180 / xlate5::test::kPi + 1, prev[C] = c_out * 180 / xlate5::test::kPi - 1;
+            REQUIRE(k.inverse({p, K}, prev, q).ok());
+            CHECK(std::abs(q[A] - a_out * 180 / xlate5::test::kPi) < 1e-9);
+            CHECK(std::abs(q[C] - c_out * 180 / xlate5::test::kPi) < 1e-9);
+            CHECK((Eigen::Vector3d(q[X], q[Y], q[Z]) - machine_p).norm() < 1e-9);
+            const Pose fk = k.forward(q);
+            CHECK((fk.tip - p).norm() < 1e-9);
+            CHECK((fk.axis - K).norm() < 1e-12);
+        }
+        CHECK(tested > 5000);
+    }
+}
