@@ -196,3 +196,37 @@ TEST_CASE("voron-xyzac is the Voron-Trident-5-axis add-on's AC kinematics, at it
         CHECK(tested > 5000);
     }
 }
+
+TEST_CASE("open5x: RepRapFirmware's U and V letters, and the A/C-table transform its file states") {
+    // Open5x publishes no readable transform (a Grasshopper definition): what is checked is the
+    // file's own statement, machine = R_x(U) R_z(V) (p - pivot) + pivot, written out here, and that
+    // the firmware is sent U and V as its config.g maps them.
+    const Machine m = machine("open5x");
+    const Kinematics k(m);
+    const int X = joint(m, 'X'), Y = joint(m, 'Y'), Z = joint(m, 'Z'), Uj = joint(m, 'U'), V = joint(m, 'V');
+    CHECK(m.joints[std::size_t(Uj)].output == 'U');
+    CHECK(m.joints[std::size_t(V)].output == 'V');
+    const Eigen::Vector3d pivot(0, 0, m.parameters.at("u_pivot_z"));
+    std::mt19937 rng(47);
+    std::uniform_real_distribution<double> U(-1, 1);
+    int tested = 0;
+    for (int i = 0; i < 20000; ++i) {
+        const double u_deg = 89 * U(rng), v_deg = 179.9 * U(rng);
+        const Eigen::Vector3d p(30 * U(rng), 30 * U(rng), 20 * (U(rng) + 1) / 2);
+        const Eigen::Vector3d mp = Eigen::AngleAxisd(rad(u_deg), Eigen::Vector3d::UnitX()) *
+                                       (Eigen::AngleAxisd(rad(v_deg), Eigen::Vector3d::UnitZ()) * (p - pivot)) + pivot;
+        if (mp.x() < -126 || mp.x() > 125 || mp.y() < -92.3 || mp.y() > 50 || mp.z() < -1 || mp.z() > 125) continue;
+        ++tested;
+        const Eigen::Vector3d axis(std::sin(rad(u_deg)) * std::sin(rad(v_deg)), std::sin(rad(u_deg)) * std::cos(rad(v_deg)), std::cos(rad(u_deg)));
+        std::vector<double> q(m.joints.size(), 0.0);
+        q[X] = mp.x(), q[Y] = mp.y(), q[Z] = mp.z(), q[Uj] = u_deg, q[V] = v_deg;
+        const Pose fk = k.forward(q);
+        CHECK((fk.tip - p).norm() < 1e-9);
+        CHECK((fk.axis - axis).norm() < 1e-12);
+        std::vector<double> prev = q, back;
+        prev[Uj] += 1, prev[V] -= 1;
+        REQUIRE(k.inverse({p, axis}, prev, back).ok());
+        for (std::size_t j = 0; j < q.size(); ++j) CHECK(std::abs(back[j] - q[j]) < 1e-9);
+    }
+    CHECK(tested > 5000);
+}
