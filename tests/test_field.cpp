@@ -230,3 +230,29 @@ TEST_CASE("open5x: RepRapFirmware's U and V letters, and the A/C-table transform
     }
     CHECK(tested > 5000);
 }
+
+TEST_CASE("every bundled machine gives every joint its speed limit") {
+    for (const auto& [name, path] : bundled_machines()) {
+        CAPTURE_BINDING(name);
+        const Machine m = load_machine(path);
+        for (const Joint& j : m.joints) {
+            CAPTURE(j.name);
+            CHECK(j.max_feed > 0);
+        }
+    }
+}
+
+TEST_CASE("rw2's Z is held to the Ender 5 Pro's 5 mm/s: a fast Z move is written at F300") {
+    // Andersons' head rides an Ender 5 Pro, whose Marlin allows Z 5 mm/s: a move planned at
+    // F6000 along Z alone would take 0.5 s in xlate5's plan and 10 s on the printer.
+    xlate5::test::TempDir dir;
+    const auto in = dir.write("z.gcode", "G1 Z250 F6000\n");
+    const auto out = dir.path / "out.gcode";
+    const std::string cmd = std::string(XLATE5_BINARY) + " --machine rw2 -i " + xlate5::test::quote(in.string()) + " -o " +
+                            xlate5::test::quote(out.string());
+    REQUIRE(std::system(cmd.c_str()) == 0);
+    const auto lines = xlate5::test::lines_of(xlate5::test::read(out));
+    REQUIRE(lines.size() == 2);
+    CHECK(xlate5::test::words_of(lines[1]).at('Z') == 250);
+    CHECK(xlate5::test::words_of(lines[1]).at('F') == 300);  // Z alone: its limit (F6000 before)
+}
