@@ -10,10 +10,14 @@
 #include <fstream>
 #include <map>
 #include <random>
+#include <regex>
 #include <sstream>
 #include <string>
+#include <sys/wait.h>
 
 #include "helpers.hpp"
+#include "translators/error.hpp"
+#include "translators/firmware_config.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 
@@ -255,4 +259,270 @@ TEST_CASE("rw2's Z is held to the Ender 5 Pro's 5 mm/s: a fast Z move is written
     REQUIRE(lines.size() == 2);
     CHECK(xlate5::test::words_of(lines[1]).at('Z') == 250);
     CHECK(xlate5::test::words_of(lines[1]).at('F') == 300);  // Z alone: its limit (F6000 before)
+}
+
+namespace {
+
+// The poses a tool-space file in the vector form (--inverse --preview-form G43.5) visits, in
+// order, a pose written again only when it changes.
+std::vector<Pose> tool_poses(const std::string& text) {
+    std::vector<Pose> out;
+    double w[6] = {0, 0, 0, 0, 0, 1};
+    for (const auto& raw : xlate5::test::lines_of(text)) {
+        const std::string line = raw.substr(0, raw.find(';'));
+        if (line.rfind("G0 ", 0) != 0 && line.rfind("G1 ", 0) != 0) continue;
+        const auto words = xlate5::test::words_of(line);
+        bool any = false;
+        for (int i = 0; i < 6; ++i)
+            if (const auto it = words.find("XYZIJK"[i]); it != words.end()) w[i] = it->second, any = true;
+        if (!any) continue;
+        Pose p;
+        p.tip = {w[0], w[1], w[2]};
+        p.axis = Eigen::Vector3d(w[3], w[4], w[5]).normalized();
+        if (out.empty() || (out.back().tip - p.tip).norm() > 0 || (out.back().axis - p.axis).norm() > 0) out.push_back(p);
+    }
+    return out;
+}
+
+// Runs xlate5 with `args` on `in`; its output, or "" with the exit code in `rc`.
+std::string run_xlate5(const std::string& args, const std::filesystem::path& in, const xlate5::test::TempDir& dir, int& rc) {
+    const auto out = dir.path / "run.out";
+    std::filesystem::remove(out);
+    const std::string cmd = std::string(XLATE5_BINARY) + " " + args + " -i " + xlate5::test::quote(in.string()) + " -o " +
+                            xlate5::test::quote(out.string()) + " 2>" + xlate5::test::quote((dir.path / "run.err").string());
+    rc = WEXITSTATUS(std::system(cmd.c_str()));
+    return xlate5::test::read(out);
+}
+
+// Every pose of `start` is visited by `end`, in the same order, within `tip_tol` mm and
+// `axis_deg` degrees; the poses `end` visits between two of them (a split) stay within the tip
+// tolerance of the straight line between them. The count of end's poses is returned.
+std::size_t check_same_path(const std::vector<Pose>& start, const std::vector<Pose>& end, double tip_tol, double axis_deg) {
+    const double axis_tol = 2 * std::sin(rad(axis_deg) / 2);
+    std::size_t k = 0, matched = 0;
+    for (std::size_t i = 0; i < start.size(); ++i) {
+        const std::size_t from = k;
+        while (k < end.size() && !((end[k].tip - start[i].tip).norm() <= tip_tol && (end[k].axis - start[i].axis).norm() <= axis_tol)) ++k;
+        if (k == end.size()) {
+            INFO("start pose " << i << " of " << start.size() << " at " << start[i].tip.transpose() << " axis " << start[i].axis.transpose());
+            CHECK_MESSAGE(false, "not visited (after end pose " << from << ")");
+            return end.size();
+        }
+        // The pieces between the previous start pose and this one lie on the line between them.
+        if (i > 0)
+            for (std::size_t j = from; j < k; ++j) {
+                const Eigen::Vector3d a = start[i - 1].tip, b = start[i].tip, p = end[j].tip;
+                const Eigen::Vector3d ab = b - a;
+                const double t = ab.squaredNorm() > 0 ? std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+                CHECK((a + t * ab - p).norm() <= tip_tol);
+            }
+        ++matched;
+        ++k;
+    }
+    CHECK(matched == start.size());
+    return end.size();
+}
+
+}  // namespace
+
+TEST_CASE("retargeting: NX's CL data for xyzac-trt's trunnion, through tool space, onto koc5's B/C table and back") {
+    // Machine A (xyzac-trt, LinuxCNC's trunnion: A about X) -> its joint space; --from xyzac-trt
+    // onto machine B (koc5: B about Y, C about -Z); B's joint space back to tool space: the same
+    // path as A's own tool space, within the tolerance. (A head such as rw2 homes its tip at
+    // Z 300, out of these tables' reach: its G28 pose is refused on them, naming the line.)
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    int rc = 0;
+    const std::filesystem::path cl = xlate5::test::corpus_dir() + "/nx_cldata/APT_Variable_Axis.cls";
+    const auto ja = dir.write("a.gcode", run_xlate5("--machine xyzac-trt", cl, dir, rc));
+    REQUIRE(rc == 0);
+    const auto ta = run_xlate5("--machine xyzac-trt --inverse --preview-form G43.5", ja, dir, rc);
+    REQUIRE(rc == 0);
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine koc5 --from xyzac-trt", ja, dir, rc));
+    INFO(xlate5::test::read(dir.path / "run.err"));
+    REQUIRE(rc == 0);
+    CHECK(xlate5::test::contains(xlate5::test::read(jb), "machine=koc5 joint space"));
+    const auto tb = run_xlate5("--machine koc5 --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    const auto start = tool_poses(ta), end = tool_poses(tb);
+    REQUIRE(start.size() > 300);
+    const std::size_t visited = check_same_path(start, end, 0.01, 0.5);
+    MESSAGE(start.size() << " poses on xyzac-trt, " << visited << " on koc5");
+    // A pose the target cannot reach is refused with the input line and the pose it became.
+    run_xlate5("--machine rw2 --from xyzac-trt", ja, dir, rc);
+    CHECK(rc == 1);
+    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), "(at tool-space pose 'G0 X0 Y0 Z0 I0 J0 K1"));
+}
+
+TEST_CASE("retargeting: S4's joint-space file for the Core R-Theta, onto pentarod and back to the same path") {
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    int rc = 0;
+    const std::filesystem::path s4 = xlate5::test::corpus_dir() + "/s4/pi_3mm_side_paint_rtheta.gcode";
+    const auto ta = run_xlate5("--machine core-rtheta --inverse --preview-form G43.5", s4, dir, rc);
+    REQUIRE(rc == 0);
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine pentarod --from core-rtheta", s4, dir, rc));
+    INFO(xlate5::test::read(dir.path / "run.err"));
+    REQUIRE(rc == 0);
+    const auto tb = run_xlate5("--machine pentarod --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    const auto start = tool_poses(ta), end = tool_poses(tb);
+    REQUIRE(start.size() > 5000);
+    const std::size_t visited = check_same_path(start, end, 0.01, 0.5);
+    MESSAGE(start.size() << " poses on core-rtheta, " << visited << " on pentarod");
+}
+
+namespace {
+
+std::string machine_text(const std::string& name) {
+    return xlate5::test::read(std::filesystem::path(XLATE5_MACHINE_DIR_FOR_TESTS) / (name + ".toml"));
+}
+
+std::string replaced(std::string s, const std::string& from, const std::string& to) {
+    const auto at = s.find(from);
+    REQUIRE(at != std::string::npos);
+    return s.replace(at, from.size(), to);
+}
+
+bool matches(const std::string& s, const char* re) { return std::regex_match(s, std::regex(re)); }
+
+}  // namespace
+
+TEST_CASE("firmware-config reprap: M584 creates U and V as rotational, M208 and M203 are the machine file's") {
+    // RepRapFirmware's M584: R1 makes the axes it creates rotational (U V W are linear unless
+    // told); M208 takes minimum:maximum; M203 mm or degrees per minute.
+    for (const std::string name : {"open5x", "voron-xyzac", "pentarod", "fullcontrol-xyzb"}) {
+        CAPTURE(name);
+        const Machine m = machine(name);
+        const std::string text = firmware_config(m, FirmwareKind::RepRap);
+        std::map<char, std::pair<double, double>> limits;
+        std::map<char, double> speeds;
+        std::map<char, bool> rotational;
+        for (const auto& raw : xlate5::test::lines_of(text)) {
+            const std::string line = raw.substr(0, raw.find(';'));
+            if (line.find_first_not_of(' ') == std::string::npos) continue;
+            CAPTURE(raw);
+            REQUIRE(matches(line, R"(M(584|208|203)( [XYZUVWABCDE]-?[0-9.]+(:-?[0-9.]+)?)+( R[01])? *)"));
+            std::istringstream words(line);
+            std::string cmd, w;
+            words >> cmd;
+            std::vector<char> created;
+            bool r1 = false;
+            while (words >> w) {
+                if (cmd == "M584" && w[0] == 'R') r1 = w == "R1";
+                else if (cmd == "M584") created.push_back(w[0]);
+                else if (cmd == "M208") limits[w[0]] = {std::stod(w.substr(1, w.find(':') - 1)), std::stod(w.substr(w.find(':') + 1))};
+                else speeds[w[0]] = std::stod(w.substr(1));
+            }
+            for (const char c : created) rotational[c] = r1 || (c >= 'A' && c <= 'D' && !line.ends_with("R0"));
+        }
+        for (const Joint& j : m.joints) {
+            CAPTURE(j.output);
+            REQUIRE(limits.count(j.output));
+            if (j.bounded()) {
+                CHECK(limits[j.output].first == doctest::Approx(j.min));
+                CHECK(limits[j.output].second == doctest::Approx(j.max));
+            }
+            CHECK(speeds[j.output] == doctest::Approx(j.max_feed));
+            CHECK(rotational[j.output] == j.rotary);
+        }
+        CHECK(xlate5::test::contains(text, "M92"));  // its place, with the steps left to the user
+    }
+}
+
+TEST_CASE("firmware-config marlin: AXISn_NAME and _ROTATES, limits, home directions and DEFAULT_MAX_FEEDRATE") {
+    const Machine m = machine("rw2");
+    const std::string text = firmware_config(m, FirmwareKind::Marlin);
+    for (const auto& line : xlate5::test::lines_of(text)) {
+        if (line.empty() || line.rfind("//", 0) == 0) continue;
+        CAPTURE(line);
+        CHECK(matches(line, R"(#define [A-Z][A-Z0-9_]*( .+)?)"));
+    }
+    for (const char* want : {"#define AXIS4_NAME 'A'", "#define AXIS4_ROTATES", "#define AXIS5_NAME 'B'", "#define AXIS5_ROTATES",
+                             "#define I_MIN_POS -168", "#define I_MAX_POS 168", "#define I_HOME_DIR -1", "#define J_MIN_POS -100",
+                             "#define Z_MAX_POS 300", "#define Z_HOME_DIR 1", "#define DEFAULT_MAX_FEEDRATE { 500, 500, 5, 120, 60, 25 }"})
+        CHECK_MESSAGE(xlate5::test::contains(text, want), want);
+    // Marlin names its extra axes A B C U V W in that order: C before B cannot be.
+    const std::string swapped = replaced(replaced(machine_text("koc5"), "name = \"B\"\n", "name = \"B\"\noutput = \"C\"\n"),
+                                         "name = \"C\"\n", "name = \"C\"\noutput = \"B\"\n");
+    const Machine cb = load_machine_text(swapped, "cb.toml");
+    CHECK_THROWS_AS(firmware_config(cb, FirmwareKind::Marlin), MachineError);
+    CHECK_NOTHROW(firmware_config(machine("koc5"), FirmwareKind::Marlin));
+}
+
+TEST_CASE("firmware-config klipper: a [manual_stepper] per rotary and the registration Klipper documents") {
+    const Machine m = load_machine_text(replaced(machine_text("rw2"), "max_feed = 7200", "max_feed = 7200\nmanual_stepper = \"head_turn\""), "rw2k.toml");
+    const std::string text = firmware_config(m, FirmwareKind::Klipper);
+    bool in_gcode = false;
+    int registrations = 0;
+    for (const auto& line : xlate5::test::lines_of(text)) {
+        if (line.empty() || line[0] == '#') continue;
+        CAPTURE(line);
+        if (line[0] == '[') {
+            CHECK(matches(line, R"(\[(printer|stepper_[xyz]|manual_stepper \w+|gcode_macro \w+)\])"));
+            in_gcode = false;
+            continue;
+        }
+        if (in_gcode && line.rfind("  ", 0) == 0) {
+            // MANUAL_STEPPER STEPPER=config_name GCODE_AXIS=[A-Z] [LIMIT_VELOCITY=<velocity>]
+            CHECK(matches(line, R"(  MANUAL_STEPPER STEPPER=\w+ GCODE_AXIS=[A-Z]( LIMIT_VELOCITY=[0-9.]+)?)"));
+            ++registrations;
+            continue;
+        }
+        CHECK(matches(line, R"([a-z_]+:( .*)?)"));
+        in_gcode = line == "gcode:";
+    }
+    CHECK(registrations == 2);
+    for (const char* want : {"[manual_stepper head_turn]\nvelocity: 120", "position_min: -168\nposition_max: 168",
+                             "[manual_stepper axis_b]\nvelocity: 60", "MANUAL_STEPPER STEPPER=head_turn GCODE_AXIS=A LIMIT_VELOCITY=120",
+                             "MANUAL_STEPPER STEPPER=axis_b GCODE_AXIS=B LIMIT_VELOCITY=60", "max_z_velocity: 5"})
+        CHECK_MESSAGE(xlate5::test::contains(text, want), want);
+    // The same names in a machine file that says so: letters, digits and _ only.
+    CHECK_THROWS_AS(load_machine_text(replaced(machine_text("rw2"), "max_feed = 7200", "max_feed = 7200\nmanual_stepper = \"a b\""), "bad.toml"),
+                    MachineError);
+}
+
+TEST_CASE("the klipper dialect: the rotaries registered first, their positions set through MANUAL_STEPPER, never a bare G92") {
+    xlate5::test::TempDir dir;
+    const auto file = dir.write("rw2k.toml", replaced(replaced(machine_text("rw2"), "dialect = \"marlin\"", "dialect = \"klipper\""), "name = \"rw2\"", "name = \"rw2k\""));
+    // rw2's start code: home, say where A's switch is, then square the head; then, in joint
+    // space (G49), a G92 of a linear joint and a rotary together.
+    const auto in = dir.write("start.gcode", "G28\nG92 A-168\nG1 A0 B0 F1200\nG92 E0\nG49\nG92 Z300 A0\n");
+    int rc = 0;
+    const std::string out = run_xlate5("--machine " + xlate5::test::quote(file.string()), in, dir, rc);
+    INFO(out);
+    REQUIRE(rc == 0);
+    const auto lines = xlate5::test::lines_of(out);
+    REQUIRE(lines.size() > 4);
+    CHECK(lines[1] == "MANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=A LIMIT_VELOCITY=120");
+    CHECK(lines[2] == "MANUAL_STEPPER STEPPER=axis_b GCODE_AXIS=B LIMIT_VELOCITY=60");
+    for (const auto& line : lines) {
+        if (line.rfind("G92", 0) != 0) continue;
+        CAPTURE(line);
+        // Klipper's G92 reads X Y Z E alone; one with none of them zeroes all four.
+        CHECK(matches(line, R"(G92( [XYZE]-?[0-9.]+)+)"));
+    }
+    CHECK(xlate5::test::contains(out, "MANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=\nMANUAL_STEPPER STEPPER=axis_a SET_POSITION=-168\n"
+                                      "MANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=A LIMIT_VELOCITY=120\n"));
+    CHECK(xlate5::test::contains(out, "G92 E0\n"));
+    CHECK(xlate5::test::contains(out, "G92 Z300\nMANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=\nMANUAL_STEPPER STEPPER=axis_a SET_POSITION=0\n"));
+}
+
+TEST_CASE("the klipper dialect's feed: a move without X Y Z is timed by its largest change over E and the rotaries") {
+    // addin4's R turns the nozzle about its own axis, X Y Z still: 'R1 E5' in Klipper takes
+    // max(1, 5) / F. xlate5 plans the turn at the rotary feed (3600 deg/min: 1/3600 min), so F
+    // must be 5 * 3600; the rotaries' rule alone would give 3600 and take five times as long.
+    xlate5::test::TempDir dir;
+    const auto file = dir.write("addin4k.toml", replaced(replaced(machine_text("addin4"), "dialect = \"marlin\"", "dialect = \"klipper\""), "name = \"addin4\"", "name = \"addin4k\""));
+    const auto in = dir.write("turn.gcode", "M83\nG1 X10 Y10 Z1 R0 F600\nG1 R1 E5\n");
+    int rc = 0;
+    const std::string out = run_xlate5("--machine " + xlate5::test::quote(file.string()), in, dir, rc);
+    INFO(out);
+    REQUIRE(rc == 0);
+    const auto lines = xlate5::test::lines_of(out);
+    const auto w = xlate5::test::words_of(lines.back());
+    CHECK(w.at('A') == 1);
+    CHECK(w.at('E') == 5);
+    CHECK(w.at('F') == doctest::Approx(5 * 3600));
+    CHECK(lines[1] == "MANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=A LIMIT_VELOCITY=120");
 }

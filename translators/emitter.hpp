@@ -1,7 +1,7 @@
 // The emitter stage, last before the sink: joint values -> firmware G-code text, in the
 // machine's axis letters and decimals. It only writes text: the joints arrive solved, split and
 // compensated. It remembers what the firmware was last told, so a line names only the joints that
-// change. May call: number formatting.
+// change. May call: number formatting, firmware_config (Klipper's axis registration).
 #pragma once
 #include <array>
 #include <cstdint>
