@@ -126,6 +126,7 @@ JointEmitter::JointEmitter(const Machine& machine) : machine_(&machine), joints_
     std::copy(home.begin(), home.end(), believed_.begin());
     for (std::size_t j = 0; j < joints_; ++j) {
         word_[j] = {' ', machine.joints[j].output};
+        absent_[j] = machine.joints[j].absent;
         decimals_[j] = machine.joints[j].rotary ? machine.dialect.rotary_decimals : machine.dialect.linear_decimals;
         // |v * 1000| < 999999.5: to_units gives |units| < 1000000 (v * 1000 is its scaled value, v
         // far inside kMaxWritten), write_units' three-decimal inline case.
@@ -173,6 +174,7 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
     *p++ = 'G';
     *p++ = gcode == 0 ? '0' : '1';
     for (std::size_t j = 0; j < q.size(); ++j) {
+        if (absent_[j]) continue;  // an axis the machine does not have
         long long units = 0;
         const int d = decimals(j);
         // The usual joint (three decimals, below 1000 in magnitude): one test, then what to_units
@@ -289,7 +291,7 @@ void JointEmitter::set_position(std::string& out, std::span<const double> q, std
     out += "G92";
     const std::size_t empty = out.size();
     for (std::size_t j = 0; j < q.size(); ++j) {
-        if (!which[j]) continue;
+        if (!which[j] || absent_[j]) continue;
         const Joint& J = machine_->joints[j];
         if (klipper && J.output != 'X' && J.output != 'Y' && J.output != 'Z') {
             long long units = 0;

@@ -41,7 +41,7 @@ double hi(const Joint& j) { return j.bounded() ? j.max : soft_limit(j); }
 std::vector<const Joint*> extra_axes(const Machine& m) {
     std::vector<const Joint*> out;
     for (const Joint& j : m.joints)
-        if (j.output != 'X' && j.output != 'Y' && j.output != 'Z') out.push_back(&j);
+        if (j.output != 'X' && j.output != 'Y' && j.output != 'Z' && !j.absent) out.push_back(&j);
     return out;
 }
 
@@ -94,7 +94,10 @@ std::string marlin(const Machine& m) {
         else if (j.home == j.max) o += "#define " + p + "_HOME_DIR 1\n";
         else o += "// " + p + ": home " + num(j.home) + " is at neither limit: set " + p + "_HOME_DIR and its home position yourself\n";
     };
-    for (const char c : {'X', 'Y', 'Z'}) limits(std::string(1, c), *axis(m, c));
+    for (const char c : {'X', 'Y', 'Z'}) {
+        if (axis(m, c)->absent) o += std::string("// ") + c + ": the machine has no such axis (held at " + num(axis(m, c)->home) + ")\n";
+        else limits(std::string(1, c), *axis(m, c));
+    }
     for (std::size_t i = 0; i < extra.size(); ++i) {
         if (!extra[i]->bounded()) o += std::string("// ") + extra[i]->output + " turns without end in the machine file: limits past its re-zero\n";
         limits(std::string(1, kInternal[i]), *extra[i]);
@@ -119,7 +122,8 @@ std::string reprap(const Machine& m) {
     o += "; set yours. M584 comes before M92, M203 and M208 (it creates the extra axes).\n";
     int driver = 0;
     std::string first = "M584";
-    for (const char c : {'X', 'Y', 'Z'}) first += std::string(" ") + c + std::to_string(driver++);
+    for (const char c : {'X', 'Y', 'Z'})
+        if (!axis(m, c)->absent) first += std::string(" ") + c + std::to_string(driver++);
     std::string created;
     for (const Joint* j : extra) {
         // R applies to every axis one M584 creates: one command per extra axis.
@@ -128,16 +132,18 @@ std::string reprap(const Machine& m) {
     }
     o += first + " E" + std::to_string(driver) + "   ; the extruder's driver after the axes'\n" + created;
     o += "M208";
-    for (const Joint& j : m.joints) o += std::string(" ") + j.output + num(lo(j)) + ":" + num(hi(j));
+    for (const Joint& j : m.joints)
+        if (!j.absent) o += std::string(" ") + j.output + num(lo(j)) + ":" + num(hi(j));
     o += "   ; axis limits, minimum:maximum\n";
     for (const Joint& j : m.joints)
         if (j.rotary && !j.bounded()) o += std::string("; ") + j.output + " turns without end in the machine file: limits past its re-zero\n";
     o += "M203";
     for (const Joint& j : m.joints)
-        if (j.max_feed > 0) o += std::string(" ") + j.output + num(j.max_feed);
+        if (j.max_feed > 0 && !j.absent) o += std::string(" ") + j.output + num(j.max_feed);
     o += "   ; maximum speeds, mm/min and degrees/min\n";
     o += "; M92";
-    for (const Joint& j : m.joints) o += std::string(" ") + j.output + "<steps per " + (j.rotary ? "degree" : "mm") + ">";
+    for (const Joint& j : m.joints)
+        if (!j.absent) o += std::string(" ") + j.output + "<steps per " + (j.rotary ? "degree" : "mm") + ">";
     o += "   ; steps per unit are not in the machine file\n";
     return o;
 }
@@ -158,6 +164,7 @@ std::string klipper(const Machine& m) {
     if (axis(m, 'Z')->max_feed > 0) o += "max_z_velocity: " + num(axis(m, 'Z')->max_feed / 60) + "\n";
     for (const char c : {'X', 'Y', 'Z'}) {
         const Joint& j = *axis(m, c);
+        if (j.absent) continue;  // the machine has no such axis
         o += std::string("\n[stepper_") + char(std::tolower(static_cast<unsigned char>(c))) + "]\n";
         o += "position_min: " + num(lo(j)) + "\n";
         o += "position_max: " + num(hi(j)) + "\n";

@@ -32,6 +32,9 @@ struct Joint {
     // Klipper: the [manual_stepper NAME] that drives this joint (an extra axis); the loader
     // gives "axis_" and the lower-case output letter when the file names none.
     std::string manual_stepper;
+    // The machine has no such axis (a polar printer's Y): a linear joint held at `home`, its
+    // limits home +- kAbsentSlack, never written to the firmware.
+    bool absent = false;
     bool bounded() const { return min > -1e299 || max < 1e299; }
 };
 

@@ -130,7 +130,7 @@ void load_joints(Reader& r, Machine& m) {
         const std::string where = "joints[" + std::to_string(i) + "]";
         const auto* t = arr->get(i)->as_table();
         if (!t) r.fail(arr->get(i), where, "expected a table");
-        r.only_keys(*t, where, {"name", "output", "type", "min", "max", "home", "max_feed", "rezero_beyond", "manual_stepper"});
+        r.only_keys(*t, where, {"name", "output", "type", "min", "max", "home", "max_feed", "rezero_beyond", "manual_stepper", "absent"});
         Joint j;
         j.name = r.letter(t->get("name"), where + ".name");
         j.output = t->contains("output") ? r.letter(t->get("output"), where + ".output") : j.name;
@@ -154,6 +154,15 @@ void load_joints(Reader& r, Machine& m) {
         if (t->contains("max_feed")) {
             j.max_feed = r.number(t->get("max_feed"), where + ".max_feed");
             if (!(j.max_feed > 0)) r.fail(t->get("max_feed"), where + ".max_feed", "must be positive");
+        }
+        if (const auto* a = t->get("absent")) {
+            const auto b = a->value<bool>();
+            if (!b) r.fail(a, where + ".absent", "expected true or false");
+            j.absent = *b;
+            if (j.absent && j.rotary) r.fail(a, where + ".absent", "only a linear joint can be absent (held at its home)");
+            if (j.absent && (j.min != j.home || j.max != j.home))
+                r.fail(a, where + ".absent", "an absent joint has min = max = home (the value it is held at)");
+            if (j.absent) j.min = j.home - kAbsentSlack, j.max = j.home + kAbsentSlack;
         }
         if (t->contains("manual_stepper")) {
             j.manual_stepper = r.string(t->get("manual_stepper"), where + ".manual_stepper");
