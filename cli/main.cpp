@@ -1,6 +1,6 @@
 // xlate5: the command line's front door (stage: command line). Declares the commands, parses,
 // and hands over to the one that was asked for: translate (no subcommand), machines, calibrate,
-// pose, join, serve and ports. It may call cli/*_cmd and cli/man_page only; the commands call translators/
+// pose, join, firmware-config, serve and ports. It may call cli/*_cmd and cli/man_page only; the commands call translators/
 // and daemon/.
 #include <CLI/CLI.hpp>
 #include <filesystem>
@@ -9,6 +9,7 @@
 
 #include "cli/calibrate_cmd.hpp"
 #include "cli/errors.hpp"
+#include "cli/firmware_cmd.hpp"
 #include "cli/join_cmd.hpp"
 #include "cli/machines_cmd.hpp"
 #include "cli/man_page.hpp"
@@ -41,6 +42,7 @@ int main(int argc, char** argv) {
     const auto calibrate_cmds = add_calibrate_commands(app);
     const auto pose_cmd = add_pose_command(app);
     const auto join_cmd = add_join_command(app);
+    const auto firmware_cmd = add_firmware_command(app);
     bool man_page = false;
     app.add_flag("--man-page", man_page, "print the manual page xlate5(1) (troff)")->group("");  // for the build
 
@@ -81,6 +83,7 @@ int main(int argc, char** argv) {
     if (const int code = run_serve_commands(*serve_cmds, common.machine); code >= 0) return code;
     if (const int code = run_calibrate_commands(*calibrate_cmds, common); code >= 0) return code;
     if (const int code = run_pose_command(*pose_cmd, common); code >= 0) return code;
+    if (const int code = run_firmware_command(*firmware_cmd, common); code >= 0) return code;
     if (const int code = run_join_command(*join_cmd, common, translate); code >= 0) return code;
     return run_translate(common, translate);
 }

@@ -18,6 +18,7 @@
 #include "cli/provenance.hpp"
 #include "translators/compensation.hpp"
 #include "translators/error.hpp"
+#include "translators/firmware_config.hpp"
 #include "translators/input_front.hpp"
 #include "translators/keep_out.hpp"
 #include "translators/kinematics.hpp"
@@ -86,6 +87,10 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
                  "translate a file that starts with xlate5's header of the space it would write (already translated: "
                  "refused without it)");
     app.add_flag("--inverse", o.inverse, "joint-space G-code in, tool-space G-code out (forward kinematics)");
+    app.add_option("--from", o.from,
+                   "the input is joint-space G-code written for machine NAME|PATH: its forward kinematics give the tip and "
+                   "tool axis, translated for --machine (retargeting)")
+        ->option_text("MACHINE");
     app.add_option("--preview-form", o.preview, with_default("with --inverse: write orientation as G43.4 angles or G43.5 I J K", "G43.4"))
         ->check(CLI::IsMember({"G43.4", "G43.5"}))
         ->option_text("G43.4|G43.5");
@@ -122,6 +127,12 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
             throw CLI::ValidationError("--extrusion-per-mm", "is for apt and waypoints input (G-code has its own E)");
         if (o.inverse && o.input_format != "auto" && o.input_format != "gcode")
             throw CLI::ValidationError("--input-format", "--inverse reads joint-space G-code only");
+        if (!o.from.empty()) {
+            if (o.inverse) throw CLI::ValidationError("--from", "reads joint space and writes joint space (not with --inverse)");
+            if (!o.mode.empty()) throw CLI::ValidationError("--mode", "is not for --from: its input is joints, read through its machine's kinematics");
+            if (o.input_format != "auto" && o.input_format != "gcode")
+                throw CLI::ValidationError("--input-format", "--from reads joint-space G-code only");
+        }
     } catch (...) {
         return exit_with(std::current_exception());
     }
@@ -133,8 +144,9 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         options.input_name = final_name;
     if (made) options.input_name = "<join>";
 
-    std::optional<Machine> machine;
+    std::optional<Machine> machine, from_machine;
     try {
+        if (!o.from.empty()) from_machine = load_machine(o.from);
         machine = load_machine(common.machine, overrides);
         if (o.tolerance > 0) machine->motion.tolerance = o.tolerance;
         if (o.angle_tolerance > 0) machine->motion.angle_tolerance = o.angle_tolerance;
@@ -147,6 +159,8 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
     int in_fd = 0;
     try {
         const Kinematics kinematics(*machine);  // a layout outside the family: MachineError
+        std::optional<Kinematics> from_kinematics;
+        if (from_machine) from_kinematics.emplace(*from_machine), options.from = &*from_kinematics;
         if (made) {
             in_fd = made->fd;
         } else if (o.input != "-") {
@@ -167,7 +181,7 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         options.compact_words = o.compact_words;
         Translator translator(kinematics, options);
         FrontOptions front_options;
-        front_options.format = o.inverse ? InputFormat::GCode : *parse_input_format(o.input_format);
+        front_options.format = o.inverse || from_machine ? InputFormat::GCode : *parse_input_format(o.input_format);
         front_options.input_name = options.input_name;
         front_options.extrusion_per_mm = o.extrusion_per_mm;
         front_options.waypoint_feed = o.waypoint_feed;
@@ -187,10 +201,19 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         // of the space this run writes is a second translation (refused unless forced), the
         // header of the other space (a preview read back) is dropped: the output has its own.
         const Space writes = o.inverse ? Space::Tool : Space::Joint;
-        const std::string head = provenance_header(XLATE5_VERSION, machine->name, writes) + "\n";
+        // Klipper's dialect: the extra axes are registered before anything uses their letters.
+        const std::string head = provenance_header(XLATE5_VERSION, machine->name, writes) + "\n" +
+                                 (writes == Space::Joint ? firmware_preamble(*machine) : std::string());
         const auto first_line = [&](std::string_view first, std::string& out) {
             if (is_binary_gcode(first)) throw InputError(options.input_name, 1, 1, binary_gcode_message());
             const std::optional<Space> was = read_provenance(first);
+            // Retargeting reads joint space: another translation's output is its input.
+            if (from_machine && was == Space::Tool)
+                throw InputError(options.input_name, 1, 1, "this file is xlate5's tool-space output; --from reads joint-space G-code");
+            if (from_machine && was == Space::Joint) {
+                out += head;
+                return false;
+            }
             if (was == writes && !o.force)
                 throw InputError(options.input_name, 1, 1,
                                  std::string("this file is xlate5's output already (") +

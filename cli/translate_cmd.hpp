@@ -21,6 +21,8 @@ struct TranslateOptions {
     // carries xlate5's header of the same space (provenance.hpp).
     std::string file;
     bool force = false;
+    // Retargeting: the input is joint-space G-code written for this machine (--from).
+    std::string from;
 };
 
 // Input made by another command (join): the lines of `fd`, each traced back to the file and

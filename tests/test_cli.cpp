@@ -486,7 +486,12 @@ TEST_CASE("cli: a joint value that cannot be written (1e200, beyond 1e9, not fin
     CHECK(contains(r.err, "<stdin>:3:"));
     CHECK(contains(r.err, "word E"));
     CHECK(contains(r.err, "2.54e+10"));
-    r = run(d, "-m rw2 --no-segment", "G1 X100 Y100 Z10 A0 B0 F1200\nG20\nG1 X4 F1000000000\n");
+    // (On rw2 without its X Y Z speed limits, which would slow the piece to a writable F.)
+    std::string unlimited = read(machine_path("rw2"));
+    for (const char* limit : {"max_feed = 30000", "max_feed = 300 "})
+        for (std::size_t at = unlimited.find(limit); at != std::string::npos; at = unlimited.find(limit, at + 3)) unlimited.insert(at, "# ");
+    const fs::path rw2_unlimited = d.write("rw2_unlimited.toml", unlimited);
+    r = run(d, "-m " + quote(rw2_unlimited.string()) + " --no-segment", "G1 X100 Y100 Z10 A0 B0 F1200\nG20\nG1 X4 F1000000000\n");
     CHECK(r.code == 1);
     CHECK(contains(r.err, "<stdin>:3:"));
     CHECK(contains(r.err, "word F"));

@@ -12,7 +12,10 @@ inline constexpr double kDegPerRad = 180.0 / kPi;
 // A joint value this far outside its limits still counts as inside: solved values carry
 // rounding of that order, and a limit written in the machine file must be reachable exactly.
 inline constexpr double kLimitSlack = 1e-9;
-
+// An absent joint (a machine without that axis, e.g. a polar printer's Y): the solve may put it
+// this far from its home (mm), no more: what tool-space rounding leaves in a pose the machine
+// reaches (a tool-space file's 7 decimals give microns at most). Never written to the firmware.
+inline constexpr double kAbsentSlack = 1e-3;
 // Two solutions whose rotaries differ by less than this (degrees) are the same solution.
 inline constexpr double kSameAngle = 1e-6;
 

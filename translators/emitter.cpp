@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "translators/error.hpp"
+#include "translators/firmware_config.hpp"
 #include "translators/number.hpp"
 
 namespace xlate5 {
@@ -125,6 +126,7 @@ JointEmitter::JointEmitter(const Machine& machine) : machine_(&machine), joints_
     std::copy(home.begin(), home.end(), believed_.begin());
     for (std::size_t j = 0; j < joints_; ++j) {
         word_[j] = {' ', machine.joints[j].output};
+        absent_[j] = machine.joints[j].absent;
         decimals_[j] = machine.joints[j].rotary ? machine.dialect.rotary_decimals : machine.dialect.linear_decimals;
         // |v * 1000| < 999999.5: to_units gives |units| < 1000000 (v * 1000 is its scaled value, v
         // far inside kMaxWritten), write_units' three-decimal inline case.
@@ -172,6 +174,7 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
     *p++ = 'G';
     *p++ = gcode == 0 ? '0' : '1';
     for (std::size_t j = 0; j < q.size(); ++j) {
+        if (absent_[j]) continue;  // an axis the machine does not have
         long long units = 0;
         const int d = decimals(j);
         // The usual joint (three decimals, below 1000 in magnitude): one test, then what to_units
@@ -279,11 +282,33 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
 
 void JointEmitter::set_position(std::string& out, std::span<const double> q, std::span<const double> sent,
                                 const std::vector<bool>& which, std::optional<PassedNumber> e) {
+    // Klipper's G92 reads X Y Z E alone, and one with none of them sets all four to 0: an extra
+    // axis is set through its manual stepper, which takes SET_POSITION only while unregistered
+    // from its G-code letter. Those lines go after the G92 of the others (if any).
+    const bool klipper = machine_->dialect.firmware == FirmwareDialect::Klipper;
+    std::string steppers;
     const std::size_t start = out.size();
     out += "G92";
     const std::size_t empty = out.size();
     for (std::size_t j = 0; j < q.size(); ++j) {
-        if (!which[j]) continue;
+        if (!which[j] || absent_[j]) continue;
+        const Joint& J = machine_->joints[j];
+        if (klipper && J.output != 'X' && J.output != 'Y' && J.output != 'Z') {
+            long long units = 0;
+            if (!to_units(sent[j], decimals(j), units)) units = std::numeric_limits<long long>::min();
+            last_[j] = units;
+            known_[j] = true;
+            believed_[j] = q[j];
+            for (const char* then : {" GCODE_AXIS=\n", " SET_POSITION="}) {
+                steppers += "MANUAL_STEPPER STEPPER=";
+                steppers += J.manual_stepper;
+                steppers += then;
+            }
+            format(steppers, j, sent[j]);
+            steppers += '\n';
+            steppers += klipper_register(J);
+            continue;
+        }
         long long units = 0;
         if (!to_units(sent[j], decimals(j), units)) units = std::numeric_limits<long long>::min();
         last_[j] = units;
@@ -296,6 +321,7 @@ void JointEmitter::set_position(std::string& out, std::span<const double> q, std
     if (e) append_word(out, 'E', *e);
     if (out.size() == empty) out.resize(start);
     else out += '\n';
+    out += steppers;
 }
 
 }  // namespace xlate5

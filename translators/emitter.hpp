@@ -1,7 +1,7 @@
 // The emitter stage, last before the sink: joint values -> firmware G-code text, in the
 // machine's axis letters and decimals. It only writes text: the joints arrive solved, split and
 // compensated. It remembers what the firmware was last told, so a line names only the joints that
-// change. May call: number formatting.
+// change. May call: number formatting, firmware_config (Klipper's axis registration).
 #pragma once
 #include <array>
 #include <cstdint>
@@ -41,6 +41,7 @@ public:
             joints_ = o.joints_;
             word_ = o.word_;
             decimals_ = o.decimals_;
+            absent_ = o.absent_;
             small_below_ = o.small_below_;
             wide_below_ = o.wide_below_;
         }
@@ -101,6 +102,7 @@ private:
     // once) and its printed decimals (read on every move).
     std::array<std::array<char, 2>, kMaxJoints> word_{};
     std::array<int, kMaxJoints> decimals_{};
+    std::array<bool, kMaxJoints> absent_{};  // the machine has no such axis: never written
     // Per joint: a value whose |value * 1000| is below this is written by the inline three-decimal
     // path with no other test (999999.5 for three decimals, the usual; -1 for others: never).
     std::array<double, kMaxJoints> small_below_{};

@@ -206,7 +206,7 @@ void InverseTranslator::set_position(Params words, std::string_view body, std::s
     // Tool space has a word for a rotary reset only; a linear one just changes the tip.
     for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
         const Joint& J = machine_.joints[j];
-        if (!J.rotary) continue;
+        if (!J.rotary || retarget_) continue;
         bool named = false;
         for (const Param& p : words) named = named || (p.letter != 'E' && joint_of(p.letter) == int(j));
         if (!named) continue;
@@ -233,6 +233,7 @@ void InverseTranslator::home(Params words, std::string& out) {
         if (which[j]) state_.q[j] = machine_.joints[j].home;
     out += "G28";
     for (const Param& p : words) {
+        if (retarget_) break;
         out += ' ';
         out += machine_.joints[std::size_t(joint_of(p.letter))].name;
     }

@@ -29,6 +29,10 @@ public:
     void feed(std::string_view line, std::uint64_t line_no, std::string& out);
     // The input is compact from its first line, as if it began with the compact declaration (gcode_lexer.hpp).
     void set_compact_words() { block_.compact_words = true; }
+    // The output goes on to another machine's translation (--from): its rotary re-zeros
+    // (G92 C0) change no pose and are left out, and its G28, whatever joints it names, is a
+    // bare G28 (the printer that runs the file homes as it homes).
+    void set_retarget() { retarget_ = true; }
 
     const std::vector<double>& joints() const { return state_.q; }  // nominal: measured errors added back
     const Pose& pose() const { return state_.pose; }
@@ -65,6 +69,7 @@ private:
     LineCommands commands_;
     LinePlan plan_;
     std::string move_letters_, position_letters_;  // see plan_line
+    bool retarget_ = false;
 };
 
 }  // namespace xlate5

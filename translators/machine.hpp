@@ -29,6 +29,12 @@ struct Joint {
     double home = 0;         // joint value after G28
     double max_feed = 0;     // mm/min or deg/min the axis can move at; 0: no limit known
     double rezero_beyond = 0;  // unbounded rotary: past +-this many degrees, re-zero with G92 on a travel move (0: never)
+    // Klipper: the [manual_stepper NAME] that drives this joint (an extra axis); the loader
+    // gives "axis_" and the lower-case output letter when the file names none.
+    std::string manual_stepper;
+    // The machine has no such axis (a polar printer's Y): a linear joint held at `home`, its
+    // limits home +- kAbsentSlack, never written to the firmware.
+    bool absent = false;
     bool bounded() const { return min > -1e299 || max < 1e299; }
 };
 

@@ -1,5 +1,6 @@
 // Machine TOML file -> Machine. Every error names the file, the line and the key at fault.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -142,7 +143,7 @@ void load_joints(Reader& r, Machine& m) {
         const std::string where = "joints[" + std::to_string(i) + "]";
         const auto* t = arr->get(i)->as_table();
         if (!t) r.fail(arr->get(i), where, "expected a table");
-        r.only_keys(*t, where, {"name", "output", "type", "min", "max", "home", "max_feed", "rezero_beyond"});
+        r.only_keys(*t, where, {"name", "output", "type", "min", "max", "home", "max_feed", "rezero_beyond", "manual_stepper", "absent"});
         Joint j;
         j.name = r.letter(t->get("name"), where + ".name");
         j.output = t->contains("output") ? r.letter(t->get("output"), where + ".output") : j.name;
@@ -166,6 +167,24 @@ void load_joints(Reader& r, Machine& m) {
         if (t->contains("max_feed")) {
             j.max_feed = r.number(t->get("max_feed"), where + ".max_feed");
             if (!(j.max_feed > 0)) r.fail(t->get("max_feed"), where + ".max_feed", "must be positive");
+        }
+        if (const auto* a = t->get("absent")) {
+            const auto b = a->value<bool>();
+            if (!b) r.fail(a, where + ".absent", "expected true or false");
+            j.absent = *b;
+            if (j.absent && j.rotary) r.fail(a, where + ".absent", "only a linear joint can be absent (held at its home)");
+            if (j.absent && (j.min != j.home || j.max != j.home))
+                r.fail(a, where + ".absent", "an absent joint has min = max = home (the value it is held at)");
+            if (j.absent) j.min = j.home - kAbsentSlack, j.max = j.home + kAbsentSlack;
+        }
+        if (t->contains("manual_stepper")) {
+            j.manual_stepper = r.string(t->get("manual_stepper"), where + ".manual_stepper");
+            // Klipper reads it as a config section's name and a command's word: no blanks.
+            bool ok = !j.manual_stepper.empty();
+            for (const char c : j.manual_stepper) ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '_');
+            if (!ok) r.fail(t->get("manual_stepper"), where + ".manual_stepper", "expected a name of letters, digits and _");
+        } else {
+            j.manual_stepper = std::string("axis_") + char(std::tolower(static_cast<unsigned char>(j.output)));
         }
         for (const auto& other : m.joints) {
             if (other.name == j.name) r.fail(t->get("name"), where + ".name", std::string("joint ") + j.name + " is defined twice");

@@ -976,7 +976,14 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
                 t = std::max(t, rot_max / machine_.motion.rotary_feed);
             }
             piece_time_[std::size_t(k)] = t;
-            const double d_fw = piece_length(qprev.data(), qk.data());  // both ends come from the split, rounded
+            double d_fw = piece_length(qprev.data(), qk.data());  // both ends come from the split, rounded
+            if (mv.e && machine_.dialect.firmware == FirmwareDialect::Klipper) {
+                // Klipper times a move without X Y Z by its largest change over E and the
+                // extra axes (its toolhead's rule), not the rotaries alone.
+                bool still = true;
+                for (const std::size_t j : linear_) still = still && qk[j] == qprev[j];
+                if (still) d_fw = std::max(d_fw, std::abs(mv.e_relative ? mv.e->value : mv.e->value - mv.e_start) * (share - prev_share));
+            }
             if (inverse_time_out) {
                 // RepRapFirmware's G93: F is 1 / the piece's duration in minutes. An E-only piece
                 // takes its extrusion at the programmed feed.

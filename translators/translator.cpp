@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "translators/error.hpp"
 #include "translators/inverse.hpp"
 #include "translators/keep_out.hpp"
 #include "translators/lookback.hpp"
@@ -42,6 +43,20 @@ struct Translator::Forward {
 };
 
 Translator::Translator(const Kinematics& kinematics, TranslatorOptions options) {
+    if (options.from) {
+        // The source machine's joints -> tool space (I J K: no rotary letters of either machine)
+        // -> this machine. The forward side reads what the inverse writes: G43.5, E as E.
+        retarget_ = true;
+        input_name_ = options.input_name;
+        inverse_ = std::make_unique<InverseTranslator>(*options.from, options.input_name, options.extruder_letter, OrientationMode::Vector);
+        inverse_->set_retarget();
+        if (options.compact_words) inverse_->set_compact_words();
+        options.start_mode = OrientationMode::Vector;
+        options.extruder_letter = 'E';
+        options.compact_words = false;
+        forward_ = std::make_unique<Forward>(kinematics, options);
+        return;
+    }
     if (options.inverse) {
         inverse_ = std::make_unique<InverseTranslator>(kinematics, options.input_name, options.extruder_letter, options.preview_form);
         if (options.compact_words) inverse_->set_compact_words();
@@ -54,6 +69,25 @@ Translator::Translator(const Kinematics& kinematics, TranslatorOptions options) 
 Translator::~Translator() = default;
 
 void Translator::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
+    if (retarget_) {
+        between_.clear();
+        inverse_->feed(line, line_no, between_);
+        // Each tool-space line the source's line became, on this machine. An error there names
+        // the input line; its column would be the tool-space line's, so it says so instead.
+        std::string_view rest = between_;
+        while (!rest.empty()) {
+            const std::size_t end = rest.find('\n');
+            const std::string_view one = rest.substr(0, end);
+            try {
+                forward_->lookback.feed(one, line_no, out);
+            } catch (const InputError& e) {
+                throw InputError(input_name_, line_no, 1, e.message() + " (at tool-space pose '" + std::string(one) + "')");
+            }
+            if (end == std::string_view::npos) break;
+            rest.remove_prefix(end + 1);
+        }
+        return;
+    }
     if (inverse_) inverse_->feed(line, line_no, out);
     else forward_->lookback.feed(line, line_no, out);
 }
@@ -77,13 +111,13 @@ void Translator::place_at(const std::vector<double>& q, std::optional<double> e,
     if (e) s.modal.modes.e_position = *e;
 }
 
-const std::vector<double>& Translator::joints() const { return inverse_ ? inverse_->joints() : forward_->state.line.planner.q; }
-const Pose& Translator::pose() const { return inverse_ ? inverse_->pose() : forward_->state.line.planner.pose; }
+const std::vector<double>& Translator::joints() const { return forward_ ? forward_->state.line.planner.q : inverse_->joints(); }
+const Pose& Translator::pose() const { return forward_ ? forward_->state.line.planner.pose : inverse_->pose(); }
 const Eigen::Vector3d& Translator::program_offset() const {
     static const Eigen::Vector3d kNone = Eigen::Vector3d::Zero();  // joint space has no program frame
-    return inverse_ ? kNone : forward_->state.line.modal.offset;
+    return forward_ ? forward_->state.line.modal.offset : kNone;
 }
-OrientationMode Translator::mode() const { return inverse_ ? OrientationMode::Joints : forward_->state.line.modal.mode; }
-const Modes& Translator::modes() const { return inverse_ ? inverse_->modes() : forward_->state.line.modal.modes; }
+OrientationMode Translator::mode() const { return forward_ ? forward_->state.line.modal.mode : OrientationMode::Joints; }
+const Modes& Translator::modes() const { return forward_ ? forward_->state.line.modal.modes : inverse_->modes(); }
 
 }  // namespace xlate5

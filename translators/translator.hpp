@@ -28,6 +28,10 @@ struct TranslatorOptions {
     // output tool space in `preview_form` (G43.4 angles or G43.5 vector), through FK.
     bool inverse = false;
     OrientationMode preview_form = OrientationMode::Angles;
+    // Retargeting (--from): the input is joint-space G-code written for the machine of `from`;
+    // its forward kinematics give the tip and tool axis (as the inverse does, in the vector
+    // form), which are translated for this machine. Null: the input is tool space.
+    const Kinematics* from = nullptr;
     DeviationReport* report = nullptr;  // when set, every tool-space move is measured into it
     const KeepOutItems* keep_out = nullptr;  // when set, R comes from the path and these items (keep_out.hpp)
     // The input is written without blanks from its first line on: "X1.5E-05" is X1.5 and E-05, as
@@ -76,6 +80,10 @@ private:
     struct Forward;
     std::unique_ptr<Forward> forward_;
     std::unique_ptr<InverseTranslator> inverse_;
+    // Retargeting: the inverse on the source machine feeds the forward pipeline, through this.
+    bool retarget_ = false;
+    std::string between_;
+    std::string input_name_;
 };
 
 }  // namespace xlate5

@@ -33,6 +33,9 @@ EXTRA=--p expect "serve" --printer --port --pty --pty-group
 EXTRA=f expect "calibrate" fit
 EXTRA=--or expect "calibrate fit" --order
 EXTRA=rw expect "--machine" rw2
+EXTRA=core expect "--from" core-rtheta
+EXTRA=fi expect "" firmware-config
+EXTRA=kl expect "firmware-config --firmware" klipper
 EXTRA=G43 expect "--mode" G43.4 G43.5
 # A command's options are not offered before it.
 got=$(complete_words --pr)

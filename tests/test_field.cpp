@@ -1,0 +1,563 @@
+// The field's machines (machines/core-rtheta.toml, open5x.toml, voron-xyzac.toml, fullcontrol-xyzb.toml)
+// against their projects' own transforms, each written out here from the project's code or
+// configuration on its own, independently of the machine file: forward and inverse kinematics on
+// many poses, and the projects' real joint-space files where the corpus has one.
+#include <doctest/doctest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <random>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <sys/wait.h>
+
+#include "helpers.hpp"
+#include "translators/error.hpp"
+#include "translators/firmware_config.hpp"
+#include "translators/kinematics.hpp"
+#include "translators/machine.hpp"
+
+using namespace xlate5;
+using xlate5::test::rad;
+
+namespace {
+
+Machine machine(const std::string& name, const std::map<std::string, double>& overrides = {}) {
+    return load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml", overrides);
+}
+
+int joint(const Machine& m, char name) {
+    const int j = m.joint_index(name);
+    REQUIRE(j >= 0);
+    return j;
+}
+
+double angle_diff(double a, double b) { return std::abs(wrap180(a - b)); }
+
+// S4's cartesian_to_rtheta (Joshua Bird's S4_Slicer, 2025), without its travel lift: the joints
+// it writes for a tip (x, y, z) in the part frame at tilt t (radians). C comes unwrapped, in
+// (-180, 180].
+struct Rtheta {
+    double c, x, z, b;
+};
+Rtheta s4_joints(double x, double y, double z, double t, double offset) {
+    double r = std::sqrt(x * x + y * y);
+    const double theta = std::atan2(y, x);
+    r += -std::sin(t) * offset;
+    const double z_adj = z + (std::cos(t) - 1) * offset;
+    return {theta * 180 / xlate5::test::kPi, r, z_adj, t * 180 / xlate5::test::kPi};
+}
+
+}  // namespace
+
+TEST_CASE("core-rtheta is S4's cartesian_to_rtheta: FK and IK on random poses") {
+    const Machine m = machine("core-rtheta");
+    const Kinematics k(m);
+    const double L = m.parameters.at("nozzle_offset");
+    CHECK(L == 42);  // S4's NOZZLE_OFFSET
+    const int X = joint(m, 'X'), Y = joint(m, 'Y'), Z = joint(m, 'Z'), B = joint(m, 'B'), C = joint(m, 'C');
+    std::mt19937 rng(37);
+    std::uniform_real_distribution<double> U(-1, 1);
+    for (int i = 0; i < 20000; ++i) {
+        // Tips off the bed's axis (S4's atan2 is undefined on it), tilts inside the limits.
+        const double r0 = 2 + 60 * (U(rng) + 1) / 2, th = 179.9 * U(rng);
+        const Eigen::Vector3d p(r0 * std::cos(rad(th)), r0 * std::sin(rad(th)), 40 * U(rng) + 40);
+        const double t = rad(-60 + 70 * (U(rng) + 1) / 2);
+        const Rtheta s = s4_joints(p.x(), p.y(), p.z(), t, L);
+        // S4's tool axis: the nozzle leans in the radial plane, the holder toward the centre for t > 0.
+        const Eigen::Vector3d u(-std::sin(t) * std::cos(rad(s.c)), -std::sin(t) * std::sin(rad(s.c)), std::cos(t));
+        std::vector<double> q(m.joints.size(), 0.0);
+        q[X] = s.x, q[Z] = s.z, q[B] = s.b, q[C] = s.c + 360.0 * std::round(U(rng) * 3);  // C may be any turn
+        const Pose fk = k.forward(q);
+        CHECK((fk.tip - p).norm() < 1e-9);
+        CHECK((fk.axis - u).norm() < 1e-12);
+        // IK from near S4's joints returns them, with the missing Y at 0.
+        std::vector<double> prev = q, back;
+        prev[B] += 0.5, prev[C] -= 1;
+        REQUIRE(k.inverse({p, u}, prev, back).ok());
+        CHECK(std::abs(back[X] - s.x) < 1e-9);
+        CHECK(std::abs(back[Z] - s.z) < 1e-9);
+        CHECK(std::abs(back[B] - s.b) < 1e-9);
+        CHECK(std::abs(back[C] - q[C]) < 1e-9);
+        CHECK(std::abs(back[Y]) < 1e-9);
+    }
+    // A tool axis that is not radial is beyond this machine: refused, never a move it cannot make.
+    std::vector<double> q;
+    const Eigen::Vector3d tangential(0, std::sin(rad(20)), std::cos(rad(20)));
+    CHECK_FALSE(k.inverse({{30, 0, 5}, tangential}, m.home_joints(), q).ok());
+}
+
+TEST_CASE("core-rtheta: S4's own joint-space file goes through FK and back to the same poses, Y at 0") {
+    if (xlate5::test::corpus_absent()) return;
+    const Machine m = machine("core-rtheta");
+    const Kinematics k(m);
+    std::ifstream in(xlate5::test::corpus_dir() + "/s4/pi_3mm_side_paint_rtheta.gcode");
+    REQUIRE(in);
+    std::vector<double> q = m.home_joints(), back;
+    std::string line;
+    int moves = 0, other = 0;
+    double worst = 0;
+    while (std::getline(in, line)) {
+        if (line.rfind("G01 ", 0) != 0 && line.rfind("G0 ", 0) != 0) continue;
+        std::istringstream words(line.substr(line.find(' ')));
+        std::string w;
+        const std::vector<double> prev = q;
+        while (words >> w) {
+            if (w[0] == ';') break;
+            const int j = m.joint_index(w[0]);
+            if (j >= 0) q[std::size_t(j)] = std::stod(w.substr(1));
+        }
+        const Pose pose = k.forward(q);
+        // The solve from the previous line's joints finds this line's (C on its own turn).
+        REQUIRE_MESSAGE(k.inverse(pose, prev, back).ok(), line);
+        const Pose again = k.forward(back);
+        worst = std::max({worst, (again.tip - pose.tip).norm(), (again.axis - pose.axis).norm()});
+        CHECK(std::abs(back[std::size_t(joint(m, 'Y'))]) < 1e-9);
+        // Where the file's C jumps by more than a right angle (its travels), the other solution
+        // (C + 180, -B, X on the far side) may be the nearer: the same pose, other joints.
+        bool same = true;
+        for (std::size_t j = 0; j < q.size(); ++j) same = same && std::abs(back[j] - q[j]) < 1e-6;
+        if (!same) {
+            ++other;
+            CHECK_MESSAGE(angle_diff(back[std::size_t(joint(m, 'C'))], q[std::size_t(joint(m, 'C'))] + 180) < 1e-6, line);
+            CHECK_MESSAGE(std::abs(back[std::size_t(joint(m, 'B'))] + q[std::size_t(joint(m, 'B'))]) < 1e-6, line);
+        }
+        ++moves;
+    }
+    MESSAGE(moves << " moves, " << other << " on the other solution");
+    CHECK(moves > 5000);
+    CHECK(other * 10 < moves);  // 182 of 5 094 here
+    CHECK(worst < 1e-9);
+}
+
+TEST_CASE("fullcontrol-xyzb is FullControl's four-axis inverse kinematics, with and without b_offset_x") {
+    for (const double bx : {0.0, 7.5}) {
+        CAPTURE(bx);
+        const Machine m = machine("fullcontrol-xyzb", {{"b_offset_x", bx}});
+        const Kinematics k(m);
+        const double bz = m.parameters.at("b_offset_z");
+        const int X = joint(m, 'X'), Y = joint(m, 'Y'), Z = joint(m, 'Z'), B = joint(m, 'B');
+        std::mt19937 rng(41);
+        std::uniform_real_distribution<double> U(-1, 1);
+        for (int i = 0; i < 20000; ++i) {
+            const Eigen::Vector3d p(125 + 60 * U(rng), 105 + 50 * U(rng), 70 + 30 * U(rng));  // every joint inside its limits
+            const double bdeg = 89.9 * U(rng), b = rad(bdeg);
+            // FullControl's model2system, as its four-axis Point writes it.
+            const double nx = -bx, nz = -bz;
+            const double dx = -(nx * (1 - std::cos(b))) + nz * std::sin(b);
+            const double dz = -(nz * (1 - std::cos(b))) + nx * -std::sin(b);
+            std::vector<double> q(m.joints.size(), 0.0);
+            q[X] = p.x() - dx, q[Y] = p.y(), q[Z] = p.z() - dz, q[B] = bdeg;
+            const Pose fk = k.forward(q);
+            CHECK((fk.tip - p).norm() < 1e-9);
+            const Eigen::Vector3d u(std::sin(b), 0, std::cos(b));
+            CHECK((fk.axis - u).norm() < 1e-12);
+            std::vector<double> back;
+            REQUIRE(k.inverse({p, u}, m.home_joints(), back).ok());
+            for (std::size_t j = 0; j < q.size(); ++j) CHECK(std::abs(back[j] - q[j]) < 1e-9);
+        }
+        // A lean toward Y is out of this machine's reach.
+        std::vector<double> back;
+        CHECK_FALSE(k.inverse({{100, 100, 10}, Eigen::Vector3d(0, std::sin(rad(10)), std::cos(rad(10)))}, m.home_joints(), back).ok());
+    }
+}
+
+TEST_CASE("voron-xyzac is the Voron-Trident-5-axis add-on's AC kinematics, at its pivot and another") {
+    for (const double d : {0.0, 35.0}) {
+        CAPTURE(d);
+        const Machine m = machine("voron-xyzac", {{"a_pivot_z", d}});
+        const Kinematics k(m);
+        const int X = joint(m, 'X'), Y = joint(m, 'Y'), Z = joint(m, 'Z'), A = joint(m, 'A'), C = joint(m, 'C');
+        std::mt19937 rng(43);
+        std::uniform_real_distribution<double> U(-1, 1);
+        int tested = 0;
+        for (int i = 0; i < 20000; ++i) {
+            // A build direction in the upper half (the add-on's acos gives A in 0..90).
+            const double a = rad(89 * (U(rng) + 1) / 2), c = rad(179.9 * U(rng));
+            const Eigen::Vector3d K(std::sin(a) * std::sin(c), std::sin(a) * std::cos(c), std::cos(a));
+            const Eigen::Vector3d p(40 * U(rng), 40 * U(rng), 30 * (U(rng) + 1) / 2);
+            // The add-on's calculate_inverse_kinematics and apply_visual_rotations.
+            const double a_out = std::acos(K.z()), c_kin = std::atan2(K.x(), K.y()), c_out = -c_kin;
+            const Eigen::Vector3d pivot(0, 0, d);
+            const Eigen::Vector3d machine_p = Eigen::AngleAxisd(a_out, Eigen::Vector3d::UnitX()) *
+                                                  (Eigen::AngleAxisd(c_kin, Eigen::Vector3d::UnitZ()) * (p - pivot)) + pivot;
+            if (machine_p.z() < 0 || machine_p.z() > 131) continue;  // below the plate's reach (Z0 is the nozzle on it)
+            ++tested;
+            std::vector<double> prev = m.home_joints(), q;
+            prev[A] = a_out * 180 / xlate5::test::kPi + 1, prev[C] = c_out * 180 / xlate5::test::kPi - 1;
+            REQUIRE(k.inverse({p, K}, prev, q).ok());
+            CHECK(std::abs(q[A] - a_out * 180 / xlate5::test::kPi) < 1e-9);
+            CHECK(std::abs(q[C] - c_out * 180 / xlate5::test::kPi) < 1e-9);
+            CHECK((Eigen::Vector3d(q[X], q[Y], q[Z]) - machine_p).norm() < 1e-9);
+            const Pose fk = k.forward(q);
+            CHECK((fk.tip - p).norm() < 1e-9);
+            CHECK((fk.axis - K).norm() < 1e-12);
+        }
+        CHECK(tested > 5000);
+    }
+}
+
+TEST_CASE("open5x: RepRapFirmware's U and V letters, and the A/C-table transform its file states") {
+    // Open5x publishes no readable transform (a Grasshopper definition): what is checked is the
+    // file's own statement, machine = R_x(U) R_z(V) (p - pivot) + pivot, written out here, and that
+    // the firmware is sent U and V as its config.g maps them.
+    const Machine m = machine("open5x");
+    const Kinematics k(m);
+    const int X = joint(m, 'X'), Y = joint(m, 'Y'), Z = joint(m, 'Z'), Uj = joint(m, 'U'), V = joint(m, 'V');
+    CHECK(m.joints[std::size_t(Uj)].output == 'U');
+    CHECK(m.joints[std::size_t(V)].output == 'V');
+    const Eigen::Vector3d pivot(0, 0, m.parameters.at("u_pivot_z"));
+    std::mt19937 rng(47);
+    std::uniform_real_distribution<double> U(-1, 1);
+    int tested = 0;
+    for (int i = 0; i < 20000; ++i) {
+        const double u_deg = 89 * U(rng), v_deg = 179.9 * U(rng);
+        const Eigen::Vector3d p(30 * U(rng), 30 * U(rng), 20 * (U(rng) + 1) / 2);
+        const Eigen::Vector3d mp = Eigen::AngleAxisd(rad(u_deg), Eigen::Vector3d::UnitX()) *
+                                       (Eigen::AngleAxisd(rad(v_deg), Eigen::Vector3d::UnitZ()) * (p - pivot)) + pivot;
+        if (mp.x() < -126 || mp.x() > 125 || mp.y() < -92.3 || mp.y() > 50 || mp.z() < -1 || mp.z() > 125) continue;
+        ++tested;
+        const Eigen::Vector3d axis(std::sin(rad(u_deg)) * std::sin(rad(v_deg)), std::sin(rad(u_deg)) * std::cos(rad(v_deg)), std::cos(rad(u_deg)));
+        std::vector<double> q(m.joints.size(), 0.0);
+        q[X] = mp.x(), q[Y] = mp.y(), q[Z] = mp.z(), q[Uj] = u_deg, q[V] = v_deg;
+        const Pose fk = k.forward(q);
+        CHECK((fk.tip - p).norm() < 1e-9);
+        CHECK((fk.axis - axis).norm() < 1e-12);
+        std::vector<double> prev = q, back;
+        prev[Uj] += 1, prev[V] -= 1;
+        REQUIRE(k.inverse({p, axis}, prev, back).ok());
+        for (std::size_t j = 0; j < q.size(); ++j) CHECK(std::abs(back[j] - q[j]) < 1e-9);
+    }
+    CHECK(tested > 5000);
+}
+
+TEST_CASE("every bundled machine gives every joint its speed limit") {
+    for (const auto& [name, path] : bundled_machines()) {
+        CAPTURE_BINDING(name);
+        const Machine m = load_machine(path);
+        for (const Joint& j : m.joints) {
+            CAPTURE(j.name);
+            CHECK((j.max_feed > 0 || j.absent));  // an absent axis never moves
+        }
+    }
+}
+
+TEST_CASE("rw2's Z is held to the Ender 5 Pro's 5 mm/s: a fast Z move is written at F300") {
+    // Andersons' head rides an Ender 5 Pro, whose Marlin allows Z 5 mm/s: a move planned at
+    // F6000 along Z alone would take 0.5 s in xlate5's plan and 10 s on the printer.
+    xlate5::test::TempDir dir;
+    const auto in = dir.write("z.gcode", "G1 Z250 F6000\n");
+    const auto out = dir.path / "out.gcode";
+    const std::string cmd = std::string(XLATE5_BINARY) + " --machine rw2 -i " + xlate5::test::quote(in.string()) + " -o " +
+                            xlate5::test::quote(out.string());
+    REQUIRE(std::system(cmd.c_str()) == 0);
+    const auto lines = xlate5::test::lines_of(xlate5::test::read(out));
+    REQUIRE(lines.size() == 2);
+    CHECK(xlate5::test::words_of(lines[1]).at('Z') == 250);
+    CHECK(xlate5::test::words_of(lines[1]).at('F') == 300);  // Z alone: its limit (F6000 before)
+}
+
+namespace {
+
+// The poses a tool-space file in the vector form (--inverse --preview-form G43.5) visits, in
+// order, a pose written again only when it changes.
+std::vector<Pose> tool_poses(const std::string& text) {
+    std::vector<Pose> out;
+    double w[6] = {0, 0, 0, 0, 0, 1};
+    for (const auto& raw : xlate5::test::lines_of(text)) {
+        const std::string line = raw.substr(0, raw.find(';'));
+        if (line.rfind("G0 ", 0) != 0 && line.rfind("G1 ", 0) != 0) continue;
+        const auto words = xlate5::test::words_of(line);
+        bool any = false;
+        for (int i = 0; i < 6; ++i)
+            if (const auto it = words.find("XYZIJK"[i]); it != words.end()) w[i] = it->second, any = true;
+        if (!any) continue;
+        Pose p;
+        p.tip = {w[0], w[1], w[2]};
+        p.axis = Eigen::Vector3d(w[3], w[4], w[5]).normalized();
+        if (out.empty() || (out.back().tip - p.tip).norm() > 0 || (out.back().axis - p.axis).norm() > 0) out.push_back(p);
+    }
+    return out;
+}
+
+// Runs xlate5 with `args` on `in`; its output, or "" with the exit code in `rc`.
+std::string run_xlate5(const std::string& args, const std::filesystem::path& in, const xlate5::test::TempDir& dir, int& rc) {
+    const auto out = dir.path / "run.out";
+    std::filesystem::remove(out);
+    const std::string cmd = std::string(XLATE5_BINARY) + " " + args + " -i " + xlate5::test::quote(in.string()) + " -o " +
+                            xlate5::test::quote(out.string()) + " 2>" + xlate5::test::quote((dir.path / "run.err").string());
+    rc = WEXITSTATUS(std::system(cmd.c_str()));
+    return xlate5::test::read(out);
+}
+
+// Every pose of `start` is visited by `end`, in the same order, within `tip_tol` mm and
+// `axis_deg` degrees; the poses `end` visits between two of them (a split) stay within the tip
+// tolerance of the straight line between them. The count of end's poses is returned.
+std::size_t check_same_path(const std::vector<Pose>& start, const std::vector<Pose>& end, double tip_tol, double axis_deg) {
+    const double axis_tol = 2 * std::sin(rad(axis_deg) / 2);
+    std::size_t k = 0, matched = 0;
+    for (std::size_t i = 0; i < start.size(); ++i) {
+        const std::size_t from = k;
+        while (k < end.size() && !((end[k].tip - start[i].tip).norm() <= tip_tol && (end[k].axis - start[i].axis).norm() <= axis_tol)) ++k;
+        if (k == end.size()) {
+            INFO("start pose " << i << " of " << start.size() << " at " << start[i].tip.transpose() << " axis " << start[i].axis.transpose());
+            CHECK_MESSAGE(false, "not visited (after end pose " << from << ")");
+            return end.size();
+        }
+        // The pieces between the previous start pose and this one lie on the line between them.
+        if (i > 0)
+            for (std::size_t j = from; j < k; ++j) {
+                const Eigen::Vector3d a = start[i - 1].tip, b = start[i].tip, p = end[j].tip;
+                const Eigen::Vector3d ab = b - a;
+                const double t = ab.squaredNorm() > 0 ? std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+                CHECK((a + t * ab - p).norm() <= tip_tol);
+            }
+        ++matched;
+        ++k;
+    }
+    CHECK(matched == start.size());
+    return end.size();
+}
+
+}  // namespace
+
+TEST_CASE("retargeting: NX's CL data for xyzac-trt's trunnion, through tool space, onto koc5's B/C table and back") {
+    // Machine A (xyzac-trt, LinuxCNC's trunnion: A about X) -> its joint space; --from xyzac-trt
+    // onto machine B (koc5: B about Y, C about -Z); B's joint space back to tool space: the same
+    // path as A's own tool space, within the tolerance. (A head such as rw2 homes its tip at
+    // Z 300, out of these tables' reach: its G28 pose is refused on them, naming the line.)
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    int rc = 0;
+    const std::filesystem::path cl = xlate5::test::corpus_dir() + "/nx_cldata/APT_Variable_Axis.cls";
+    const auto ja = dir.write("a.gcode", run_xlate5("--machine xyzac-trt", cl, dir, rc));
+    REQUIRE(rc == 0);
+    const auto ta = run_xlate5("--machine xyzac-trt --inverse --preview-form G43.5", ja, dir, rc);
+    REQUIRE(rc == 0);
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine koc5 --from xyzac-trt", ja, dir, rc));
+    INFO(xlate5::test::read(dir.path / "run.err"));
+    REQUIRE(rc == 0);
+    CHECK(xlate5::test::contains(xlate5::test::read(jb), "machine=koc5 joint space"));
+    const auto tb = run_xlate5("--machine koc5 --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    const auto start = tool_poses(ta), end = tool_poses(tb);
+    REQUIRE(start.size() > 300);
+    const std::size_t visited = check_same_path(start, end, 0.01, 0.5);
+    MESSAGE(start.size() << " poses on xyzac-trt, " << visited << " on koc5");
+    // A pose the target cannot reach is refused with the input line and the pose it became.
+    run_xlate5("--machine rw2 --from xyzac-trt", ja, dir, rc);
+    CHECK(rc == 1);
+    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), "(at tool-space pose 'G0 X0 Y0 Z0 I0 J0 K1"));
+}
+
+TEST_CASE("retargeting: S4's joint-space file for the Core R-Theta, onto pentarod and back to the same path") {
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    int rc = 0;
+    const std::filesystem::path s4 = xlate5::test::corpus_dir() + "/s4/pi_3mm_side_paint_rtheta.gcode";
+    const auto ta = run_xlate5("--machine core-rtheta --inverse --preview-form G43.5", s4, dir, rc);
+    REQUIRE(rc == 0);
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine pentarod --from core-rtheta", s4, dir, rc));
+    INFO(xlate5::test::read(dir.path / "run.err"));
+    REQUIRE(rc == 0);
+    const auto tb = run_xlate5("--machine pentarod --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    const auto start = tool_poses(ta), end = tool_poses(tb);
+    REQUIRE(start.size() > 5000);
+    const std::size_t visited = check_same_path(start, end, 0.01, 0.5);
+    MESSAGE(start.size() << " poses on core-rtheta, " << visited << " on pentarod");
+}
+
+namespace {
+
+std::string machine_text(const std::string& name) {
+    return xlate5::test::read(std::filesystem::path(XLATE5_MACHINE_DIR_FOR_TESTS) / (name + ".toml"));
+}
+
+std::string replaced(std::string s, const std::string& from, const std::string& to) {
+    const auto at = s.find(from);
+    REQUIRE(at != std::string::npos);
+    return s.replace(at, from.size(), to);
+}
+
+bool matches(const std::string& s, const char* re) { return std::regex_match(s, std::regex(re)); }
+
+}  // namespace
+
+TEST_CASE("firmware-config reprap: M584 creates U and V as rotational, M208 and M203 are the machine file's") {
+    // RepRapFirmware's M584: R1 makes the axes it creates rotational (U V W are linear unless
+    // told); M208 takes minimum:maximum; M203 mm or degrees per minute.
+    for (const std::string name : {"open5x", "voron-xyzac", "pentarod", "fullcontrol-xyzb"}) {
+        CAPTURE(name);
+        const Machine m = machine(name);
+        const std::string text = firmware_config(m, FirmwareKind::RepRap);
+        std::map<char, std::pair<double, double>> limits;
+        std::map<char, double> speeds;
+        std::map<char, bool> rotational;
+        for (const auto& raw : xlate5::test::lines_of(text)) {
+            const std::string line = raw.substr(0, raw.find(';'));
+            if (line.find_first_not_of(' ') == std::string::npos) continue;
+            CAPTURE(raw);
+            REQUIRE(matches(line, R"(M(584|208|203)( [XYZUVWABCDE]-?[0-9.]+(:-?[0-9.]+)?)+( R[01])? *)"));
+            std::istringstream words(line);
+            std::string cmd, w;
+            words >> cmd;
+            std::vector<char> created;
+            bool r1 = false;
+            while (words >> w) {
+                if (cmd == "M584" && w[0] == 'R') r1 = w == "R1";
+                else if (cmd == "M584") created.push_back(w[0]);
+                else if (cmd == "M208") limits[w[0]] = {std::stod(w.substr(1, w.find(':') - 1)), std::stod(w.substr(w.find(':') + 1))};
+                else speeds[w[0]] = std::stod(w.substr(1));
+            }
+            for (const char c : created) rotational[c] = r1 || (c >= 'A' && c <= 'D' && !line.ends_with("R0"));
+        }
+        for (const Joint& j : m.joints) {
+            CAPTURE(j.output);
+            REQUIRE(limits.count(j.output));
+            if (j.bounded()) {
+                CHECK(limits[j.output].first == doctest::Approx(j.min));
+                CHECK(limits[j.output].second == doctest::Approx(j.max));
+            }
+            CHECK(speeds[j.output] == doctest::Approx(j.max_feed));
+            CHECK(rotational[j.output] == j.rotary);
+        }
+        CHECK(xlate5::test::contains(text, "M92"));  // its place, with the steps left to the user
+    }
+}
+
+TEST_CASE("firmware-config marlin: AXISn_NAME and _ROTATES, limits, home directions and DEFAULT_MAX_FEEDRATE") {
+    const Machine m = machine("rw2");
+    const std::string text = firmware_config(m, FirmwareKind::Marlin);
+    for (const auto& line : xlate5::test::lines_of(text)) {
+        if (line.empty() || line.rfind("//", 0) == 0) continue;
+        CAPTURE(line);
+        CHECK(matches(line, R"(#define [A-Z][A-Z0-9_]*( .+)?)"));
+    }
+    for (const char* want : {"#define AXIS4_NAME 'A'", "#define AXIS4_ROTATES", "#define AXIS5_NAME 'B'", "#define AXIS5_ROTATES",
+                             "#define I_MIN_POS -168", "#define I_MAX_POS 168", "#define I_HOME_DIR -1", "#define J_MIN_POS -100",
+                             "#define Z_MAX_POS 300", "#define Z_HOME_DIR 1", "#define DEFAULT_MAX_FEEDRATE { 500, 500, 5, 120, 60, 25 }"})
+        CHECK_MESSAGE(xlate5::test::contains(text, want), want);
+    // Marlin names its extra axes A B C U V W in that order: C before B cannot be.
+    const std::string swapped = replaced(replaced(machine_text("koc5"), "name = \"B\"\n", "name = \"B\"\noutput = \"C\"\n"),
+                                         "name = \"C\"\n", "name = \"C\"\noutput = \"B\"\n");
+    const Machine cb = load_machine_text(swapped, "cb.toml");
+    CHECK_THROWS_AS(firmware_config(cb, FirmwareKind::Marlin), MachineError);
+    CHECK_NOTHROW(firmware_config(machine("koc5"), FirmwareKind::Marlin));
+}
+
+TEST_CASE("firmware-config klipper: a [manual_stepper] per rotary and the registration Klipper documents") {
+    const Machine m = load_machine_text(replaced(machine_text("rw2"), "max_feed = 7200", "max_feed = 7200\nmanual_stepper = \"head_turn\""), "rw2k.toml");
+    const std::string text = firmware_config(m, FirmwareKind::Klipper);
+    bool in_gcode = false;
+    int registrations = 0;
+    for (const auto& line : xlate5::test::lines_of(text)) {
+        if (line.empty() || line[0] == '#') continue;
+        CAPTURE(line);
+        if (line[0] == '[') {
+            CHECK(matches(line, R"(\[(printer|stepper_[xyz]|manual_stepper \w+|gcode_macro \w+)\])"));
+            in_gcode = false;
+            continue;
+        }
+        if (in_gcode && line.rfind("  ", 0) == 0) {
+            // MANUAL_STEPPER STEPPER=config_name GCODE_AXIS=[A-Z] [LIMIT_VELOCITY=<velocity>]
+            CHECK(matches(line, R"(  MANUAL_STEPPER STEPPER=\w+ GCODE_AXIS=[A-Z]( LIMIT_VELOCITY=[0-9.]+)?)"));
+            ++registrations;
+            continue;
+        }
+        CHECK(matches(line, R"([a-z_]+:( .*)?)"));
+        in_gcode = line == "gcode:";
+    }
+    CHECK(registrations == 2);
+    for (const char* want : {"[manual_stepper head_turn]\nvelocity: 120", "position_min: -168\nposition_max: 168",
+                             "[manual_stepper axis_b]\nvelocity: 60", "MANUAL_STEPPER STEPPER=head_turn GCODE_AXIS=A LIMIT_VELOCITY=120",
+                             "MANUAL_STEPPER STEPPER=axis_b GCODE_AXIS=B LIMIT_VELOCITY=60", "max_z_velocity: 5"})
+        CHECK_MESSAGE(xlate5::test::contains(text, want), want);
+    // The same names in a machine file that says so: letters, digits and _ only.
+    CHECK_THROWS_AS(load_machine_text(replaced(machine_text("rw2"), "max_feed = 7200", "max_feed = 7200\nmanual_stepper = \"a b\""), "bad.toml"),
+                    MachineError);
+}
+
+TEST_CASE("the klipper dialect: the rotaries registered first, their positions set through MANUAL_STEPPER, never a bare G92") {
+    xlate5::test::TempDir dir;
+    const auto file = dir.write("rw2k.toml", replaced(replaced(machine_text("rw2"), "dialect = \"marlin\"", "dialect = \"klipper\""), "name = \"rw2\"", "name = \"rw2k\""));
+    // rw2's start code: home, say where A's switch is, then square the head; then, in joint
+    // space (G49), a G92 of a linear joint and a rotary together.
+    const auto in = dir.write("start.gcode", "G28\nG92 A-168\nG1 A0 B0 F1200\nG92 E0\nG49\nG92 Z300 A0\n");
+    int rc = 0;
+    const std::string out = run_xlate5("--machine " + xlate5::test::quote(file.string()), in, dir, rc);
+    INFO(out);
+    REQUIRE(rc == 0);
+    const auto lines = xlate5::test::lines_of(out);
+    REQUIRE(lines.size() > 4);
+    CHECK(lines[1] == "MANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=A LIMIT_VELOCITY=120");
+    CHECK(lines[2] == "MANUAL_STEPPER STEPPER=axis_b GCODE_AXIS=B LIMIT_VELOCITY=60");
+    for (const auto& line : lines) {
+        if (line.rfind("G92", 0) != 0) continue;
+        CAPTURE(line);
+        // Klipper's G92 reads X Y Z E alone; one with none of them zeroes all four.
+        CHECK(matches(line, R"(G92( [XYZE]-?[0-9.]+)+)"));
+    }
+    CHECK(xlate5::test::contains(out, "MANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=\nMANUAL_STEPPER STEPPER=axis_a SET_POSITION=-168\n"
+                                      "MANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=A LIMIT_VELOCITY=120\n"));
+    CHECK(xlate5::test::contains(out, "G92 E0\n"));
+    CHECK(xlate5::test::contains(out, "G92 Z300\nMANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=\nMANUAL_STEPPER STEPPER=axis_a SET_POSITION=0\n"));
+}
+
+TEST_CASE("the klipper dialect's feed: a move without X Y Z is timed by its largest change over E and the rotaries") {
+    // addin4's R turns the nozzle about its own axis, X Y Z still: 'R1 E5' in Klipper takes
+    // max(1, 5) / F. xlate5 plans the turn at the rotary feed (3600 deg/min: 1/3600 min), so F
+    // must be 5 * 3600; the rotaries' rule alone would give 3600 and take five times as long.
+    xlate5::test::TempDir dir;
+    const auto file = dir.write("addin4k.toml", replaced(replaced(machine_text("addin4"), "dialect = \"marlin\"", "dialect = \"klipper\""), "name = \"addin4\"", "name = \"addin4k\""));
+    const auto in = dir.write("turn.gcode", "M83\nG1 X10 Y10 Z1 R0 F600\nG1 R1 E5\n");
+    int rc = 0;
+    const std::string out = run_xlate5("--machine " + xlate5::test::quote(file.string()), in, dir, rc);
+    INFO(out);
+    REQUIRE(rc == 0);
+    const auto lines = xlate5::test::lines_of(out);
+    const auto w = xlate5::test::words_of(lines.back());
+    CHECK(w.at('A') == 1);
+    CHECK(w.at('E') == 5);
+    CHECK(w.at('F') == doctest::Approx(5 * 3600));
+    CHECK(lines[1] == "MANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=A LIMIT_VELOCITY=120");
+}
+
+TEST_CASE("retargeting S4's file onto the Core R-Theta itself: the same poses back, and no Y word ever written") {
+    // The polar machine's own file through its FK, tool space (7 decimals) and its IK again:
+    // the absent Y is solved within kAbsentSlack of 0 and never written; every written pose is
+    // the file's own, within the tolerance (--no-segment: one joint move per move, as S4 wrote it).
+    // The first 3 990 lines: at line 4 001 the nozzle stands 0.004 degrees off vertical, where
+    // the tool vector's 7 decimals leave C uncertain by a milliradian and Y comes out 0.002 mm,
+    // past its slack (the line is refused, naming it): a polar machine's C near the pole should
+    // come from the tip, which the general solve does not do.
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    int rc = 0;
+    std::string head;
+    {
+        const auto all = xlate5::test::lines_of(xlate5::test::read(xlate5::test::corpus_dir() + "/s4/pi_3mm_side_paint_rtheta.gcode"));
+        REQUIRE(all.size() > 3990);
+        for (std::size_t i = 0; i < 3990; ++i) head += all[i] + "\n";
+    }
+    const auto s4 = dir.write("s4_head.gcode", head);
+    const auto ta = run_xlate5("--machine core-rtheta --inverse --preview-form G43.5", s4, dir, rc);
+    REQUIRE(rc == 0);
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine core-rtheta --from core-rtheta --no-segment", s4, dir, rc));
+    INFO(xlate5::test::read(dir.path / "run.err"));
+    REQUIRE(rc == 0);
+    for (const auto& line : xlate5::test::lines_of(xlate5::test::read(jb))) {
+        if (line.empty() || line[0] == ';') continue;
+        CAPTURE(line);
+        CHECK(line.find(" Y") == std::string::npos);
+    }
+    const auto tb = run_xlate5("--machine core-rtheta --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    const auto start = tool_poses(ta), end = tool_poses(tb);
+    REQUIRE(start.size() > 3000);
+    check_same_path(start, end, 0.01, 0.5);
+}
