@@ -173,14 +173,13 @@ private:
     Position position_ = Position::Unknown;
     std::string position_why_ = "the firmware has not reported it yet";
     std::uint64_t position_tag_ = 0;  // the service's own M114
-    std::uint64_t window_first_ = 0;
-    asio::steady_timer idle_timer_;
-    bool idle_armed_ = false;  // the serial (stats_.lines_in) of the look-back window's first line
+    std::uint64_t window_first_ = 0;  // the serial (stats_.lines_in) of the look-back window's first line
     std::string stop_reason_;
     bool draining_ = false;
     std::function<void(const std::string&)> drained_;
     std::function<void()> idle_waiter_;
-    asio::steady_timer busy_timer_, drain_timer_, hold_timer_;
+    asio::steady_timer busy_timer_, drain_timer_, hold_timer_, idle_timer_;
+    bool idle_armed_ = false;  // a check for silent TCP senders is due
     bool holding_ = false;            // the translator may hold output (look-back)
     std::uint64_t lines_seen_ = 0;
     bool stop_healthy_ = false;       // stopped by a refused line, not by the firmware: the printer is fine

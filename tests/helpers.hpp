@@ -100,6 +100,30 @@ inline bool corpus_absent() {
 constexpr double kPi = 3.14159265358979323846;
 inline double rad(double deg) { return deg * kPi / 180.0; }
 
+// The distance from p to the segment a-b (mm): how far an emitted piece's tip strays from the
+// programmed line.
+inline double seg_dist(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    const Eigen::Vector3d ab = b - a;
+    double t = ab.squaredNorm() > 0 ? (p - a).dot(ab) / ab.squaredNorm() : 0.0;
+    t = std::clamp(t, 0.0, 1.0);
+    return (a + t * ab - p).norm();
+}
+
+inline double angle_deg(const Eigen::Vector3d& u, const Eigen::Vector3d& v) { return std::acos(std::clamp(u.dot(v), -1.0, 1.0)) * 180 / kPi; }
+
+// The angle (degrees) from unit vector x to the great-circle arc from a to b (exact: the
+// nearest point of the circle's plane, or the nearer end when that lies off the arc).
+inline double arc_distance(const Eigen::Vector3d& x, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    const Eigen::Vector3d n = a.cross(b);
+    double best = std::min(angle_deg(x, a), angle_deg(x, b));
+    if (n.norm() < 1e-12) return best;
+    const Eigen::Vector3d nn = n.normalized();
+    const Eigen::Vector3d p = x - x.dot(nn) * nn;
+    if (p.norm() > 1e-12 && a.cross(p).dot(nn) >= 0 && p.cross(b).dot(nn) >= 0)
+        best = std::min(best, std::asin(std::min(1.0, std::abs(x.dot(nn)))) * 180 / kPi);
+    return best;
+}
+
 inline bool contains(const std::string& hay, const std::string& needle) { return hay.find(needle) != std::string::npos; }
 
 inline std::vector<std::string> lines_of(const std::string& text) {

@@ -29,17 +29,6 @@ std::string num(double v, int d = 6) {
     return b;
 }
 
-double seg_dist(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-    const Eigen::Vector3d ab = b - a;
-    double t = ab.squaredNorm() > 0 ? (p - a).dot(ab) / ab.squaredNorm() : 0.0;
-    t = std::clamp(t, 0.0, 1.0);
-    return (a + t * ab - p).norm();
-}
-
-double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-    return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180.0 / kPi;
-}
-
 // One programmed move: tip and angles (A, B) at both ends, and whether it extrudes.
 struct Move {
     Eigen::Vector3d tip0, tip1;

@@ -28,13 +28,6 @@ namespace {
 
 Machine load(const std::string& name) { return load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml"); }
 
-double seg_dist(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-    const Eigen::Vector3d ab = b - a;
-    double t = ab.squaredNorm() > 0 ? (p - a).dot(ab) / ab.squaredNorm() : 0.0;
-    t = std::clamp(t, 0.0, 1.0);
-    return (a + t * ab - p).norm();
-}
-
 std::string num(double v, int d = 6) {
     char b[64];
     std::snprintf(b, sizeof b, "%.*f", d, v);
@@ -847,19 +840,6 @@ namespace {
 // A translated move's joint lines from `fw`: rotary travel, time under the firmware's feed rule
 // (minutes), and the worst tip and axis deviation of the printed path, densely, against the
 // programmed move a -> b (axis on its great circle).
-// The angle (degrees) from unit vector x to the great-circle arc from a to b (exact: the
-// nearest point of the circle's plane, or the nearer end when that lies off the arc).
-double arc_distance(const Eigen::Vector3d& x, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-    auto angle = [](const Eigen::Vector3d& u, const Eigen::Vector3d& v) { return std::acos(std::clamp(u.dot(v), -1.0, 1.0)) * 180 / kPi; };
-    const Eigen::Vector3d n = a.cross(b);
-    double best = std::min(angle(x, a), angle(x, b));
-    if (n.norm() < 1e-12) return best;
-    const Eigen::Vector3d nn = n.normalized();
-    const Eigen::Vector3d p = x - x.dot(nn) * nn;
-    if (p.norm() > 1e-12 && a.cross(p).dot(nn) >= 0 && p.cross(b).dot(nn) >= 0)
-        best = std::min(best, std::asin(std::min(1.0, std::abs(x.dot(nn)))) * 180 / kPi);
-    return best;
-}
 
 struct Walked {
     double travel = 0, minutes = 0, tip = 0, angle = 0;

@@ -30,27 +30,6 @@ std::string num(double v, int d) {
     return b;
 }
 
-double seg_dist(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-    const Eigen::Vector3d ab = b - a;
-    double t = ab.squaredNorm() > 0 ? (p - a).dot(ab) / ab.squaredNorm() : 0.0;
-    t = std::clamp(t, 0.0, 1.0);
-    return (a + t * ab - p).norm();
-}
-
-double angle_deg(const Eigen::Vector3d& u, const Eigen::Vector3d& v) { return std::acos(std::clamp(u.dot(v), -1.0, 1.0)) * 180 / kPi; }
-
-// Distance of x from the great-circle arc a -> b, degrees.
-double arc_dist(const Eigen::Vector3d& x, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-    const Eigen::Vector3d n = a.cross(b);
-    double best = std::min(angle_deg(x, a), angle_deg(x, b));
-    if (n.norm() < 1e-12) return best;
-    const Eigen::Vector3d nn = n.normalized();
-    const Eigen::Vector3d p = x - x.dot(nn) * nn;
-    if (p.norm() > 1e-12 && a.cross(p).dot(nn) >= 0 && p.cross(b).dot(nn) >= 0)
-        best = std::min(best, std::asin(std::min(1.0, std::abs(x.dot(nn)))) * 180 / kPi);
-    return best;
-}
-
 Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double t) {
     const double w = std::acos(std::clamp(a.dot(b), -1.0, 1.0));
     if (w < 1e-12) return a;
@@ -150,7 +129,7 @@ Emitted check_emitted(const Machine& m, const Kinematics& k, const std::string& 
                 for (std::size_t j = 0; j < qq.size(); ++j) qq[j] = fw[j] + (cur[j] - fw[j]) * s / 24.0;
                 const Pose f = k.forward(qq);
                 r.tip = std::max(r.tip, seg_dist(f.tip, a.tip, b.tip));
-                r.angle = std::max(r.angle, arc_dist(f.axis, a.axis, b.axis));
+                r.angle = std::max(r.angle, arc_distance(f.axis, a.axis, b.axis));
             }
         }
         fw = cur;
