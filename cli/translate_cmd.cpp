@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fcntl.h>
+#include <iostream>
 #include <map>
 #include <optional>
 #include <sys/stat.h>
@@ -118,6 +119,7 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         if (o.extruder.size() != 1 || !std::isalpha(static_cast<unsigned char>(o.extruder[0])))
             throw CLI::ValidationError("--extruder-letter", "expected one letter");
         options.extruder_letter = char(std::toupper(static_cast<unsigned char>(o.extruder[0])));
+        options.notice = [](const std::string& m) { std::cerr << printable(m) << "\n"; };
         if (o.input_format == "gcode" && o.extrusion_per_mm > 0)
             throw CLI::ValidationError("--extrusion-per-mm", "is for apt and waypoints input (G-code has its own E)");
         if (o.inverse && o.input_format != "auto" && o.input_format != "gcode")

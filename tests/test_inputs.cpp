@@ -416,3 +416,34 @@ TEST_CASE("command line: --input-format, --extrusion-per-mm, --keep-out") {
     CHECK(b.code == 1);
     CHECK(contains(b.err, "broken.csv:1:"));
 }
+
+TEST_CASE("messages that quote CL, waypoint and keep-out input write control bytes as \\xHH, never raw") {
+    TempDir dir;
+    auto raw_control = [](const std::string& s) {
+        for (char c : s)
+            if ((static_cast<unsigned char>(c) < 0x20 && c != '\n' && c != '\t') || c == 0x7F) return true;
+        return false;
+    };
+    const std::string esc = "\x1b]0;owned\x07\x1b[2J";
+    const std::string nul(1, '\0');
+    // CL: an unknown record and a field that is not a number, each carrying ESC sequences.
+    const auto cl = run_cli(dir, "--machine xyzac-trt", "UNITS/MM\n" + esc + "SPINDL/ON\n");
+    CHECK(cl.code == 1);
+    CHECK_FALSE(raw_control(cl.err));
+    CHECK(contains(cl.err, "\\x1b]0;OWNED\\x07\\x1b[2JSPINDL"));  // (the record word, upper-cased)
+    const auto num = run_cli(dir, "--machine xyzac-trt --input-format apt", "UNITS/MM\nRAPID\nGOTO/1,2" + nul + "x,3\n");
+    CHECK(num.code == 1);
+    CHECK_FALSE(raw_control(num.err));
+    CHECK(contains(num.err, "'2\\x00x' is not a number"));
+    // Waypoints.
+    const auto w = run_cli(dir, "--machine xyzac-trt --input-format waypoints", "0 0 5 0 0 1\n1 2 " + esc + " 0 0 1\n");
+    CHECK(w.code == 1);
+    CHECK_FALSE(raw_control(w.err));
+    CHECK(contains(w.err, "\\x1b"));
+    // Keep-out items.
+    const auto items = dir.write("items.csv", "100, 1" + nul + esc + ", 0\n");
+    const auto k = run_cli(dir, "--machine addin4 --keep-out " + quote(items.string()), "G1 X1\n");
+    CHECK(k.code == 1);
+    CHECK_FALSE(raw_control(k.err));
+    CHECK(contains(k.err, "\\x00\\x1b"));
+}

@@ -37,6 +37,7 @@ Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner
       input_name_(std::move(input_name)),
       extruder_letter_(extruder_letter),
       saved_(state) {
+    long_lines_matter_ = machine_.dialect.firmware == FirmwareDialect::Marlin || machine_.dialect.firmware == FirmwareDialect::MarlinArticulated;
     move_letters_ = "XYZIJKEF";
     for (const Joint& j : machine_.joints) {
         move_letters_ += j.name;
@@ -115,6 +116,56 @@ void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& ou
         } catch (const LineError& e) {
             throw InputError(input_name_, run.line_no, e.column(), e.what());
         }
+    }
+    // Only output of more than 95 characters can hold a line that long (a cheap test per line).
+    if (out.size() - out_start > kMarlinLineChars && long_lines_matter_) {
+        try {
+            check_line_lengths(out, out_start, line, run.line_no);
+        } catch (...) {
+            out.resize(out_start);
+            state_ = *before;
+            planner_.position_unknown();
+            throw;
+        }
+    }
+}
+
+void Interpreter::check_line_lengths(std::string& out, std::size_t out_start, std::string_view line, std::uint64_t line_no) {
+    std::size_t at = out_start;
+    while (at < out.size()) {
+        std::size_t nl = out.find('\n', at);
+        if (nl == std::string::npos) nl = out.size();
+        const std::string_view l(out.data() + at, nl - at);
+        const bool display = l.rfind("M117", 0) == 0 || l.rfind("M118", 0) == 0;
+        // What Marlin stores: up to a ';' comment (the text of a display or file command is
+        // taken whole: xlate5 passes it on as written, ';' and all).
+        std::size_t stored = l.size();
+        const bool text = display || block_.text_argument;
+        if (!text)
+            if (const auto semi = l.find(';'); semi != std::string_view::npos) stored = semi;
+        if (stored > kMarlinLineChars && !(l.size() > 0 && l.front() == ';')) {
+            if (!display) {
+                // The column of the input where the 96th character of the written line is, when
+                // the line was written as read; else the line's start.
+                const auto in_at = line.find(l.substr(0, kMarlinLineChars + 1));
+                const std::uint32_t column = in_at == std::string_view::npos ? 1 : std::uint32_t(in_at + kMarlinLineChars + 1);
+                throw InputError(input_name_, line_no, column,
+                                 "this line would be written with " + std::to_string(stored) + " characters: Marlin reads at most " +
+                                     std::to_string(kMarlinLineChars) + " and runs the rest as a line of its own; shorten it");
+            }
+            // A display text loses its tail; nothing is run from it.
+            std::size_t keep = kMarlinLineChars;
+            while (keep > 4 && l[keep - 1] == ' ') --keep;
+            out.erase(at + keep, nl - (at + keep));
+            nl = at + keep;
+            if (notice_ && line_no > noticed_line_) {
+                noticed_line_ = line_no;
+                notice_(input_name_ + ":" + std::to_string(line_no) + ": note: " + std::string(l.substr(0, 4)) + "'s text shortened to " +
+                        std::to_string(kMarlinLineChars) + " characters (Marlin reads at most " + std::to_string(kMarlinLineChars) +
+                        " a line and would run the rest as a command)");
+            }
+        }
+        at = nl + 1;
     }
 }
 
