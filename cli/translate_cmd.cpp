@@ -174,6 +174,7 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         front_options.extrusion_per_mm = o.extrusion_per_mm;
         front_options.waypoint_feed = o.waypoint_feed;
         front_options.chord_tolerance = 0.5 * machine->motion.tolerance;  // the other half for the split
+        front_options.extrusion_decimals = machine->dialect.extrusion_decimals;
         InputFront front(translator, front_options);
         LineReader reader(in_fd, options.input_name);
         OutputSink sink(o.output);

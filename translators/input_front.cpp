@@ -17,7 +17,7 @@ std::optional<InputFormat> parse_input_format(std::string_view name) {
 
 InputFront::InputFront(Translator& translator, FrontOptions options)
     : translator_(translator), o_(std::move(options)), format_(o_.format) {
-    if (format_ == InputFormat::Apt) apt_ = std::make_unique<AptReader>(AptOptions{o_.input_name, o_.extrusion_per_mm, o_.chord_tolerance});
+    if (format_ == InputFormat::Apt) apt_ = std::make_unique<AptReader>(AptOptions{o_.input_name, o_.extrusion_per_mm, o_.chord_tolerance, o_.extrusion_decimals});
     if (format_ == InputFormat::Waypoints)
         waypoints_ = std::make_unique<WaypointReader>(WaypointOptions{o_.input_name, o_.extrusion_per_mm, o_.waypoint_feed});
 }
@@ -54,7 +54,7 @@ void InputFront::feed_other(std::string_view line, std::uint64_t line_no, std::s
         format_ = looks_like_apt(line) ? InputFormat::Apt : InputFormat::GCode;
         if (format_ == InputFormat::GCode && o_.extrusion_per_mm > 0)
             throw InputError(o_.input_name, line_no, 1, "this is G-code, which has its own E: the extrusion rate per mm is for CL data and waypoint tables");
-        if (format_ == InputFormat::Apt) apt_ = std::make_unique<AptReader>(AptOptions{o_.input_name, o_.extrusion_per_mm, o_.chord_tolerance});
+        if (format_ == InputFormat::Apt) apt_ = std::make_unique<AptReader>(AptOptions{o_.input_name, o_.extrusion_per_mm, o_.chord_tolerance, o_.extrusion_decimals});
     }
     switch (format_) {
         case InputFormat::GCode: translator_.feed(line, line_no, out); return;

@@ -60,6 +60,22 @@ void Interpreter::fail(std::uint32_t column, const std::string& message) const {
 
 void Interpreter::no_number(const Param& p) const { fail(p.column, std::string("word ") + p.letter + " has no number"); }
 
+PassedNumber Interpreter::passed_e(const Param& p, bool inches) {
+    if (!inches) return {number(p), p.text};
+    // E read in inches is written in millimetres at the dialect's decimals (v * 25.4 has binary
+    // noise in its last digits); relative E carries what the rounding left to the next E, so
+    // the written total stays within half a unit of the last decimal of the exact total.
+    const int ed = machine_.dialect.extrusion_decimals;
+    const double scale = std::pow(10.0, ed);
+    Modes& modes = state_.modal.modes;
+    const double exact = number(p) * 25.4;
+    if (!modes.e_relative) return {std::round(exact * scale) / scale, {}, ed};
+    const double want = exact + modes.e_inch_carry;
+    const double written = std::round(want * scale) / scale;
+    modes.e_inch_carry = want - written;
+    return {written, {}, ed};
+}
+
 PassedNumber Interpreter::passed(const Param& p, bool inches) const {
     const double v = number(p);
     if (inches) return {v * 25.4, {}};
@@ -268,6 +284,13 @@ void Interpreter::run_command(const CommandWord& c, std::string_view body, bool 
                 if (m.mode != OrientationMode::Joints) {
                     std::string code;
                     append_code(code, 'G', c.code10);
+                    if (c.code10 == 430 || c.code10 == 440)
+                        fail(p.column, "word " + std::string(1, p.letter) + " on a line with " + code + " (tool length compensation): under "
+                                       "tool-centre-point control the tool's length is the machine file's and X Y Z already place the tip; "
+                                       "put the move on a line of its own (" + code + " with its H alone is passed on)");
+                    if (c.code10 == 530)
+                        fail(p.column, "word " + std::string(1, p.letter) + " of G53 is a machine coordinate, which tool-centre-point control "
+                                       "does not have: put G49 before it (G53 and its words are then sent as joint values)");
                     fail(c.column, code + " with axis words is not supported under tool-centre-point control "
                                           "(switch to G49 to send it as joint values)");
                 }
@@ -333,7 +356,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
                 ijk[p.letter - 'I'] = number(p);
                 any_ijk = true;
                 break;
-            case 'E': mv.e = passed(p, inches); break;
+            case 'E': mv.e = passed_e(p, inches); break;
             case 'F':
                 mv.f = passed(p, inches);
                 if (!(mv.f->value > 0)) fail(p.column, "feed rate F must be positive");
@@ -494,7 +517,7 @@ void Interpreter::joint_move(int gcode, Params words, std::string& out) {
     commanded_.assign(q.size(), false);
     for (const Param& p : words) {
         switch (p.letter) {
-            case 'E': e = passed(p, modes.inches); break;
+            case 'E': e = passed_e(p, modes.inches); break;
             case 'F':
                 f = passed(p, modes.inches);
                 if (!(f->value > 0)) fail(p.column, "feed rate F must be positive");

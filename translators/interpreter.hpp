@@ -76,6 +76,7 @@ private:
     }
     [[noreturn]] void no_number(const Param& p) const;
     PassedNumber passed(const Param& p, bool inches) const;  // E or F, in mm
+    PassedNumber passed_e(const Param& p, bool inches);      // E, in mm (inches: rounded, the rest carried)
     bool is_axis_letter(char c) const;
     // The rotary joint a word's letter names, -1 for none (a linear joint's letter, none, or a
     // letter tool_move reads as something else: X Y Z I J K E F).
