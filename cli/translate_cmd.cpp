@@ -209,8 +209,9 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
                     : std::function<void(std::string_view)>(),
             first_line);
         if (stats.lines_in == 0) {
-            sink.write(head);  // an empty input: the header alone
+            sink.write(head);  // an empty input: the header alone, and said (a slicer's failed export, a wrong path)
             if (preview) preview->scan(head);
+            std::cerr << printable(options.input_name) << ": note: the input is empty: the output holds only xlate5's header\n";
         }
         // The report files are written like the output: whole, or not at all.
         std::optional<OutputSink> report_sink, plot_sink, preview_sink;

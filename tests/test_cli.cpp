@@ -1273,3 +1273,11 @@ TEST_CASE("cli: nothing written for Marlin is longer than 95 characters: display
     CHECK(contains(b.err, "name.gcode:1:96: this line would be written with 109 characters"));
     CHECK_FALSE(fs::exists(dir.path / "n.gcode"));
 }
+
+TEST_CASE("cli: an empty input says so on stderr and gives the header alone, exit 0") {
+    TempDir dir;
+    const auto r = run(dir, "--machine rw2", "");
+    CHECK(r.code == 0);
+    CHECK(contains(r.err, "<stdin>: note: the input is empty"));
+    CHECK(lines_of(r.out).size() == 1);
+}

@@ -12,6 +12,7 @@
 #include "helpers.hpp"
 #include "translators/error.hpp"
 #include "translators/input_front.hpp"
+#include "translators/keep_out.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/translator.hpp"
@@ -584,4 +585,26 @@ TEST_CASE("CL E with --extrusion-per-mm: written at the firmware's decimals, its
         mm += line + "\n";
     }
     check(mm, 1.0);
+}
+
+TEST_CASE("a UTF-8 byte-order mark opens G-code, CL data and keep-out items; a keep-out header row is skipped") {
+    const std::string bom = "\xEF\xBB\xBF";
+    const std::string g = "G28\nG1 X10 Y10 Z10 F600\nG1 X20\n";
+    CHECK(translate_text("xyzac-trt", bom + g, FrontOptions{}) == translate_text("xyzac-trt", g, FrontOptions{}));
+    const std::string cl = "UNITS/MM\nRAPID\nGOTO/1,2,3\n";
+    CHECK(translate_text("xyzac-trt", bom + cl, FrontOptions{}) == translate_text("xyzac-trt", cl, FrontOptions{}));
+    const auto plain = parse_keep_out("10, 20, 0\n30 40 5\n", "i.csv");
+    for (const std::string text : {bom + "10, 20, 0\n30 40 5\n", std::string("x,y,height\n10, 20, 0\n30 40 5\n"),
+                                   bom + "\"X\";\"Y\";\"Height (mm)\"\r\n10, 20, 0\n30 40 5\n"}) {
+        CAPTURE(text);
+        const auto items = parse_keep_out(text, "i.csv");
+        REQUIRE(items.items.size() == plain.items.size());
+        for (std::size_t i = 0; i < items.items.size(); ++i) {
+            CHECK(items.items[i].height == plain.items[i].height);
+            CHECK((items.items[i].centre - plain.items[i].centre).norm() == 0);
+        }
+    }
+    // Names after the first item, or numbers like inf, are no header: refused where they are.
+    CHECK_THROWS_AS(parse_keep_out("10, 20, 0\nx,y,height\n", "i.csv"), InputError);
+    CHECK_THROWS_AS(parse_keep_out("inf, nan, inf\n", "i.csv"), InputError);
 }

@@ -37,6 +37,9 @@ void InputFront::pass(std::string& out) {
 }
 
 void InputFront::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
+    // A UTF-8 byte-order mark (what Windows editors put first) is no part of the first line.
+    if (line_no == 1 && line.size() >= 3 && line.substr(0, 3) == "\xEF\xBB\xBF") [[unlikely]]
+        line.remove_prefix(3);
     // G-code first, and as the call it ends with: most lines take only this test.
     if (format_ == InputFormat::GCode) return translator_.feed(line, line_no, out);
     feed_other(line, line_no, out);
