@@ -23,10 +23,10 @@ int exit_with(std::exception_ptr error) {
         std::cerr << "xlate5: " << e.what() << "\n";
         return kIoError;
     } catch (const CLI::Error& e) {
-        std::cerr << "xlate5: " << e.what() << "\n";
+        std::cerr << "xlate5: " << printable(e.what()) << "\n";  // an option's value is quoted
         return kUsage;
     } catch (const std::exception& e) {
-        std::cerr << "xlate5: internal error: " << e.what() << "\n";
+        std::cerr << "xlate5: internal error: " << printable(e.what()) << "\n";
         return kInternal;
     }
 }

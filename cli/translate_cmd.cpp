@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fcntl.h>
+#include <iostream>
 #include <map>
 #include <optional>
 #include <sys/stat.h>
@@ -123,6 +124,7 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         if (o.extruder.size() != 1 || !std::isalpha(static_cast<unsigned char>(o.extruder[0])))
             throw CLI::ValidationError("--extruder-letter", "expected one letter");
         options.extruder_letter = char(std::toupper(static_cast<unsigned char>(o.extruder[0])));
+        options.notice = [](const std::string& m) { std::cerr << printable(m) << "\n"; };
         if (o.input_format == "gcode" && o.extrusion_per_mm > 0)
             throw CLI::ValidationError("--extrusion-per-mm", "is for apt and waypoints input (G-code has its own E)");
         if (o.inverse && o.input_format != "auto" && o.input_format != "gcode")
@@ -186,6 +188,7 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         front_options.extrusion_per_mm = o.extrusion_per_mm;
         front_options.waypoint_feed = o.waypoint_feed;
         front_options.chord_tolerance = 0.5 * machine->motion.tolerance;  // the other half for the split
+        front_options.extrusion_decimals = machine->dialect.extrusion_decimals;
         InputFront front(translator, front_options);
         LineReader reader(in_fd, options.input_name);
         OutputSink sink(o.output);
@@ -229,8 +232,9 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
                     : std::function<void(std::string_view)>(),
             first_line);
         if (stats.lines_in == 0) {
-            sink.write(head);  // an empty input: the header alone
+            sink.write(head);  // an empty input: the header alone, and said (a slicer's failed export, a wrong path)
             if (preview) preview->scan(head);
+            std::cerr << printable(options.input_name) << ": note: the input is empty: the output holds only xlate5's header\n";
         }
         // The report files are written like the output: whole, or not at all.
         std::optional<OutputSink> report_sink, plot_sink, preview_sink;

@@ -1255,3 +1255,36 @@ TEST_CASE("cli: --preview marks the look-back's unwind that the written lines sp
     CHECK(occurrences(dom, "data-kind=\"branch\"") == flips);
     CHECK(occurrences(dom, "data-kind=") == flips);
 }
+
+TEST_CASE("cli: nothing written for Marlin is longer than 95 characters: display text is shortened and said, a file name refused") {
+    // Marlin reads a line up to 95 characters and the rest as a new line (Marlin's queue.cpp):
+    // the tail of a long M117 would run as a raw, untranslated joint move.
+    TempDir dir;
+    const std::string text(90, 'x');
+    const auto in = dir.write("long.gcode", "G28\nM117 " + text + "G1 Z0 F9000\nM118 E1 " + text + "\nG1 Z250\n");
+    const auto r = run(dir, "--machine rw2 -i " + quote(in.string()) + " -o " + quote((dir.path / "o.gcode").string()));
+    CHECK(r.code == 0);
+    const std::string out = read(dir.path / "o.gcode");
+    for (const auto& l : lines_of(out)) {
+        CAPTURE(l);
+        CHECK(l.size() <= 95);
+    }
+    CHECK(contains(out, "M117 " + text.substr(0, 90) + "\n"));  // 95 characters: the text's head, no G1
+    CHECK_FALSE(contains(out, "G1 Z0 F9000"));
+    CHECK(contains(r.err, "long.gcode:2: note: M117's text shortened to 95 characters"));
+    CHECK(contains(r.err, "long.gcode:3: note: M118's text shortened"));
+    // A file name cannot be shortened: refused, nothing written.
+    const auto bad = dir.write("name.gcode", "M23 /" + std::string(100, 'd') + ".gco\n");
+    const auto b = run(dir, "--machine rw2 -i " + quote(bad.string()) + " -o " + quote((dir.path / "n.gcode").string()));
+    CHECK(b.code == 1);
+    CHECK(contains(b.err, "name.gcode:1:96: this line would be written with 109 characters"));
+    CHECK_FALSE(fs::exists(dir.path / "n.gcode"));
+}
+
+TEST_CASE("cli: an empty input says so on stderr and gives the header alone, exit 0") {
+    TempDir dir;
+    const auto r = run(dir, "--machine rw2", "");
+    CHECK(r.code == 0);
+    CHECK(contains(r.err, "<stdin>: note: the input is empty"));
+    CHECK(lines_of(r.out).size() == 1);
+}

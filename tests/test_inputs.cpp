@@ -12,6 +12,7 @@
 #include "helpers.hpp"
 #include "translators/error.hpp"
 #include "translators/input_front.hpp"
+#include "translators/keep_out.hpp"
 #include "translators/kinematics.hpp"
 #include "translators/machine.hpp"
 #include "translators/translator.hpp"
@@ -415,4 +416,195 @@ TEST_CASE("command line: --input-format, --extrusion-per-mm, --keep-out") {
     const auto b = run_cli(dir, "--machine addin4 --keep-out " + quote(broken.string()), "G1 X1\n");
     CHECK(b.code == 1);
     CHECK(contains(b.err, "broken.csv:1:"));
+}
+
+TEST_CASE("messages that quote CL, waypoint and keep-out input write control bytes as \\xHH, never raw") {
+    TempDir dir;
+    auto raw_control = [](const std::string& s) {
+        for (char c : s)
+            if ((static_cast<unsigned char>(c) < 0x20 && c != '\n' && c != '\t') || c == 0x7F) return true;
+        return false;
+    };
+    const std::string esc = "\x1b]0;owned\x07\x1b[2J";
+    const std::string nul(1, '\0');
+    // CL: an unknown record and a field that is not a number, each carrying ESC sequences.
+    const auto cl = run_cli(dir, "--machine xyzac-trt", "UNITS/MM\n" + esc + "SPINDL/ON\n");
+    CHECK(cl.code == 1);
+    CHECK_FALSE(raw_control(cl.err));
+    CHECK(contains(cl.err, "\\x1b]0;OWNED\\x07\\x1b[2JSPINDL"));  // (the record word, upper-cased)
+    const auto num = run_cli(dir, "--machine xyzac-trt --input-format apt", "UNITS/MM\nRAPID\nGOTO/1,2" + nul + "x,3\n");
+    CHECK(num.code == 1);
+    CHECK_FALSE(raw_control(num.err));
+    CHECK(contains(num.err, "'2\\x00x' is not a number"));
+    // Waypoints.
+    const auto w = run_cli(dir, "--machine xyzac-trt --input-format waypoints", "0 0 5 0 0 1\n1 2 " + esc + " 0 0 1\n");
+    CHECK(w.code == 1);
+    CHECK_FALSE(raw_control(w.err));
+    CHECK(contains(w.err, "\\x1b"));
+    // Keep-out items.
+    const auto items = dir.write("items.csv", "100, 1" + nul + esc + ", 0\n");
+    const auto k = run_cli(dir, "--machine addin4 --keep-out " + quote(items.string()), "G1 X1\n");
+    CHECK(k.code == 1);
+    CHECK_FALSE(raw_control(k.err));
+    CHECK(contains(k.err, "\\x00\\x1b"));
+}
+
+TEST_CASE("NX CLSF as listed to a file: the information listing header is read, the tool path translates as without it" *
+          doctest::skip(corpus_absent())) {
+    // NX writes "Information listing" files with a rule, four lines (creator, date, work part,
+    // node) and a rule before the CL records; auto-detection and the reader must take them.
+    const std::string cls = read(corpus("nx_cldata/APT_Variable_Axis.cls"));
+    const std::string header = "============================================================\n"
+                               "Information listing created by :  jsmith\n"
+                               "Date                           :  Tue Mar 12 10:15:02 2024\n"
+                               "Current work part              :  C:\\parts\\bracket.prt\n"
+                               "Node name                      :  cam-ws04\n"
+                               "============================================================\n\n";
+    const std::string plain = translate_text("xyzac-trt", cls, FrontOptions{});
+    const std::string listed = translate_text("xyzac-trt", header + cls, FrontOptions{});
+    // The four header lines are written as comments; nothing else differs.
+    std::string without;
+    int comments = 0;
+    for (const auto& l : lines_of(listed)) {
+        if (l.rfind("; Information listing", 0) == 0 || l.rfind("; Date", 0) == 0 || l.rfind("; Current work part", 0) == 0 ||
+            l.rfind("; Node name", 0) == 0) {
+            ++comments;
+            continue;
+        }
+        without += l + "\n";
+    }
+    CHECK(comments == 4);
+    CHECK(without == plain);
+    // A header line after the first record is no header: refused where it is.
+    const InputError e = error_of("xyzac-trt", "UNITS/MM\nNode name : x\n", FrontOptions{InputFormat::Apt});
+    CHECK(e.line() == 2);
+}
+
+TEST_CASE("CL CIRCLE with TIMES,n: a helix of n turns about its axis to the GOTO, its height shared evenly") {
+    // NX CLSF: CIRCLE/x,y,z,i,j,k,r,tol,ratio,diameter,corner,TIMES,n. From (10,0,7) down to
+    // (10,0,0) about +Z, radius 10, 7 turns: 7 * 2 pi of sweep, 1 mm of height a turn.
+    AptOptions o;
+    o.chord_tolerance = 0.01;
+    const auto mv = moves_of(apt_gcode("UNITS/MM\nRAPID\nGOTO/10,0,7\nFEDRAT/MMPM,100\n"
+                                       "CIRCLE/0.000000,0.000000,0.000000,0.0000000,0.0000000,1.0000000,10.000000,0.002000,0.500000,6.000000,0.000000,TIMES,7\n"
+                                       "GOTO/10,0,0\n", o));
+    const int chords = int(std::ceil(7 * 2 * kPi / (2 * std::acos(1 - 0.01 / 10))));
+    REQUIRE(int(mv.size()) == 1 + chords);
+    double unwrapped = 0, prev_angle = 0;
+    for (std::size_t i = 1; i < mv.size(); ++i) {
+        const double x = mv[i].at('X'), y = mv[i].at('Y'), z = mv[i].at('Z');
+        CHECK(std::hypot(x, y) == doctest::Approx(10).epsilon(1e-6));
+        double a = std::atan2(y, x), d = a - prev_angle;
+        if (d < 0) d += 2 * kPi;  // counterclockwise about +Z, less than a turn a chord
+        unwrapped += d;
+        prev_angle = a;
+        // Height falls linearly with the angle turned: 1 mm a turn.
+        CHECK(z == doctest::Approx(7 - unwrapped / (2 * kPi)).epsilon(1e-5));
+    }
+    CHECK(unwrapped == doctest::Approx(14 * kPi).epsilon(1e-9));
+    CHECK(mv.back().at('Z') == 0);
+    // TIMES needs a whole number of turns, at the CIRCLE's end.
+    for (const char* bad : {"TIMES,0", "TIMES,2.5", "TIMES", "TIMES,2,1"}) {
+        CAPTURE(bad);
+        const InputError e = error_of("xyzac-trt", std::string("UNITS/MM\nRAPID\nGOTO/10,0,7\nFEDRAT/MMPM,100\nCIRCLE/0,0,0,0,0,1,10,0.002,0.5,6,0,") + bad + "\n",
+                                      FrontOptions{InputFormat::Apt});
+        CHECK(e.line() == 5);
+        CHECK(contains(e.message(), "TIMES"));
+    }
+}
+
+TEST_CASE("CL E with --extrusion-per-mm: written at the firmware's decimals, its total the path's, in inches as in millimetres" *
+          doctest::skip(corpus_absent())) {
+    // The total is computed here from the file's GOTOs (feed moves only: not the one after
+    // RAPID), in mm, times E per mm; the output's relative E must add up to it within half a unit
+    // of the last decimal written, and no E may have more decimals than the dialect's.
+    const double epm = 0.0333;
+    auto exact_total = [&](const std::string& text, double unit) {
+        std::istringstream in(text);
+        std::string line;
+        bool rapid = false, known = false;
+        Eigen::Vector3d prev = Eigen::Vector3d::Zero();
+        double total = 0;
+        while (std::getline(in, line)) {
+            if (line.rfind("RAPID", 0) == 0) rapid = true;
+            if (line.rfind("GOTO/", 0) != 0) continue;
+            std::vector<double> v;
+            std::stringstream s(line.substr(5));
+            std::string f;
+            while (std::getline(s, f, ',')) v.push_back(std::stod(f));
+            const Eigen::Vector3d p(v[0] * unit, v[1] * unit, v[2] * unit);
+            if (known && !rapid) total += (p - prev).norm() * epm;
+            prev = p;
+            known = true;
+            rapid = false;
+        }
+        return total;
+    };
+    const Machine m = machine("xyzac-trt");
+    const int ed = m.dialect.extrusion_decimals;
+    auto check = [&](const std::string& text, double unit) {
+        FrontOptions fo;
+        fo.extrusion_per_mm = epm;
+        fo.extrusion_decimals = ed;
+        const std::string out = translate_text("xyzac-trt", text, fo);
+        double total = 0;
+        int es = 0;
+        const std::regex e_word(" E(-?[0-9]+)(\\.([0-9]*))?");
+        for (const auto& l : lines_of(out)) {
+            std::smatch mt;
+            if (!std::regex_search(l, mt, e_word)) continue;
+            CAPTURE(l);
+            CHECK(mt[3].str().size() <= std::size_t(ed));
+            total += std::stod(mt[0].str().substr(2));
+            ++es;
+        }
+        CHECK(es > 300);
+        const double exact = exact_total(text, unit);
+        CAPTURE(exact);
+        CAPTURE(total);
+        CHECK(std::abs(total - exact) <= 0.5 * std::pow(10.0, -ed) + 1e-9);
+    };
+    const std::string inches = read(corpus("nx_cldata/APT_Variable_Axis.cls"));  // FEDRAT/IPM: inches
+    check(inches, 25.4);
+    // The same path in millimetres (UNITS/MM, each coordinate times 25.4).
+    std::istringstream in(inches);
+    std::string line, mm = "UNITS/MM\n";
+    while (std::getline(in, line)) {
+        if (line.rfind("GOTO/", 0) == 0) {
+            std::stringstream s(line.substr(5));
+            std::string f, g = "GOTO/";
+            for (int i = 0; std::getline(s, f, ','); ++i) {
+                char b[40];
+                std::snprintf(b, sizeof b, "%.6f", i < 3 ? std::stod(f) * 25.4 : std::stod(f));
+                g += (i ? "," : "") + std::string(b);
+            }
+            line = g;
+        } else if (line.rfind("FEDRAT/IPM,", 0) == 0) {
+            line = "FEDRAT/MMPM," + std::to_string(std::stod(line.substr(11)) * 25.4);
+        }
+        mm += line + "\n";
+    }
+    check(mm, 1.0);
+}
+
+TEST_CASE("a UTF-8 byte-order mark opens G-code, CL data and keep-out items; a keep-out header row is skipped") {
+    const std::string bom = "\xEF\xBB\xBF";
+    const std::string g = "G28\nG1 X10 Y10 Z10 F600\nG1 X20\n";
+    CHECK(translate_text("xyzac-trt", bom + g, FrontOptions{}) == translate_text("xyzac-trt", g, FrontOptions{}));
+    const std::string cl = "UNITS/MM\nRAPID\nGOTO/1,2,3\n";
+    CHECK(translate_text("xyzac-trt", bom + cl, FrontOptions{}) == translate_text("xyzac-trt", cl, FrontOptions{}));
+    const auto plain = parse_keep_out("10, 20, 0\n30 40 5\n", "i.csv");
+    for (const std::string text : {bom + "10, 20, 0\n30 40 5\n", std::string("x,y,height\n10, 20, 0\n30 40 5\n"),
+                                   bom + "\"X\";\"Y\";\"Height (mm)\"\r\n10, 20, 0\n30 40 5\n"}) {
+        CAPTURE(text);
+        const auto items = parse_keep_out(text, "i.csv");
+        REQUIRE(items.items.size() == plain.items.size());
+        for (std::size_t i = 0; i < items.items.size(); ++i) {
+            CHECK(items.items[i].height == plain.items[i].height);
+            CHECK((items.items[i].centre - plain.items[i].centre).norm() == 0);
+        }
+    }
+    // Names after the first item, or numbers like inf, are no header: refused where they are.
+    CHECK_THROWS_AS(parse_keep_out("10, 20, 0\nx,y,height\n", "i.csv"), InputError);
+    CHECK_THROWS_AS(parse_keep_out("inf, nan, inf\n", "i.csv"), InputError);
 }

@@ -402,3 +402,21 @@ TEST_CASE("a refused line's moves leave the report as its output leaves the file
         CHECK(with == without);
     }
 }
+
+TEST_CASE("the plot's title escapes the file name by XML's rules: an '&' or a crafted name stays text") {
+    // The SVG is XML: '&' must be '&amp;', '<' must be '&lt;'. A name that closes the <text>
+    // and opens an element of its own must come out as text, not as an element.
+    const std::string name = "a&b </text><script>alert(1)</script><text>.gcode";
+    DeviationReport r(name, "rw2", 0.01, 0.5);
+    r.add_move(1, 0.001, 0, 0, 1);
+    const std::string svg = r.svg();
+    CAPTURE(svg);
+    CHECK(svg.find("<script") == std::string::npos);
+    CHECK(contains(svg, "a&amp;b &lt;/text&gt;&lt;script&gt;alert(1)&lt;/script&gt;&lt;text&gt;.gcode on rw2"));
+    // Every '&' starts an entity XML knows.
+    for (std::size_t at = svg.find('&'); at != std::string::npos; at = svg.find('&', at + 1)) {
+        const std::string rest = svg.substr(at, 6);
+        CHECK((rest.rfind("&amp;", 0) == 0 || rest.rfind("&lt;", 0) == 0 || rest.rfind("&gt;", 0) == 0 ||
+               rest.rfind("&quot;", 0) == 0 || rest.rfind("&apos;", 0) == 0));
+    }
+}

@@ -1226,3 +1226,70 @@ TEST_CASE("translator: a rotary word's checks keep their order: not a rotary, in
     CHECK(e.column() == 11);
     CHECK(contains(e.message(), "not a tool-space word"));
 }
+
+TEST_CASE("a coolant or spindle-stop code on a line with G53 or G43 goes on its own line; the words stay with the G code") {
+    // LinuxCNC's ending `G53 G49 Z30 M09`: M09 takes no words, so Z30 is G53's (machine
+    // coordinates, sent as a joint value under G49); M09 runs first (RS274's order).
+    const Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/xyzac-trt.toml");
+    const Kinematics k(m);
+    auto run = [&](const std::string& text) {
+        TranslatorOptions o;
+        o.input_name = "t.ngc";
+        Translator t(k, o);
+        std::string out;
+        std::uint64_t n = 0;
+        for (const auto& l : lines_of(text)) t.feed(l, ++n, out);
+        t.finish(out);
+        return out;
+    };
+    const std::string out = run("G90\nG53 G49 Z30 M09\n");
+    CHECK(contains(out, "M9\nG53 Z30\n"));
+    // Under tool-centre-point control, the move with G43 is refused at the word, saying why and what to do.
+    try {
+        run("G90\nG43 H1 Z5 M08\n");
+        FAIL("no error");
+    } catch (const InputError& e) {
+        CHECK(e.line() == 2);
+        CHECK(e.column() == 8);
+        CHECK(contains(e.message(), "word Z on a line with G43 (tool length compensation)"));
+        CHECK(contains(e.message(), "put the move on a line of its own"));
+    }
+    // Two commands that both take words: the message names the word and both.
+    try {
+        run("G90\nG49\nG53 G10 L2 P1 X0\n");
+        FAIL("no error");
+    } catch (const InputError& e) {
+        CHECK(contains(e.message(), "could belong to"));
+        CHECK(contains(e.message(), "G53"));
+        CHECK(contains(e.message(), "G10"));
+    }
+}
+
+TEST_CASE("a feed under 0.05 mm/min is never written F0 (Marlin ignores F0 and keeps the last feed)") {
+    const Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/xyzac-trt.toml");
+    const Kinematics k(m);
+    TranslatorOptions o;
+    Translator t(k, o);
+    std::string out;
+    std::uint64_t n = 0;
+    for (const char* l : {"G1 X1 Y0 Z5 F1200", "G1 X2 F0.04", "G1 X3 F0.0123", "G1 X4 F0.05", "G1 X5 F1e-12"}) {
+        if (std::string(l).find('e') != std::string::npos) break;  // (G-code has no exponent)
+        t.feed(l, ++n, out);
+    }
+    t.feed("G1 X5 F0.0000000001", ++n, out);
+    t.finish(out);
+    CAPTURE(out);
+    std::vector<double> feeds;
+    for (const auto& l : lines_of(out)) {
+        const auto f = l.find(" F");
+        if (f == std::string::npos) continue;
+        CHECK(l.substr(f + 2) != "0");
+        feeds.push_back(std::stod(l.substr(f + 2)));
+    }
+    REQUIRE(feeds.size() == 5);
+    CHECK(feeds[0] == 1200);
+    CHECK(feeds[1] == doctest::Approx(0.04).epsilon(0.05));   // two significant digits
+    CHECK(feeds[2] == doctest::Approx(0.0123).epsilon(0.05));
+    CHECK(feeds[3] == doctest::Approx(0.1));                  // 0.05 at one decimal, as before
+    CHECK(feeds[4] == 1e-9);                                  // the least nine decimals write
+}

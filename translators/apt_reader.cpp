@@ -47,11 +47,28 @@ std::optional<double> to_number(std::string_view t) {
     return v;
 }
 
+// NX's "Information listing" (the CLSF listed to a file) opens with a rule of '=', four lines
+// "Information listing created by : user", "Date : ...", "Current work part : path", "Node name :
+// host", and a second rule: the listing's, not the tool path's.
+bool listing_rule(std::string_view t) {
+    return t.size() >= 3 && t.find_first_not_of('=') == std::string_view::npos;
+}
+
+bool listing_header(std::string_view t) {
+    const std::string u = upper(t);
+    const std::size_t colon = u.find(':');
+    if (colon == std::string::npos) return false;
+    const std::string key = std::string(trim(std::string_view(u).substr(0, colon), 1).text);
+    return key == "INFORMATION LISTING CREATED BY" || key == "DATE" || key == "CURRENT WORK PART" || key == "NODE NAME";
+}
+
 }  // namespace
 
 bool looks_like_apt(std::string_view line) {
     const Field f = trim(line, 1);
+    if (listing_rule(f.text)) return true;  // not G-code either: '=' is refused there
     const std::string u = upper(f.text);
+    if (u.rfind("INFORMATION LISTING CREATED BY", 0) == 0) return true;
     for (const char* w : {"TOOL PATH/", "GOTO/", "$$", "UNITS/", "MULTAX", "LOAD/", "FEDRAT/", "RAPID", "TLDATA/", "MSYS/", "PAINT/", "PARTNO"})
         if (u.rfind(w, 0) == 0) return true;
     return false;
@@ -133,8 +150,21 @@ void AptReader::go_to(const Eigen::Vector3d& tip, const Eigen::Vector3d& axis, s
     for (int i = 0; i < 3; ++i) append_word(g, char('I' + i), axis[i], 9);
     if (!s.rapid) {
         // E is written in the file's unit, as the interpreter reads it (G20: inches of filament
-        // per inch is the same number per millimetre).
-        if (o_.extrusion_per_mm > 0 && s.tip_known) append_word(g, 'E', (tip - s.tip).norm() * o_.extrusion_per_mm, 6);
+        // per inch is the same number per millimetre). In millimetres at the firmware's decimals,
+        // each move's rounding carried on to the next, so the total is the path's within half a
+        // unit of the last decimal; in inches (or before the unit is known) with 12 decimals,
+        // which the interpreter rounds the same way after converting.
+        if (o_.extrusion_per_mm > 0 && s.tip_known) {
+            const double e = (tip - s.tip).norm() * o_.extrusion_per_mm;
+            if (s.unit && *s.unit == 1.0) {
+                const double scale = std::pow(10.0, o_.extrusion_decimals), want = e + s.e_carry;
+                const double written = std::round(want * scale) / scale;
+                s.e_carry = want - written;
+                append_word(g, 'E', written, o_.extrusion_decimals);
+            } else {
+                append_word(g, 'E', e, 12);
+            }
+        }
         if (!s.feed_written) append_word(g, 'F', *s.feed, 4), s.feed_written = true;
     }
     emit(s, out, line_no, std::move(g));
@@ -153,6 +183,11 @@ void AptReader::record(std::string_view line, std::uint64_t line_no, State& s, F
         emit(s, out, line_no, "; " + std::string(trim(all.text.substr(2), 1).text));
         return;
     }
+    if (!s.seen_record && (listing_rule(all.text) || listing_header(all.text))) {
+        if (!listing_rule(all.text)) emit(s, out, line_no, "; " + std::string(all.text));
+        return;
+    }
+    s.seen_record = true;
     if (s.finished) fail(all.column, "record after FINI");
     // The major word, then the fields after '/', split at commas.
     const std::size_t slash = all.text.find('/');
@@ -216,6 +251,7 @@ void AptReader::record(std::string_view line, std::uint64_t line_no, State& s, F
             double sweep = std::atan2(u0.cross(u1).dot(n), u0.dot(u1));  // counterclockwise about n
             if (sweep < 0) sweep += 2 * kPi;
             if (sweep < 1e-9) sweep = 2 * kPi;  // back to its start: a full circle
+            sweep += 2 * kPi * (c.turns - 1);    // TIMES,n: n turns when the GOTO is above its start
             // Chords within the tolerance (sagitta r(1 - cos(step/2))), in the file's unit; before
             // the unit is known, as if it were inches (the finer).
             const double tol = o_.chord_tolerance / s.unit.value_or(25.4);
@@ -275,8 +311,21 @@ void AptReader::record(std::string_view line, std::uint64_t line_no, State& s, F
         const Eigen::Vector3d n(v[3], v[4], v[5]);
         if (!(n.norm() > 1e-9)) fail(args[3].column, "the CIRCLE's axis i,j,k has length 0");
         if (!(v[6] > 0)) fail(args[6].column, "the CIRCLE's radius must be positive");
-        for (std::size_t i = 7; i < args.size(); ++i) number(args[i]);  // tolerances and cutter data: numbers, not used
-        s.circle = State::Circle{Eigen::Vector3d(v[0], v[1], v[2]), n.normalized(), v[6], line_no};
+        // NX CLSF: CIRCLE/x,y,z,i,j,k,r,t,f,d,e[,TIMES,n]: tolerance, its inner share, the tool's
+        // diameter and corner radius (numbers, not used), then the turns of a helix.
+        int turns = 1;
+        for (std::size_t i = 7; i < args.size(); ++i) {
+            if (upper(args[i].text) == "TIMES") {
+                if (i + 2 != args.size()) fail(args[i].column, "TIMES needs one whole number of turns after it, and ends the CIRCLE");
+                const double t = number(args[i + 1]);
+                if (t < 1 || t != std::floor(t) || t > kAptMaxTurns)
+                    fail(args[i + 1].column, "TIMES: the helix's turns must be a whole number from 1 to " + std::to_string(kAptMaxTurns));
+                turns = int(t);
+                break;
+            }
+            number(args[i]);
+        }
+        s.circle = State::Circle{Eigen::Vector3d(v[0], v[1], v[2]), n.normalized(), v[6], line_no, turns};
         return;
     }
     if (word == "UNITS") {

@@ -28,11 +28,14 @@ struct AptOptions {
     std::string input_name = "<stdin>";
     double extrusion_per_mm = 0;  // E per mm of tip path on feed moves (0: none, cutting data)
     double chord_tolerance = 0.005;  // mm, sagitta of an arc's chords
+    int extrusion_decimals = 5;      // the firmware's: E in mm is written at these, the rounding carried on
 };
 
 // Records before the first UNITS or FEDRAT are held until the unit is known (at most this many;
 // then millimetres are assumed): NX writes the first RAPID GOTO before any FEDRAT.
 inline constexpr std::size_t kAptHeldRecords = 10000;
+// Turns of one helical CIRCLE (TIMES,n); its chords are bounded besides (1e6 an arc).
+inline constexpr int kAptMaxTurns = 10000;
 
 class AptReader {
 public:
@@ -50,14 +53,17 @@ private:
         bool in_path = false, ended = false, rapid = false, multax = true;
         Eigen::Vector3d tip = Eigen::Vector3d::Zero(), axis = Eigen::Vector3d::UnitZ();
         bool tip_known = false;
+        double e_carry = 0;  // mm of E the rounding to extrusion_decimals left to the next move
         std::optional<double> feed;  // in the file's length unit per minute
         bool feed_written = false;   // the G-code has had this F
         bool started = false;        // the preamble (G43.5, G90, M83) is out
         bool finished = false;       // FINI
+        bool seen_record = false;    // a record other than NX's listing header has been read
         struct Circle {
             Eigen::Vector3d centre, axis;
             double radius;
             std::uint64_t line_no;
+            int turns = 1;  // TIMES,n: the helix turns n - 1 times more than the arc to its GOTO
         };
         std::optional<Circle> circle;
         FrontLines held;  // records waiting for the unit

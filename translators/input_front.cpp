@@ -17,7 +17,7 @@ std::optional<InputFormat> parse_input_format(std::string_view name) {
 
 InputFront::InputFront(Translator& translator, FrontOptions options)
     : translator_(translator), o_(std::move(options)), format_(o_.format) {
-    if (format_ == InputFormat::Apt) apt_ = std::make_unique<AptReader>(AptOptions{o_.input_name, o_.extrusion_per_mm, o_.chord_tolerance});
+    if (format_ == InputFormat::Apt) apt_ = std::make_unique<AptReader>(AptOptions{o_.input_name, o_.extrusion_per_mm, o_.chord_tolerance, o_.extrusion_decimals});
     if (format_ == InputFormat::Waypoints)
         waypoints_ = std::make_unique<WaypointReader>(WaypointOptions{o_.input_name, o_.extrusion_per_mm, o_.waypoint_feed});
 }
@@ -37,6 +37,9 @@ void InputFront::pass(std::string& out) {
 }
 
 void InputFront::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
+    // A UTF-8 byte-order mark (what Windows editors put first) is no part of the first line.
+    if (line_no == 1 && line.size() >= 3 && line.substr(0, 3) == "\xEF\xBB\xBF") [[unlikely]]
+        line.remove_prefix(3);
     // G-code first, and as the call it ends with: most lines take only this test.
     if (format_ == InputFormat::GCode) return translator_.feed(line, line_no, out);
     feed_other(line, line_no, out);
@@ -54,7 +57,7 @@ void InputFront::feed_other(std::string_view line, std::uint64_t line_no, std::s
         format_ = looks_like_apt(line) ? InputFormat::Apt : InputFormat::GCode;
         if (format_ == InputFormat::GCode && o_.extrusion_per_mm > 0)
             throw InputError(o_.input_name, line_no, 1, "this is G-code, which has its own E: the extrusion rate per mm is for CL data and waypoint tables");
-        if (format_ == InputFormat::Apt) apt_ = std::make_unique<AptReader>(AptOptions{o_.input_name, o_.extrusion_per_mm, o_.chord_tolerance});
+        if (format_ == InputFormat::Apt) apt_ = std::make_unique<AptReader>(AptOptions{o_.input_name, o_.extrusion_per_mm, o_.chord_tolerance, o_.extrusion_decimals});
     }
     switch (format_) {
         case InputFormat::GCode: translator_.feed(line, line_no, out); return;

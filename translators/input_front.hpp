@@ -31,6 +31,7 @@ struct FrontOptions {
     double extrusion_per_mm = 0;  // CL feed moves and waypoint moves: E per mm of tip path
     double waypoint_feed = 1200;  // mm/min
     double chord_tolerance = 0.005;  // mm, for CL arcs
+    int extrusion_decimals = 5;      // the firmware's (Dialect): CL E is written at these
 };
 
 class InputFront {

@@ -37,6 +37,7 @@ Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner
       input_name_(std::move(input_name)),
       extruder_letter_(extruder_letter),
       saved_(state) {
+    long_lines_matter_ = machine_.dialect.firmware == FirmwareDialect::Marlin || machine_.dialect.firmware == FirmwareDialect::MarlinArticulated;
     move_letters_ = "XYZIJKEF";
     for (const Joint& j : machine_.joints) {
         move_letters_ += j.name;
@@ -58,6 +59,22 @@ Interpreter::Interpreter(const Kinematics& kinematics, LineState& state, Planner
 void Interpreter::fail(std::uint32_t column, const std::string& message) const { throw LineError(column, message); }
 
 void Interpreter::no_number(const Param& p) const { fail(p.column, std::string("word ") + p.letter + " has no number"); }
+
+PassedNumber Interpreter::passed_e(const Param& p, bool inches) {
+    if (!inches) return {number(p), p.text};
+    // E read in inches is written in millimetres at the dialect's decimals (v * 25.4 has binary
+    // noise in its last digits); relative E carries what the rounding left to the next E, so
+    // the written total stays within half a unit of the last decimal of the exact total.
+    const int ed = machine_.dialect.extrusion_decimals;
+    const double scale = std::pow(10.0, ed);
+    Modes& modes = state_.modal.modes;
+    const double exact = number(p) * 25.4;
+    if (!modes.e_relative) return {std::round(exact * scale) / scale, {}, ed};
+    const double want = exact + modes.e_inch_carry;
+    const double written = std::round(want * scale) / scale;
+    modes.e_inch_carry = want - written;
+    return {written, {}, ed};
+}
 
 PassedNumber Interpreter::passed(const Param& p, bool inches) const {
     const double v = number(p);
@@ -115,6 +132,56 @@ void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& ou
         } catch (const LineError& e) {
             throw InputError(input_name_, run.line_no, e.column(), e.what());
         }
+    }
+    // Only output of more than 95 characters can hold a line that long (a cheap test per line).
+    if (out.size() - out_start > kMarlinLineChars && long_lines_matter_) {
+        try {
+            check_line_lengths(out, out_start, line, run.line_no);
+        } catch (...) {
+            out.resize(out_start);
+            state_ = *before;
+            planner_.position_unknown();
+            throw;
+        }
+    }
+}
+
+void Interpreter::check_line_lengths(std::string& out, std::size_t out_start, std::string_view line, std::uint64_t line_no) {
+    std::size_t at = out_start;
+    while (at < out.size()) {
+        std::size_t nl = out.find('\n', at);
+        if (nl == std::string::npos) nl = out.size();
+        const std::string_view l(out.data() + at, nl - at);
+        const bool display = l.rfind("M117", 0) == 0 || l.rfind("M118", 0) == 0;
+        // What Marlin stores: up to a ';' comment (the text of a display or file command is
+        // taken whole: xlate5 passes it on as written, ';' and all).
+        std::size_t stored = l.size();
+        const bool text = display || block_.text_argument;
+        if (!text)
+            if (const auto semi = l.find(';'); semi != std::string_view::npos) stored = semi;
+        if (stored > kMarlinLineChars && !(l.size() > 0 && l.front() == ';')) {
+            if (!display) {
+                // The column of the input where the 96th character of the written line is, when
+                // the line was written as read; else the line's start.
+                const auto in_at = line.find(l.substr(0, kMarlinLineChars + 1));
+                const std::uint32_t column = in_at == std::string_view::npos ? 1 : std::uint32_t(in_at + kMarlinLineChars + 1);
+                throw InputError(input_name_, line_no, column,
+                                 "this line would be written with " + std::to_string(stored) + " characters: Marlin reads at most " +
+                                     std::to_string(kMarlinLineChars) + " and runs the rest as a line of its own; shorten it");
+            }
+            // A display text loses its tail; nothing is run from it.
+            std::size_t keep = kMarlinLineChars;
+            while (keep > 4 && l[keep - 1] == ' ') --keep;
+            out.erase(at + keep, nl - (at + keep));
+            nl = at + keep;
+            if (notice_ && line_no > noticed_line_) {
+                noticed_line_ = line_no;
+                notice_(input_name_ + ":" + std::to_string(line_no) + ": note: " + std::string(l.substr(0, 4)) + "'s text shortened to " +
+                        std::to_string(kMarlinLineChars) + " characters (Marlin reads at most " + std::to_string(kMarlinLineChars) +
+                        " a line and would run the rest as a command)");
+            }
+        }
+        at = nl + 1;
     }
 }
 
@@ -217,6 +284,13 @@ void Interpreter::run_command(const CommandWord& c, std::string_view body, bool 
                 if (m.mode != OrientationMode::Joints) {
                     std::string code;
                     append_code(code, 'G', c.code10);
+                    if (c.code10 == 430 || c.code10 == 440)
+                        fail(p.column, "word " + std::string(1, p.letter) + " on a line with " + code + " (tool length compensation): under "
+                                       "tool-centre-point control the tool's length is the machine file's and X Y Z already place the tip; "
+                                       "put the move on a line of its own (" + code + " with its H alone is passed on)");
+                    if (c.code10 == 530)
+                        fail(p.column, "word " + std::string(1, p.letter) + " of G53 is a machine coordinate, which tool-centre-point control "
+                                       "does not have: put G49 before it (G53 and its words are then sent as joint values)");
                     fail(c.column, code + " with axis words is not supported under tool-centre-point control "
                                           "(switch to G49 to send it as joint values)");
                 }
@@ -282,7 +356,7 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words, bool 
                 ijk[p.letter - 'I'] = number(p);
                 any_ijk = true;
                 break;
-            case 'E': mv.e = passed(p, inches); break;
+            case 'E': mv.e = passed_e(p, inches); break;
             case 'F':
                 mv.f = passed(p, inches);
                 if (!(mv.f->value > 0)) fail(p.column, "feed rate F must be positive");
@@ -443,7 +517,7 @@ void Interpreter::joint_move(int gcode, Params words, std::string& out) {
     commanded_.assign(q.size(), false);
     for (const Param& p : words) {
         switch (p.letter) {
-            case 'E': e = passed(p, modes.inches); break;
+            case 'E': e = passed_e(p, modes.inches); break;
             case 'F':
                 f = passed(p, modes.inches);
                 if (!(f->value > 0)) fail(p.column, "feed rate F must be positive");

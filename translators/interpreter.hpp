@@ -8,6 +8,7 @@
 // May call: the lexer, line_commands, arcs (G2/G3 -> chords), work_plane (the plane's frame), the
 // keep-out stage, the planner.
 #pragma once
+#include <functional>
 #include <array>
 #include <cstdint>
 #include <string>
@@ -42,6 +43,9 @@ struct LineState {
 
 class KeepOutStage;
 
+// MAX_CMD_SIZE - 1: the characters Marlin reads of a line (PROTOCOL.md rule 4).
+inline constexpr std::size_t kMarlinLineChars = 95;
+
 class Interpreter {
 public:
     Interpreter(const Kinematics& kinematics, LineState& state, Planner& planner, std::string input_name, char extruder_letter);
@@ -56,8 +60,14 @@ public:
     void set_keep_out(KeepOutStage* stage) { keep_out_ = stage; }
     // The input is compact from its first line, as if it began with the compact declaration (gcode_lexer.hpp).
     void set_compact_words() { block_.compact_words = true; }
+    // Where a notice goes (a display text shortened for the firmware's line length): stderr in
+    // the command line; none: nothing is said.
+    void set_notice(std::function<void(const std::string&)> notice) { notice_ = std::move(notice); }
 
 private:
+    // Marlin reads a line up to 95 characters and the rest as a new line (PROTOCOL.md rule 4):
+    // every line this input line wrote is checked; display text is shortened, anything else refused.
+    void check_line_lengths(std::string& out, std::size_t out_start, std::string_view line, std::uint64_t line_no);
     [[noreturn]] void fail(std::uint32_t column, const std::string& message) const;
     // The value, or an error if it is a flag. Inline: several words a line.
     double number(const Param& p) const {
@@ -66,6 +76,7 @@ private:
     }
     [[noreturn]] void no_number(const Param& p) const;
     PassedNumber passed(const Param& p, bool inches) const;  // E or F, in mm
+    PassedNumber passed_e(const Param& p, bool inches);      // E, in mm (inches: rounded, the rest carried)
     bool is_axis_letter(char c) const;
     // The rotary joint a word's letter names, -1 for none (a linear joint's letter, none, or a
     // letter tool_move reads as something else: X Y Z I J K E F).
@@ -102,6 +113,9 @@ private:
     Planner& planner_;
     KeepOutStage* keep_out_ = nullptr;
     std::string input_name_;
+    std::function<void(const std::string&)> notice_;
+    std::uint64_t noticed_line_ = 0;
+    bool long_lines_matter_ = false;  // the firmware is Marlin's  // the look-back replays lines: each is told once
     char extruder_letter_;
     LineState saved_;          // the state before the current line (when the caller keeps none)
     Block block_;

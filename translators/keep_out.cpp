@@ -25,6 +25,32 @@ constexpr double kHeightSlack = 1e-6;  // mm: "at or below the current Z"
 
 double cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() * b.y() - a.y() * b.x(); }
 
+// A row of three column names before the first item (`x,y,height`, `X; Y; Z (mm)`): each field
+// starts with a letter and none reads as a number, so no data row can be taken for one.
+bool is_header_row(std::string_view body) {
+    auto sep = [](char c) { return c == ',' || c == '\t' || c == ';'; };
+    int fields = 0;
+    std::size_t i = 0;
+    while (i <= body.size()) {
+        std::size_t j = i;
+        while (j < body.size() && !sep(body[j])) ++j;
+        std::string_view f = body.substr(i, j - i);
+        while (!f.empty() && (f.front() == ' ' || f.front() == '"')) f.remove_prefix(1);
+        while (!f.empty() && (f.back() == ' ' || f.back() == '\r' || f.back() == '"')) f.remove_suffix(1);
+        if (f.empty() && j >= body.size() && fields > 0) break;
+        const bool letter = !f.empty() && ((f[0] >= 'a' && f[0] <= 'z') || (f[0] >= 'A' && f[0] <= 'Z'));
+        if (!letter) return false;
+        double x = 0;
+        if (const auto [end, ec] = std::from_chars(f.data(), f.data() + f.size(), x); ec == std::errc() && end == f.data() + f.size())
+            return false;  // "inf", "nan": numbers, refused where they are read
+        for (char c : f)
+            if (static_cast<unsigned char>(c) < 0x20) return false;
+        ++fields;
+        i = j + 1;
+    }
+    return fields == 3;
+}
+
 }  // namespace
 
 KeepOutItems parse_keep_out(const std::string& text, const std::string& name) {
@@ -33,9 +59,13 @@ KeepOutItems parse_keep_out(const std::string& text, const std::string& name) {
     std::istringstream in(text);
     std::string line;
     std::uint64_t n = 0;
+    bool data_seen = false;
     while (std::getline(in, line)) {
         ++n;
+        // A UTF-8 byte-order mark (what Windows editors put first) is no part of the data.
+        if (n == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
         const std::string_view body = std::string_view(line).substr(0, line.find('#'));
+        if (!data_seen && is_header_row(body)) continue;  // a spreadsheet's "x,y,height"
         double v[3];
         int count = 0;
         std::size_t i = 0;
@@ -57,6 +87,7 @@ KeepOutItems parse_keep_out(const std::string& text, const std::string& name) {
             i = j;
         }
         if (count == 0) continue;
+        data_seen = true;
         if (count != 3) throw InputError(name, n, std::uint32_t(body.size() + 1), "a keep-out item is x, y, height (3 numbers)");
         r.items.push_back({Eigen::Vector2d(v[0], v[1]), v[2], n});
     }

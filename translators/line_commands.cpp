@@ -45,6 +45,12 @@ bool axis_letters_are_settings(const CommandWord& c) {
     }
 }
 
+// M codes that take no words at all (spindle stop, coolant): CNC programs put them on the line of
+// a command that does (`G53 G49 Z30 M09`, `G43 H1 Z5 M08`); every word there is the other's.
+bool takes_no_words(const CommandWord& c) {
+    return c.letter == 'M' && (c.code10 == 50 || c.code10 == 70 || c.code10 == 80 || c.code10 == 90);
+}
+
 bool is_motion_code(const CommandWord& c) {
     return c.letter == 'G' && (c.code10 == 0 || c.code10 == 10 || c.code10 == 20 || c.code10 == 30);
 }
@@ -344,13 +350,24 @@ void add_modal_motion(LinePlan& out, int motion, Params words) {
     const bool split = all_leave && !other_owner && ((codes >= 1 && moves) || codes >= 2 || (codes == 0 && any_speed && moves));
 
     if (!split) {
-        // One command takes all the words (or none does: the modal motion).
-        std::size_t owners = 0;
+        // One command takes all the words (or none does: the modal motion). A code that takes no
+        // words leaves them to the other, on a line of its own.
+        std::size_t owners = 0, wordless = 0;
+        for (std::size_t i = 0; i < line.count; ++i)
+            if (!line.commands[i].modal_only() && takes_no_words(line.commands[i])) ++wordless;
+        const bool others_take = wordless > 0 && line.count > wordless;  // another command is there to take them
+        const CommandWord* first_owner = nullptr;
         for (std::size_t i = 0; i < line.count; ++i) {
             const CommandWord& c = line.commands[i];
-            if (c.modal_only()) continue;
-            if (++owners == 2 && !words.empty())
-                throw LineError(c.column, "two commands on this line take words: put them on separate lines");
+            if (c.modal_only() || (others_take && takes_no_words(c))) continue;
+            if (!first_owner) first_owner = &c;
+            if (++owners == 2 && !words.empty()) {
+                std::string a, b;
+                append_code(a, first_owner->letter, first_owner->code10);
+                append_code(b, c.letter, c.code10);
+                throw LineError(words.front().column, "word " + std::string(1, words.front().letter) + " could belong to " + a + " or to " + b +
+                                                          " (both take words): put each on a line of its own with its words");
+            }
             if (c.letter == 'M' && !leaves_axis_words(c) && !axis_letters_are_settings(c))
                 for (const auto& p : words)
                     if (has_letter(position_letters, p.letter)) {
@@ -361,7 +378,8 @@ void add_modal_motion(LinePlan& out, int motion, Params words) {
                     }
         }
         for (std::size_t i = 0; i < line.count; ++i)
-            add_step(out, line.commands[i], line.commands[i].modal_only() ? Params{} : words, line.alone());
+            add_step(out, line.commands[i], line.commands[i].modal_only() || (others_take && takes_no_words(line.commands[i])) ? Params{} : words,
+                     line.alone());
         if (!line.has_owner && !words.empty()) add_modal_motion(out, motion, words);
         return;
     }

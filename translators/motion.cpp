@@ -18,6 +18,22 @@ namespace xlate5 {
 
 namespace {
 
+// A positive feed that would round to 0 at `decimals` (under 0.05 mm/min at one) is written with
+// more decimals, to two significant digits: Marlin takes F0 as no F at all and keeps the last
+// feed, so the move would run at another speed entirely. Below 1e-9 (a piece no step of which
+// could be timed) the least feed nine decimals can write. Written feeds of 0.05 and more are as
+// before.
+PassedNumber feed_number(double v, int decimals) {
+    static constexpr double kHalfUnit[] = {0.5, 0.05, 0.005, 5e-4, 5e-5, 5e-6, 5e-7, 5e-8, 5e-9, 5e-10};
+    if (!(v > 0) || decimals < 0 || decimals > 9 || v >= kHalfUnit[decimals]) [[likely]]
+        return {v, {}, decimals};
+    int d = decimals;
+    while (d < 9 && v < 20 * kHalfUnit[d]) ++d;  // 20 half units: two significant digits
+    if (v < kHalfUnit[9]) v = 1e-9;
+    return {v, {}, d};
+}
+
+
 constexpr int kCheckSamples = 7;     // interior points checked per piece (see piece_error)
 // The error between two of those samples can exceed both by a little (the tests measure it
 // against 400-point sampling: under 1%); a piece passes only with this much room left.
@@ -989,10 +1005,10 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
                 // takes its extrusion at the programmed feed.
                 if (t <= 0 && mv.e && mv.feed > 0) t = std::abs(mv.e_relative ? mv.e->value : mv.e->value - mv.e_start) * (share - prev_share) / mv.feed;
                 if (t <= 0 && mv.feed > 0) t = d_fw / mv.feed;
-                if (t > 0) f = PassedNumber{1.0 / t, {}, 4};
-            } else if (t > 0 && d_fw > 0) f = PassedNumber{d_fw / t, {}, 1};
+                if (t > 0) f = feed_number(1.0 / t, 4);
+            } else if (t > 0 && d_fw > 0) f = feed_number(d_fw / t, 1);
             else if (mv.f && mv.inverse_time == 0) f = mv.f;  // nothing moves (E only): F as written
-            else if (mv.feed > 0) f = PassedNumber{mv.feed, {}, 1};
+            else if (mv.feed > 0) f = feed_number(mv.feed, 1);
         }
         // Measured errors are taken off after the split, so every piece of every move is
         // corrected and nothing upstream sees anything but nominal joints.

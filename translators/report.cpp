@@ -39,6 +39,25 @@ std::string escape(const std::string& s) {
     return o;
 }
 
+// Text inside an SVG element: XML's rules (the JSON escape above lets '&' and '<' through). A
+// control byte is not allowed in XML 1.0 at all: shown as U+FFFD.
+std::string xml_escape(const std::string& s) {
+    std::string o;
+    for (char c : s) {
+        switch (c) {
+            case '&': o += "&amp;"; break;
+            case '<': o += "&lt;"; break;
+            case '>': o += "&gt;"; break;
+            case '"': o += "&quot;"; break;
+            case '\'': o += "&apos;"; break;
+            default:
+                if (static_cast<unsigned char>(c) < 0x20 && c != '\t') o += "\xEF\xBF\xBD";
+                else o += c;
+        }
+    }
+    return o;
+}
+
 }  // namespace
 
 void DeviationReport::Distribution::add(double v, std::uint64_t line) {
@@ -225,8 +244,8 @@ std::string DeviationReport::svg() const {
     std::string o;
     o += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + num(W + left + 30) + "\" height=\"" + num(H + top + 60) + "\">\n";
     o += "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-    o += "<text x=\"" + num(left) + "\" y=\"18\" font-family=\"sans-serif\" font-size=\"13\">" + escape(file_) + " on " +
-         escape(machine_) + ": largest tip deviation from the programmed path per move (max " + num(tip_.max) + " mm at line " +
+    o += "<text x=\"" + num(left) + "\" y=\"18\" font-family=\"sans-serif\" font-size=\"13\">" + xml_escape(file_) + " on " +
+         xml_escape(machine_) + ": largest tip deviation from the programmed path per move (max " + num(tip_.max) + " mm at line " +
          std::to_string(tip_.max_line) + ")</text>\n";
     // Decades on the deviation axis, with grid lines; the x axis in 1-2-5 steps of input lines.
     for (double d = lo; d <= hi + 1e-9; d += 1) {

@@ -64,6 +64,7 @@ Translator::Translator(const Kinematics& kinematics, TranslatorOptions options) 
     }
     forward_ = std::make_unique<Forward>(kinematics, options);
     if (options.compact_words) forward_->interpreter.set_compact_words();
+    if (options.notice) forward_->interpreter.set_notice(options.notice);
 }
 
 Translator::~Translator() = default;

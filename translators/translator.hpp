@@ -4,6 +4,7 @@
 // inverse.cpp. It wires the stages together and holds no logic of its own.
 // May call: the look-back, the keep-out stage, the interpreter's and planner's state (for the accessors), inverse.
 #pragma once
+#include <functional>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -37,6 +38,9 @@ struct TranslatorOptions {
     // The input is written without blanks from its first line on: "X1.5E-05" is X1.5 and E-05, as
     // after the file's own compact declaration (gcode_lexer.hpp).
     bool compact_words = false;
+    // Told what was changed on the way to keep the output runnable (a display text shortened to
+    // Marlin's 95 characters); the command line writes it on stderr. Empty: not told.
+    std::function<void(const std::string&)> notice;
 };
 
 class InverseTranslator;
