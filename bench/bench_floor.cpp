@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Benchmark (not a test): the floor under bench_translate. A file of angle-form moves (G43.4: tip
 // plus rotary angles, as bench_translate writes for rw2) goes through the project's own lexer,
 // position solve and number writer, and nothing else: no command reading, interpreter, planner,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Keep-out throughput: a sliced tube (layers of short G1 moves around an item at its centre,
 // the ADD_IN team's figure-1 part, 2015; their MATLAB took about 45 s for 30,000
 // moves) through the whole forward pipeline with R computed by the keep-out stage.

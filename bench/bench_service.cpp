@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Benchmark (not a test): the whole chain, sender -> xlate5 serve -> virtual printer, on real
 // pseudo-terminals in one process. Reports lines/s, how busy the firmware's link is kept when
 // it is the bottleneck (does xlate5 ever starve it?), and the latency xlate5 adds per line: the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Benchmark (not a test): translate a large generated 5-axis file and report input lines/s,
 // MB/s, lines out per line in and peak memory. Run it at two sizes to see that memory does not
 // grow with the file; with and without splitting to see what the motion stage costs. Wall time

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Instructions per input line of the offline translator, counted by valgrind's callgrind: exact
 # and the same on every run of the same build, whatever else the machine is doing, where the
 # benchmark's times move by up to twice on a shared machine. Program start is left out: each

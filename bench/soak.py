@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Soak: millions of lines through `xlate5 serve` and its virtual printer under faults (a bit
 flipped in 1 % of the lines, a byte lost in 1 %, a firmware reset every so many commands),
 with a sender that numbers its lines, follows Resend, restarts a print with M999 after

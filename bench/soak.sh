@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Soak of the service (bench/soak.py): LINES (default 10,000,000) through `xlate5 serve` and its
 # virtual printer with faults, executed commands compared with the offline translation, memory
 # sampled. At the lowest priority; hours for the default on a small machine. Not run in CI.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 calibrate ...`: reads measurement tables, calls the fits in translators/calibration and
 // prints (or writes into a copy of the machine file) what they give (stage: command line).
 #include "cli/calibrate_cmd.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 calibrate fit|plate|offset|centre|pivots`: measurements in, machine-file values out
 // (stage: command line; may call translators/calibration and the machine file reader/writer).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The command line's exit codes and error messages (stage: command line).
 #include "cli/errors.hpp"
 

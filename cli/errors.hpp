@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The command line's exit codes and how every error ends (stage: command line; may call the
 // translators' error types and CLI11). Documented in the README; scripts rely on them.
 #pragma once

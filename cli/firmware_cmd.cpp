@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 firmware-config`: loads the machine and prints its firmware configuration lines
 // (stage: command line).
 #include "cli/firmware_cmd.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 --machine M firmware-config --firmware marlin|reprap|klipper`: the firmware's side of
 // the machine file (axis letters, limits, speeds, Klipper's manual steppers and their
 // registration), printed so the two cannot disagree (stage: command line; may call the machine

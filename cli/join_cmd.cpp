@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 join`: planar files and their build directions -> one tool-space program through
 // tilted planes -> the translation (stage: command line).
 //

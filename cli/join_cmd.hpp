@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 --machine M join base.gcode sub.gcode@I,J,K[@X,Y,Z] ... [-o OUT]`: one joint-space file
 // from planar G-code files, each printed in the tilted plane of its build direction (the 3+2
 // workflow of Coeytaux et al., WPI Worcester 2017, sec. 3.2.5 and 4.1.5: each sub-volume sliced

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 machines`: each machine file's name and description (stage: command line).
 #include "cli/machines_cmd.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // xlate5: the command line's front door (stage: command line). Declares the commands, parses,
 // and hands over to the one that was asked for: translate (no subcommand), machines, calibrate,
 // pose, join, firmware-config, serve and ports. It may call cli/*_cmd and cli/man_page only; the commands call translators/

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The manual page: the declarations as troff, between prose sections kept here (stage: command
 // line). The build writes it with `xlate5 --man-page` (cli/CMakeLists.txt) and a test renders it
 // with man -l and compares its options with --help's.

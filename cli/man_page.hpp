@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 --man-page`: the manual page xlate5(1) in troff, written from the same command and
 // option declarations that --help prints, so the two cannot drift (stage: command line; may
 // read the CLI11 declarations only).

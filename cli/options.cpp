@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Readable bounds, defaults and typo suggestions for the command line (stage: command line).
 #include "cli/options.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Pieces every command's declarations share: readable bounds for numbers, defaults in the help
 // text, and the nearest known name for a mistyped one (stage: command line; may call CLI11).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 pose`: reads joint values or a tip and tool axis from the command line, calls
 // Kinematics::forward or Kinematics::inverse and prints joints, tip and axis the same way for
 // both, so one direction's output can be fed to the other (stage: command line).

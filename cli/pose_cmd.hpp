@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 --machine M pose ...`: the machine file's geometry at one configuration, both ways:
 // joints in, tip and tool axis out (forward kinematics), or a tip and tool axis in, joints out
 // (the inverse the translation uses), so a machine file can be checked against a ruler

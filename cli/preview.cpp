@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The preview page. What it may call: see preview.hpp.
 #include "cli/preview.hpp"
 

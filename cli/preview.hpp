@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `--preview FILE.html`: one self-contained page to look at a translation before printing it:
 // the tip path in 3D coloured by tilt or by deviation, tool-axis whiskers, pole crossings,
 // unwinds, branch changes and re-zeros marked, and every joint over the file against its limits

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The progress bar. What it may call: see progress.hpp.
 #include "cli/progress.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Progress of a long offline translation on standard error (stage: command line; calls nothing
 // of the pipeline). Drawn only when standard error is a terminal, from the stream loop's
 // once-per-block-read callback, at most four times a second and only after the first second, so

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The provenance header and the refusals of binary and already translated input (stage: command
 // line).
 #include "cli/provenance.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // What a file says of where it comes from (stage: command line; calls nothing of the pipeline):
 // the header line every output of xlate5 starts with, and the checks that keep a slicer's
 // post-processing from translating a file twice or a binary file at all.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 serve` and `xlate5 ports`: the configuration file, then the flags over it, handed to
 // the service (stage: command line; may call daemon/serve and daemon/config). Every flag is a row
 // of the configuration's settings table, so the file and the flags share one set of bounds.

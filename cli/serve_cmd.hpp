@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 serve` and `xlate5 ports`: flags that override the service's configuration file
 // (stage: command line; may call daemon/serve and daemon/config, the service's front door).
 #pragma once

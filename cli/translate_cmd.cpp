@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 --machine M ...`: loads the machine and runs the translation stages over a stream
 // (stage: command line; the stages themselves live in translators/).
 #include "cli/translate_cmd.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 --machine M [-i IN] [-o OUT] ...`: the translation, forward or --inverse (stage: command
 // line; may call the translators' public API: machine, kinematics, translator, stream, report).
 #pragma once

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Installing and packaging: `cmake --install build` (prefix /usr/local by default) and a Debian
 # package from `cpack` in the build directory (prefix /usr). Both lay out the same tree.
 

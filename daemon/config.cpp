@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The service's configuration: one table of settings, read from a TOML file or from flags
 // (stage: configuration; may call toml++ and the machine's types).
 #include "daemon/config.hpp"

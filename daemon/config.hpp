@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The service's configuration (`config/xlate5.toml`, documented there): which machine, the
 // firmware's port, the sender endpoints, the virtual printer. Command-line flags override it.
 // Stage: configuration, read before the service starts; may call the machine loader's types only.

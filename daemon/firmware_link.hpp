@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The firmware side of the service, on a real link (stage: service, firmware end; may call
 // firmware_protocol, link). The protocol itself (numbering, resync, greeting, faults) is the
 // I/O-free FirmwareProtocol; this adapter feeds it the link's lines and one Asio timer, writes

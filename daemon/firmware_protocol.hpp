@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The firmware side's protocol as a state machine with no I/O (stage: service, firmware end;
 // may call line_protocol only). Events in: lines received, the clock passing a deadline,
 // commands to send; actions out: text to write, replies for the sender side, faults. The Asio

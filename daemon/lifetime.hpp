@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The one idiom for asynchronous handlers in the service (timers, reads, posted work): a handler
 // that may run after its object is gone is wrapped with guard(), which checks a weak reference
 // to the object's lifetime token before calling in. No handler holds a bare `this` unchecked.

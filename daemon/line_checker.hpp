@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The printer's side of the host line protocol: how a received line is judged before it is
 // queued (Marlin's get_serial_commands rules, see docs/service.md, "Marlin's receive
 // rules"): line number first, then checksum; M110 sets the number. Pure; shared by the sender

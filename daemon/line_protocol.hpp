@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The host line protocol that Marlin and RepRapFirmware speak (and senders expect of them):
 // "N<n> <command>*<checksum>" lines, the XOR checksum, and the shape of the replies. Pure text
 // functions, shared by both sides of the service and by the virtual printer. Stage: the

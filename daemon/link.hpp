@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A line-oriented, full-duplex byte link over any Asio stream (a serial port or pseudo-terminal
 // descriptor, a TCP socket): lines in through a callback, text out through an ordered write
 // queue. Both sides of the service and the virtual printer talk through it. Stage: the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // systemd's notification protocol over a datagram socket (stage: the service's lifecycle).
 #include "daemon/notify.hpp"
 

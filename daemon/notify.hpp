@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // systemd's notification protocol (sd_notify(3)), spoken directly: one datagram of
 // "KEY=VALUE\n..." lines to the socket named by $NOTIFY_SOCKET (a path, or '@' for the abstract
 // namespace). Stage: the service's lifecycle; calls the socket API only, no libsystemd.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The ends the service opens: the firmware's serial port (libserialport, so any baud rate the
 // driver takes, 250000 included), the pseudo-terminal a sender opens as if it were the printer,
 // and the list of serial ports for `xlate5 ports`.

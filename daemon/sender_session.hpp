@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The sender side: xlate5 as the printer an OctoPrint-style sender believes it talks to. Checks
 // "N<n> … *<cs>" lines the way Marlin does (Error:/Resend:/ok), handles the line-protocol and
 // emergency commands itself, and hands every other command to the service, which answers ok

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 serve` and `xlate5 ports`: the service's lifecycle (ports, endpoints, signals,
 // logging) around the Service.
 #pragma once

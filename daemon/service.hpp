@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The service: senders' lines in, through the translator, into a bounded queue, out to the
 // firmware link; the firmware's replies back to the senders (positions converted to tool space).
 // One io_context drives everything; nothing blocks and nothing polls. Stage: the service's

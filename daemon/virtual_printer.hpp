@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A TEST DOUBLE of a printer's firmware (stage: service, used by tests, `--printer sim` and the
 // bench; may call line_checker, line_protocol, link, and error.hpp for its IoError): a
 // Marlin-like or RepRapFirmware-like firmware on the far end of a pseudo-terminal, so the

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """A bent tube printed as one spiral for rw2, in tool-vector form: the first layers are flat
 (tool axis vertical, where rw2's A is free), then the tube bends toward +X with radius R, so the
 tool axis leans over slowly in the XZ plane (A = 0, B growing). The head is at home (A = -168,

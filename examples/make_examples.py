@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Writes the bundled examples (run it again after changing it; the outputs are committed).
 
 rw2_flared_wall.gcode: a C-shaped wall that flares outward as it grows, in Andersons 2023's dialect

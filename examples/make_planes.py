@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Planar files for the 3+2 workflow of Coeytaux et al. (WPI Worcester 2017, sec. 3.2.5 and
 4.1.5): a block printed upright, and a side sub-volume sliced flat along its own build
 direction, to be joined on wpi5, and one file that prints a square in a tilted plane itself.

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """A sliced tube for the keep-out workflow (ADD_IN team, 2015, figure 1): layers of
 short G1 moves around a centre, with a keep-out item at the centre.
 

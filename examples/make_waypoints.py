@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """A small waypoint table as curved-layer research tools write it (x y z nx ny nz per line, the
 vector not of unit length): a conical wall whose tool axis leans outward with the wall.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Fuzz target: the measurement tables of `xlate5 calibrate` (CSV readers and the fits behind
 // them), driven through the command line's own parsing: fit (orders 1..12), plate, offset,
 // centre, and pivots against a bundled machine fitting some of its parameters.

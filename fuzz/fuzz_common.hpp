@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Shared by the fuzz targets (stage: test harness; may call the machine file reader).
 #pragma once
 #include <string>

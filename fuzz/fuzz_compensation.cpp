@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Fuzz target: a compensation file (the [[compensation]] terms of `translate --compensation`) for
 // each bundled machine, then the terms applied and undone over a sweep of the rotaries.
 // Stage: test harness; may call the machine file reader and the compensation tables.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Fuzz target: the firmware reply classifier (ok with ADVANCED_OK fields, Resend, busy, start,
 // halts, line errors), line by line. Stage: test harness; may call line_protocol.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Fuzz target: machine-file text -> Machine (TOML, parameters, expressions, chains, compensation)
 // -> Kinematics, and for a machine that loads, forward and inverse kinematics at its home.
 // Stage: test harness; may call the machine file reader and kinematics.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Fuzz target: the firmware protocol core (FirmwareProtocol, no I/O) driven by a script of
 // firmware replies, commands and a clock, as tests/test_protocol.cpp drives it. Stage: test
 // harness; may call firmware_protocol and line_protocol.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Fuzz target: the sender line parser, as xlate5's sender side and the virtual printer run it:
 // each input line through the line checker (Marlin's order: number, then checksum; M110), and
 // the text functions the session calls on what it takes. Stage: test harness; may call

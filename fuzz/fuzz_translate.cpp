@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Fuzz target: G-code text through the whole translation, for every bundled machine and every
 // input mode: lexer -> interpreter -> planner -> motion -> compensation -> emitter under the
 // look-back (G43.4, G43.5 or G49 to start with), or the inverse pipeline (joint-space G-code ->

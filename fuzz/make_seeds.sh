@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Writes the seed corpora of the fuzz targets into DIR/<target>/ from what is at hand when run:
 # the shared third-party corpus (../shared/corpus, when present; its files are never copied into
 # the tree), the examples and the bundled machine files. Each seed starts with the selector bytes

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Offline output of two xlate5 builds, compared byte for byte: every corpus file and bundled
 # example on every bundled machine, in each start mode, split and unsplit, with --report, the
 # S3-DeformFDM extrusion letter, the rw2 compensation file, and --inverse (both preview forms) of

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Builds the fuzz targets (fuzz/, clang + libFuzzer + ASan + UBSan) in build-fuzz/ and runs each
 # for SECONDS (default 60) on seeds derived from the examples, the machine files and, when
 # present, ../shared/corpus. Inputs the fuzzers add are kept in build-fuzz/fuzz-corpus/<target>,

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Installs everything xlate5 needs to build and test on Debian 12 (bookworm), from Debian's packages only.
 set -euo pipefail
 pkgs=(build-essential cmake pkg-config

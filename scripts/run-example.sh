@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Installs the dependencies, builds xlate5, and translates the bundled rw2 example
 # (tool space, Andersons 2023's dialect) into joint space for stock Marlin, with its preview page
 # (open it in a browser: the path, the tool and the joints); then turns the result back into tool

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Installs the dependencies, builds xlate5 and runs the whole test suite: once in a release
 # build, once under AddressSanitizer + UndefinedBehaviorSanitizer, and each fuzz target briefly.
 # Small benchmark runs in between print their figures (no timing is asserted), so a slowdown

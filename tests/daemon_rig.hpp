@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The service under test, wired as `xlate5 serve` wires it (real pseudo-terminals, real Asio
 // I/O, the virtual printer on the far end), plus a sender that talks to it the way Printrun's
 // printcore and cncjs do, and the offline translation to compare the executed commands with.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Small helpers shared by the tests: split output into lines and words.
 #pragma once
 #include <doctest/doctest.h>

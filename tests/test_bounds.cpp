@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The offline bounds of docs/limits.md, as a user meets them: the xlate5 binary run on real
 // files and on endless ones (/dev/zero) under an address-space limit (prlimit --as) and a
 // timeout, so a reader that grows without bound fails the test instead of the machine.

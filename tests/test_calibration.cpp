@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Plate-tilt calibration: synthetic probes with known answers plus noise, and a plate built by
 // the machine model itself, recovered through the corrected closed form.
 #include <doctest/doctest.h>

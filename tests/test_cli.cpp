@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The command line as a user and a script see it: exit codes (0 ok, 1 bad G-code, 2 usage,
 // 3 machine, 4 I/O), messages, atomic -o, --set, --inverse, machines, --version.
 #include <doctest/doctest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Error compensation against Andersons (Twente 2023): its tables reproduce its measurements, agree with its
 // fitted eq. 4.7-4.9 within the scatter of the measurements, and undo exactly in --inverse.
 #include <doctest/doctest.h>

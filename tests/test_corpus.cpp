@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Whole-file runs over the real third-party files in ../shared/corpus (loaded at test time,
 // never copied here): what xlate5 accepts translates faithfully, what it cannot accept stops
 // with file:line:column and a cause, never a crash.

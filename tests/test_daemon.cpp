@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The service end to end on real pseudo-terminals: a sender streams tool-space G-code into
 // xlate5, xlate5 drives the virtual printer, and what the printer executed must equal the
 // offline translation of the same lines: nothing lost, duplicated or reordered, under every

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The firmware link against a virtual printer that follows Marlin's receive rules
 // (docs/service.md, "Marlin's receive rules"): each fault class at 1 % over a long print, and the failures a
 // real Marlin showed (a lost ok, a line flushed behind a refused one, a Resend during the

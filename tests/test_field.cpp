@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The field's machines (machines/core-rtheta.toml, open5x.toml, voron-xyzac.toml, fullcontrol-xyzb.toml)
 // against their projects' own transforms, each written out here from the project's code or
 // configuration on its own, independently of the machine file: forward and inverse kinematics on

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Hostile input: every bound on what one input may cost (docs/limits.md) holds, and each
 // reproducer found by fuzzing and soaking the CLI and the service is refused clearly, at its
 // line and column, instead of overflowing, running cut or stopping for good.

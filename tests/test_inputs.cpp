@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The other ways in: CL data (APT / NX CLSF) and waypoint tables, through the input front. Each
 // record's target is read here from the file by the test's own parser and compared with forward
 // kinematics of the joints the translator wrote for it (not with the translator's own state).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The keep-out stage (ADD_IN team, 2015): R normal to the path toward the nearest
 // item, checked on the joints written (R is the firmware's A on addin4, the tip by FK) against
 // the geometry computed here from the input: the source's figure-1 tube, long moves past several

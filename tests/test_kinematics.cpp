@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Kinematics against the sources' own formulas (written out here independently of the machine
 // files), and FK/IK round trips on random poses for every shipped machine.
 #include <doctest/doctest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Lexer: G-code syntax in, words out. Every expectation here is written from the G-code
 // conventions (RS274/NIST, Marlin host protocol, RepRapFirmware strings), not from lexer output.
 #include <doctest/doctest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Joint limits and unwinding on rw2 (A within +-168 degrees, cables): a tool azimuth that keeps
 // turning would take the continuous solution past +168. Every check is against FK of the
 // emitted joints, sampled densely along the firmware's joint-linear moves, and the programmed

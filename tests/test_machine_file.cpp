@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Machine files: every error names the file, the line and the key; parameters and overrides.
 #include <doctest/doctest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The motion stage against independent checks: dense FK sampling of the emitted joint path,
 // E conservation, the firmware's feed rule computed here from its definition, and the number of
 // pieces against dense uniform splitting at the same achieved error.

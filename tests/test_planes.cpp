@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Tilted work planes (G68.2 / G53.1 / G69), the join of planar files along build directions, and
 // the post-processing guards (provenance header, binary G-code, in place). Every pose is checked
 // by forward kinematics of the joints written, against the plane computed here from the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Near the pole (the tool axis along the turntable's or the head's turning axis): real
 // curved-layer paths start, pass and end there. Each output is read back as the firmware would
 // move (joint-linear between the lines written, through FK) and held against the programmed

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The firmware protocol core on its own, with no port and no pseudo-terminal: a scripted clock
 // and scripted firmware replies, written the way Marlin answers (docs/service.md,
 // "Marlin's receive rules"), and what the core writes checked line by line.

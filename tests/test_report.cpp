@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The kinematic-error report: agrees with an independent dense check, stays bounded in size.
 #include <doctest/doctest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // `xlate5 serve` as a user and systemd see it: its flags and its configuration file checked by
 // one table of bounds, `serve --check`, a port that appears late, the start and end log, and
 // systemd's notifications.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The stages the front door wires together, each driven on its own: arcs -> chords (against the
 // circle through RS274's centre rules), the compensation stage (against interpolation done here),
 // the limit policy (every answer checked through FK and the machine's limits), and command

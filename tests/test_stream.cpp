@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Line reader and output sink: chunk boundaries, long lines, atomic output; number formatting.
 #include <doctest/doctest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Translator: modal G-code semantics, passthrough, G92/G28, G43.4/G43.5/G49, errors, inverse.
 // Joint values are checked against the sources' formulas written out here (Andersons, Twente 2023, eq. 4.5 for
 // rw2, Grutle (Oslo 2015) pseudo code 4.1 for pentarod), never against the program's own output.

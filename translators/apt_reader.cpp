@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The APT / NX CLSF front end: CL records -> canonical G43.5 G-code lines.
 // What it may call: see apt_reader.hpp.
 #include "translators/apt_reader.hpp"

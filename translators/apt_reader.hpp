@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A front end before the interpreter: APT / Siemens NX CLSF cutter-location records -> canonical
 // tool-space G-code (G43.5: X Y Z tip, I J K tool axis), each line under the line number of the
 // record it comes from. Why G-code lines and not typed moves: fed through the front door like any

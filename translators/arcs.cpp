@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The interpreter's arc function (pure): G2/G3 geometry -> chord end points. What it may call: see arcs.hpp.
 #include "translators/arcs.hpp"
 

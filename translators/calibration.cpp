@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Calibration, beside the pipeline: measurements -> machine-file values.
 // What it may call: see calibration.hpp.
 #include "translators/calibration.hpp"

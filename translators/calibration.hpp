@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Calibration, beside the pipeline (`xlate5 calibrate`): measurements -> machine-file values.
 // May call: kinematics, the machine data, the compensation tables' form.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The compensation stage's tables: measured errors by rotary angle.
 // What it may call: see compensation.hpp.
 #include "translators/compensation.hpp"

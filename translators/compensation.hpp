@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Error compensation (Andersons, Twente 2023, eq. 4.6): measured deviations of the tip as functions
 // of a rotary angle, subtracted from the joint targets after IK and added back by --inverse.
 // The compensation stage sits between the motion stage (and the planner's joint moves) and the

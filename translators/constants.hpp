@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Shared numbers of the library: pi and its degree factors, and the tolerances more than one
 // stage must agree on. No stage; included by any file that needs them, and calls nothing.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The emitter stage: joint values -> firmware text. What it may call: see emitter.hpp.
 #include "translators/emitter.hpp"
 

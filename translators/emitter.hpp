@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The emitter stage, last before the sink: joint values -> firmware G-code text, in the
 // machine's axis letters and decimals. It only writes text: the joints arrive solved, split and
 // compensated. It remembers what the firmware was last told, so a line names only the joints that

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Errors that carry the place they come from, so every message names file, line and cause.
 // No stage: thrown by every stage, caught by the front door's caller. Calls nothing.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Machine parameter expressions, for reading machine files. What it may call: see expr.hpp.
 #include "translators/expr.hpp"
 

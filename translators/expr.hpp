@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Arithmetic over named machine parameters ("-la", "lb + 2", "z_offset*2"), so a machine file
 // states each measured value once and the command line can override it. Part of reading a
 // machine (machine_file.cpp). Calls nothing.

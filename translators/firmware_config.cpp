@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The firmware's side of a machine file. What it may call: see firmware_config.hpp.
 // The syntax of each firmware, as its own documentation gives it: Marlin 2.1's Configuration.h
 // (AXISn_NAME, AXISn_ROTATES, *_MIN_POS / *_MAX_POS, DEFAULT_MAX_FEEDRATE in units per second),

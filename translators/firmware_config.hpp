@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The firmware's side of a machine file (`xlate5 firmware-config`): the axis lines of Marlin's
 // Configuration.h, RepRapFirmware's M584/M208/M203 (and M92's place), Klipper's
 // [manual_stepper] sections and the macro that registers them as G-code axes, written from the

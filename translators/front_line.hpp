@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // What the non-G-code front ends (apt_reader, waypoint_reader) hand to input_front: canonical
 // tool-space G-code lines, each under the line number of the record it stands for, so that the
 // interpreter, the planner, the look-back and the report work on them unchanged and every error

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The lexer stage: one line -> words. What it may call: see gcode_lexer.hpp.
 #include "translators/gcode_lexer.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The lexer stage, after the line reader: one line of text -> a Block of words. Knows G-code
 // syntax, nothing of its meaning. May call: number parsing.
 #pragma once

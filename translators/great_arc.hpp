@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Great-circle interpolation of unit vectors: the programmed tool axis along a move, for the
 // planner's pole checks and the motion stage's samples alike. No stage; may call: Eigen.
 #pragma once

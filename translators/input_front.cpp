@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The input front: G-code, CL data or waypoints -> the front door.
 // What it may call: see input_front.hpp.
 #include "translators/input_front.hpp"

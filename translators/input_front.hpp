@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The first stage after the line reader: chooses how input lines reach the front door. G-code
 // goes straight in; APT / NX CLSF records (apt_reader) and waypoint tables (waypoint_reader)
 // are turned into canonical G-code lines first, each fed under its record's own line number.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The interpreter stage: words + modal state -> typed moves for the planner.
 // What it may call: see interpreter.hpp.
 #include "translators/interpreter.hpp"

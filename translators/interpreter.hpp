@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The interpreter stage, between the lexer and the planner: one line's words + the modal state
 // (G43.4/G43.5/G49, G90/G91, G20/G21, G17-G19, G93/G94, M82/M83, F, G92's program frame, the
 // tilted work plane of G68.2/G53.1/G69) ->

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The inverse direction's pipeline: joint-space lines -> FK -> tool emitter.
 // What it may call: see inverse.hpp.
 #include "translators/inverse.hpp"

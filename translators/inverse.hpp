@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The inverse direction, its own small pipeline: the firmware's joint-space G-code (its axis
 // letters) -> the lexer -> line_commands -> measured errors added back -> forward kinematics ->
 // the tool emitter (G43.4 angles or G43.5 vector). For previews and round-trip checks:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The planner's limit policy: inside the limits, and the rotary turn chosen under them.
 // What it may call: see joint_limits.hpp.
 #include "translators/joint_limits.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The joints' limits, in one place: what "inside" means, and which orientation solution and
 // 360-degree turn a rotary takes under them. The planner's policy (planner.cpp and the motion
 // stage it drives call it); Kinematics::inverse uses it to keep its contract. Below kinematics:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The keep-out stage: R from the path and the keep-out items (ADD_IN team, 2015).
 // What it may call: see keep_out.hpp.
 #include "translators/keep_out.hpp"

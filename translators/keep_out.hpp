@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The keep-out stage, between the interpreter and the planner (ADD_IN team, 2015:
 // a 4-axis printer whose nozzle turns about its own vertical axis R to keep clear of parts placed
 // inside the print). For each printing move R is set normal to the path, toward the nearest

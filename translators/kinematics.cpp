@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The math: forward kinematics and the closed-form inverse. What it may call: see kinematics.hpp.
 #include "translators/kinematics.hpp"
 

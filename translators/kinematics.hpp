@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The math, used by the planner, the motion stage, calibration and --inverse: forward kinematics
 // and the closed-form inverse of any machine with up to two rotary joints (Paden-Kahan
 // subproblems 1 and 2). No machine has its own formula here. May call: the machine data, and

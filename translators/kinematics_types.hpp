@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The values kinematics and the joint-limit policy exchange: a pose, the raw orientation
 // solutions of a tool axis, the result of a solve, and angle wrapping. Calls nothing.
 #pragma once

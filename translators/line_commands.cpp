@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The interpreter's first step (both directions): a block -> commands in RS274 order.
 // What it may call: see line_commands.hpp.
 #include "translators/line_commands.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The interpreter's first step, shared by both directions: a lexed block -> its commands (G, M,
 // T codes) in RS274's order of execution and its parameter words, and back to text for lines
 // passed on unchanged. Knows the shape of a line, nothing of a machine's state. May call: the

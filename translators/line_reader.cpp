@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The first stage: lines in. What it may call: see line_reader.hpp.
 #include "translators/line_reader.hpp"
 

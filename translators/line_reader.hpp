@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The first stage: lines in from a file descriptor, in large chunks so memory stays flat
 // whatever the file size. May call: nothing of the pipeline.
 #pragma once

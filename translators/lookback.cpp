@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The look-back over the interpreter and planner: held output, checkpoint, replay.
 // What it may call: see lookback.hpp.
 #include "translators/lookback.hpp"

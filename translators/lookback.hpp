@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The look-back, over the interpreter and planner: holds the output from the latest travel move
 // on (for at most `lines` input lines), so that when a printing move further on would take a
 // bounded rotary past its limit, that travel move can be translated again ending on another

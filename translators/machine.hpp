@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A machine is data: two kinematic chains, joints with limits, and the firmware dialect.
 // Loaded from a TOML file (machine_file.cpp); all the math on it lives in kinematics.cpp.
 // No stage: every stage reads it. machine_file.cpp may call: expr, the compensation tables.

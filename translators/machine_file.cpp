@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Machine TOML file -> Machine. Every error names the file, the line and the key at fault.
 #include <algorithm>
 #include <cctype>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The modal state of G-code that both directions keep (the interpreter and the inverse
 // pipeline each hold one). Data only; calls nothing.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The motion stage: split, E and F of one solved move. What it may call: see motion.hpp.
 #include "translators/motion.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The motion stage, between the planner and the compensation stage: splits a tool-space move
 // (already solved at both ends by the planner) until the firmware's joint-linear path stays within
 // the tolerance of it, shares E among the pieces by tool-space length, and sets each piece's F so

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Number text <-> double (no stage). What it may call: see number.hpp.
 #include "translators/number.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Number text <-> double, without locale and without allocation (the hot path of every line).
 // No stage: the lexer and the emitters call it. Calls nothing.
 #pragma once

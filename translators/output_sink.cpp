@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The sink: text out, atomically to a file. What it may call: see output_sink.hpp.
 #include "translators/output_sink.hpp"
 

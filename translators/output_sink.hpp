@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The sink, last after the emitter: text out to a file descriptor; an output file is replaced
 // atomically, and only when the whole translation succeeded. May call: nothing of the pipeline.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The planner stage: typed moves -> joint moves (IK, solution choice, limits, re-zero).
 // What it may call: see planner.hpp.
 #include "translators/planner.hpp"

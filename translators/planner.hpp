@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The planner stage, between the interpreter and the motion stage: turns a typed move into
 // joint moves. It solves the end of each tool-space move (IK), chooses the solution (the
 // continuous one, or for a travel move another solution of its pose inside the limits: the other

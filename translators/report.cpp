@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The kinematic-error report and the log that holds measured moves for it. What it may call: see report.hpp.
 #include "translators/report.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The kinematic-error report: how far the firmware's joint-linear path leaves the programmed
 // tool-space path, per file, so a user can inspect a file before printing it. Memory is bounded
 // whatever the file size (histograms and a series that halves its resolution as it grows).

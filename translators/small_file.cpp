@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Whole small files, bounded. What it may call: see small_file.hpp.
 #include "translators/small_file.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Whole small files (machine files, compensation tables, keep-out lists, measurement tables, the
 // service's configuration) read into memory with a bound, so an endless file (/dev/zero, a FIFO
 // that never ends) is refused instead of growing memory. No stage; calls nothing of the pipeline.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The loop from the line reader through the front door to the sink.
 // What it may call: see stream.hpp.
 #include "translators/stream.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A whole stream through the library: the line reader (first stage) -> the front door ->
 // the sink. May call: line_reader, input_front, the front door (translator.hpp), output_sink.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The inverse direction's emitter: pose -> tool-space text. What it may call: see tool_emitter.hpp.
 #include "translators/tool_emitter.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The emitter stage of the inverse direction (inverse.cpp): tip and orientation -> tool-space
 // G-code (G43.4 angle form or G43.5 vector form), for previews and round-trip checks. Only writes
 // text. May call: number formatting and the E/F writing it shares with the joint emitter.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The front door: wires the forward stages (or the inverse pipeline) together.
 // What it may call: see translator.hpp.
 #include "translators/translator.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The front door of the library: one object that takes input lines and returns output text.
 // Forward (tool space -> joints): interpreter -> planner -> motion -> compensation -> emitter,
 // under the look-back. Inverse (options.inverse: joints -> tool space): its own pipeline in

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The waypoint-table front end: `x y z nx ny nz` lines -> canonical G43.5 G-code lines.
 // What it may call: see waypoint_reader.hpp.
 #include "translators/waypoint_reader.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A front end before the interpreter: the plain waypoint table that curved-layer research tools
 // write, one point per line, `x y z nx ny nz` (blanks or commas between; millimetres; the vector
 // is the tool axis from tip toward holder, any length but 0, normalised here) -> canonical G43.5

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Tilted work planes: the Euler rotation and its inverse for a build direction.
 // What it may call: see work_plane.hpp.
 #include "translators/work_plane.hpp"

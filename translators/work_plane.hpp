@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Tilted work planes (3+2): the frame G68.2 defines, used by the interpreter stage to read
 // X Y Z (and arcs) inside the plane and to give the tool axis the plane's normal (G53.1).
 // The one place of the plane's math: Euler angles -> rotation, plane <-> program frame, and a

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Cura post-processing script: the sliced G-code through xlate5 into joint space.
 #
 # Install: copy this file into the "scripts" folder of Cura's configuration folder (Help > Show

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """End to end with a real sender (Printrun's printcore) against `xlate5 serve` and its virtual
 printer: the service's two guarantees (docs/service.md).
 

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Real senders for the end-to-end test: Printrun's printcore (numbered, checksummed, ping-pong,
 replays from Resend), and a bare ping-pong sender without line numbers, as cncjs sends.
 

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """End to end: `xlate5 serve` with its virtual printer, a real sender streaming a tool-space file
 into its pseudo-terminal, SIGTERM (drain), then the commands the printer executed compared with
 the offline translation of the same file (`xlate5 --machine M -i FILE`). Nothing may be lost,

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # The bash completion completes options (also a command's own), commands and machine names
 # from what the program itself lists.
 # Usage: bash_completion.sh XLATE5 COMPLETION_SCRIPT

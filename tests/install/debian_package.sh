@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # The Debian package as a user gets it: cpack builds it from this build tree, dpkg -x unpacks it
 # into an empty directory, and the unpacked program runs: --version, and the packaged example
 # translated with a machine file from the unpacked share directory, found by name next to the

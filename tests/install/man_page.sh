@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # The manual page xlate5(1) renders with man -l without a troff warning, and documents every
 # option and command that --help lists, for the program and each of its commands.
 # Usage: man_page.sh XLATE5 PAGE
