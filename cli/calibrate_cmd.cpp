@@ -4,6 +4,8 @@
 #include "cli/calibrate_cmd.hpp"
 
 #include <algorithm>
+#include <cctype>
+#include <cstdlib>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -45,6 +47,27 @@ int write_calibrated_copy(const Machine& m, const std::string& text, const std::
 // Rows of numbers from a small measurement file (at most kMaxMeasurementBytes): `columns`
 // comma-separated numbers a line, each finite and within +-1e9 (the G-code lexer's bound), '#'
 // comments and blank lines skipped. Prints "path:line:column: ..." and returns false on a bad line.
+// A spreadsheet's header row before the first measurement ("angle,error", "x (mm), y (mm)"):
+// `columns` fields, each starting with a letter and none a number ("inf" and "nan" are numbers
+// to strtod, and are refused as data), so no row of measurements is ever taken for one.
+bool header_row(const std::string& l, int columns) {
+    int fields = 0;
+    std::size_t at = 0;
+    for (;;) {
+        const std::size_t comma = l.find(',', at);
+        std::string f = l.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
+        f.erase(0, std::min(f.size(), f.find_first_not_of(" \t\"")));
+        if (f.empty() || !std::isalpha(static_cast<unsigned char>(f[0]))) return false;
+        char* end = nullptr;
+        (void)std::strtod(f.c_str(), &end);
+        if (end != f.c_str()) return false;
+        ++fields;
+        if (comma == std::string::npos) break;
+        at = comma + 1;
+    }
+    return fields == columns;
+}
+
 bool read_rows(const std::string& path, int columns, std::vector<std::vector<double>>& rows, int& exit_code) {
     std::string text;
     try {
@@ -58,6 +81,8 @@ bool read_rows(const std::string& path, int columns, std::vector<std::vector<dou
     for (int line = 1; std::getline(in, l); ++line) {
         if (auto h = l.find('#'); h != std::string::npos) l.resize(h);
         if (l.find_first_not_of(" \t\r") == std::string::npos) continue;
+        if (auto r = l.find('\r'); r != std::string::npos && r + 1 == l.size()) l.pop_back();
+        if (rows.empty() && header_row(l, columns)) continue;
         std::vector<double> row;
         std::size_t at = 0;  // where the field starts in the line
         std::string bad;

@@ -441,3 +441,28 @@ TEST_CASE("CLI: degenerate measurements are refused with the reason and what to 
     CHECK(plate.code == 0);
     CHECK(contains(plate.out, "(condition number "));
 }
+
+TEST_CASE("CLI: a measurement table with a spreadsheet's header row reads as the same table without it") {
+    // Every spreadsheet writes its column names first; b1037f8 refused them as "'a' is not a number".
+    const Scratch d;
+    std::string rows;
+    for (int a = 0; a < 360; a += 30) {
+        char line[64];
+        std::snprintf(line, sizeof line, "%d,%.4f\n", a, 0.05 * std::cos(rad(a)) + 0.02 * std::sin(rad(2.0 * a)));
+        rows += line;
+    }
+    const auto plain = d.run("calibrate fit " + quote(d.write("plain.csv", rows).string()) + " --order 2");
+    REQUIRE(plain.code == 0);
+    for (const std::string header : {"angle,error\n", "\"angle (deg)\", \"error (mm)\"\r\n", "# measured 2026-11-28\nA,err_mm\n"}) {
+        CAPTURE(header);
+        const auto with = d.run("calibrate fit " + quote(d.write("header.csv", header + rows).string()) + " --order 2");
+        CHECK(with.code == 0);
+        // The same fit: the numbers after the first line (which names the file) agree.
+        CHECK(with.out.substr(with.out.find('\n')) == plain.out.substr(plain.out.find('\n')));
+    }
+    // Names after the first measurement, a row of another width, or "nan" are still refused.
+    for (const std::string bad : {"0,0.01\nangle,error\n30,0.02\n", "angle,error,extra\n0,0.01\n", "nan,inf\n0,0.01\n"}) {
+        CAPTURE(bad);
+        CHECK(d.run("calibrate fit " + quote(d.write("bad.csv", bad).string())).code == 1);
+    }
+}
