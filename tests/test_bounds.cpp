@@ -37,7 +37,10 @@ struct Result {
 // most 32 MiB of input and its translation), a small part of what an unbounded read of
 // /dev/zero reaches in the timeout. AddressSanitizer reserves terabytes of address space for its
 // shadow at start: under it, only the timeout.
-const std::string kLimit = std::string(kAddressSanitized ? "" : "prlimit --as=1073741824 ") + "timeout 60 ";
+// --foreground: a signal sent to timeout reaches the command once (without it, timeout sends it
+// to the command and again to its process group, and a second SIGTERM after the drain can land
+// once xlate5's handler is gone: exit 143 for a clean stop).
+const std::string kLimit = std::string(kAddressSanitized ? "" : "prlimit --as=1073741824 ") + "timeout --foreground 60 ";
 
 // The xlate5 binary with `args` (quoted already), standard output and error to files.
 // `prefix` goes before the binary (a limit, a pipe into it); standard input is /dev/null unless
