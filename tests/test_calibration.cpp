@@ -339,8 +339,8 @@ TEST_CASE("conditioning: the condition numbers of the fits against their closed 
     // at an angle with cosine c = (y1 + y2) / sqrt(2 (y1^2 + y2^2)), and the singular values of two
     // unit columns are sqrt(1 +- c): the condition number is sqrt((1 + c) / (1 - c)).
     for (const auto& [y1, y2] : std::vector<std::pair<double, double>>{{30, -30}, {10, 40}, {60, 90}, {30, 30.5}}) {
-        CAPTURE(y1);
-        CAPTURE(y2);
+        CAPTURE_BINDING(y1);
+        CAPTURE_BINDING(y2);
         const double c = (y1 + y2) / std::sqrt(2 * (y1 * y1 + y2 * y2));
         const double expected = std::sqrt((1 + c) / (1 - c));
         const double offset = 0.7, z0 = 0.12;

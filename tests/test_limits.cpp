@@ -250,7 +250,7 @@ TEST_CASE("limits: a linear joint past its travel is told as placement (the slic
         Translator t(k, {});
         t.set_lookback(lookback);
         const auto [line, message] = failure_of(t, linear);
-        CAPTURE(message);
+        CAPTURE_BINDING(message);
         CHECK(line == 3);
         CHECK(contains(message, "joint X would go to"));
         CHECK(contains(message, "-30.000 .. 250.000"));
@@ -262,7 +262,7 @@ TEST_CASE("limits: a linear joint past its travel is told as placement (the slic
         Translator r(k, {});
         r.set_lookback(lookback);
         const auto [rline, rmessage] = failure_of(r, rotary);
-        CAPTURE(rmessage);
+        CAPTURE_BINDING(rmessage);
         CHECK(rline == 3);
         CHECK(contains(rmessage, "joint A"));
         CHECK(contains(rmessage, "turn"));
