@@ -719,25 +719,10 @@ void Service::firmware_fault(const std::string& why, std::size_t lines_not_execu
     check_drained();
 }
 
-std::string Service::tool_space_position(std::string_view report) const {
-    // "X:7.00 Y:0.00 Z:0.00 A:10.00 B:5.00 E:0.00 Count X:560 …": the joints as the firmware
-    // knows them (compensated) -> nominal joints -> tip and angles in the part frame.
-    std::vector<double> q = translator_->joints();
-    double e = 0;
-    bool have_e = false;
-    const auto count = report.find("Count");
-    std::string_view words = report.substr(0, count);
-    for (std::size_t i = 0; i + 1 < words.size(); ++i) {
-        if (words[i + 1] != ':' || (i > 0 && words[i - 1] != ' ')) continue;
-        const double v = std::strtod(std::string(words.substr(i + 2, 24)).c_str(), nullptr);
-        if (words[i] == 'E') {
-            e = v, have_e = true;
-            continue;
-        }
-        for (std::size_t j = 0; j < machine_.joints.size(); ++j)
-            if (machine_.joints[j].output == words[i]) q[j] = v;
-    }
-    machine_.compensation.undo(q);
+std::string Service::tool_space_position(const Reported& at) const {
+    // The nominal joints read_position took from the firmware's report -> tip and angles in the
+    // part frame.
+    const std::vector<double>& q = at.q;
     const Pose pose = kin_->forward(q);
     const Eigen::Vector3d tip = pose.tip - translator_->program_offset();
     char buf[96];
@@ -745,8 +730,8 @@ std::string Service::tool_space_position(std::string_view report) const {
     std::string out = buf;
     // E right after Z: OctoPrint 1.x reads M114 only as "X: Y: Z: E:" (docs/service.md); the
     // rotaries follow.
-    if (have_e) {
-        std::snprintf(buf, sizeof buf, " E:%.2f", e);
+    if (at.e) {
+        std::snprintf(buf, sizeof buf, " E:%.2f", *at.e);
         out += buf;
     }
     for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
@@ -778,7 +763,7 @@ void Service::firmware_message(std::string_view line) {
             broadcast("echo:xlate5: the firmware's position report could not be read (" + why + "): " + std::string(line));
             return;
         }
-        broadcast(tool_space_position(line));
+        broadcast(tool_space_position(*at));
         return;
     }
     broadcast(line);

@@ -137,11 +137,11 @@ private:
     void broadcast(std::string_view line);
     void arm_busy();
     void check_drained();
-    std::string tool_space_position(std::string_view report) const;
     // The joints (nominal) and E of a firmware's M114 report; nullopt, with why, when any of the
     // machine's joints is missing or not a number.
     struct Reported { std::vector<double> q; std::optional<double> e; };
     std::optional<Reported> read_position(std::string_view report, std::string& why) const;
+    std::string tool_space_position(const Reported& at) const;
     void ask_position();
     std::optional<std::string> unplaceable(const Pending& p) const;
     void reset_translator();
