@@ -13,9 +13,9 @@
 #include <vector>
 
 #include "translators/error.hpp"
-#include "translators/gcode_lexer.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
+#include "translators/inputs/gcode_lexer.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
 #include "translators/number.hpp"
 
 namespace {

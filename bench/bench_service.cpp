@@ -37,8 +37,8 @@
 #include "daemon/link.hpp"
 #include "daemon/ports.hpp"
 #include "daemon/serve.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/translator.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/pipeline/translator.hpp"
 
 using namespace xlate5;
 using Clock = std::chrono::steady_clock;

@@ -16,13 +16,13 @@
 #include <vector>
 
 #include "cli/options.hpp"
-#include "translators/calibration.hpp"
-#include "translators/compensation.hpp"
+#include "translators/machine/calibration.hpp"
+#include "translators/pipeline/compensation.hpp"
 #include "translators/error.hpp"
-#include "translators/gcode_lexer.hpp"
-#include "translators/machine.hpp"
-#include "translators/small_file.hpp"
-#include "translators/stream.hpp"
+#include "translators/inputs/gcode_lexer.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/inputs/small_file.hpp"
+#include "translators/pipeline/stream.hpp"
 
 namespace xlate5::cli {
 namespace {

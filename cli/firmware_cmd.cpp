@@ -6,8 +6,8 @@
 #include <cstdio>
 
 #include "cli/options.hpp"
-#include "translators/firmware_config.hpp"
-#include "translators/machine.hpp"
+#include "translators/machine/firmware_config.hpp"
+#include "translators/machine/machine.hpp"
 
 namespace xlate5::cli {
 

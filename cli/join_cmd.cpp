@@ -27,7 +27,7 @@
 #include "cli/options.hpp"
 #include "translators/error.hpp"
 #include "translators/number.hpp"
-#include "translators/work_plane.hpp"
+#include "translators/pipeline/work_plane.hpp"
 
 namespace xlate5::cli {
 namespace {

@@ -7,7 +7,7 @@
 
 #include "cli/errors.hpp"
 #include "translators/error.hpp"
-#include "translators/machine.hpp"
+#include "translators/machine/machine.hpp"
 
 namespace xlate5::cli {
 

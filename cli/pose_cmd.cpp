@@ -13,8 +13,8 @@
 
 #include "cli/options.hpp"
 #include "translators/error.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
 
 namespace xlate5::cli {
 namespace {

@@ -17,8 +17,8 @@
 #include <string_view>
 #include <vector>
 
-#include "translators/kinematics.hpp"
-#include "translators/report.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/inspect/report.hpp"
 
 namespace xlate5::cli {
 

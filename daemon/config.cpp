@@ -11,7 +11,7 @@
 #include <toml++/toml.h>
 
 #include "translators/error.hpp"
-#include "translators/small_file.hpp"
+#include "translators/inputs/small_file.hpp"
 
 namespace xlate5 {
 namespace {

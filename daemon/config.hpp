@@ -14,7 +14,7 @@
 
 #include "daemon/firmware_link.hpp"
 #include "daemon/virtual_printer.hpp"
-#include "translators/machine.hpp"
+#include "translators/machine/machine.hpp"
 
 namespace xlate5 {
 

@@ -24,7 +24,7 @@
 #include "daemon/status_http.hpp"
 #include "daemon/virtual_printer.hpp"
 #include "translators/error.hpp"
-#include "translators/line_reader.hpp"
+#include "translators/inputs/line_reader.hpp"
 
 namespace xlate5 {
 namespace {

@@ -18,9 +18,9 @@
 #include "daemon/lifetime.hpp"
 #include "daemon/log_policy.hpp"
 #include "daemon/sender_session.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
-#include "translators/translator.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/pipeline/translator.hpp"
 
 namespace xlate5 {
 

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "translators/machine.hpp"
+#include "translators/machine/machine.hpp"
 
 namespace xlate5::fuzz {
 

@@ -9,7 +9,7 @@
 
 #include "fuzz/fuzz_common.hpp"
 #include "translators/error.hpp"
-#include "translators/machine.hpp"
+#include "translators/machine/machine.hpp"
 
 using namespace xlate5;
 

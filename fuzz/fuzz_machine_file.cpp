@@ -8,8 +8,8 @@
 #include <string>
 
 #include "translators/error.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
 
 using namespace xlate5;
 

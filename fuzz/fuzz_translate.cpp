@@ -20,11 +20,11 @@
 
 #include "fuzz/fuzz_common.hpp"
 #include "translators/error.hpp"
-#include "translators/gcode_lexer.hpp"
-#include "translators/input_front.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/report.hpp"
-#include "translators/translator.hpp"
+#include "translators/inputs/gcode_lexer.hpp"
+#include "translators/inputs/input_front.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/inspect/report.hpp"
+#include "translators/pipeline/translator.hpp"
 
 using namespace xlate5;
 

@@ -21,9 +21,9 @@
 #include "daemon/link.hpp"
 #include "daemon/ports.hpp"
 #include "daemon/serve.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
-#include "translators/translator.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/pipeline/translator.hpp"
 
 namespace xlate5::test {
 

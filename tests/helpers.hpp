@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "translators/machine.hpp"
+#include "translators/machine/machine.hpp"
 
 // doctest's CAPTURE reads its argument inside a lambda, and clang 14 cannot capture a structured
 // binding there: this captures a reference to it, under the binding's own name in the message.

@@ -16,11 +16,11 @@
 #include "daemon/link.hpp"
 #include "daemon/serve.hpp"
 #include "helpers.hpp"
-#include "translators/calibration.hpp"
-#include "translators/keep_out.hpp"
-#include "translators/lookback.hpp"
-#include "translators/machine.hpp"
-#include "translators/stream.hpp"
+#include "translators/machine/calibration.hpp"
+#include "translators/pipeline/keep_out.hpp"
+#include "translators/pipeline/lookback.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/pipeline/stream.hpp"
 
 using namespace xlate5;
 using namespace xlate5::test;

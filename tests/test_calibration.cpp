@@ -14,10 +14,10 @@
 #include <sstream>
 
 #include "helpers.hpp"
-#include "translators/calibration.hpp"
+#include "translators/machine/calibration.hpp"
 #include "translators/error.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
 
 using namespace xlate5;
 using namespace xlate5::test;

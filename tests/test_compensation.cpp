@@ -12,12 +12,12 @@
 #include <unistd.h>
 
 #include "helpers.hpp"
-#include "translators/calibration.hpp"
-#include "translators/compensation.hpp"
+#include "translators/machine/calibration.hpp"
+#include "translators/pipeline/compensation.hpp"
 #include "translators/error.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
-#include "translators/translator.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/pipeline/translator.hpp"
 
 using namespace xlate5;
 using namespace xlate5::test;

@@ -18,9 +18,9 @@
 
 #include "helpers.hpp"
 #include "translators/error.hpp"
-#include "translators/firmware_config.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
+#include "translators/machine/firmware_config.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
 
 using namespace xlate5;
 using xlate5::test::rad;

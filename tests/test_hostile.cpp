@@ -18,12 +18,12 @@
 
 #include "daemon/line_checker.hpp"
 #include "tests/daemon_rig.hpp"
-#include "translators/arcs.hpp"
+#include "translators/pipeline/arcs.hpp"
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/lookback.hpp"
-#include "translators/translator.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/pipeline/lookback.hpp"
+#include "translators/pipeline/translator.hpp"
 
 using namespace xlate5;
 using namespace xlate5::test;

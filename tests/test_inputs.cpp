@@ -12,11 +12,11 @@
 
 #include "helpers.hpp"
 #include "translators/error.hpp"
-#include "translators/input_front.hpp"
-#include "translators/keep_out.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
-#include "translators/translator.hpp"
+#include "translators/inputs/input_front.hpp"
+#include "translators/pipeline/keep_out.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/pipeline/translator.hpp"
 
 using namespace xlate5;
 using namespace xlate5::test;

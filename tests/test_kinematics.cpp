@@ -14,9 +14,9 @@
 
 #include "helpers.hpp"
 #include "translators/error.hpp"
-#include "translators/joint_limits.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
+#include "translators/pipeline/joint_limits.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
 
 using namespace xlate5;
 

@@ -12,7 +12,7 @@
 #include <string_view>
 
 #include "translators/error.hpp"
-#include "translators/gcode_lexer.hpp"
+#include "translators/inputs/gcode_lexer.hpp"
 
 namespace {
 bool contains(const std::string& hay, const std::string& needle) { return hay.find(needle) != std::string::npos; }

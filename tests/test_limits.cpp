@@ -12,10 +12,10 @@
 
 #include "helpers.hpp"
 #include "translators/error.hpp"
-#include "translators/joint_limits.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
-#include "translators/translator.hpp"
+#include "translators/pipeline/joint_limits.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/pipeline/translator.hpp"
 
 using namespace xlate5;
 using namespace xlate5::test;

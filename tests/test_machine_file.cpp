@@ -9,9 +9,9 @@
 
 #include "helpers.hpp"
 #include "translators/error.hpp"
-#include "translators/expr.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
+#include "translators/inputs/expr.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
 
 using namespace xlate5;
 using xlate5::test::read;

@@ -14,13 +14,13 @@
 
 #include "helpers.hpp"
 #include "translators/error.hpp"
-#include "translators/input_front.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
-#include "translators/report.hpp"
-#include "translators/motion.hpp"
+#include "translators/inputs/input_front.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/inspect/report.hpp"
+#include "translators/pipeline/motion.hpp"
 #include "translators/number.hpp"
-#include "translators/translator.hpp"
+#include "translators/pipeline/translator.hpp"
 
 using namespace xlate5;
 using namespace xlate5::test;

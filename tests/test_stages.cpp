@@ -12,15 +12,15 @@
 #include <vector>
 
 #include "helpers.hpp"
-#include "translators/arcs.hpp"
-#include "translators/compensation.hpp"
-#include "translators/joint_limits.hpp"
+#include "translators/pipeline/arcs.hpp"
+#include "translators/pipeline/compensation.hpp"
+#include "translators/pipeline/joint_limits.hpp"
 #include "translators/error.hpp"
-#include "translators/gcode_lexer.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/line_commands.hpp"
-#include "translators/machine.hpp"
-#include "translators/planner.hpp"
+#include "translators/inputs/gcode_lexer.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/pipeline/line_commands.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/pipeline/planner.hpp"
 
 using namespace xlate5;
 using namespace xlate5::test;

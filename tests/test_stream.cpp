@@ -16,10 +16,10 @@
 
 #include "translators/error.hpp"
 #include "translators/number.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
-#include "translators/stream.hpp"
-#include "translators/translator.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/pipeline/stream.hpp"
+#include "translators/pipeline/translator.hpp"
 
 using namespace xlate5;
 namespace fs = std::filesystem;

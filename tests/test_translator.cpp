@@ -19,9 +19,9 @@
 #include <vector>
 
 #include "translators/error.hpp"
-#include "translators/kinematics.hpp"
-#include "translators/machine.hpp"
-#include "translators/translator.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/pipeline/translator.hpp"
 
 using namespace xlate5;
 using namespace xlate5::test;

@@ -1,0 +1,297 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The math, used by the planner, the motion stage, calibration and --inverse: forward kinematics
+// and the closed-form inverse of any machine with up to two rotary joints (Paden-Kahan
+// subproblems 1 and 2). No machine has its own formula here. May call: the machine data, and
+// joint_limits (the one definition of the limits) for the choice inverse() makes.
+//
+// The contract is forward(q) and inverse(pose, previous). Below them, plain queries that the
+// planner combines under its own policy: the orientation solutions per branch and the position
+// solve for given rotaries.
+#pragma once
+#include <Eigen/Core>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "translators/kinematics/kinematics_types.hpp"
+#include "translators/machine/machine.hpp"
+
+namespace xlate5 {
+
+// A chain element compiled for the walk in kinematics.cpp: the loader's element with the
+// shortcuts its numbers allow, which give the same results to the last bit, up to the sign of a
+// zero (a product term that is an exact zero left out, a product with the identity skipped, an
+// element that changes nothing dropped).
+struct ChainLink {
+    enum class Kind : unsigned char { Fixed, Shift, Linear, Rotary, RotaryX, RotaryY, RotaryZ } kind = Kind::Fixed;
+    bool fresh = false;  // nothing ahead of it in its chain rotates: the walk's rotation is still the identity
+    bool shifts = true;  // Fixed: a translation; Rotary: its axis misses the origin (else t is left as it is)
+    int joint = -1;
+    double sign = 1;     // RotaryX/Y/Z: the axis is +1 or -1 times that coordinate axis, exactly
+    double axis[3] = {}, point[3] = {}, shift[3] = {};
+    double rot[9] = {};  // Fixed: its rotation, row by row (Shift: the identity, not stored)
+};
+
+// The angle (degrees) between two unit vectors, from their dot product.
+double angle_of_dot(double dot);
+
+// For bounds, which only have to be safe, without an acos or asin:
+// the square of the angle (radians) between two unit vectors with dot product d, at most:
+// 4 tan^2(phi / 2) = 4 (1 - d) / (1 + d) >= phi^2 (tan x >= x), within a few parts in phi^2 of it
+// for small turns; infinite past a right angle;
+double turn_squared_at_most(double d);
+// and the chord between two unit vectors below which their angle is within `degrees`: 2 sin of
+// half of it, made shorter by 1e-12 of itself than rounding could move it (0 outside (0, 180)).
+double chord_within(double degrees);
+
+// The least dot with angle_of_dot(dot) < degrees, for a limit so small that only dots a few
+// ulps below 1 pass (1e-6 degrees: 1 and the double below it; at most 64 of them, else NaN).
+// Every dot below it fails: acos only grows as dot falls (test_kinematics checks each double
+// within 1e-12 of 1, where AngleLimit would take the acos; past that AngleLimit's own reason
+// holds), so `dot >= least` is the acos's verdict without the acos.
+double least_dot_below(double degrees);
+
+// angle_of_dot(dot) compared with a fixed limit: the same verdict, with the acos only when dot is
+// within 1e-12 of the limit's cosine. Outside that window the angle is more than 1e-12 radians
+// from the limit (|d acos / d dot| >= 1), far more than the few ulps by which acos, the product
+// with kDegPerRad and the limit's cosine can be off. A limit outside (0, 180) degrees always
+// takes the acos.
+class AngleLimit {
+public:
+    explicit AngleLimit(double degrees);
+    double degrees() const { return degrees_; }
+    // angle_of_dot(dot) < degrees()
+    bool below(double dot) const {
+        if (dot > high_) return true;
+        if (dot < low_) return false;
+        return angle_of_dot(dot) < degrees_;
+    }
+    // angle_of_dot(dot) > degrees()
+    bool above(double dot) const {
+        if (dot > high_) return false;
+        if (dot < low_) return true;
+        return angle_of_dot(dot) > degrees_;
+    }
+
+private:
+    double degrees_;
+    double low_ = -std::numeric_limits<double>::infinity(), high_ = std::numeric_limits<double>::infinity();
+};
+
+class Kinematics {
+public:
+    // Precomputes the orientation structure; throws MachineError for a layout outside the family.
+    explicit Kinematics(const Machine& machine);
+
+    const Machine& machine() const { return machine_; }
+
+    // Joint values (mm, degrees) -> tip and tool axis in the part frame.
+    Pose forward(const std::vector<double>& q) const;
+    // forward(q).axis to the last bit, without the tip's translations (the pole checks ask only that).
+    Eigen::Vector3d tool_axis(const std::vector<double>& q) const;
+
+    // The firmware's path from joints qa to qb (every joint at a constant rate): its end poses,
+    // and upper bounds on how far, anywhere along it, the tip (mm) and the tool axis (a unit
+    // vector) leave the chords between those ends. Cheaper than sampling the path; see
+    // kinematics.cpp for the derivation.
+    // An end of such a path: its pose, and the tip's largest distance from a rotary joint's axis.
+    struct PathEnd {
+        Pose pose;
+        double lever_arm = 0;  // the largest of `arm`
+        double arm[8] = {};    // the distance from each rotary element's axis, in chain order (part chain, then tool chain)
+        // An end bounded rather than measured (near_end): the true tip and tool axis are within
+        // these of `pose` (mm, and a unit vector's length), and `arm` holds upper bounds.
+        double tip_slack = 0, axis_slack = 0;
+    };
+    PathEnd path_end(const double* q) const;
+    // An end the position solve found: its joints as solved and its PathEnd, which the solve
+    // gives for a few operations more than its own walk (solve_position). `valid` is false when
+    // it did not (the machine's Jacobian is fixed, or no solve was made).
+    struct SolvedEnd {
+        std::vector<double> q;
+        PathEnd end;
+        bool valid = false;
+    };
+    // The PathEnd at joints q near a solved end (the end rounded to the printed decimals), with
+    // no FK: the solved pose with the slack that moving its joints to q can add (each rotary
+    // turns the tip by at most its angle times the tip's distance from its axis, a linear joint
+    // moves it by its own travel) and the arms grown by how far the tip can move at all. False
+    // when that cannot be bounded (a linear joint without limits: no reach).
+    bool near_end(const SolvedEnd& solved, const double* q, PathEnd& out) const;
+    struct PathBound {
+        double tip = 0, axis = 0;
+    };
+    PathBound joint_path_bound(const PathEnd& a, const double* qa, const double* qb) const;
+    // joint_path_bound for any order of the terms (it takes a shorter path for some orders; the
+    // tests hold it against this one).
+    PathBound joint_path_bound_general(const PathEnd& a, const double* qa, const double* qb) const;
+    // joint_path_bound's bound for the tool axis alone, for a turn of any size.
+    double axis_path_bound(const double* qa, const double* qb) const;
+    // The machine's reach as a path end (lever arms only, no pose): the tip's largest distance
+    // from each rotary axis anywhere inside the joint limits. joint_path_bound(reach(), qa, qb)
+    // bounds a path between joints inside the limits without an FK; has_reach() is false when a
+    // linear joint has no limits.
+    bool has_reach() const { return has_reach_; }
+    const PathEnd& reach() const { return reach_; }
+    // How far the tip can move between joints qa and qb (each joint on its own, added): an upper
+    // bound by the reach, for joints inside the limits.
+    double reach_shift(const double* qa, const double* qb) const;
+
+    // Joints reaching `pose`: of its solutions (both orientation branches, their 360-degree
+    // turns), the one inside the joint limits nearest `previous`. A joint whose axis is parallel to
+    // the tool axis keeps its previous value.
+    IkResult inverse(const Pose& pose, const std::vector<double>& previous, std::vector<double>& q) const;
+
+    // Sets the linear joints of q so the tip reaches `tip`, rotary joints as they are in q;
+    // `axis`, when given, receives the tool axis of that configuration.
+    // `end`, when given, receives the solution's SolvedEnd where the solve can give it cheaply.
+    // `chosen`, when it names a solution, says that q's rotaries are that orientation solution's
+    // angles (orient_within_limits's report): the solve may take their cosines and sines from it.
+    IkResult solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr,
+                            SolvedEnd* end = nullptr, ChosenSolution chosen = {}) const;
+    // solve_position's general path in Eigen's own products, which the scalar solve equals bit
+    // for bit (the closed form of has_two_turns() to rounding). Apart for the tests that hold the
+    // two against each other.
+    IkResult solve_position_general(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis = nullptr,
+                                    SolvedEnd* end = nullptr) const;
+
+    // The raw orientation solutions of a tool axis (see OrientationSolutions).
+    using Solutions = OrientationSolutions;
+    Solutions orientation_solutions(const Eigen::Vector3d& axis) const;
+    // orientation_solutions is the shortcut where the machine's rotary axes allow it and it
+    // answers (false: it leaves the axis to the general path), else the general path: the same
+    // bits. Apart for the tests that hold the two against each other.
+    bool has_orientation_shortcut() const { return orient_.on; }
+    bool orientation_shortcut(const Eigen::Vector3d& axis, Solutions& out) const;
+    Solutions orientation_solutions_general(const Eigen::Vector3d& axis) const;
+    const std::vector<int>& rotary_joints() const { return rotary_; }
+
+    // True when (theta1 + 180, -theta2) gives the same tool axis as (theta1, theta2) for every
+    // angle: the second rotary is normal to the first and the tool axis (at zero) lies along the
+    // first (rw2's A/B head, A/C and B/C tables). Then the other orientation branch is an affine
+    // image of the first, so angle-form moves can be carried over to it exactly.
+    bool has_flip() const { return flip_; }
+
+    // The machine has the TwoTurns shape (pentarod's A/C table): forward(), tool_axis() and the
+    // position solve are in closed form there, equal to the chain walk's products to rounding
+    // rather than to the bit (the tests hold them to it).
+    bool has_two_turns() const { return turns_.pattern >= 0; }
+
+private:
+    struct Factor;
+    // Base -> a chain's end (rotation, translation); `linear_dirs`, when given, receives each linear
+    // joint's direction.
+    void eval(const std::vector<ChainLink>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
+              Eigen::Vector3d* linear_dirs) const;
+    Pose forward(const double* q, double* lever_arm, double* arms = nullptr) const;
+    // solve_position's path for a Jacobian that varies, in the walk's scalars (kinematics.cpp).
+    IkResult solve_scalar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
+    // solve_two_turns where the machine has that shape, else solve_scalar.
+    IkResult solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
+                           ChosenSolution chosen) const;
+    // forward() and the position solve for a machine of the shape TwoTurns describes, in closed
+    // form (one instance per pair of coordinate axes, chosen at load; tool_axis() has its own, in
+    // kinematics.cpp).
+    template <int k1, int k2>
+    Pose forward_two_turns(const double* q, double* lever_arm, double* arms) const;
+    template <int k1, int k2>
+    IkResult solve_two_turns(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
+                             ChosenSolution chosen) const;
+    // The position solve's 3x3 Jacobian from the chains' linear directions; false when singular.
+    bool linear_jacobian(const Eigen::Matrix3d& Rp, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,
+                         Eigen::Matrix3d& J) const;
+
+    // The moving elements of the chain seen from the part (the part chain inverted, then the tool
+    // chain), in that order, for the bound; linear joints ahead of every rotary are left out.
+    struct BoundTerm {
+        int joint = 0;
+        bool rotary = false;
+        double scale = 1;  // the axis's length as written
+        int arm = 0;       // rotary: its index in PathEnd::arm
+    };
+    std::vector<BoundTerm> terms_;
+    // terms_ when it is its rotaries and then its linear joints alone (joint_path_bound_split).
+    bool bound_split_ = false;
+    int bound_rotary_ = 0, bound_count_ = 0;
+    BoundTerm bound_[8];
+    PathBound joint_path_bound_split(const PathEnd& a, const double* qa, const double* qb) const;
+
+    Machine machine_;
+    std::vector<ChainLink> part_links_, tool_links_;  // machine_'s chains, compiled for the walk
+    std::vector<int> rotary_;          // rotary joint indices in the order of the orientation product
+    std::vector<double> sign_;         // +1 tool chain, -1 part chain (the part rotation enters inverted)
+    std::vector<Eigen::Vector3d> w_;   // rotation axes in the frame of u' = G0^T u
+    Eigen::Matrix3d g0_ = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d p_ = Eigen::Vector3d::UnitZ();
+    bool flip_ = false;
+    // orientation_solutions' shortcut, for two rotaries along coordinate axes: w1 = w1i e_i,
+    // w2 = w2j e_j, n = w1 x w2 = nk e_k (w1i, w2j, nk +-1), and the general path's constants.
+    struct OrientShortcut {
+        bool on = false, g0_identity = false, free2 = false;
+        int i = 0, j = 1, pattern = 0;  // pattern: which of the six (i, j)
+        double w1i = 1, w2j = 1, nk = 1;
+        double sign1 = 1, sign2 = 1;  // sign_
+        double a = 0, den = -1, w2p = 0, aw2p = 0, psq = 1, nn = 1;
+        // den and nn both powers of two (+-1 for coordinate axes at right angles, as pentarod's):
+        // a quotient by either is then the product with its exact reciprocal, to the last bit.
+        bool exact_inv = false;
+        double den_inv = -1, nn_inv = 1;
+        double pp2[3] = {};  // p projected off w2
+        double g0[9] = {};   // row by row
+        double free_sq = 0;  // |v|^2 below this: |v| < kFreeEps
+    } orient_;
+    std::vector<int> linear_;               // the first three linear joints: the position solve's unknowns
+    bool constant_jacobian_ = false;        // no rotation ahead of a linear joint: its inverse is fixed
+    PathEnd reach_;                         // see reach()
+    bool has_reach_ = false;
+    std::vector<double> shift_per_unit_;    // per joint: mm of tip per unit of the joint, at most
+    double jacobian_inverse_[9] = {};       // that inverse, row by row (constant_jacobian_)
+    // For the solve's SolvedEnd: each rotary element's axis line, in forward()'s walk order, is
+    // moved by the linear joints ahead of it in its own chain (a mask of joints); the tip by those
+    // of the tool chain. False when a linear joint appears twice (a machine built by hand).
+    struct LineShift {
+        bool tool = false;      // in the tool chain (else the part chain)
+        unsigned linear = 0;    // bit j: linear joint j is ahead of it in that chain
+    };
+    std::vector<LineShift> line_shifts_;
+    // The scalar solve (solve_scalar): whether each unknown's linear joint is in the tool chain
+    // and in the part chain; a tool chain of fresh linear links alone, and the identity times the
+    // tool axis.
+    struct SolveColumn {
+        bool tool = false, part = false;
+    };
+    SolveColumn solve_cols_[3];
+    bool tool_plain_ = false;
+    double tool_up_[3] = {};
+    std::vector<int> tool_linear_;      // the tool chain's linear joints (they carry the tip)
+    // A part chain of two turns about +-1 times coordinate axes k1 != k2, both through the origin
+    // (no shift), and a tool chain of three fresh linear links giving the three unknowns
+    // (pentarod's A/C table): forward(), tool_axis() and the position solve in closed form, their
+    // constants taken once here.
+    struct TwoTurns {
+        int pattern = -1;  // k1 * 3 + k2; -1: the machine has another shape
+        int j1 = 0, j2 = 0;
+        double sign1 = 1, sign2 = 1;
+        double point2[3] = {}, axis2[3] = {};       // the second turn's link, as the walk reads it
+        double line0_point[3] = {}, line0_dir[3] = {};  // the first turn's axis line (R, t still the identity and zero)
+        int tool_joint[3] = {};
+        double tool_dir[3][3] = {};  // the tool links' axes, in chain order
+        double col_inv[9] = {};      // the inverse of the matrix of the unknowns' directions (columns), row by row
+        bool singular = false;       // the directions do not span space: no position solve
+        int r1 = -1, r2 = -1;        // the turns' columns of OrientationSolutions::angle (-1: no shortcut gives them)
+    } turns_;
+    bool solved_ends_ = false;
+    // near_end's terms, looked up once: each linear joint with its mm per unit, each rotary
+    // element with its radians per unit and its arm.
+    struct NearTerm {
+        int joint = 0;
+        double per_unit = 0;
+        int arm = -1;          // rotary: its index in PathEnd::arm; -1 for a linear joint
+        double reach_per_unit = 0;  // the joint's shift_per_unit_ (reach_shift's term), on its first term only
+    };
+    std::vector<NearTerm> near_terms_;
+    std::size_t near_linear_ = 0;  // near_terms_' linear joints, all ahead of its rotary elements
+    int arm_count_ = 0;  // rotary elements, the entries of PathEnd::arm in use
+};
+
+}  // namespace xlate5

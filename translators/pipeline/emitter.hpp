@@ -1,0 +1,126 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The emitter stage, last before the sink: joint values -> firmware G-code text, in the
+// machine's axis letters and decimals. It only writes text: the joints arrive solved, split and
+// compensated. It remembers what the firmware was last told, so a line names only the joints that
+// change. May call: number formatting, firmware_config (Klipper's axis registration).
+#pragma once
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "translators/machine/machine.hpp"
+
+namespace xlate5 {
+
+// A number passed on from the input (E, F): written as it was typed, unless it was converted
+// (inches), in which case `text` is empty and the shortest exact form of `value` is written.
+struct PassedNumber {
+    double value = 0;
+    std::string_view text;
+    int decimals = -1;  // for a computed value: digits after the point (-1: shortest exact form)
+};
+void append_passed(std::string& out, const PassedNumber& n);
+// Ends a move line begun at `start` with E and F; a line that got no word after its command
+// (`out` still `empty` long: nothing changed) is taken back.
+void finish_move(std::string& out, std::size_t start, std::size_t empty, const std::optional<PassedNumber>& e,
+                 const std::optional<PassedNumber>& f);
+
+class JointEmitter {
+public:
+    explicit JointEmitter(const Machine& machine);
+    JointEmitter(const JointEmitter&) = default;
+    // The look-back copies the emitter with every line, always from one of the same machine: the
+    // machine's letters and decimals are copied only when the machine differs, what the firmware
+    // was told always. Inline, so the copy is a few stores where it is made.
+    JointEmitter& operator=(const JointEmitter& o) {
+        if (machine_ != o.machine_) {
+            machine_ = o.machine_;
+            joints_ = o.joints_;
+            word_ = o.word_;
+            decimals_ = o.decimals_;
+            absent_ = o.absent_;
+            small_below_ = o.small_below_;
+            wide_below_ = o.wide_below_;
+        }
+        last_ = o.last_;
+        known_ = o.known_;
+        believed_ = o.believed_;
+        last_f_ = o.last_f_;
+        last_f_size_ = o.last_f_size_;
+        inverse_time_ = o.inverse_time_;
+        moves_written_ = o.moves_written_;
+        return *this;
+    }
+
+    // "G0"/"G1" with every joint whose printed value changed, then E and F when given. A joint
+    // whose firmware position is not known is written when the input commands it (`commanded`)
+    // or its value changes. Writes nothing when nothing would change.
+    // `inverse_time`: F is 1/minutes (G93, written on every move); the emitter switches the
+    // firmware between G93 and G94 as needed. `q` are the nominal joints (what the firmware is
+    // believed to be at), `sent` the values written (after the compensation stage; `q` itself
+    // when there is none).
+    void move(std::string& out, int gcode, std::span<const double> q, std::span<const double> sent,
+              const std::vector<bool>& commanded, std::optional<PassedNumber> e, std::optional<PassedNumber> f,
+              bool inverse_time = false);
+
+    // "G92" for the joints in `which` (the firmware is told where they are) and E when given.
+    void set_position(std::string& out, std::span<const double> q, std::span<const double> sent,
+                      const std::vector<bool>& which, std::optional<PassedNumber> e);
+
+    // The firmware's position is not exactly known (start, homing, probing): xlate5 believes it
+    // is at `q`. Until written again, a joint is sent only when commanded or changed, so a wrong
+    // belief (a machine file's home that differs from the firmware's) never causes a surprise move.
+    void invalidate(const std::vector<double>& q);
+
+    // A G93/G94 passed on to the firmware as written (joint space): from now on F is inverse
+    // time and written on every move (or feed per minute and written when it changes).
+    void feed_mode_sent(bool inverse_time) {
+        inverse_time_ = inverse_time;
+        last_f_size_ = 0;
+    }
+
+    // Appends one joint word (" A12.5") as the emitter would print it.
+    void append_joint(std::string& out, std::size_t joint, double value) const;
+
+    // How many move lines (G0/G1) have been written: joins a move's events (report, preview) to
+    // the output lines it produced. Part of the state, so a replayed window counts again from its start.
+    std::uint64_t moves_written() const { return moves_written_; }
+
+private:
+    int decimals(std::size_t joint) const { return decimals_[joint]; }
+    void format(std::string& text, std::size_t joint, double value) const;
+
+    // Fixed arrays, not vectors: the look-back copies the emitter with every line, and a copy of
+    // these is one block of memory. Every member is copied by operator= (above): keep it so. A machine has at most 5 joints (the loader checks).
+    static constexpr std::size_t kMaxJoints = 8;
+    const Machine* machine_;  // a pointer, so a copy of the emitter is its whole state (the translator's snapshots)
+    std::size_t joints_ = 0;
+    // Per joint, from the machine: the start of its word (" " and its output letter, stored at
+    // once) and its printed decimals (read on every move).
+    std::array<std::array<char, 2>, kMaxJoints> word_{};
+    std::array<int, kMaxJoints> decimals_{};
+    std::array<bool, kMaxJoints> absent_{};  // the machine has no such axis: never written
+    // Per joint: a value whose |value * 1000| is below this is written by the inline three-decimal
+    // path with no other test (999999.5 for three decimals, the usual; -1 for others: never).
+    std::array<double, kMaxJoints> small_below_{};
+    // The same for the three-decimal path of values up to a million (a multi-turn rotary):
+    // 999999999.5 for three decimals, -1 for others.
+    std::array<double, kMaxJoints> wide_below_{};
+    // What the firmware was last sent per joint, in units of its last printed digit.
+    std::array<long long, kMaxJoints> last_{};
+    std::array<bool, kMaxJoints> known_{};       // false: not sent since start, homing or probing
+    std::array<double, kMaxJoints> believed_{};  // joint values the firmware is believed to be at
+    // F is modal in the firmware: written only when its text changes. The text last written (up
+    // to kFText characters; 0: none known, so the next F is written).
+    static constexpr std::size_t kFText = 32;
+    std::array<char, kFText> last_f_{};
+    std::size_t last_f_size_ = 0;
+    bool inverse_time_ = false;       // the firmware's feed mode as xlate5 last set it
+    std::uint64_t moves_written_ = 0;
+};
+
+}  // namespace xlate5

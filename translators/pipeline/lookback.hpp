@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The look-back, over the interpreter and planner: holds the output from the latest travel move
+// on (for at most `lines` input lines), so that when a printing move further on would take a
+// bounded rotary past its limit, that travel move can be translated again ending on another
+// solution of its pose (the other branch or another turn) and the printed path stays continuous.
+// Its checkpoint is one snapshot of everything a line can change, copied whole.
+// May call: the interpreter (to translate a line, or a window of them again) and the move log.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "translators/pipeline/emitter.hpp"
+#include "translators/pipeline/interpreter.hpp"
+#include "translators/inspect/report.hpp"
+
+namespace xlate5 {
+
+// Everything a line of the forward direction can change: the interpreter's and the planner's
+// state and what the emitter remembers of the firmware.
+struct ForwardState {
+    explicit ForwardState(const Machine& machine) : emitter(machine) {}
+    LineState line;
+    JointEmitter emitter;
+};
+
+class LookBack {
+public:
+    // Memory stays bounded by bytes as well as by lines (docs/limits.md): past either bound the
+    // window closes (what it held is final, as past `lines`): the input text a replay needs,
+    // and the output held back.
+    static constexpr std::size_t kMaxWindowBytes = std::size_t(1) << 20;
+    static constexpr std::size_t kMaxHeldBytes = std::size_t(8) << 20;
+    // End solutions of a travel move tried in turn (nearest first) before a line is refused.
+    static constexpr int kMaxCandidates = 64;
+
+    // `log` may be null (no report).
+    LookBack(Interpreter& interpreter, ForwardState& state, MoveLog* log);
+
+    // 0 (the default): every line's output is appended at once, and only the travel move that
+    // itself runs into a limit unwinds. With look-back on, call finish() after the last line.
+    // `candidates` (1 to kMaxCandidates) may lower the solutions tried.
+    void set_lines(std::size_t lines, int candidates = kMaxCandidates);
+    void feed(std::string_view line, std::uint64_t line_no, std::string& out);
+    void finish(std::string& out);
+    // Whether a window is open (output held, or a travel move that may yet be translated again):
+    // false, finish() would release nothing and change nothing.
+    bool holding() const { return have_checkpoint_ || !held_.empty(); }
+
+private:
+    bool unwind_before(std::string_view line, std::uint64_t line_no, LineRun& last);
+    void release(std::size_t bytes, std::size_t moves, std::string& out);
+    std::size_t held_moves() const { return log_ ? log_->held_count() : 0; }
+
+    Interpreter& interpreter_;
+    ForwardState& state_;
+    MoveLog* log_;
+    std::size_t lines_ = 0;
+    int candidates_ = kMaxCandidates;
+    bool have_checkpoint_ = false;
+    std::uint64_t checkpoint_line_ = 0;
+    int chosen_ = -1;  // the solution the checkpoint's travel move took (-1: its usual end)
+    ForwardState before_line_, checkpoint_;
+    std::string window_text_;  // input lines from the checkpoint's travel move on, '\n'-separated
+    std::vector<std::uint64_t> window_lines_;
+    std::string held_;         // their output, not yet released
+};
+
+}  // namespace xlate5

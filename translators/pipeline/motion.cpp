@@ -1,0 +1,1074 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The motion stage: split, E and F of one solved move. What it may call: see motion.hpp.
+#include "translators/pipeline/motion.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <span>
+
+#include "translators/constants.hpp"
+#include "translators/error.hpp"
+#include "translators/kinematics/great_arc.hpp"
+#include "translators/pipeline/joint_limits.hpp"
+#include "translators/number.hpp"
+
+namespace xlate5 {
+
+namespace {
+
+// A positive feed that would round to 0 at `decimals` (under 0.05 mm/min at one) is written with
+// more decimals, to two significant digits: Marlin takes F0 as no F at all and keeps the last
+// feed, so the move would run at another speed entirely. Below 1e-9 (a piece no step of which
+// could be timed) the least feed nine decimals can write. Written feeds of 0.05 and more are as
+// before.
+PassedNumber feed_number(double v, int decimals) {
+    static constexpr double kHalfUnit[] = {0.5, 0.05, 0.005, 5e-4, 5e-5, 5e-6, 5e-7, 5e-8, 5e-9, 5e-10};
+    if (!(v > 0) || decimals < 0 || decimals > 9 || v >= kHalfUnit[decimals]) [[likely]]
+        return {v, {}, decimals};
+    int d = decimals;
+    while (d < 9 && v < 20 * kHalfUnit[d]) ++d;  // 20 half units: two significant digits
+    if (v < kHalfUnit[9]) v = 1e-9;
+    return {v, {}, d};
+}
+
+
+constexpr int kCheckSamples = 7;     // interior points checked per piece (see piece_error)
+// The error between two of those samples can exceed both by a little (the tests measure it
+// against 400-point sampling: under 1%); a piece passes only with this much room left.
+constexpr double kSampleMargin = 0.97;
+// A piece's length predicted from a failing try's error aims this far short of the limit.
+constexpr double kPredictAim = 0.98;
+
+// The decimals joint j is printed with.
+int printed_decimals(const Machine& m, std::size_t j) { return m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals; }
+
+double printed(const Machine& m, std::size_t j, double v) {
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+    const int d = printed_decimals(m, j);
+    long long units = 0;
+    if (!to_units(v, d, units)) return v;
+    return double(units) / kPow10[d];
+}
+
+// The joints as the firmware will be given them (each rounded to its printed decimals): the
+// split and the report measure the path the firmware will really take.
+void round_printed(const Machine& m, std::vector<double>& q) {
+    for (std::size_t j = 0; j < q.size(); ++j) q[j] = printed(m, j, q[j]);
+}
+// The same of `from`, written to `to` (no copy first).
+void round_printed(const Machine& m, const std::vector<double>& from, std::vector<double>& to) {
+    to.resize(from.size());
+    for (std::size_t j = 0; j < from.size(); ++j) to[j] = printed(m, j, from[j]);
+}
+
+// Distance from p to the segment ab.
+double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    const Eigen::Vector3d ab = b - a;
+    const double len2 = ab.squaredNorm();
+    double t = len2 > 0 ? (p - a).dot(ab) / len2 : 0.0;
+    t = std::clamp(t, 0.0, 1.0);
+    return (a + t * ab - p).norm();
+}
+
+// Distance from an end to the segment: zero, with no arithmetic, when the end is the segment's
+// own end point (a bounded end's pose is the programmed tip itself).
+double end_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return p == a || p == b ? 0.0 : segment_distance(p, a, b);
+}
+
+}  // namespace
+
+namespace {
+// Every firmware rule but Marlin's articulated one takes the XYZ length alone whenever a linear
+// joint moves (piece_length leaves the rotaries' sums out then).
+bool linear_length_rules(const Machine& m) { return m.dialect.firmware != FirmwareDialect::MarlinArticulated; }
+
+// The dialect's rule from the squared linear and rotary moves and the largest rotary one.
+double rule_length(const Machine& m, double lin2, double rot2, double rot_max) {
+    if (!linear_length_rules(m)) return std::sqrt(lin2 + rot2);  // Marlin articulated: every axis counts, mm and degrees alike
+    if (lin2 > 0) return std::sqrt(lin2);                          // XYZ length if any moves
+    // No linear move: Klipper takes the largest single-axis move, the NIST rule (Marlin, RepRap,
+    // generic) the rotaries' length.
+    return m.dialect.firmware == FirmwareDialect::Klipper ? rot_max : std::sqrt(rot2);
+}
+}  // namespace
+
+double firmware_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1) {
+    double lin2 = 0, rot2 = 0, rot_max = 0;
+    for (std::size_t j = 0; j < q0.size(); ++j) {
+        const double d = printed(m, j, q1[j]) - printed(m, j, q0[j]);
+        if (m.joints[j].rotary) {
+            rot2 += d * d;
+            rot_max = std::max(rot_max, std::abs(d));
+        } else {
+            lin2 += d * d;
+        }
+    }
+    return rule_length(m, lin2, rot2, rot_max);
+}
+
+MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
+    : sample_angle_(kSampleMargin * kinematics.machine().motion.angle_tolerance),
+      chord_limit_(chord_within(sample_angle_.degrees() - 1e-6)),
+      kin_(kinematics),
+      machine_(kinematics.machine()),
+      joints_(kinematics.machine().joints.size()),
+      limits_(kinematics.machine()),
+      compensation_(kinematics.machine().compensation),
+      emitter_(emitter) {
+    for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
+        (machine_.joints[j].rotary ? rotary_ : linear_).push_back(j);
+        if (machine_.joints[j].max_feed > 0) feed_limits_.push_back({j, machine_.joints[j].max_feed});
+    }
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+    for (std::size_t j = 0; j < machine_.joints.size() && j < kPrintJoints; ++j) {
+        const int d = printed_decimals(machine_, j);
+        if (d < 0 || d > 9) {
+            print_scale_[j] = 1;
+            print_below_[j] = -1;  // never: printed() for every value
+            continue;
+        }
+        print_scale_[j] = kPow10[d];
+        // |v * 10^d| below half of the smaller of to_units' limits (1e15 scaled, kMaxWritten
+        // unscaled): both its range tests pass (a NaN fails this one too).
+        print_below_[j] = 0.5 * std::min(1e15, kMaxWritten * kPow10[d]);
+    }
+    for (const int j : kin_.rotary_joints())
+        if (std::size_t(j) < kPrintJoints) print_rotaries_[print_rotary_count_++] = std::size_t(j);
+}
+
+double MotionStage::piece_length(const double* q0, const double* q1) const {
+    // firmware_length's sums without its rounding (both ends are already as printed: rounding is
+    // idempotent), each over its own joints in the same order (the same additions), with no test
+    // of which kind a joint is.
+    double lin2 = 0, rot2 = 0, rot_max = 0;
+    for (const std::size_t j : linear_) {
+        const double d = q1[j] - q0[j];
+        lin2 += d * d;
+    }
+    // The rotaries' sums are not needed when the rule takes the linear length (the usual printing piece).
+    if (lin2 > 0 && linear_length_rules(machine_)) return std::sqrt(lin2);
+    for (const std::size_t j : rotary_) {
+        const double d = q1[j] - q0[j];
+        rot2 += d * d;
+        rot_max = std::max(rot_max, std::abs(d));
+    }
+    return rule_length(machine_, lin2, rot2, rot_max);
+}
+
+bool MotionStage::print_end(const double* q1) {
+    const std::size_t n = joints_;
+    double* to = q1_printed_.data();
+    double* last = last_end_q_.data();
+    const double* q0 = q0_printed_.data();
+    bool rotates = false;
+    for (std::size_t j = 0; j < n; ++j) {
+        const double v = q1[j];
+        last[j] = v;
+        const double scaled = v * print_scale_[j];
+        // printed(): to_units' units over the same power of ten.
+        const double p = std::abs(scaled) < print_below_[j] ? double(round_half_away(scaled)) / print_scale_[j] : printed(machine_, j, v);
+        to[j] = p;
+    }
+    for (std::size_t k = 0; k < print_rotary_count_; ++k) rotates |= to[print_rotaries_[k]] != q0[print_rotaries_[k]];
+    return rotates;
+}
+
+const GreatArc& MotionStage::arc_of(const MoveSpec& mv) const {
+    if (!(mv.p0.axis == arc_.a && mv.p1.axis == arc_.b)) arc_ = GreatArc(mv.p0.axis, mv.p1.axis);
+    return arc_;
+}
+
+Pose MotionStage::pose_at(const MoveSpec& mv, double s) const {
+    Pose p;
+    p.tip = mv.p0.tip + s * (mv.p1.tip - mv.p0.tip);
+    p.axis = arc_of(mv).at(s);
+    return p;
+}
+
+IkResult MotionStage::solve_at(const MoveSpec& mv, double s, const std::vector<double>& previous, std::vector<double>& q,
+                               int branch) const {
+    if (mv.mode == OrientationMode::Angles) {
+        const auto& q0 = *mv.q0;
+        const auto& q1 = *mv.q1;
+        q = previous;
+        // The angles are the programmed orientation: they move linearly, as the firmware moves
+        // them. Only the tip is solved for (no point on the axes' arc is needed).
+        for (std::size_t j = 0; j < q.size(); ++j)
+            if (machine_.joints[j].rotary) q[j] = q0[j] + s * (q1[j] - q0[j]);
+        if (auto r = kin_.solve_position(mv.p0.tip + s * (mv.p1.tip - mv.p0.tip), q); !r.ok()) return r;
+        return limits_.contains(q) ? IkResult{} : check_limits(machine_, q);
+    }
+    Target target;
+    target_at(mv, s, target);
+    ChosenSolution chosen;
+    if (auto r = orient_at(mv, s, target, previous, q, branch, chosen); !r.ok()) return r;
+    return place(target, q, chosen);
+}
+
+void MotionStage::target_at(const MoveSpec& mv, double s, Target& target) const {
+    target.pose = pose_at(mv, s);
+    target.solutions = kin_.orientation_solutions(target.pose.axis);
+}
+
+IkResult MotionStage::orient_at(const MoveSpec& mv, double s, const Target& target, const std::vector<double>& previous,
+                                std::vector<double>& q, int branch, ChosenSolution& chosen) const {
+    const auto& q0 = *mv.q0;
+    const auto& q1 = *mv.q1;
+    q = previous;
+    // A free joint (axis along the tool) follows the line from its start to its end value.
+    std::vector<double>& hint = const_cast<std::vector<double>&>(lerp_);
+    hint.resize(q.size());
+    for (std::size_t j = 0; j < q.size(); ++j) hint[j] = q0[j] + s * (q1[j] - q0[j]);
+    return branch < 0 ? orient_within_limits(machine_, kin_.rotary_joints(), target.solutions, previous, hint, q, &chosen)
+                      : orient_on_branch(machine_, kin_.rotary_joints(), target.solutions, branch, previous, hint, q, &chosen);
+}
+
+IkResult MotionStage::place(const Target& target, std::vector<double>& q, ChosenSolution chosen) const {
+    if (auto rp = kin_.solve_position(target.pose.tip, q, nullptr, nullptr, chosen); !rp.ok()) return rp;
+    return limits_.contains(q) ? IkResult{} : check_limits(machine_, q);
+}
+
+bool MotionStage::same_rotaries(const std::vector<double>& a, const std::vector<double>& b) const {
+    for (const int j : kin_.rotary_joints())
+        if (std::memcmp(&a[std::size_t(j)], &b[std::size_t(j)], sizeof(double)) != 0) return false;
+    return true;
+}
+
+IkResult MotionStage::leaves_limits(const MoveSpec& mv, double s, const std::vector<double>& previous) const {
+    if (mv.mode != OrientationMode::Vector) return {};
+    std::vector<double>& cont = sample_;
+    cont = previous;
+    if (!orient_continuous(machine_, kin_.rotary_joints(), kin_.orientation_solutions(pose_at(mv, s).axis), previous, cont).ok()) return {};
+    for (std::size_t j = 0; j < cont.size(); ++j) {
+        const Joint& J = machine_.joints[j];
+        if (!J.rotary || inside_limits(J, cont[j])) continue;
+        char buf[200];
+        std::snprintf(buf, sizeof buf, "joint %c would run past its limit %.3f at %d%% of the move (limits %.3f .. %.3f)",
+                      J.name, cont[j] > J.max ? J.max : J.min, int(std::lround(s * 100)), J.min, J.max);
+        return {IkStatus::OutOfLimits, buf};
+    }
+    return {};
+}
+
+void MotionStage::piece_error(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, int samples,
+                              double& tip, double& angle) const {
+    tip = 0;
+    angle = 0;
+    std::vector<double>& q = sample_;
+    q.resize(joints_);
+    const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
+    for (int i = 1; i <= samples; ++i) {
+        const double t = double(i) / double(samples + 1);
+        for (std::size_t j = 0; j < q.size(); ++j) q[j] = qa[j] + t * (qb[j] - qa[j]);
+        const Pose fw = kin_.forward(q);
+        tip = std::max(tip, segment_distance(fw.tip, mv.p0.tip, mv.p1.tip));
+        if (mv.mode == OrientationMode::Vector) {
+            const Eigen::Vector3d ideal = arc.at(sa + t * (sb - sa));
+            angle = std::max(angle, std::acos(std::clamp(fw.axis.dot(ideal), -1.0, 1.0)) * kDegPerRad);
+        }
+    }
+}
+
+bool MotionStage::piece_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol,
+                               double* middle_ratio) const {
+    const double atol = sample_angle_.degrees();
+    // The same points as piece_error's, the middle first (where a chord's error is largest): a
+    // piece that fails usually fails there, and the other six are not computed. A piece passes
+    // exactly when piece_error's largest values would pass.
+    static constexpr int kOrder[kCheckSamples] = {4, 2, 6, 1, 3, 5, 7};
+    std::vector<double>& q = sample_;
+    q.resize(joints_);
+    const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
+    // Once the middle point has passed, the other points are checked against kinematics' bound
+    // first, and computed only where it does not clear them. At parameter t the path lies within
+    // 4 t (1 - t) of the middle's bound of the chord between its ends (kinematics.cpp: a t (1 - t)
+    // / 2 with a / 8 at the middle), a point of that chord within the farther end's distance of
+    // the programmed segment (distance to a segment is convex), and for the tool axis the
+    // great-circle arc within 4 t (1 - t) phi^2 / 8 of its own chord. A point so cleared is
+    // within the tolerance, so it would have passed: the verdict is the same.
+    constexpr double kSlack = 1e-9;  // as bounded_within's
+    bool bounded = false;
+    double curve = 0, ends = 0, axis_curve = 0, axis_ends = 0, arc_curve = 0;
+    for (const int i : kOrder) {
+        const double t = double(i) / double(kCheckSamples + 1);
+        if (bounded) {
+            const double f = 4 * t * (1 - t);
+            bool clear = curve * f + ends <= tol - kSlack;
+            if (clear && mv.mode == OrientationMode::Vector) {
+                clear = (axis_curve + arc_curve) * f + axis_ends < chord_limit_;
+            }
+            if (clear) continue;
+        }
+        for (std::size_t j = 0; j < q.size(); ++j) q[j] = qa[j] + t * (qb[j] - qa[j]);
+        const Pose fw = kin_.forward(q);
+        const bool middle = i == kOrder[0];
+        if (const double d = segment_distance(fw.tip, mv.p0.tip, mv.p1.tip); d > tol) {
+            if (middle && middle_ratio) *middle_ratio = d / tol;
+            return false;
+        }
+        if (mv.mode == OrientationMode::Vector) {
+            const Eigen::Vector3d ideal = arc.at(sa + t * (sb - sa));
+            // The limit tested on the dot product (the acos only near it).
+            const double dot = fw.axis.dot(ideal);
+            if (sample_angle_.above(dot)) {
+                if (middle && middle_ratio) *middle_ratio = angle_of_dot(dot) / atol;
+                return false;
+            }
+        }
+        if (middle) {
+            // The ends' FK: qb's is kept for the next piece, which starts there when this one passes.
+            const Kinematics::PathEnd& ea = path_end(qa);
+            const Kinematics::PathBound b = kin_.joint_path_bound(ea, qa, qb);
+            if (!std::isfinite(b.tip)) continue;
+            // Copies of the start's pose and slacks (the next call may reuse the slot); a bounded
+            // end (near_end) is within its slacks of its pose.
+            const Pose pa = ea.pose;
+            const double pa_tip_slack = ea.tip_slack, pa_axis_slack = ea.axis_slack;
+            const Kinematics::PathEnd& eb = path_end(qb);
+            const Pose& pb = eb.pose;
+            curve = b.tip;
+            ends = std::max(end_distance(pa.tip, mv.p0.tip, mv.p1.tip) + pa_tip_slack, end_distance(pb.tip, mv.p0.tip, mv.p1.tip) + eb.tip_slack);
+            if (mv.mode == OrientationMode::Vector) {
+                const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
+                const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);
+                const double phi = (sb - sa) * arc.angle;
+                axis_curve = b.axis;
+                axis_ends = std::max((pa.axis - ia).norm() + pa_axis_slack, (pb.axis - ib).norm() + eb.axis_slack);
+                arc_curve = phi * phi / 8.0;
+            }
+            bounded = true;
+        }
+    }
+    return true;
+}
+
+const MotionStage::CachedSolutions* MotionStage::cached_solutions(const Eigen::Vector3d& axis) const {
+    // Bit for bit the same axis (a signed zero counts: the solutions' angles can depend on it).
+    for (const CachedSolutions& c : solved_)
+        if (c.valid && std::memcmp(c.axis.data(), axis.data(), sizeof(double) * 3) == 0) return &c;
+    return nullptr;
+}
+
+const Kinematics::Solutions& MotionStage::cache_solutions(const Eigen::Vector3d& axis, Kinematics::Solutions solutions) const {
+    CachedSolutions& c = solved_[solved_next_];
+    solved_next_ = 1 - solved_next_;
+    c.axis = axis;
+    c.solutions = std::move(solutions);
+    c.valid = true;
+    return c.solutions;
+}
+
+const Kinematics::Solutions& MotionStage::solutions_of(const Eigen::Vector3d& axis) const {
+    if (const CachedSolutions* c = cached_solutions(axis)) return c->solutions;
+    return cache_solutions(axis, kin_.orientation_solutions(axis));
+}
+
+void MotionStage::remember_solutions(const Kinematics::Solutions& solutions) const {
+    // Written without a search: a slot holding the same axis holds the same solutions (a pure
+    // function of its bits), so a second copy changes no answer; the other slot keeps the axis
+    // remembered before, this move's start.
+    cache_solutions(solutions.axis, solutions);
+}
+
+const Kinematics::PathEnd& MotionStage::find_end(const double* q) const {
+    const std::size_t n = joints_;
+    const bool is_end = q == q1_printed_.data();
+    for (int i = 0; i < 2; ++i) {
+        CachedEnd& c = ends_[i];
+        if (c.n == n && std::equal(q, q + n, c.q)) {
+            if (is_end) end_slot_ = i;
+            return c.end;
+        }
+    }
+    const int k = ends_next_;
+    CachedEnd& c = ends_[k];
+    ends_next_ = 1 - ends_next_;
+    if (start_slot_ == k) start_slot_ = -1;
+    if (end_slot_ == k) end_slot_ = -1;
+    c.n = 0;  // (no machine has more joints than a slot holds: kinematics takes at most 8)
+    if (n <= kPrintJoints) {
+        c.n = n;
+        std::copy(q, q + n, c.q);
+        // The slot found again for the next move's start (not for a NaN joint, which the
+        // search never finds).
+        if (is_end && std::all_of(q, q + n, [](double v) { return v == v; })) end_slot_ = k;
+    }
+    // The move's printed end (split passes q1_printed_ itself), a rounding of the solve's own
+    // end: bounded from it, no FK.
+    if (solved_end_ && is_end && kin_.near_end(*solved_end_, q, c.end)) return c.end;
+    c.end = kin_.path_end(q);
+    return c.end;
+}
+
+bool MotionStage::reach_clears(const MoveSpec& mv, double tol) const {
+    // The whole move under the angle form, with no FK: kinematics' bound from the machine's
+    // reach (it holds anywhere inside the limits), and the printed ends' distance from the line
+    // at most how far rounding moves the tip from the exact ends, which are on it. A pass here
+    // is a pass of the bound below and of the samples; a fail decides nothing (they run).
+    if (mv.mode != OrientationMode::Angles || !kin_.has_reach()) return false;
+    constexpr double kSlack = 1e-9;  // as bounded_within's
+    const Kinematics::PathBound b = kin_.joint_path_bound(kin_.reach(), q0_printed_.data(), q1_printed_.data());
+    if (!(b.tip <= tol - kSlack)) return false;
+    // The start's shift is the last move's end's, measured by the split before this one when it
+    // got here (split calls this only for a move that starts at the last one's end, joints and
+    // tip): the same values, the same sum.
+    const double start = shift_split_ + 1 == splits_ ? end_shift_ : kin_.reach_shift(mv.q0->data(), q0_printed_.data());
+    const double end = kin_.reach_shift(mv.q1->data(), q1_printed_.data());
+    end_shift_ = end;
+    shift_split_ = splits_;
+    const double ends = std::max(start, end);
+    return b.tip + ends <= tol - kSlack;
+}
+
+bool MotionStage::bounded_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol) const {
+    // Sampling finds at most the true deviation, and the bound is at least that: when the bound
+    // passes, the samples would have too, so the split is the same, only cheaper. The slack
+    // covers rounding in the two computations.
+    constexpr double kSlack = 1e-9;
+    const Kinematics::PathEnd& ea = path_end(qa);
+    const Kinematics::PathBound b = kin_.joint_path_bound(ea, qa, qb);
+    // The path lies within b.tip of the chord between its ends, and that chord within the
+    // farther end's distance of the programmed segment. The first part alone often decides (a
+    // piece being lengthened to the tolerance): then no FK at qb.
+    if (!(b.tip <= tol - kSlack)) return false;
+    // Copies of the start's pose and slacks: the next call may reuse the slot. An end bounded
+    // rather than measured (near_end) is within its slacks of its pose.
+    const Pose pa = ea.pose;
+    const double pa_tip_slack = ea.tip_slack, pa_axis_slack = ea.axis_slack;
+    const Kinematics::PathEnd& eb = path_end(qb);
+    const Pose& pb = eb.pose;
+    const double ends = std::max(end_distance(pa.tip, mv.p0.tip, mv.p1.tip) + pa_tip_slack, end_distance(pb.tip, mv.p0.tip, mv.p1.tip) + eb.tip_slack);
+    if (!(b.tip + ends <= tol - kSlack)) return false;
+    if (mv.mode != OrientationMode::Vector) return true;
+    // The tool axis against the great-circle arc from sa to sb: both lie near the chords between
+    // their ends (the arc within phi^2 / 8 of its own), and those chords within the ends' gaps.
+    if (sa == 0.0 && sb == 1.0) {
+        // The whole move (most moves pass here): the arc's angle alone, bounded from the axes'
+        // dot product (no acos, no sine).
+        const double phi2 = turn_squared_at_most(mv.p0.axis.dot(mv.p1.axis));
+        return b.axis + std::max((pa.axis - mv.p0.axis).norm() + pa_axis_slack, (pb.axis - mv.p1.axis).norm() + eb.axis_slack) + phi2 / 8.0 <
+               chord_limit_;
+    }
+    const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
+    const Eigen::Vector3d ia = sa == 0.0 ? mv.p0.axis : arc.at(sa);
+    const Eigen::Vector3d ib = sb == 1.0 ? mv.p1.axis : arc.at(sb);
+    const double phi = (sb - sa) * arc.angle;
+    return b.axis + std::max((pa.axis - ia).norm() + pa_axis_slack, (pb.axis - ib).norm() + eb.axis_slack) + phi * phi / 8.0 < chord_limit_;
+}
+
+IkResult MotionStage::split(const MoveSpec& mv) {
+    ++splits_;
+    // A move usually starts where the one before ended: its start as printed is known then.
+    // And every move ends exactly on its programmed tip (the planner solves the linear joints
+    // for it): a move that starts at the last one's end, joints and tip, starts on its line.
+    const bool from_last = *mv.q0 == last_end_q_;
+    const bool start_on_line = from_last && mv.p0.tip == last_end_tip_;
+    // q1_printed_ holds the last move's end as printed (last_end_q_ rounded): taken, then refilled.
+    // The ends' slots (path_end) follow: the last end's is the start's now.
+    if (from_last) {
+        q0_printed_.swap(q1_printed_);
+        start_slot_ = end_slot_;
+    } else {
+        round_printed(machine_, *mv.q0, q0_printed_);
+        start_slot_ = -1;
+    }
+    end_slot_ = -1;
+    const std::size_t n = joints_;
+    bool rotates = false;
+    if (n <= kPrintJoints && mv.q1->size() == n && q0_printed_.size() == n && q1_printed_.size() == n && last_end_q_.size() == n) {
+        // The usual move (every one after the first): one pass, no copies or calls.
+        rotates = print_end(mv.q1->data());
+    } else {
+        round_printed(machine_, *mv.q1, q1_printed_);
+        last_end_q_ = *mv.q1;
+        for (const int j : kin_.rotary_joints()) rotates = rotates || q1_printed_[std::size_t(j)] != q0_printed_[std::size_t(j)];
+    }
+    solved_end_ = nullptr;
+    last_end_tip_ = mv.p1.tip;
+    final_moved_ = false;
+    const auto& q0 = q0_printed_;
+    const auto& q1 = q1_printed_;
+    // One piece, the whole move: read from q1_printed_ and the move's own end (no copies).
+    if (s_.size() == 1) s_[0] = 1.0;
+    else s_.assign(1, 1.0);
+    whole_ = true;
+    // With the rotaries still the tip is affine in the linear joints: the firmware's line is exact.
+    if (!rotates || mv.mode == OrientationMode::Joints || !machine_.motion.segment) return {};
+    if (mv.end && mv.end->valid && mv.end->q == *mv.q1) solved_end_ = mv.end;
+
+    const double tol = kSampleMargin * machine_.motion.tolerance;
+    if (start_on_line && reach_clears(mv, tol)) return {};
+    if (bounded_within(mv, 0, 1, q0.data(), q1.data(), tol)) return {};
+    return march(mv, tol);
+}
+
+IkResult MotionStage::march(const MoveSpec& mv, double tol) {
+    const auto& q0 = q0_printed_;
+    const auto& q1 = q1_printed_;
+    const double atol = sample_angle_.degrees();
+    double tip = 0, ang = 0;
+    piece_error(mv, 0, 1, q0.data(), q1.data(), kCheckSamples, tip, ang);
+    const double ratio = std::max(tip / tol, ang / atol);
+    if (ratio <= 1) return {};
+
+    // March along the move from s = 0, each piece as long as the tolerance allows (greedy
+    // farthest reach, which gives the fewest pieces when the error grows with piece length), each
+    // point solved from the one before so the solution stays on one continuous branch. The
+    // chord error of a smooth path falls with the square of the piece length, which gives the
+    // first guess of the step.
+    s_.clear();
+    qs_.clear();
+    qs_exact_.clear();
+    whole_ = false;
+    double step = 1.0 / std::ceil(std::sqrt(ratio));
+    double sa = 0;
+    std::vector<double>& qa = march_a_;
+    std::vector<double>& qb = march_b_;
+    qa = q0;
+    while (sa < 1.0) {
+        // The longest piece that passes: halve until one passes, then close in on the limit
+        // between the longest passing and the shortest failing length.
+        double ok_len = 0, bad_len = 0;
+        std::vector<double>& qok = scratch_a_;
+        double len = std::min(1.0 - sa, step);
+        bool predicted = false;  // this try's length came from the error measured on a failing one
+        int predictions = 0;
+        for (int refine = 0;;) {
+            const double sb = sa + len;
+            IkResult r;
+            if (sb >= 1.0 && mv.mode == OrientationMode::Angles) {
+                qb = q1;  // angle form fixes the end
+            } else if (mv.mode == OrientationMode::Vector) {
+                // solve_at's steps, the target kept for the other branches' tries below.
+                target_at(mv, std::min(sb, 1.0), target_);
+                ChosenSolution chosen;
+                r = orient_at(mv, std::min(sb, 1.0), target_, qa, qb, -1, chosen);
+                if (r.ok()) r = place(target_, qb, chosen);
+            } else {
+                r = solve_at(mv, std::min(sb, 1.0), qa, qb);
+            }
+            if (!r.ok()) {
+                r.message += " (at " + std::to_string(int(std::lround(std::min(sb, 1.0) * 100))) + "% of the move)";
+                return r;
+            }
+            if (sb >= 1.0 && mv.mode == OrientationMode::Angles) exact_b_ = *mv.q1;
+            else exact_b_ = qb;
+            round_printed(machine_, qb);
+            double middle_ratio = 0;  // the failing middle sample's error over the tolerance (0: not known)
+            bool pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol);
+            if (!pass) pass = piece_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, &middle_ratio);
+            if (!pass && mv.mode == OrientationMode::Vector) {
+                // Near a pole the continuous branch swings a joint round; the other branch may
+                // cut across within the tolerance (a tilt through zero instead of a half turn).
+                std::vector<double>& alt = scratch_b_;
+                for (int b = 0; b < 2 && !pass; ++b) {
+                    // solve_at(mv, sb, qa, alt, b), on the try's own target. A branch whose
+                    // rotaries are the continuous solve's to the bit is the branch it took: the
+                    // position solve would give exact_b_ again, qb once rounded, which the test
+                    // below skips; it is skipped here, before that solve.
+                    ChosenSolution chosen;
+                    if (!orient_at(mv, std::min(sb, 1.0), target_, qa, alt, b, chosen).ok()) continue;
+                    if (same_rotaries(alt, exact_b_)) continue;
+                    if (!place(target_, alt, chosen).ok()) continue;
+                    std::vector<double>& alt_exact = alt_exact_;  // a member: no allocation per try
+                    alt_exact = alt;
+                    round_printed(machine_, alt);
+                    if (alt == qb) continue;
+                    const bool alt_pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol) ||
+                                          piece_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol);
+                    if (alt_pass) {
+                        pass = true;
+                        qb = alt;
+                        exact_b_ = alt_exact;
+                    }
+                }
+            }
+            if (pass) {
+                ok_len = len;
+                qok = qb;
+                ok_exact_ = exact_b_;
+            } else {
+                bad_len = len;
+                if (len < 1e-9) {
+                    // Either a pole, or the continuous solution runs out of a joint's limits here
+                    // and the nearest one inside them is on another branch or turn: say which.
+                    if (auto rl = leaves_limits(mv, std::min(sb, 1.0), qa); !rl.ok()) return rl;
+                    return {IkStatus::Singular, "the tool axis passes a pole here: a rotary joint would have to turn instantly"};
+                }
+            }
+            if (ok_len > 0 && (bad_len == 0 || (pass && predicted) || ++refine >= 4 || bad_len - ok_len < 0.02 * ok_len)) break;
+            // A chord's error grows with the square of the piece's length: a try that failed at
+            // its middle point (where that error is largest) by the ratio r gives the length that
+            // just passes, len / sqrt(r); aimed a little short of it (the ends' rounding adds an
+            // error that does not shrink with the piece), that try usually passes and is taken.
+            // Twice wrong (a path that does not follow the rule), the search halves as before.
+            predicted = !pass && middle_ratio > 1 && predictions < 2;
+            if (predicted) {
+                ++predictions;
+                len = len / std::sqrt(middle_ratio) * kPredictAim;
+                if (len >= kPredictAim * (1.0 - sa)) len = 1.0 - sa;  // the rest of the move looks within reach: no sliver left at the end
+                if (len <= ok_len) break;  // the longest passing try is already as long
+            } else {
+                len = ok_len > 0 ? 0.5 * (ok_len + bad_len) : 0.5 * len;
+            }
+        }
+        const double sb = std::min(1.0, sa + ok_len);
+        qb = qok;
+        if (sb >= 1.0) {
+            final_exact_ = ok_exact_;
+            final_moved_ = true;
+        }
+        step = std::max(sb - sa, 1e-9) * 1.25;  // the next piece is likely about as long: start a bit farther
+        s_.push_back(sb);
+        qs_.insert(qs_.end(), qb.begin(), qb.end());
+        qs_exact_.insert(qs_exact_.end(), ok_exact_.begin(), ok_exact_.end());
+        const int bound = pieces_bound(machine_.motion.max_pieces);
+        if (int(s_.size()) > bound)  // refused, not silently truncated (docs/limits.md)
+            return {IkStatus::Singular, "the move needs more than " + std::to_string(bound) +
+                                            " pieces to stay within the tolerance (the bound on pieces per input line)"};
+        sa = sb;
+        qa.swap(qb);
+    }
+    return {};
+}
+
+IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* result) {
+    split_for_ = nullptr;
+    if (mv.mode == OrientationMode::Vector && machine_.motion.segment) {
+        // Leaving a pole: at the start the tool axis is on a rotary axis, so that joint was free
+        // and kept its old angle, but the path leaves in a direction that needs another angle.
+        // Turn it first, with the tip and the tool axis held (a re-index about the pole), then
+        // make the move; never a jump inside one joint move.
+        std::vector<double>& q_eps = scratch_b_;
+        const auto& at_start = solutions_of(mv.p0.axis);
+        bool on_pole = false;
+        const std::size_t rotaries = kin_.rotary_joints().size();
+        for (int b = 0; b < at_start.count; ++b)
+            for (std::size_t k = 0; k < rotaries; ++k) on_pole |= std::isnan(at_start.angle[b][k]);  // no branch a value
+        // Probe just off the start, far enough (1e-4 rad) that the joint is no longer free.
+        const double turn_angle = on_pole ? std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0)) : 0.0;
+        const double probe = turn_angle > 1e-4 ? 1e-4 / turn_angle : 1.0;
+        // The probe's IK only where it matters: at a pole, on a move that turns.
+        if (on_pole && turn_angle > 0 && solve_at(mv, probe, *mv.q0, q_eps).ok()) {
+            double jump = 0;
+            for (std::size_t j = 0; j < q_eps.size(); ++j)
+                if (machine_.joints[j].rotary) jump = std::max(jump, std::abs(q_eps[j] - (*mv.q0)[j]));
+            if (jump > 1.0) {
+                std::vector<double> turned = *mv.q0;
+                for (std::size_t j = 0; j < turned.size(); ++j)
+                    if (machine_.joints[j].rotary && std::abs(q_eps[j] - turned[j]) > 1.0) turned[j] = q_eps[j];
+                if (auto rp = kin_.solve_position(mv.p0.tip, turned); !rp.ok()) return rp;
+                if (auto rl = check_limits(machine_, turned); !rl.ok()) return rl;
+                MoveSpec turn = mv;
+                turn.mode = OrientationMode::Angles;
+                turn.q1 = &turned;
+                turn.p1 = mv.p0;
+                turn.p1.axis = kin_.forward(turned).axis;
+                turn.e.reset();
+                turn.f.reset();
+                turn.inverse_time = 0;
+                std::string text;
+                MoveResult first;
+                if (auto r1 = emit_one(turn, text, &first); !r1.ok()) return r1;
+                MoveSpec rest = mv;
+                rest.q0 = &turned;
+                if (auto r2 = emit_one(rest, text, result); !r2.ok()) return r2;
+                out += text;
+                if (result) {
+                    result->pieces += first.pieces;
+                    result->tip_error = std::max(result->tip_error, first.tip_error);
+                    result->angle_error = std::max(result->angle_error, first.angle_error);
+                    // The turn about the pole is rotary travel of this move too.
+                    result->travel.resize(first.travel.size(), 0.0);
+                    for (std::size_t j = 0; j < first.travel.size(); ++j) result->travel[j] += first.travel[j];
+                    result->minutes += first.minutes;
+                    for (std::size_t j = 0; j < result->low.size() && j < first.low.size(); ++j) {
+                        result->low[j] = std::min(result->low[j], first.low[j]);
+                        result->high[j] = std::max(result->high[j], first.high[j]);
+                    }
+                }
+                return {};
+            }
+        }
+    }
+    // Only a vector move can cross (cross_pole's own first test, made here without the call).
+    if (mv.mode == OrientationMode::Vector && cross_pole(mv, cross_end_)) {
+        // Across the pole (Isa, Koc 2018, sec. 4.6: C patched linearly through the singular
+        // cone): the rotaries turn linearly to the other branch while the split holds the tip
+        // on the line; the tool axis stays within the angle tolerance (checked in cross_pole).
+        MoveSpec across = mv;
+        across.mode = OrientationMode::Angles;
+        across.q1 = &cross_end_;
+        const std::vector<double> end = cross_end_;
+        if (auto r = emit_one(across, out, result); !r.ok()) return r;
+        final_exact_ = end;
+        final_moved_ = true;
+        if (result) {
+            result->pole_crossings = 1;
+            result->angle_error = std::max(result->angle_error, cross_angle_);
+        }
+        return {};
+    }
+    if (mv.start_held && mv.mode == OrientationMode::Vector) {
+        // From a start the planner held off its axis: the continuous solution is tried first (the
+        // split is kept), and only where it cannot be followed is the move joined onto it.
+        if (split_for_ != &mv) {
+            if (auto r = split(mv); !r.ok()) {
+                std::string joined;
+                MoveResult whole;
+                if (join_from_held(mv, joined, result ? &whole : nullptr).ok()) {
+                    out += joined;
+                    if (result) *result = whole;
+                    return {};
+                }
+                return r;
+            }
+            split_for_ = &mv;
+        }
+    }
+    return emit_one(mv, out, result);
+}
+
+namespace {
+// A second part's figures added to the first's (a move written as two).
+void add_result(MoveResult& into, const MoveResult& part) {
+    into.pieces += part.pieces;
+    into.tip_error = std::max(into.tip_error, part.tip_error);
+    into.angle_error = std::max(into.angle_error, part.angle_error);
+    if (std::abs(part.feed_error) > std::abs(into.feed_error)) into.feed_error = part.feed_error;
+    into.travel.resize(std::max(into.travel.size(), part.travel.size()), 0.0);
+    for (std::size_t j = 0; j < part.travel.size(); ++j) into.travel[j] += part.travel[j];
+    into.minutes += part.minutes;
+    into.pole_crossings += part.pole_crossings;
+    if (into.low.empty()) {
+        into.low = part.low;
+        into.high = part.high;
+    }
+    for (std::size_t j = 0; j < into.low.size() && j < part.low.size(); ++j) {
+        into.low[j] = std::min(into.low[j], part.low[j]);
+        into.high[j] = std::max(into.high[j], part.high[j]);
+    }
+}
+}  // namespace
+
+IkResult MotionStage::join_from_held(const MoveSpec& mv, std::string& out, MoveResult* result) {
+    const auto& q0 = *mv.q0;
+    const GreatArc arc = arc_of(mv);  // a copy: the parts' splits cache their own
+    const double limit = kSampleMargin * machine_.motion.angle_tolerance;
+    constexpr int kAxisSamples = 64;
+    std::vector<double>& q1 = join_q_;
+    std::vector<double>& lerp = join_lerp_;
+    lerp.resize(q0.size());
+    // The longest first part that works: the gentlest turn. Halved down to 2^-12 of the move
+    // (a turn almost in place: the tool axis then stays within the start's own offset, which
+    // the planner kept within half the tolerance, plus the turn's small bulge).
+    double s1 = 0, worst = 0;
+    for (int k = 1; k <= 12 && s1 == 0; ++k) {
+        const double s = std::ldexp(1.0, -k);
+        const Pose at = pose_at(mv, s);
+        q1 = q0;
+        if (!orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(at.axis), q0, q0, q1).ok()) continue;
+        if (!kin_.solve_position(at.tip, q1).ok() || !check_limits(machine_, q1).ok()) continue;
+        double w = 0;
+        for (int i = 1; i <= kAxisSamples && w <= limit; ++i) {
+            const double t = double(i) / kAxisSamples;
+            for (std::size_t j = 0; j < q0.size(); ++j) lerp[j] = q0[j] + t * (q1[j] - q0[j]);
+            w = std::max(w, angle_of_dot(kin_.tool_axis(lerp).dot(arc.at(t * s))));
+        }
+        if (w <= limit) s1 = s, worst = w;
+    }
+    if (s1 == 0) return {IkStatus::Singular, "no join"};
+    const Pose mid = pose_at(mv, s1);
+    const std::vector<double> joined = q1;  // the parts' splits reuse join_q_'s neighbours
+    MoveSpec first = mv, rest = mv;
+    first.mode = OrientationMode::Angles;
+    first.start_held = false;
+    first.q1 = &joined;
+    first.p1 = mid;
+    first.end = nullptr;
+    rest.start_held = false;
+    rest.q0 = &joined;
+    rest.p0 = mid;
+    if (mv.inverse_time > 0) {
+        first.inverse_time = mv.inverse_time / s1;
+        rest.inverse_time = mv.inverse_time / (1 - s1);
+    }
+    if (mv.e) {
+        // E shared by tip length as emit_one shares it among pieces: the first part's at the
+        // dialect's decimals, the rest what is left (the parts add up to the input exactly).
+        const int ed = machine_.dialect.extrusion_decimals;
+        const double escale = std::pow(10.0, ed);
+        const double value = mv.e_relative ? mv.e->value : mv.e->value - mv.e_start;
+        const long long units = std::llround(value * s1 * escale);
+        if (mv.e_relative) {
+            first.e = PassedNumber{double(units) / escale, {}, ed};
+            const double total = value * escale;
+            if (std::abs(total - std::round(total)) < 1e-6)
+                rest.e = PassedNumber{double(std::llround(total) - units) / escale, {}, ed};
+            else
+                rest.e = PassedNumber{value - double(units) / escale, {}};
+        } else {
+            first.e = PassedNumber{double(units) / escale + mv.e_start, {}, ed};
+            rest.e_start = first.e->value;
+        }
+    }
+    MoveResult a, b;
+    if (auto r = emit_one(first, out, result ? &a : nullptr); !r.ok()) return r;
+    if (auto r = emit(rest, out, result ? &b : nullptr); !r.ok()) return r;
+    if (result) {
+        a.angle_error = std::max(a.angle_error, worst);  // the angle form measures the tip: the axis as checked above
+        add_result(a, b);
+        *result = a;
+    }
+    return {};
+}
+
+bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
+    const auto& rot = kin_.rotary_joints();
+    if (mv.mode != OrientationMode::Vector || !machine_.motion.segment || rot.size() != 2) return false;
+    const auto& q0 = *mv.q0;
+    auto rotary_distance = [&](const std::vector<double>& a, const std::vector<double>& b) {
+        double d = 0;
+        for (const int j : rot) d += std::abs(a[std::size_t(j)] - b[std::size_t(j)]);
+        return d;
+    };
+    constexpr double kClearlyLess = 1.0;  // degrees: another way only when it turns clearly less
+    // The way across is taken only when it turns the rotaries clearly less than the continuous
+    // branch's split (measured at the end below). When no end on another branch is that much
+    // nearer, the answer is no whatever the estimate says: the split is made first, then, and
+    // kept for emit_one, and the estimate is skipped (most moves, far from a pole). No end at
+    // all is clearly nearer than a split that turns the rotaries less than the margin.
+    const bool split_ok = split(mv).ok();
+    const double measured = split_ok ? split_rotary_travel() : 0.0;
+    if (split_ok && measured <= kClearlyLess) {
+        split_for_ = &mv;
+        return false;
+    }
+    const auto solutions = solutions_of(mv.p1.axis);
+    std::vector<double>& q = scratch_a_;
+    if (split_ok) {
+        bool nearer = false;
+        for (int b = 0; b < solutions.count && !nearer; ++b) {
+            q = q0;
+            if (orient_on_branch(machine_, kin_.rotary_joints(), solutions, b, q0, q0, q).ok())
+                nearer = rotary_distance(q, q0) < measured - kClearlyLess;
+        }
+        if (!nearer) {
+            split_for_ = &mv;
+            return false;
+        }
+    }
+    // How far the continuous branch turns the rotaries, estimated on a few points of the path
+    // (cheap; it is measured exactly below only when another way looks shorter).
+    constexpr int kEstimate = 16;
+    std::vector<double>& qq = lerp_;
+    std::vector<double>& prev = march_a_;
+    std::vector<double>& cur = march_b_;
+    prev = q0;
+    cur = q0;
+    const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
+    double stay = 0;
+    for (int i = 1; i <= kEstimate; ++i) {
+        if (!orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(arc.at(double(i) / kEstimate)), prev, prev, cur).ok())
+            break;
+        stay += rotary_distance(prev, cur);
+        prev = cur;
+    }
+    bool found = false;
+    double best = stay - kClearlyLess;
+    for (int b = 0; b < solutions.count; ++b) {
+        q = q0;
+        if (!orient_on_branch(machine_, kin_.rotary_joints(), solutions, b, q0, q0, q).ok()) continue;
+        const double travel = rotary_distance(q, q0);
+        if (travel >= best) continue;
+        if (!kin_.solve_position(mv.p1.tip, q).ok() || !check_limits(machine_, q).ok()) continue;
+        // The tool axis along the linear turn against its great-circle path, densely.
+        constexpr int kAxisSamples = 64;
+        double worst = 0;
+        qq.resize(q.size());
+        for (int i = 1; i < kAxisSamples; ++i) {
+            const double t = double(i) / kAxisSamples;
+            for (std::size_t j = 0; j < q.size(); ++j) qq[j] = q0[j] + t * (q[j] - q0[j]);
+            const Eigen::Vector3d axis = kin_.tool_axis(qq);
+            worst = std::max(worst, std::acos(std::clamp(axis.dot(arc.at(t)), -1.0, 1.0)) * kDegPerRad);
+        }
+        if (worst > kSampleMargin * machine_.motion.angle_tolerance) continue;
+        best = travel;
+        end = q;
+        cross_angle_ = worst;
+        found = true;
+    }
+    // The continuous branch's split, made above, is still the stage's own (nothing since has
+    // touched it): kept for emit_one when the way across is not taken, not made again.
+    if (!split_ok) return found;
+    const bool across = found && best < measured - kClearlyLess;
+    if (!across) split_for_ = &mv;
+    return across;
+}
+
+double MotionStage::split_rotary_travel() const {
+    // Degrees the rotaries turn along the pieces split() made last, from the printed start.
+    const auto& rot = kin_.rotary_joints();
+    double travel = 0;
+    const double* qa = q0_printed_.data();
+    for (std::size_t k = 0; k < s_.size(); ++k) {
+        const double* qb = piece_printed(k);
+        for (const int j : rot) travel += std::abs(qb[std::size_t(j)] - qa[std::size_t(j)]);
+        qa = qb;
+    }
+    return travel;
+}
+
+IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult* result) {
+    if (split_for_ != &mv)
+        if (auto r = split(mv); !r.ok()) return r;
+    split_for_ = nullptr;
+    const std::size_t n = joints_;
+    const int pieces = int(s_.size());
+    const double length = (mv.p1.tip - mv.p0.tip).norm();
+    const std::vector<double>& q0 = q0_printed_;  // where the firmware starts
+
+    // Duration of the whole move in minutes: tip length at the programmed feed (G94), or given (G93).
+    double total_time = 0;
+    if (mv.inverse_time > 0) total_time = 1.0 / mv.inverse_time;
+    else if (mv.feed > 0 && mv.mode != OrientationMode::Joints) total_time = length / mv.feed;
+
+    // Cumulative share of the move at each piece end: by tip length, or by s for a pure turn.
+    double prev_share = 0;
+    long long e_units_done = 0;
+    const int ed = machine_.dialect.extrusion_decimals;
+    // 10^ed from a table for the usual decimals (the same exact value pow gives, without the call).
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+    const double escale = ed >= 0 && ed <= 9 ? kPow10[ed] : std::pow(10.0, ed);
+    // Inverse-time output where the firmware takes it, for tool-space moves that have a duration.
+    const bool inverse_time_out = machine_.dialect.inverse_time && mv.mode != OrientationMode::Joints && (total_time > 0 || mv.feed > 0);
+    piece_time_.resize(std::size_t(pieces));  // each piece's set below
+    // Each piece's ends are read where the split left them (no copies).
+    std::span<const double> qprev(q0);
+    for (int k = 0; k < pieces; ++k) {
+        const double s = s_[std::size_t(k)];
+        const std::span<const double> qk(piece_printed(std::size_t(k)), n);
+        const double share = s;  // the tip moves uniformly in s along the straight programmed line
+        const bool last = k + 1 == pieces;
+
+        std::optional<PassedNumber> e;
+        if (mv.e) {
+            if (last) {
+                // The last piece ends exactly where the input said: absolute E as written; relative
+                // E as what is left, so the pieces add up to the input exactly.
+                if (!mv.e_relative || pieces == 1) {
+                    e = mv.e;
+                } else {
+                    const double total = mv.e->value * escale;
+                    if (std::abs(total - std::round(total)) < 1e-6)  // E has no more digits than the pieces
+                        e = PassedNumber{double(std::llround(total) - e_units_done) / escale, {}, ed};
+                    else
+                        e = PassedNumber{mv.e->value - double(e_units_done) / escale, {}};
+                }
+            } else {
+                const double value = mv.e_relative ? mv.e->value : mv.e->value - mv.e_start;
+                const long long upto = std::llround(value * share * escale);
+                const long long units = mv.e_relative ? upto - e_units_done : upto;
+                e_units_done = mv.e_relative ? upto : 0;
+                e = PassedNumber{double(units) / escale + (mv.e_relative ? 0.0 : mv.e_start), {}, ed};
+            }
+        }
+
+        std::optional<PassedNumber> f;
+        if (mv.mode == OrientationMode::Joints) {
+            f = mv.f;  // joint space: the firmware's own F, as given
+            piece_time_[std::size_t(k)] = 0;   // not known
+        } else {
+            double t = total_time * (share - prev_share);
+            // Per-axis limits slow the piece down, never change its path; a pure turn runs at
+            // the machine's rotary feed.
+            for (const FeedLimit& l : feed_limits_) t = std::max(t, std::abs(qk[l.joint] - qprev[l.joint]) / l.max_feed);
+            if (length == 0 && mv.inverse_time == 0) {
+                double rot_max = 0;
+                for (const std::size_t j : rotary_) rot_max = std::max(rot_max, std::abs(qk[j] - qprev[j]));
+                t = std::max(t, rot_max / machine_.motion.rotary_feed);
+            }
+            piece_time_[std::size_t(k)] = t;
+            double d_fw = piece_length(qprev.data(), qk.data());  // both ends come from the split, rounded
+            if (mv.e && machine_.dialect.firmware == FirmwareDialect::Klipper) {
+                // Klipper times a move without X Y Z by its largest change over E and the
+                // extra axes (its toolhead's rule), not the rotaries alone.
+                bool still = true;
+                for (const std::size_t j : linear_) still = still && qk[j] == qprev[j];
+                if (still) d_fw = std::max(d_fw, std::abs(mv.e_relative ? mv.e->value : mv.e->value - mv.e_start) * (share - prev_share));
+            }
+            if (inverse_time_out) {
+                // RepRapFirmware's G93: F is 1 / the piece's duration in minutes. An E-only piece
+                // takes its extrusion at the programmed feed.
+                if (t <= 0 && mv.e && mv.feed > 0) t = std::abs(mv.e_relative ? mv.e->value : mv.e->value - mv.e_start) * (share - prev_share) / mv.feed;
+                if (t <= 0 && mv.feed > 0) t = d_fw / mv.feed;
+                if (t > 0) f = feed_number(1.0 / t, 4);
+            } else if (t > 0 && d_fw > 0) f = feed_number(d_fw / t, 1);
+            else if (mv.f && mv.inverse_time == 0) f = mv.f;  // nothing moves (E only): F as written
+            else if (mv.feed > 0) f = feed_number(mv.feed, 1);
+        }
+        // Measured errors are taken off after the split, so every piece of every move is
+        // corrected and nothing upstream sees anything but nominal joints.
+        // Compensated from the joints as solved: the emitter rounds once (without compensation
+        // that gives exactly the rounded joints checked above).
+        const double* exact = whole_ ? mv.q1->data() : &qs_exact_[std::size_t(k) * n];
+        const auto sent = compensation_.apply(std::span<const double>(exact, n));
+        if (!sent.ok()) throw LineError(1, sent.why());
+        emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, inverse_time_out);
+        prev_share = share;
+        qprev = qk;
+    }
+    if (result) {
+        // The report: deviation of each piece (denser than the split's own check), the tip's
+        // real speed along the firmware's path against the programmed feed, and joint travel.
+        result->pieces = pieces;
+        result->travel.assign(n, 0.0);
+        result->low = q0;
+        result->high = q0;
+        result->minutes = 0;
+        double tip = 0, ang = 0, ptip, pang, sa = 0, worst_feed = 0;
+        const double* qa = q0.data();
+        std::vector<double> qq(n);
+        for (int k = 0; k < pieces; ++k) {
+            const double* qb = piece_printed(std::size_t(k));
+            piece_error(mv, sa, s_[std::size_t(k)], qa, qb, 2 * kCheckSamples, ptip, pang);
+            tip = std::max(tip, ptip);
+            ang = std::max(ang, pang);
+            for (std::size_t j = 0; j < n; ++j) {
+                result->travel[j] += std::abs(qb[j] - qa[j]);
+                result->low[j] = std::min(result->low[j], qb[j]);  // joint-linear pieces: extremes at their ends
+                result->high[j] = std::max(result->high[j], qb[j]);
+            }
+            result->minutes += piece_time_[std::size_t(k)];
+            if (mv.feed > 0 && mv.mode != OrientationMode::Joints && length > 0) {
+                // Tip path length of the joint-linear piece, and the time the firmware gives it.
+                double walked = 0;
+                Eigen::Vector3d last = kin_.forward(std::vector<double>(qa, qa + n)).tip;
+                for (int i = 1; i <= 16; ++i) {
+                    for (std::size_t j = 0; j < n; ++j) qq[j] = qa[j] + (qb[j] - qa[j]) * i / 16.0;
+                    const Eigen::Vector3d p = kin_.forward(qq).tip;
+                    walked += (p - last).norm();
+                    last = p;
+                }
+                const double programmed = length * (s_[std::size_t(k)] - sa);
+                const double minutes = piece_time_[std::size_t(k)];  // as the emitted F gives it
+                if (programmed > 1e-9 && minutes > 0) {
+                    const double err = (walked / minutes) / mv.feed - 1.0;
+                    if (std::abs(err) > std::abs(worst_feed)) worst_feed = err;
+                }
+            }
+            sa = s_[std::size_t(k)];
+            qa = qb;
+        }
+        result->tip_error = tip;
+        result->angle_error = ang;
+        result->feed_error = worst_feed;
+    }
+    return {};
+}
+
+}  // namespace xlate5

@@ -1,0 +1,246 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The planner stage, between the interpreter and the motion stage: turns a typed move into
+// joint moves. It solves the end of each tool-space move (IK), chooses the solution (the
+// continuous one, or for a travel move another solution of its pose inside the limits: the other
+// branch or another turn; near a pole, over short moves, the turntable held within the angle
+// tolerance), is the stage that applies the joint limits, re-zeroes a wound-up
+// turntable, and hands the move to the motion stage to be split. Joint-space moves (G49),
+// position changes (G92) and homing (G28) reach the firmware through it too.
+// May call: kinematics, joint_limits, the motion stage, the compensation stage, the emitter, and
+// the report's move log.
+#pragma once
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "translators/pipeline/compensation.hpp"
+#include "translators/pipeline/emitter.hpp"
+#include "translators/pipeline/joint_limits.hpp"
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/machine/machine.hpp"
+#include "translators/pipeline/motion.hpp"
+
+namespace xlate5 {
+
+class MoveLog;
+
+// Under G43.4 the programmed angles are carried onto the joints through q = sign * a + shift
+// per rotary (in rotary_joints() order): identity until a travel move unwinds onto another
+// turn (shift 360 k) or, where the machine has the flip, the other branch (+180, -1).
+struct AngleImage {
+    double sign[2] = {1, 1};
+    double shift[2] = {0, 0};
+    bool operator==(const AngleImage&) const = default;
+};
+
+// to = from, for joint vectors: when the sizes agree (always, after the first move), value by
+// value without a loop (a machine has at most 8 joints, the emitter's bound): a loop or
+// vector assignment costs about twice as much for five doubles (versioning, or a call of memmove).
+inline void copy_joints(std::vector<double>& to, const std::vector<double>& from) {
+    const std::size_t n = from.size();
+    if (to.size() != n || n > 8) {
+        to = from;
+        return;
+    }
+    double* d = to.data();
+    const double* s = from.data();
+    switch (n) {
+        case 8: d[7] = s[7]; [[fallthrough]];
+        case 7: d[6] = s[6]; [[fallthrough]];
+        case 6: d[5] = s[5]; [[fallthrough]];
+        case 5: d[4] = s[4]; [[fallthrough]];
+        case 4: d[3] = s[3]; [[fallthrough]];
+        case 3: d[2] = s[2]; [[fallthrough]];
+        case 2: d[1] = s[1]; [[fallthrough]];
+        case 1: d[0] = s[0]; [[fallthrough]];
+        default: break;
+    }
+}
+
+// Joint values whose copy assignment reuses the buffer value by value (copy_joints): the
+// look-back copies the planner's state with every line, and a vector's own assignment calls
+// memmove for five doubles. Otherwise a vector.
+struct JointValues : std::vector<double> {
+    using std::vector<double>::vector;
+    JointValues() = default;
+    JointValues(const std::vector<double>& v) : std::vector<double>(v) {}
+    JointValues(const JointValues&) = default;
+    JointValues(JointValues&&) = default;
+    JointValues& operator=(JointValues&&) = default;
+    JointValues& operator=(const JointValues& o) {
+        copy_joints(*this, o);
+        return *this;
+    }
+    JointValues& operator=(const std::vector<double>& o) {
+        copy_joints(*this, o);
+        return *this;
+    }
+};
+
+// What the planner keeps between moves: where the machine is. (Copied by its members' own
+// copies: a member added later is copied too.)
+struct PlannerState {
+    JointValues q;           // joint values the firmware will be at
+    Pose pose;               // tip and tool axis in the part frame
+    bool tip_known = false;  // has the program placed the tip since start or G28?
+    AngleImage image;        // G43.4: programmed angles -> joints
+    // Per rotary (rotary_joints() order): the whole turns re-zeros took off the joint since the
+    // program last set it (G92, G28), in degrees. The program's angles go on without them.
+    double rezeroed[2] = {0, 0};
+    // With a report: the least rotary travel to each solution of the last move's end axis, by
+    // dynamic programming over the moves so far (Planner::bound_rotary_travel). Here so that a
+    // look-back replay takes it back with the rest.
+    struct RotaryBound {
+        int n = 0;  // solutions held (0: not started)
+        double best[2] = {0, 0}, c[2] = {0, 0}, b[2] = {0, 0};
+        double slack_c = 0, slack_b = 0;
+    } bound;
+};
+
+// One input line's dealings with the look-back: what it asks of the line's moves, and what they
+// did. An argument of every move, never a member left set for the next call.
+struct LineRun {
+    std::uint64_t line_no = 0;
+    int end_candidate = -1;          // in: the line's first travel move ends on this other solution (a replay)
+    bool travels = false;            // out: the line made a tool-space travel move
+    bool hit_limit = false;          // out: it failed on a joint limit
+    bool linear_limit = false;       // out: ... of a linear joint (the part is placed out of reach)
+    bool candidate_missing = false;  // out: there is no solution end_candidate
+};
+
+// A tool-space move as the interpreter read it (G0/G1 under G43.4/G43.5, or an arc's chord).
+struct ToolMove {
+    int gcode = 1;
+    std::uint32_t column = 1;                    // of the command, for errors
+    OrientationMode mode = OrientationMode::Angles;
+    bool any_xyz = false;
+    Eigen::Vector3d tip = Eigen::Vector3d::Zero();   // part frame (the current tip when no X Y Z)
+    bool any_rotary = false;
+    const std::vector<double>* angles = nullptr;     // programmed angle per joint (rotaries): under G43.4 the words, or the current ones; not filled under G43.5 (tool-vector mode), where nothing reads them
+    bool any_ijk = false;
+    Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // G43.5: the tool axis, unit (when any_ijk)
+    const std::vector<bool>* commanded = nullptr;    // joints the line names (directly or through the tip)
+    std::optional<PassedNumber> e, f;
+    bool e_relative = false;
+    double e_position = 0;   // absolute E before the move
+    double feed = 0;         // programmed feed, mm/min
+    bool inverse_time = false;
+};
+
+// A joint-space move (G49): every word is a joint value.
+struct JointMove {
+    int gcode = 1;
+    std::uint32_t column = 1;                // of the first word, for errors
+    const std::vector<double>* q = nullptr;  // the target joints
+    const std::vector<bool>* commanded = nullptr;
+    bool any_linear = false;
+    std::optional<PassedNumber> e, f;
+    bool inverse_time = false;
+};
+
+class Planner {
+public:
+    // `log` (may be null) receives every measured tool-space move for the report.
+    Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter& emitter, MoveLog* log);
+
+    // Throws LineError(column, cause); `run` says whether the move travelled or hit a limit.
+    void tool_move(const ToolMove& move, LineRun& run, std::string& out);
+    void joint_move(const JointMove& move, std::string& out);
+
+    // G92 on joints: the firmware is told it is at `values` for the joints in `which`; the pose
+    // follows from the joints when `pose_from_joints`. Then send_position writes the G92.
+    void set_joints(const std::vector<bool>& which, const std::vector<double>& values, bool pose_from_joints);
+    void send_position(const std::vector<bool>& which, const std::optional<PassedNumber>& e, std::string& out);
+    // G28 for the joints in `which`: they are at their home values.
+    void home(const std::vector<bool>& which);
+    // A move passed on as written (joint-space arcs): the joints end at `q`.
+    void moved_to(const std::vector<double>& q);
+    // The firmware's position is no longer exactly known (a code that moves it, a failed line).
+    void position_unknown();
+    // A G93/G94 passed on to the firmware as written.
+    void feed_mode_sent(bool inverse_time);
+    // A mode switch: the programmed angles mean the joints as they are (but for re-zeros).
+    void reset_angle_image() { plain_image(); }
+    // G92 X Y Z under tool-centre-point control: the program has placed the tip.
+    void tip_placed() { state_.tip_known = true; }
+
+    // The programmed angles (G43.4) of the current joints: per joint, rotaries through the image.
+    // Inline, the joints copied through copy_joints.
+    void programmed_angles(std::vector<double>& a) const {
+        const std::vector<double>& q = state_.q;
+        copy_joints(a, q);
+        // The plain image gives the joints themselves ((q - 0) * 1 is q, bit for bit).
+        if (!(state_.image == AngleImage{})) unmap_angles(state_.image, q, a);
+    }
+
+private:
+    void send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
+                     std::string& out);
+    // The image with no other turn or branch chosen: identity, but for the turns re-zeros took off.
+    void plain_image();
+    void forget_rezeros(const std::vector<bool>& which);  // joints the program has just set
+    void map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const;
+    void unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
+    void end_candidates(OrientationMode mode, const Pose& end, const std::vector<double>& programmed,
+                        const std::vector<double>& usual);
+    // Near a pole, across moves: the end of a tool-vector move from `from` to `to` with the
+    // turntable turned no more than the angle tolerance needs (see planner.cpp). Returns true, with
+    // the end joints in `q` (linear joints solved) and, with `need_worst`, the worst axis deviation
+    // of the joint-linear turn in `worst`, when the move is to be made that way (rotaries linear,
+    // angle form).
+    // `at_end`, when given, holds the orientation solutions of to.axis.
+    bool pole_passage(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
+                      double& worst, bool need_worst);
+    // Its part past the tests most moves leave at; `hold_end`: near the pole and short.
+    bool pole_hold(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
+                   double& worst, bool need_worst, bool start_exact, bool hold_end);
+    // The tool axis at q's rotaries: a remembered one when they are the same to the bit (a move's
+    // end is the next one's start), else tool_axis(q). Where pole_passage applies only.
+    Eigen::Vector3d axis_at(const std::vector<double>& q) const;
+    void remember_axis(const std::vector<double>& q, const Eigen::Vector3d& axis);
+    // The report's lower bound on rotary travel, advanced by a move ending on `axis`.
+    void bound_rotary_travel(const Eigen::Vector3d& axis);
+
+    struct Candidate {
+        std::vector<double> q;
+        AngleImage image;
+    };
+
+    const Kinematics& kin_;
+    const Machine& machine_;
+    LimitBox limits_;  // the end of every move is checked against it
+    PlannerState& state_;
+    JointEmitter& emitter_;
+    MoveLog* log_;
+    CompensationStage compensation_;
+    MotionStage motion_;
+    MoveResult move_result_;
+    std::vector<double> q_next_;    // scratch: the move being solved
+    std::vector<bool> which_;       // scratch: joints a re-zero tells the firmware about
+    std::vector<Candidate> candidates_;
+    std::vector<double> pole_q_, pole_probe_;  // scratch for pole_passage
+    Eigen::Vector3d pole_ = Eigen::Vector3d::UnitZ();  // pole_passage's pole (has_flip machines; see the constructor)
+    bool pole_checks_ = false;                         // pole_passage applies to this machine
+    bool start_held_ = false;                          // pole_passage found the move's start held off its axis
+    AngleLimit pole_region_, short_turn_;  // pole_passage's tests of the angles it compares
+    double exact_start_;                   // and its start within 1e-6 degrees of the axis: a dot at least this
+    double pole_chord_limit_;              // pole_hold's chord within its limit (a constant of the machine)
+    std::size_t pole_c_ = 0, pole_b_ = 0;              // its rotaries' joints (rotary_joints() order)
+    struct KnownAxis {
+        bool valid = false;
+        std::uint64_t rotary[2] = {};  // the rotaries' bits, rotary_joints() order (a signed zero counts: the sine keeps its sign)
+        Eigen::Vector3d axis;
+        bool holds(std::uint64_t c, std::uint64_t b) const { return valid & (rotary[0] == c) & (rotary[1] == b); }
+    };
+    Kinematics::Solutions end_solutions_;  // of the move's end axis (G43.5 with I J K)
+    // The end's position solve with its pose and lever arms (when the solve gives them): the
+    // motion stage bounds the printed end from it instead of an FK.
+    Kinematics::SolvedEnd end_solved_;
+    KnownAxis known_axes_[2];  // see axis_at
+    int known_next_ = 0;
+};
+
+}  // namespace xlate5
