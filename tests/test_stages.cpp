@@ -14,6 +14,7 @@
 #include "helpers.hpp"
 #include "translators/pipeline/arcs.hpp"
 #include "translators/pipeline/compensation.hpp"
+#include "translators/pipeline/feed_rules.hpp"
 #include "translators/pipeline/joint_limits.hpp"
 #include "translators/error.hpp"
 #include "translators/inputs/gcode_lexer.hpp"
@@ -468,4 +469,25 @@ TEST_CASE("planner state: copy_joints and PlannerState's copy give what vector a
         CHECK(a.rezeroed[0] == b.rezeroed[0]);
         CHECK(a.rezeroed[1] == b.rezeroed[1]);
     }
+}
+
+// Each firmware's length of a move, from the rules as their documentation states them (NIST
+// RS274NGC 2.5.2.1 for Marlin and RepRapFirmware; Marlin's ARTICULATED_ROBOT_ARM; Klipper's
+// toolhead for a move without X Y Z), on X Y Z A B with every joint's move chosen by hand.
+TEST_CASE("feed rules: each firmware measures a move its own way") {
+    const JointKinds kinds{{0, 1, 2}, {3, 4}};
+    const double q0[5] = {1, 2, 3, 10, 20};
+    const double tilt[5] = {4, 6, 3, 20, 20};     // X 3, Y 4 (5 mm) and A 10 degrees
+    const double turn[5] = {1, 2, 3, 20, 0};      // A 10, B -20 degrees, no linear move
+    CHECK(nist_length(q0, tilt, kinds, 0) == doctest::Approx(5));
+    CHECK(marlin_articulated_length(q0, tilt, kinds, 0) == doctest::Approx(std::sqrt(25.0 + 100.0)));
+    CHECK(klipper_length(q0, tilt, kinds, 0) == doctest::Approx(5));
+    CHECK(nist_length(q0, turn, kinds, 0) == doctest::Approx(std::sqrt(500.0)));
+    CHECK(marlin_articulated_length(q0, turn, kinds, 0) == doctest::Approx(std::sqrt(500.0)));
+    CHECK(klipper_length(q0, turn, kinds, 0) == doctest::Approx(20));
+    CHECK(klipper_length(q0, turn, kinds, 30) == doctest::Approx(30));  // E counts when larger
+    CHECK(klipper_length(q0, tilt, kinds, 30) == doctest::Approx(5));   // not with X Y Z moving
+    CHECK((length_rule(FirmwareDialect::RepRap) == &nist_length));
+    CHECK((length_rule(FirmwareDialect::Klipper) == &klipper_length));
+    CHECK((length_rule(FirmwareDialect::MarlinArticulated) == &marlin_articulated_length));
 }

@@ -13,6 +13,16 @@
 
 namespace xlate5 {
 
+int printed_decimals(const Machine& m, std::size_t j) { return m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals; }
+
+double printed_value(const Machine& m, std::size_t j, double v) {
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+    const int d = printed_decimals(m, j);
+    long long units = 0;
+    if (!to_units(v, d, units)) return v;
+    return double(units) / kPow10[d];
+}
+
 void append_passed(std::string& out, const PassedNumber& n) {
     if (!n.text.empty()) out += n.text;
     else if (n.decimals >= 0) append_fixed(out, n.value, n.decimals);

@@ -24,6 +24,10 @@ struct PassedNumber {
     int decimals = -1;  // for a computed value: digits after the point (-1: shortest exact form)
 };
 void append_passed(std::string& out, const PassedNumber& n);
+// The decimals joint j is printed with, and a value as it is printed there (the split and the
+// report measure the path the firmware will really take).
+int printed_decimals(const Machine& m, std::size_t j);
+double printed_value(const Machine& m, std::size_t j, double v);
 // Ends a move line begun at `start` with E and F; a line that got no word after its command
 // (`out` still `empty` long: nothing changed) is taken back.
 void finish_move(std::string& out, std::size_t start, std::size_t empty, const std::optional<PassedNumber>& e,

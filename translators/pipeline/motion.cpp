@@ -19,22 +19,6 @@ namespace xlate5 {
 
 namespace {
 
-// A positive feed that would round to 0 at `decimals` (under 0.05 mm/min at one) is written with
-// more decimals, to two significant digits: Marlin takes F0 as no F at all and keeps the last
-// feed, so the move would run at another speed entirely. Below 1e-9 (a piece no step of which
-// could be timed) the least feed nine decimals can write. Written feeds of 0.05 and more are as
-// before.
-PassedNumber feed_number(double v, int decimals) {
-    static constexpr double kHalfUnit[] = {0.5, 0.05, 0.005, 5e-4, 5e-5, 5e-6, 5e-7, 5e-8, 5e-9, 5e-10};
-    if (!(v > 0) || decimals < 0 || decimals > 9 || v >= kHalfUnit[decimals]) [[likely]]
-        return {v, {}, decimals};
-    int d = decimals;
-    while (d < 9 && v < 20 * kHalfUnit[d]) ++d;  // 20 half units: two significant digits
-    if (v < kHalfUnit[9]) v = 1e-9;
-    return {v, {}, d};
-}
-
-
 constexpr int kCheckSamples = 7;     // interior points checked per piece (see piece_error)
 // The error between two of those samples can exceed both by a little (the tests measure it
 // against 400-point sampling: under 1%); a piece passes only with this much room left.
@@ -42,26 +26,15 @@ constexpr double kSampleMargin = 0.97;
 // A piece's length predicted from a failing try's error aims this far short of the limit.
 constexpr double kPredictAim = 0.98;
 
-// The decimals joint j is printed with.
-int printed_decimals(const Machine& m, std::size_t j) { return m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals; }
-
-double printed(const Machine& m, std::size_t j, double v) {
-    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
-    const int d = printed_decimals(m, j);
-    long long units = 0;
-    if (!to_units(v, d, units)) return v;
-    return double(units) / kPow10[d];
-}
-
 // The joints as the firmware will be given them (each rounded to its printed decimals): the
 // split and the report measure the path the firmware will really take.
 void round_printed(const Machine& m, std::vector<double>& q) {
-    for (std::size_t j = 0; j < q.size(); ++j) q[j] = printed(m, j, q[j]);
+    for (std::size_t j = 0; j < q.size(); ++j) q[j] = printed_value(m, j, q[j]);
 }
 // The same of `from`, written to `to` (no copy first).
 void round_printed(const Machine& m, const std::vector<double>& from, std::vector<double>& to) {
     to.resize(from.size());
-    for (std::size_t j = 0; j < from.size(); ++j) to[j] = printed(m, j, from[j]);
+    for (std::size_t j = 0; j < from.size(); ++j) to[j] = printed_value(m, j, from[j]);
 }
 
 // Distance from p to the segment ab.
@@ -81,35 +54,6 @@ double end_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Ei
 
 }  // namespace
 
-namespace {
-// Every firmware rule but Marlin's articulated one takes the XYZ length alone whenever a linear
-// joint moves (piece_length leaves the rotaries' sums out then).
-bool linear_length_rules(const Machine& m) { return m.dialect.firmware != FirmwareDialect::MarlinArticulated; }
-
-// The dialect's rule from the squared linear and rotary moves and the largest rotary one.
-double rule_length(const Machine& m, double lin2, double rot2, double rot_max) {
-    if (!linear_length_rules(m)) return std::sqrt(lin2 + rot2);  // Marlin articulated: every axis counts, mm and degrees alike
-    if (lin2 > 0) return std::sqrt(lin2);                          // XYZ length if any moves
-    // No linear move: Klipper takes the largest single-axis move, the NIST rule (Marlin, RepRap,
-    // generic) the rotaries' length.
-    return m.dialect.firmware == FirmwareDialect::Klipper ? rot_max : std::sqrt(rot2);
-}
-}  // namespace
-
-double firmware_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1) {
-    double lin2 = 0, rot2 = 0, rot_max = 0;
-    for (std::size_t j = 0; j < q0.size(); ++j) {
-        const double d = printed(m, j, q1[j]) - printed(m, j, q0[j]);
-        if (m.joints[j].rotary) {
-            rot2 += d * d;
-            rot_max = std::max(rot_max, std::abs(d));
-        } else {
-            lin2 += d * d;
-        }
-    }
-    return rule_length(m, lin2, rot2, rot_max);
-}
-
 MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
     : sample_angle_(kSampleMargin * kinematics.machine().motion.angle_tolerance),
       chord_limit_(chord_within(sample_angle_.degrees() - 1e-6)),
@@ -118,11 +62,8 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
       joints_(kinematics.machine().joints.size()),
       limits_(kinematics.machine()),
       compensation_(kinematics.machine().compensation),
+      feed_rule_(kinematics.machine()),
       emitter_(emitter) {
-    for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
-        (machine_.joints[j].rotary ? rotary_ : linear_).push_back(j);
-        if (machine_.joints[j].max_feed > 0) feed_limits_.push_back({j, machine_.joints[j].max_feed});
-    }
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
     for (std::size_t j = 0; j < machine_.joints.size() && j < kPrintJoints; ++j) {
         const int d = printed_decimals(machine_, j);
@@ -140,25 +81,6 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
         if (std::size_t(j) < kPrintJoints) print_rotaries_[print_rotary_count_++] = std::size_t(j);
 }
 
-double MotionStage::piece_length(const double* q0, const double* q1) const {
-    // firmware_length's sums without its rounding (both ends are already as printed: rounding is
-    // idempotent), each over its own joints in the same order (the same additions), with no test
-    // of which kind a joint is.
-    double lin2 = 0, rot2 = 0, rot_max = 0;
-    for (const std::size_t j : linear_) {
-        const double d = q1[j] - q0[j];
-        lin2 += d * d;
-    }
-    // The rotaries' sums are not needed when the rule takes the linear length (the usual printing piece).
-    if (lin2 > 0 && linear_length_rules(machine_)) return std::sqrt(lin2);
-    for (const std::size_t j : rotary_) {
-        const double d = q1[j] - q0[j];
-        rot2 += d * d;
-        rot_max = std::max(rot_max, std::abs(d));
-    }
-    return rule_length(machine_, lin2, rot2, rot_max);
-}
-
 bool MotionStage::print_end(const double* q1) {
     const std::size_t n = joints_;
     double* to = q1_printed_.data();
@@ -170,7 +92,7 @@ bool MotionStage::print_end(const double* q1) {
         last[j] = v;
         const double scaled = v * print_scale_[j];
         // printed(): to_units' units over the same power of ten.
-        const double p = std::abs(scaled) < print_below_[j] ? double(round_half_away(scaled)) / print_scale_[j] : printed(machine_, j, v);
+        const double p = std::abs(scaled) < print_below_[j] ? double(round_half_away(scaled)) / print_scale_[j] : printed_value(machine_, j, v);
         to[j] = p;
     }
     for (std::size_t k = 0; k < print_rotary_count_; ++k) rotates |= to[print_rotaries_[k]] != q0[print_rotaries_[k]];
@@ -946,6 +868,14 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     const double escale = ed >= 0 && ed <= 9 ? kPow10[ed] : std::pow(10.0, ed);
     // Inverse-time output where the firmware takes it, for tool-space moves that have a duration.
     const bool inverse_time_out = machine_.dialect.inverse_time && mv.mode != OrientationMode::Joints && (total_time > 0 || mv.feed > 0);
+    MoveFeed feed;
+    feed.minutes = total_time;
+    feed.length = length;
+    feed.feed = mv.feed;
+    feed.inverse_time = mv.inverse_time;
+    feed.f = mv.f;
+    if (mv.e) feed.e = std::abs(mv.e_relative ? mv.e->value : mv.e->value - mv.e_start);
+    feed.inverse_time_out = inverse_time_out;
     piece_time_.resize(std::size_t(pieces));  // each piece's set below
     // Each piece's ends are read where the split left them (no copies).
     std::span<const double> qprev(q0);
@@ -983,33 +913,9 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
             f = mv.f;  // joint space: the firmware's own F, as given
             piece_time_[std::size_t(k)] = 0;   // not known
         } else {
-            double t = total_time * (share - prev_share);
-            // Per-axis limits slow the piece down, never change its path; a pure turn runs at
-            // the machine's rotary feed.
-            for (const FeedLimit& l : feed_limits_) t = std::max(t, std::abs(qk[l.joint] - qprev[l.joint]) / l.max_feed);
-            if (length == 0 && mv.inverse_time == 0) {
-                double rot_max = 0;
-                for (const std::size_t j : rotary_) rot_max = std::max(rot_max, std::abs(qk[j] - qprev[j]));
-                t = std::max(t, rot_max / machine_.motion.rotary_feed);
-            }
-            piece_time_[std::size_t(k)] = t;
-            double d_fw = piece_length(qprev.data(), qk.data());  // both ends come from the split, rounded
-            if (mv.e && machine_.dialect.firmware == FirmwareDialect::Klipper) {
-                // Klipper times a move without X Y Z by its largest change over E and the
-                // extra axes (its toolhead's rule), not the rotaries alone.
-                bool still = true;
-                for (const std::size_t j : linear_) still = still && qk[j] == qprev[j];
-                if (still) d_fw = std::max(d_fw, std::abs(mv.e_relative ? mv.e->value : mv.e->value - mv.e_start) * (share - prev_share));
-            }
-            if (inverse_time_out) {
-                // RepRapFirmware's G93: F is 1 / the piece's duration in minutes. An E-only piece
-                // takes its extrusion at the programmed feed.
-                if (t <= 0 && mv.e && mv.feed > 0) t = std::abs(mv.e_relative ? mv.e->value : mv.e->value - mv.e_start) * (share - prev_share) / mv.feed;
-                if (t <= 0 && mv.feed > 0) t = d_fw / mv.feed;
-                if (t > 0) f = feed_number(1.0 / t, 4);
-            } else if (t > 0 && d_fw > 0) f = feed_number(d_fw / t, 1);
-            else if (mv.f && mv.inverse_time == 0) f = mv.f;  // nothing moves (E only): F as written
-            else if (mv.feed > 0) f = feed_number(mv.feed, 1);
+            const PieceFeed pf = feed_rule_.piece(feed, qprev, qk, share - prev_share);
+            piece_time_[std::size_t(k)] = pf.minutes;
+            f = pf.f;
         }
         // Measured errors are taken off after the split, so every piece of every move is
         // corrected and nothing upstream sees anything but nominal joints.

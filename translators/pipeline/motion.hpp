@@ -13,16 +13,13 @@
 
 #include "translators/pipeline/compensation.hpp"
 #include "translators/pipeline/emitter.hpp"
+#include "translators/pipeline/feed_rules.hpp"
 #include "translators/kinematics/great_arc.hpp"
 #include "translators/pipeline/joint_limits.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
 
 namespace xlate5 {
-
-// The length the firmware divides by F for a move from q0 to q1 (its dialect's rule), from the
-// joint values as printed, since that is what the firmware sees.
-double firmware_length(const Machine& machine, const std::vector<double>& q0, const std::vector<double>& q1);
 
 struct MoveSpec {
     int gcode = 1;
@@ -195,6 +192,7 @@ private:
     const std::size_t joints_;  // the machine's joints (read where each move needs their number)
     LimitBox limits_;  // check_limits' verdict for the split's points (nearly all inside: no result built)
     CompensationStage compensation_;
+    FeedRule feed_rule_;
     JointEmitter& emitter_;
     std::vector<double> s_, qs_;                 // the pieces, joints as printed
     std::vector<double> qs_exact_;               // the pieces' ends as solved
@@ -226,15 +224,6 @@ private:
     std::vector<double> scratch_a_, scratch_b_, alt_exact_, lerp_, march_a_, march_b_;
     mutable std::vector<double> sample_;
     std::vector<double> piece_time_;  // minutes each piece of the last move takes
-    // The rotary and the linear joints, and the joints with a known top speed, looked up once.
-    std::vector<std::size_t> rotary_, linear_;
-    // dialect_length of two rounded ends (a piece's, as printed).
-    double piece_length(const double* q0, const double* q1) const;
-    struct FeedLimit {
-        std::size_t joint;
-        double max_feed;
-    };
-    std::vector<FeedLimit> feed_limits_;
 };
 
 }  // namespace xlate5
