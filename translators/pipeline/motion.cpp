@@ -566,25 +566,12 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
         // Turn it first, with the tip and the tool axis held (a re-index about the pole), then
         // make the move; never a jump inside one joint move.
         std::vector<double>& q_eps = scratch_b_;
-        const auto& at_start = solutions_of(mv.p0.axis);
-        bool on_pole = false;
-        const std::size_t rotaries = kin_.rotary_joints().size();
-        for (int b = 0; b < at_start.count; ++b)
-            for (std::size_t k = 0; k < rotaries; ++k) on_pole |= std::isnan(at_start.angle[b][k]);  // no branch a value
-        // Probe just off the start, far enough (1e-4 rad) that the joint is no longer free.
-        const double turn_angle = on_pole ? std::acos(std::clamp(mv.p0.axis.dot(mv.p1.axis), -1.0, 1.0)) : 0.0;
-        const double probe = turn_angle > 1e-4 ? 1e-4 / turn_angle : 1.0;
         // The probe's IK only where it matters: at a pole, on a move that turns.
-        if (on_pole && turn_angle > 0 && solve_at(mv, probe, *mv.q0, q_eps).ok()) {
-            double jump = 0;
-            for (std::size_t j = 0; j < q_eps.size(); ++j)
-                if (machine_.joints[j].rotary) jump = std::max(jump, std::abs(q_eps[j] - (*mv.q0)[j]));
-            if (jump > 1.0) {
-                std::vector<double> turned = *mv.q0;
-                for (std::size_t j = 0; j < turned.size(); ++j)
-                    if (machine_.joints[j].rotary && std::abs(q_eps[j] - turned[j]) > 1.0) turned[j] = q_eps[j];
-                if (auto rp = kin_.solve_position(mv.p0.tip, turned); !rp.ok()) return rp;
-                if (auto rl = check_limits(machine_, turned); !rl.ok()) return rl;
+        const double probe = pole_leaving_probe(solutions_of(mv.p0.axis), kin_.rotary_joints().size(), mv.p0.axis, mv.p1.axis);
+        if (probe > 0 && solve_at(mv, probe, *mv.q0, q_eps).ok()) {
+            std::vector<double> turned;
+            if (auto r = pole_reindex(kin_, *mv.q0, q_eps, mv.p0.tip, turned); !r.ok()) return r;
+            if (!turned.empty()) {
                 MoveSpec turn = mv;
                 turn.mode = OrientationMode::Angles;
                 turn.q1 = &turned;
@@ -678,34 +665,12 @@ void add_result(MoveResult& into, const MoveResult& part) {
 }  // namespace
 
 IkResult MotionStage::join_from_held(const MoveSpec& mv, std::string& out, MoveResult* result) {
-    const auto& q0 = *mv.q0;
-    const GreatArc arc = arc_of(mv);  // a copy: the parts' splits cache their own
-    const double limit = kSampleMargin * machine_.motion.angle_tolerance;
-    constexpr int kAxisSamples = 64;
-    std::vector<double>& q1 = join_q_;
-    std::vector<double>& lerp = join_lerp_;
-    lerp.resize(q0.size());
-    // The longest first part that works: the gentlest turn. Halved down to 2^-12 of the move
-    // (a turn almost in place: the tool axis then stays within the start's own offset, which
-    // the planner kept within half the tolerance, plus the turn's small bulge).
-    double s1 = 0, worst = 0;
-    for (int k = 1; k <= 12 && s1 == 0; ++k) {
-        const double s = std::ldexp(1.0, -k);
-        const Pose at = pose_at(mv, s);
-        q1 = q0;
-        if (!orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(at.axis), q0, q0, q1).ok()) continue;
-        if (!kin_.solve_position(at.tip, q1).ok() || !check_limits(machine_, q1).ok()) continue;
-        double w = 0;
-        for (int i = 1; i <= kAxisSamples && w <= limit; ++i) {
-            const double t = double(i) / kAxisSamples;
-            for (std::size_t j = 0; j < q0.size(); ++j) lerp[j] = q0[j] + t * (q1[j] - q0[j]);
-            w = std::max(w, angle_of_dot(kin_.tool_axis(lerp).dot(arc.at(t * s))));
-        }
-        if (w <= limit) s1 = s, worst = w;
-    }
+    double worst = 0;
+    const double s1 = pole_join(kin_, *mv.q0, mv.p0.tip, mv.p1.tip, arc_of(mv), cross_scratch_, join_q_, worst);
     if (s1 == 0) return {IkStatus::Singular, "no join"};
+    const std::vector<double>& q1 = join_q_;
     const Pose mid = pose_at(mv, s1);
-    const std::vector<double> joined = q1;  // the parts' splits reuse join_q_'s neighbours
+    const std::vector<double> joined = q1;  // a copy: the parts' splits may reuse join_q_
     MoveSpec first = mv, rest = mv;
     first.mode = OrientationMode::Angles;
     first.start_held = false;
@@ -750,85 +715,21 @@ IkResult MotionStage::join_from_held(const MoveSpec& mv, std::string& out, MoveR
 }
 
 bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
-    const auto& rot = kin_.rotary_joints();
-    if (mv.mode != OrientationMode::Vector || !machine_.motion.segment || rot.size() != 2) return false;
-    const auto& q0 = *mv.q0;
-    auto rotary_distance = [&](const std::vector<double>& a, const std::vector<double>& b) {
-        double d = 0;
-        for (const int j : rot) d += std::abs(a[std::size_t(j)] - b[std::size_t(j)]);
-        return d;
-    };
-    constexpr double kClearlyLess = 1.0;  // degrees: another way only when it turns clearly less
-    // The way across is taken only when it turns the rotaries clearly less than the continuous
-    // branch's split (measured at the end below). When no end on another branch is that much
-    // nearer, the answer is no whatever the estimate says: the split is made first, then, and
-    // kept for emit_one, and the estimate is skipped (most moves, far from a pole). No end at
-    // all is clearly nearer than a split that turns the rotaries less than the margin.
+    if (mv.mode != OrientationMode::Vector || !machine_.motion.segment || kin_.rotary_joints().size() != 2) return false;
+    // The continuous branch's split is made first: the way across is taken only when it turns
+    // the rotaries clearly less than that split, and when it is not taken the split is kept for
+    // emit_one, not made again.
     const bool split_ok = split(mv).ok();
     const double measured = split_ok ? split_rotary_travel() : 0.0;
-    if (split_ok && measured <= kClearlyLess) {
+    // No end on another branch can be clearly nearer than a split that turns the rotaries less
+    // than the margin (most moves, far from a pole): no estimate then.
+    if (split_ok && measured <= kPoleClearlyLess) {
         split_for_ = &mv;
         return false;
     }
-    const auto solutions = solutions_of(mv.p1.axis);
-    std::vector<double>& q = scratch_a_;
-    if (split_ok) {
-        bool nearer = false;
-        for (int b = 0; b < solutions.count && !nearer; ++b) {
-            q = q0;
-            if (orient_on_branch(machine_, kin_.rotary_joints(), solutions, b, q0, q0, q).ok())
-                nearer = rotary_distance(q, q0) < measured - kClearlyLess;
-        }
-        if (!nearer) {
-            split_for_ = &mv;
-            return false;
-        }
-    }
-    // How far the continuous branch turns the rotaries, estimated on a few points of the path
-    // (cheap; it is measured exactly below only when another way looks shorter).
-    constexpr int kEstimate = 16;
-    std::vector<double>& qq = lerp_;
-    std::vector<double>& prev = march_a_;
-    std::vector<double>& cur = march_b_;
-    prev = q0;
-    cur = q0;
-    const GreatArc arc = arc_of(mv);  // a copy: a nested split may cache another move's
-    double stay = 0;
-    for (int i = 1; i <= kEstimate; ++i) {
-        if (!orient_within_limits(machine_, kin_.rotary_joints(), kin_.orientation_solutions(arc.at(double(i) / kEstimate)), prev, prev, cur).ok())
-            break;
-        stay += rotary_distance(prev, cur);
-        prev = cur;
-    }
-    bool found = false;
-    double best = stay - kClearlyLess;
-    for (int b = 0; b < solutions.count; ++b) {
-        q = q0;
-        if (!orient_on_branch(machine_, kin_.rotary_joints(), solutions, b, q0, q0, q).ok()) continue;
-        const double travel = rotary_distance(q, q0);
-        if (travel >= best) continue;
-        if (!kin_.solve_position(mv.p1.tip, q).ok() || !check_limits(machine_, q).ok()) continue;
-        // The tool axis along the linear turn against its great-circle path, densely.
-        constexpr int kAxisSamples = 64;
-        double worst = 0;
-        qq.resize(q.size());
-        for (int i = 1; i < kAxisSamples; ++i) {
-            const double t = double(i) / kAxisSamples;
-            for (std::size_t j = 0; j < q.size(); ++j) qq[j] = q0[j] + t * (q[j] - q0[j]);
-            const Eigen::Vector3d axis = kin_.tool_axis(qq);
-            worst = std::max(worst, std::acos(std::clamp(axis.dot(arc.at(t)), -1.0, 1.0)) * kDegPerRad);
-        }
-        if (worst > kSampleMargin * machine_.motion.angle_tolerance) continue;
-        best = travel;
-        end = q;
-        cross_angle_ = worst;
-        found = true;
-    }
-    // The continuous branch's split, made above, is still the stage's own (nothing since has
-    // touched it): kept for emit_one when the way across is not taken, not made again.
-    if (!split_ok) return found;
-    const bool across = found && best < measured - kClearlyLess;
-    if (!across) split_for_ = &mv;
+    const bool across = pole_crossing(kin_, *mv.q0, mv.p1.tip, arc_of(mv), solutions_of(mv.p1.axis), split_ok, measured,
+                                      cross_scratch_, end, cross_angle_);
+    if (split_ok && !across) split_for_ = &mv;
     return across;
 }
 

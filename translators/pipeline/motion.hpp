@@ -3,7 +3,8 @@
 // (already solved at both ends by the planner) until the firmware's joint-linear path stays within
 // the tolerance of it, shares E among the pieces by tool-space length, and sets each piece's F so
 // the tip moves at the programmed speed under the firmware's own feed rule. May call: kinematics,
-// joint_limits (each split point stays inside the limits), the compensation stage, the emitter.
+// joint_limits (each split point stays inside the limits), the pole policy (pole_policy.hpp), the
+// compensation stage, the emitter.
 #pragma once
 #include <cstdint>
 #include <optional>
@@ -16,6 +17,7 @@
 #include "translators/pipeline/feed_rules.hpp"
 #include "translators/kinematics/great_arc.hpp"
 #include "translators/pipeline/joint_limits.hpp"
+#include "translators/pipeline/pole_policy.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
 
@@ -38,7 +40,7 @@ struct MoveSpec {
     double feed = 0;                                 // programmed feed, mm/min (0: none yet)
     std::optional<PassedNumber> f;                   // F as written on this line (passed on under G49)
     double inverse_time = 0;                         // G93 input: the move's duration is 1/F minutes
-    // The planner held the start off its programmed axis near a pole (planner.cpp, pole_hold): the
+    // The planner held the start off its programmed axis near a pole (pole_policy.hpp: hold): the
     // joints need not be on the continuous solution of p0's axis, and the move may first have to
     // join it (see MotionStage::join_from_held).
     bool start_held = false;
@@ -106,16 +108,14 @@ private:
     bool piece_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
                       double* middle_ratio = nullptr) const;
     IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
-    // Across a pole: the end on the other branch, reached with the rotaries turning linearly,
-    // when that stays within the angle tolerance and turns the rotaries less than the
-    // continuous branch. Fills `end` and returns true when that way is the better one.
+    // Across a pole (pole_policy.hpp: cross): true, with the end on the other branch in `end`,
+    // when the policy takes that way; else the continuous branch's split is kept for emit_one.
     bool cross_pole(const MoveSpec& move, std::vector<double>& end);
-    // From a start held off its axis, when the continuous solution cannot be followed from it:
-    // the first part of the move (up to s1) turns the rotaries linearly onto the exact solution
-    // at s1 while the split holds the tip on the line and the tool axis stays within the angle
-    // tolerance of its arc, then the rest is the usual vector move. Not ok when no s1 does that.
+    // From a start held off its axis, when the continuous solution cannot be followed from it
+    // (pole_policy.hpp: join): the first part, up to the policy's s1, in angle form with E shared
+    // by tip length, then the rest as the usual vector move. Not ok when no s1 does that.
     IkResult join_from_held(const MoveSpec& move, std::string& out, MoveResult* result);
-    std::vector<double> join_q_, join_lerp_;
+    std::vector<double> join_q_;
     double split_rotary_travel() const;
     IkResult solve_at(const MoveSpec& move, double s, const std::vector<double>& previous, std::vector<double>& q,
                       int branch = -1) const;
@@ -219,6 +219,7 @@ private:
     Eigen::Vector3d last_end_tip_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
     std::vector<double> final_exact_, exact_b_, ok_exact_, cross_end_;
     bool final_moved_ = false;  // final_exact_ holds the last move's end (else it is the end asked for)
+    PoleScratch cross_scratch_;
     double cross_angle_ = 0;  // the axis deviation of the last crossing found  // the last piece's end as solved (unrounded)
     // Scratch space reused move after move (no allocation on the hot path).
     std::vector<double> scratch_a_, scratch_b_, alt_exact_, lerp_, march_a_, march_b_;

@@ -22,6 +22,7 @@
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
 #include "translators/pipeline/motion.hpp"
+#include "translators/pipeline/pole_policy.hpp"
 
 namespace xlate5 {
 
@@ -186,21 +187,6 @@ private:
     void unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
     void end_candidates(OrientationMode mode, const Pose& end, const std::vector<double>& programmed,
                         const std::vector<double>& usual);
-    // Near a pole, across moves: the end of a tool-vector move from `from` to `to` with the
-    // turntable turned no more than the angle tolerance needs (see planner.cpp). Returns true, with
-    // the end joints in `q` (linear joints solved) and, with `need_worst`, the worst axis deviation
-    // of the joint-linear turn in `worst`, when the move is to be made that way (rotaries linear,
-    // angle form).
-    // `at_end`, when given, holds the orientation solutions of to.axis.
-    bool pole_passage(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
-                      double& worst, bool need_worst);
-    // Its part past the tests most moves leave at; `hold_end`: near the pole and short.
-    bool pole_hold(const Pose& from, const Pose& to, const Kinematics::Solutions* at_end, std::vector<double>& q,
-                   double& worst, bool need_worst, bool start_exact, bool hold_end);
-    // The tool axis at q's rotaries: a remembered one when they are the same to the bit (a move's
-    // end is the next one's start), else tool_axis(q). Where pole_passage applies only.
-    Eigen::Vector3d axis_at(const std::vector<double>& q) const;
-    void remember_axis(const std::vector<double>& q, const Eigen::Vector3d& axis);
     // The report's lower bound on rotary travel, advanced by a move ending on `axis`.
     void bound_rotary_travel(const Eigen::Vector3d& axis);
 
@@ -221,26 +207,12 @@ private:
     std::vector<double> q_next_;    // scratch: the move being solved
     std::vector<bool> which_;       // scratch: joints a re-zero tells the firmware about
     std::vector<Candidate> candidates_;
-    std::vector<double> pole_q_, pole_probe_;  // scratch for pole_passage
-    Eigen::Vector3d pole_ = Eigen::Vector3d::UnitZ();  // pole_passage's pole (has_flip machines; see the constructor)
-    bool pole_checks_ = false;                         // pole_passage applies to this machine
-    bool start_held_ = false;                          // pole_passage found the move's start held off its axis
-    AngleLimit pole_region_, short_turn_;  // pole_passage's tests of the angles it compares
-    double exact_start_;                   // and its start within 1e-6 degrees of the axis: a dot at least this
-    double pole_chord_limit_;              // pole_hold's chord within its limit (a constant of the machine)
-    std::size_t pole_c_ = 0, pole_b_ = 0;              // its rotaries' joints (rotary_joints() order)
-    struct KnownAxis {
-        bool valid = false;
-        std::uint64_t rotary[2] = {};  // the rotaries' bits, rotary_joints() order (a signed zero counts: the sine keeps its sign)
-        Eigen::Vector3d axis;
-        bool holds(std::uint64_t c, std::uint64_t b) const { return valid & (rotary[0] == c) & (rotary[1] == b); }
-    };
+    std::vector<double> pole_q_;  // scratch: a passage's end
+    PoleHold pole_hold_;
     Kinematics::Solutions end_solutions_;  // of the move's end axis (G43.5 with I J K)
     // The end's position solve with its pose and lever arms (when the solve gives them): the
     // motion stage bounds the printed end from it instead of an FK.
     Kinematics::SolvedEnd end_solved_;
-    KnownAxis known_axes_[2];  // see axis_at
-    int known_next_ = 0;
 };
 
 }  // namespace xlate5

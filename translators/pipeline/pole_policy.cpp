@@ -1,0 +1,331 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The pole policy. What it may call: see pole_policy.hpp.
+#include "translators/pipeline/pole_policy.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+
+#include "translators/constants.hpp"
+#include "translators/pipeline/joint_limits.hpp"
+
+namespace xlate5 {
+
+namespace {
+double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return angle_of_dot(a.dot(b)); }
+}  // namespace
+
+PoleHold::PoleHold(const Kinematics& kinematics)
+    : kin_(kinematics),
+      machine_(kinematics.machine()),
+      region_(kPoleRegion * kinematics.machine().motion.angle_tolerance),
+      short_turn_(kinematics.machine().motion.angle_tolerance),
+      exact_start_(least_dot_below(1e-6)),
+      chord_limit_(chord_within(kPoleMargin * kinematics.machine().motion.angle_tolerance - kPoleSlack)) {
+    // The pole of a has_flip machine: the tool axis with the tilting rotary at 0, which the first
+    // rotary then turns about itself (has_flip: within 1e-9 of its axis), so it is the same for
+    // every joint value.
+    const auto& rot = kin_.rotary_joints();
+    if (rot.size() == 2 && kin_.has_flip()) {
+        std::vector<double> q = machine_.home_joints();
+        q[std::size_t(rot[1])] = 0;
+        pole_ = kin_.tool_axis(q);
+    }
+    checks_ = rot.size() == 2 && kin_.has_flip() && machine_.motion.segment;
+    if (checks_) c_ = std::size_t(rot[0]), b_ = std::size_t(rot[1]);
+}
+
+// The tool axis at q's rotaries: a remembered one when they are the same to the bit (a move's
+// end is the next one's start), else tool_axis(q). passage's machines only (two rotaries).
+// The older slot first: it holds the end of the move before, this move's start (the newer one
+// holds this move's usual end). The remembered axes are the position solve's, computed from the
+// rotaries alone (rotations; the linear joints only translate): tool_axis(q) to the bit, or to
+// rounding where the solve took the rotaries' sines from the orientation solve (a two-turn
+// table's closed form); either way the slots are tried in a fixed order, so the answer is the
+// same on every run.
+Eigen::Vector3d PoleHold::axis_at(const std::vector<double>& q) const {
+    const std::uint64_t qc = std::bit_cast<std::uint64_t>(q[c_]), qb = std::bit_cast<std::uint64_t>(q[b_]);
+    const KnownAxis& older = known_[known_next_];
+    if (older.holds(qc, qb)) return older.axis;
+    const KnownAxis& newer = known_[1 - known_next_];
+    if (newer.holds(qc, qb)) return newer.axis;
+    return kin_.tool_axis(q);
+}
+
+void PoleHold::remember_axis(const std::vector<double>& q, const Eigen::Vector3d& axis) {
+    // Two slots: a move's end is remembered before the pole check asks for its start (the end
+    // of the move before). Called only where passage applies (two rotaries).
+    KnownAxis& k = known_[known_next_];
+    known_next_ = 1 - known_next_;
+    k.rotary[0] = std::bit_cast<std::uint64_t>(q[c_]);
+    k.rotary[1] = std::bit_cast<std::uint64_t>(q[b_]);
+    k.axis = axis;
+    k.valid = true;
+}
+
+// The tests every move makes, cheapest first; most moves leave here (see hold). Small, so
+// that tool_move takes it inline.
+bool PoleHold::passage(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& from, const Pose& to,
+                       const Kinematics::Solutions* at_end, std::vector<double>& q, double& worst, bool need_worst,
+                       bool& start_held) {
+    // Machines whose tool axis at zero lies along the first rotary (has_flip): there the pole is
+    // that rotary's axis and the second tilts the tool along a great circle through it.
+    if (!checks_) return false;
+    const std::size_t c = c_, b = b_;
+    const bool start_exact = axis_at(q0).dot(from.axis) >= exact_start_;
+    start_held = !start_exact;
+    // From an exact start, a move whose usual end turns no rotary has nothing to hold (planar
+    // files under G43.5: the axis stays on the pole).
+    if (start_exact && usual[c] == q0[c] && usual[b] == q0[b]) return false;
+    // The tilt from the pole (the nearer of its two ends) is below the region; its value is
+    // needed only then. The dot with -pole is -d to the bit (each product and sum only changes
+    // sign; a zero sum's sign aside, which neither comparison nor acos tells apart).
+    const double d = to.axis.dot(pole_);
+    const bool near_pole = region_.below(d) || region_.below(-d);
+    if (start_exact && !near_pole) return false;
+    // Only a move turning the tool axis by less than the tolerance may end off its axis: a
+    // passage made of such moves cannot cross in any one of them. A longer move ends exactly
+    // where it was programmed (a crossing within it is the motion stage's).
+    const bool short_move = short_turn_.below(from.axis.dot(to.axis));
+    if (start_exact && !short_move) return false;
+    return hold(q0, usual, from, to, at_end, q, worst, need_worst, start_exact, near_pole && short_move);
+}
+
+// The rest of passage, out of line: a move near the pole, or from an inexact start.
+bool PoleHold::hold(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& from, const Pose& to,
+                    const Kinematics::Solutions* at_end, std::vector<double>& q, double& worst, bool need_worst, bool start_exact,
+                    bool hold_end) {
+    const std::size_t c = c_, b = b_;
+    const double tolerance = machine_.motion.angle_tolerance;
+    const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
+    const Eigen::Vector3d& pole = pole_;
+    const Eigen::Vector3d start_axis = axis_at(q0);  // as passage found it (a miss computes it again)
+    q = usual;  // as solved: the continuous end (exact)
+    Eigen::Vector3d end_axis;  // tool_axis(q), when hold_end
+    if (hold_end) {
+        const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
+        const double budget = tilt <= hold ? hold : hold * (region - tilt) / (region - hold);
+        // The turntable may stay this far off an exact solution's angle.
+        const double st = std::sin(tilt / kDegPerRad), sb = std::sin(budget / kDegPerRad);
+        const double off = st > sb ? std::asin(sb / st) * kDegPerRad : 180.0;
+        const Kinematics::Solutions solutions = at_end ? *at_end : kin_.orientation_solutions(to.axis);
+        // Each exact angle is taken on a turn inside the joint's limits (the nearest such): held
+        // toward one past them, the turntable would have to leave the region on the far side of
+        // its limit (rw2's A at its -168 home, the axis leaning toward +-180), so it is steered
+        // toward the one it can reach while the axis is still near the pole and any angle will do.
+        const Joint& J = machine_.joints[c];
+        double best = q0[c], least = 1e300;
+        for (int k = 0; k < solutions.count; ++k) {
+            const double exact = solutions.angle[k][0];
+            if (std::isnan(exact)) {  // free (on the pole): it stays
+                least = 0;
+                best = q0[c];
+                continue;
+            }
+            const double nearest = q0[c] + wrap180(exact - q0[c]);
+            for (const double turn : {0.0, -360.0, 360.0}) {
+                const double target = nearest + turn;
+                if (!inside_limits(J, target)) continue;  // (an unbounded joint: the nearest turn)
+                const double value = target + std::clamp(q0[c] - target, -off, off);
+                if (std::abs(value - q0[c]) < least) {
+                    least = std::abs(value - q0[c]);
+                    best = value;
+                }
+                break;  // the nearest turn inside the limits
+            }
+        }
+        // The tilt: the point of the great circle at that turntable angle nearest the axis
+        // (cos B along the pole, sin B along the tilt at 90 degrees), taken nearest B now.
+        q[c] = best;
+        q[b] = 90;
+        // tool_axis: forward's axis to the bit, without its translations.
+        const Eigen::Vector3d toward = kin_.tool_axis(q);
+        const double tilt_b = std::atan2(to.axis.dot(toward), to.axis.dot(pole)) * kDegPerRad;
+        q[b] = q0[b] + wrap180(tilt_b - q0[b]);
+        if (!kin_.solve_position(to.tip, q).ok() || !check_limits(machine_, q).ok()) return false;
+        end_axis = kin_.tool_axis(q);
+        if (angle_between(end_axis, to.axis) > budget + 1e-9) return false;
+        // The usual end from an exact start: nothing to choose (planar files, exact on the pole).
+        if (start_exact && std::abs(q[c] - usual[c]) < kSameAngle && std::abs(q[b] - usual[b]) < kSameAngle) return false;
+    }
+    // The joint-linear turn from the start against the programmed axis's great circle. The first
+    // point past the margin decides (worst is used only when the passage is taken, and then every
+    // point was measured).
+    worst = 0;
+    std::vector<double>& lerp = probe_;
+    lerp.resize(q0.size());
+    const GreatArc arc(from.axis, to.axis);
+    const double limit = kPoleMargin * tolerance;
+    // The tool axis at joints p: the start's and the end's are known (tool_axis's, or the solve's
+    // to rounding: see axis_at; rotaries compared to the bit), and the cache may hold others.
+    const std::uint64_t c0 = std::bit_cast<std::uint64_t>(q0[c]), b0 = std::bit_cast<std::uint64_t>(q0[b]);
+    auto axis_of = [&](const std::vector<double>& p) -> Eigen::Vector3d {
+        const std::uint64_t pc = std::bit_cast<std::uint64_t>(p[c]), pb = std::bit_cast<std::uint64_t>(p[b]);
+        if (pc == c0 && pb == b0) return start_axis;
+        if (hold_end && pc == std::bit_cast<std::uint64_t>(q[c]) && pb == std::bit_cast<std::uint64_t>(q[b])) return end_axis;
+        return axis_at(p);
+    };
+    auto deviation = [&](int i, double* chord) {
+        const double t = double(i) / kPoleSamples;
+        for (std::size_t j = 0; j < q.size(); ++j) lerp[j] = q0[j] + t * (q[j] - q0[j]);
+        const Eigen::Vector3d axis = axis_of(lerp), ideal = arc.at(t);
+        if (chord) *chord = (axis - ideal).norm();
+        return angle_between(axis, ideal);
+    };
+    // A held end taken is the next move's start: its axis is remembered for it.
+    if (need_worst) {
+        for (int i = 0; i <= kPoleSamples; ++i) {
+            worst = std::max(worst, deviation(i, nullptr));
+            if (!(worst <= limit)) return false;
+        }
+        if (hold_end) remember_axis(q, end_axis);
+        return true;
+    }
+    // Without a report the verdict alone is wanted, and it is the same with fewer points: the
+    // ends are measured, then the interval between two measured points is halved until it is
+    // cleared. Within an interval the gap between the two curves (the joint-linear axis u and the
+    // great circle g, unit vectors) stays within the larger of its ends' plus M h^2 / 8, with h
+    // the interval and M a bound on |u'' - g''| over the whole turn: kinematics' bound on the
+    // axis path's bend (8 times its chord distance) plus g's, the arc angle squared. An interval
+    // so cleared has every point inside the margin; one of a single step has no point inside.
+    // (A gap below chord_within's chord is inside the limit; a stricter test than the asin's by
+    // 1e-12 of it, which at most measures an interval more: the same verdict.)
+    const double bend = 8.0 * kin_.axis_path_bound(q0.data(), q.data()) + arc.angle * arc.angle;
+    const double chord_limit = chord_limit_;  // chord_within(limit - kSlack), per machine
+    auto cleared = [&](auto& self, int a, int b, double chord_a, double chord_b) -> bool {
+        if (b - a <= 1) return true;
+        const double h = double(b - a) / kPoleSamples;
+        const double gap = std::max(chord_a, chord_b) + bend * h * h / 8.0;
+        if (gap < chord_limit) return true;
+        const int m = (a + b) / 2;
+        double chord_m;
+        if (!(deviation(m, &chord_m) <= limit)) return false;
+        return self(self, a, m, chord_a, chord_m) && self(self, m, b, chord_m, chord_b);
+    };
+    double chord0, chord1;
+    if (!(deviation(0, &chord0) <= limit) || !(deviation(kPoleSamples, &chord1) <= limit)) return false;
+    if (!cleared(cleared, 0, kPoleSamples, chord0, chord1)) return false;
+    if (hold_end) remember_axis(q, end_axis);
+    return true;
+}
+
+bool pole_crossing(const Kinematics& kin, const std::vector<double>& q0, const Eigen::Vector3d& end_tip, const GreatArc& arc,
+                   const Kinematics::Solutions& solutions, bool split_ok, double measured, PoleScratch& scratch,
+                   std::vector<double>& end, double& angle) {
+    const Machine& machine = kin.machine();
+    const auto& rot = kin.rotary_joints();
+    auto rotary_distance = [&](const std::vector<double>& a, const std::vector<double>& b) {
+        double d = 0;
+        for (const int j : rot) d += std::abs(a[std::size_t(j)] - b[std::size_t(j)]);
+        return d;
+    };
+    std::vector<double>& q = scratch.q;
+    if (split_ok) {
+        // No end on another branch clearly nearer: no, whatever the estimate says.
+        bool nearer = false;
+        for (int b = 0; b < solutions.count && !nearer; ++b) {
+            q = q0;
+            if (orient_on_branch(machine, rot, solutions, b, q0, q0, q).ok())
+                nearer = rotary_distance(q, q0) < measured - kPoleClearlyLess;
+        }
+        if (!nearer) return false;
+    }
+    // How far the continuous branch turns the rotaries, estimated on a few points of the path
+    // (cheap; it is measured exactly below only when another way looks shorter).
+    constexpr int kEstimate = 16;
+    std::vector<double>& qq = scratch.lerp;
+    std::vector<double>& prev = scratch.prev;
+    std::vector<double>& cur = scratch.cur;
+    prev = q0;
+    cur = q0;
+    double stay = 0;
+    for (int i = 1; i <= kEstimate; ++i) {
+        if (!orient_within_limits(machine, rot, kin.orientation_solutions(arc.at(double(i) / kEstimate)), prev, prev, cur).ok())
+            break;
+        stay += rotary_distance(prev, cur);
+        prev = cur;
+    }
+    bool found = false;
+    double best = stay - kPoleClearlyLess;
+    for (int b = 0; b < solutions.count; ++b) {
+        q = q0;
+        if (!orient_on_branch(machine, rot, solutions, b, q0, q0, q).ok()) continue;
+        const double travel = rotary_distance(q, q0);
+        if (travel >= best) continue;
+        if (!kin.solve_position(end_tip, q).ok() || !check_limits(machine, q).ok()) continue;
+        // The tool axis along the linear turn against its great-circle path, densely.
+        double worst = 0;
+        qq.resize(q.size());
+        for (int i = 1; i < kPoleSamples; ++i) {
+            const double t = double(i) / kPoleSamples;
+            for (std::size_t j = 0; j < q.size(); ++j) qq[j] = q0[j] + t * (q[j] - q0[j]);
+            const Eigen::Vector3d axis = kin.tool_axis(qq);
+            worst = std::max(worst, std::acos(std::clamp(axis.dot(arc.at(t)), -1.0, 1.0)) * kDegPerRad);
+        }
+        if (worst > kPoleMargin * machine.motion.angle_tolerance) continue;
+        best = travel;
+        end = q;
+        angle = worst;
+        found = true;
+    }
+    if (!split_ok) return found;
+    return found && best < measured - kPoleClearlyLess;
+}
+
+double pole_join(const Kinematics& kin, const std::vector<double>& q0, const Eigen::Vector3d& p0_tip,
+                 const Eigen::Vector3d& p1_tip, const GreatArc& arc, PoleScratch& scratch, std::vector<double>& q1,
+                 double& worst) {
+    const Machine& machine = kin.machine();
+    const double limit = kPoleMargin * machine.motion.angle_tolerance;
+    std::vector<double>& lerp = scratch.lerp;
+    lerp.resize(q0.size());
+    // The longest first part that works: the gentlest turn. Down to 2^-12 of the move, a turn
+    // almost in place: the tool axis then stays within the start's own offset, which the hold
+    // kept within half the tolerance, plus the turn's small bulge.
+    for (int k = 1; k <= 12; ++k) {
+        const double s = std::ldexp(1.0, -k);
+        const Eigen::Vector3d tip = p0_tip + s * (p1_tip - p0_tip);
+        q1 = q0;
+        if (!orient_within_limits(machine, kin.rotary_joints(), kin.orientation_solutions(arc.at(s)), q0, q0, q1).ok()) continue;
+        if (!kin.solve_position(tip, q1).ok() || !check_limits(machine, q1).ok()) continue;
+        double w = 0;
+        for (int i = 1; i <= kPoleSamples && w <= limit; ++i) {
+            const double t = double(i) / kPoleSamples;
+            for (std::size_t j = 0; j < q0.size(); ++j) lerp[j] = q0[j] + t * (q1[j] - q0[j]);
+            w = std::max(w, angle_of_dot(kin.tool_axis(lerp).dot(arc.at(t * s))));
+        }
+        if (w <= limit) {
+            worst = w;
+            return s;
+        }
+    }
+    return 0;
+}
+
+double pole_leaving_probe(const Kinematics::Solutions& at_start, std::size_t rotaries, const Eigen::Vector3d& from,
+                          const Eigen::Vector3d& to) {
+    bool on_pole = false;
+    for (int b = 0; b < at_start.count; ++b)
+        for (std::size_t k = 0; k < rotaries; ++k) on_pole |= std::isnan(at_start.angle[b][k]);  // no branch a value
+    if (!on_pole) return 0;
+    const double turn_angle = std::acos(std::clamp(from.dot(to), -1.0, 1.0));
+    if (!(turn_angle > 0)) return 0;
+    return turn_angle > 1e-4 ? 1e-4 / turn_angle : 1.0;
+}
+
+IkResult pole_reindex(const Kinematics& kin, const std::vector<double>& q0, const std::vector<double>& probe,
+                      const Eigen::Vector3d& tip, std::vector<double>& turned) {
+    const Machine& machine = kin.machine();
+    turned.clear();
+    double jump = 0;
+    for (std::size_t j = 0; j < probe.size(); ++j)
+        if (machine.joints[j].rotary) jump = std::max(jump, std::abs(probe[j] - q0[j]));
+    if (!(jump > 1.0)) return {};
+    turned = q0;
+    for (std::size_t j = 0; j < turned.size(); ++j)
+        if (machine.joints[j].rotary && std::abs(probe[j] - turned[j]) > 1.0) turned[j] = probe[j];
+    if (auto rp = kin.solve_position(tip, turned); !rp.ok()) return rp;
+    return check_limits(machine, turned);
+}
+
+}  // namespace xlate5
