@@ -1,0 +1,37 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The planner's output, the value the motion stage takes: a tool-space move solved at both ends
+// (joints and poses), with its E and feed terms.
+#pragma once
+#include <optional>
+#include <vector>
+
+#include "translators/kinematics/kinematics.hpp"
+#include "translators/pipeline/emitter.hpp"
+#include "translators/pipeline/modes.hpp"
+
+namespace xlate5 {
+
+struct MoveSpec {
+    int gcode = 1;
+    OrientationMode mode = OrientationMode::Angles;  // how the move is interpolated in tool space
+    const std::vector<double>* q0 = nullptr;         // start joints and pose
+    Pose p0;
+    const std::vector<double>* q1 = nullptr;         // end joints (solved) and pose
+    Pose p1;
+    // The position solve's own end, when it gave one: the split bounds the printed end from it
+    // instead of an FK (used only when its joints are q1's).
+    const Kinematics::SolvedEnd* end = nullptr;
+    const std::vector<bool>* commanded = nullptr;
+    std::optional<PassedNumber> e;                   // E as written (mm, absolute or relative)
+    bool e_relative = false;
+    double e_start = 0;                              // absolute E before the move
+    double feed = 0;                                 // programmed feed, mm/min (0: none yet)
+    std::optional<PassedNumber> f;                   // F as written on this line (passed on under G49)
+    double inverse_time = 0;                         // G93 input: the move's duration is 1/F minutes
+    // The planner held the start off its programmed axis near a pole (pole_policy.hpp: hold): the
+    // joints need not be on the continuous solution of p0's axis, and the move may first have to
+    // join it (see MotionStage::join_from_held).
+    bool start_held = false;
+};
+
+}  // namespace xlate5
