@@ -26,7 +26,15 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
       compensation_(kinematics.machine().compensation),
       emitter_(emitter) {}
 
-IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* result) {
+IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* result, std::vector<double>* ended) {
+    if (mv.end_solutions) segment_.remember_solutions(*mv.end_solutions);
+    IkResult r = emit_move(mv, out, result);
+    if (r.ok() && ended && mv.mode == OrientationMode::Vector)
+        if (const std::vector<double>* moved = segment_.final_joints_moved()) *ended = *moved;
+    return r;
+}
+
+IkResult MotionStage::emit_move(const MoveSpec& mv, std::string& out, MoveResult* result) {
     split_for_ = nullptr;
     if (mv.mode == OrientationMode::Vector && machine_.motion.segment) {
         // Leaving a pole: at the start the tool axis is on a rotary axis, so that joint was free
@@ -172,7 +180,7 @@ IkResult MotionStage::join_from_held(const MoveSpec& mv, std::string& out, MoveR
     }
     MoveResult a, b;
     if (auto r = emit_one(first, out, result ? &a : nullptr); !r.ok()) return r;
-    if (auto r = emit(rest, out, result ? &b : nullptr); !r.ok()) return r;
+    if (auto r = emit_move(rest, out, result ? &b : nullptr); !r.ok()) return r;
     if (result) {
         a.angle_error = std::max(a.angle_error, worst);  // the angle form measures the tip: the axis as checked above
         add_result(a, b);
@@ -200,6 +208,61 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
     return across;
 }
 
+namespace {
+
+// E shared among a move's pieces by tip length: each piece's E at the dialect's decimals, the
+// last one's exactly what the input said (absolute E as written; relative E as what is left), so
+// the pieces add up to the input exactly.
+class EShare {
+public:
+    EShare(const MoveSpec& mv, int decimals) : mv_(mv), ed_(decimals) {
+        // 10^ed from a table for the usual decimals (the same exact value pow gives, without the call).
+        static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+        escale_ = ed_ >= 0 && ed_ <= 9 ? kPow10[ed_] : std::pow(10.0, ed_);
+    }
+    // The E of the piece ending at `share` of the move.
+    std::optional<PassedNumber> piece(double share, bool last, int pieces) {
+        const MoveSpec& mv = mv_;
+        if (!mv.e) return std::nullopt;
+        if (last) {
+            if (!mv.e_relative || pieces == 1) return mv.e;
+            const double total = mv.e->value * escale_;
+            if (std::abs(total - std::round(total)) < 1e-6)  // E has no more digits than the pieces
+                return PassedNumber{double(std::llround(total) - units_done_) / escale_, {}, ed_};
+            return PassedNumber{mv.e->value - double(units_done_) / escale_, {}};
+        }
+        const double value = mv.e_relative ? mv.e->value : mv.e->value - mv.e_start;
+        const long long upto = std::llround(value * share * escale_);
+        const long long units = mv.e_relative ? upto - units_done_ : upto;
+        units_done_ = mv.e_relative ? upto : 0;
+        return PassedNumber{double(units) / escale_ + (mv.e_relative ? 0.0 : mv.e_start), {}, ed_};
+    }
+
+private:
+    const MoveSpec& mv_;
+    int ed_;
+    double escale_;
+    long long units_done_ = 0;
+};
+
+// The feed terms of a move: its duration at the programmed feed (G94) or as given (G93), and
+// whether the firmware is given inverse-time feeds (where it takes them, for tool-space moves
+// that have a duration).
+MoveFeed move_feed(const MoveSpec& mv, const Machine& machine) {
+    MoveFeed feed;
+    feed.length = (mv.p1.tip - mv.p0.tip).norm();
+    if (mv.inverse_time > 0) feed.minutes = 1.0 / mv.inverse_time;
+    else if (mv.feed > 0 && mv.mode != OrientationMode::Joints) feed.minutes = feed.length / mv.feed;
+    feed.feed = mv.feed;
+    feed.inverse_time = mv.inverse_time;
+    feed.f = mv.f;
+    if (mv.e) feed.e = std::abs(mv.e_relative ? mv.e->value : mv.e->value - mv.e_start);
+    feed.inverse_time_out = machine.dialect.inverse_time && mv.mode != OrientationMode::Joints && (feed.minutes > 0 || mv.feed > 0);
+    return feed;
+}
+
+}  // namespace
+
 IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult* result) {
     if (split_for_ != &mv)
         if (auto r = segment_.split(mv); !r.ok()) return r;
@@ -207,63 +270,17 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     const std::size_t n = joints_;
     const int pieces = int(segment_.pieces());
     const std::vector<double>& params = segment_.split_params();
-    const double length = (mv.p1.tip - mv.p0.tip).norm();
-    const std::vector<double>& q0 = segment_.start_printed();  // where the firmware starts
-
-    // Duration of the whole move in minutes: tip length at the programmed feed (G94), or given (G93).
-    double total_time = 0;
-    if (mv.inverse_time > 0) total_time = 1.0 / mv.inverse_time;
-    else if (mv.feed > 0 && mv.mode != OrientationMode::Joints) total_time = length / mv.feed;
-
-    // Cumulative share of the move at each piece end: by tip length, or by s for a pure turn.
-    double prev_share = 0;
-    long long e_units_done = 0;
-    const int ed = machine_.dialect.extrusion_decimals;
-    // 10^ed from a table for the usual decimals (the same exact value pow gives, without the call).
-    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
-    const double escale = ed >= 0 && ed <= 9 ? kPow10[ed] : std::pow(10.0, ed);
-    // Inverse-time output where the firmware takes it, for tool-space moves that have a duration.
-    const bool inverse_time_out = machine_.dialect.inverse_time && mv.mode != OrientationMode::Joints && (total_time > 0 || mv.feed > 0);
-    MoveFeed feed;
-    feed.minutes = total_time;
-    feed.length = length;
-    feed.feed = mv.feed;
-    feed.inverse_time = mv.inverse_time;
-    feed.f = mv.f;
-    if (mv.e) feed.e = std::abs(mv.e_relative ? mv.e->value : mv.e->value - mv.e_start);
-    feed.inverse_time_out = inverse_time_out;
+    const MoveFeed feed = move_feed(mv, machine_);
+    EShare e_share(mv, machine_.dialect.extrusion_decimals);
     piece_time_.resize(std::size_t(pieces));  // each piece's set below
-    // Each piece's ends are read where the split left them (no copies).
-    std::span<const double> qprev(q0);
+    // Each piece's ends are read where the split left them (no copies), from where the firmware starts.
+    std::span<const double> qprev(segment_.start_printed());
+    double prev_share = 0;
     for (int k = 0; k < pieces; ++k) {
-        const double s = params[std::size_t(k)];
+        // The tip moves uniformly in s along the straight programmed line: s is the piece's share.
+        const double share = params[std::size_t(k)];
         const std::span<const double> qk(segment_.piece_printed(std::size_t(k)), n);
-        const double share = s;  // the tip moves uniformly in s along the straight programmed line
-        const bool last = k + 1 == pieces;
-
-        std::optional<PassedNumber> e;
-        if (mv.e) {
-            if (last) {
-                // The last piece ends exactly where the input said: absolute E as written; relative
-                // E as what is left, so the pieces add up to the input exactly.
-                if (!mv.e_relative || pieces == 1) {
-                    e = mv.e;
-                } else {
-                    const double total = mv.e->value * escale;
-                    if (std::abs(total - std::round(total)) < 1e-6)  // E has no more digits than the pieces
-                        e = PassedNumber{double(std::llround(total) - e_units_done) / escale, {}, ed};
-                    else
-                        e = PassedNumber{mv.e->value - double(e_units_done) / escale, {}};
-                }
-            } else {
-                const double value = mv.e_relative ? mv.e->value : mv.e->value - mv.e_start;
-                const long long upto = std::llround(value * share * escale);
-                const long long units = mv.e_relative ? upto - e_units_done : upto;
-                e_units_done = mv.e_relative ? upto : 0;
-                e = PassedNumber{double(units) / escale + (mv.e_relative ? 0.0 : mv.e_start), {}, ed};
-            }
-        }
-
+        const std::optional<PassedNumber> e = e_share.piece(share, k + 1 == pieces, pieces);
         std::optional<PassedNumber> f;
         if (mv.mode == OrientationMode::Joints) {
             f = mv.f;  // joint space: the firmware's own F, as given
@@ -280,7 +297,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         const double* exact = segment_.piece_exact(std::size_t(k), mv);
         const auto sent = compensation_.apply(std::span<const double>(exact, n));
         if (!sent.ok()) throw LineError(1, sent.why());
-        emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, inverse_time_out);
+        emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, feed.inverse_time_out);
         prev_share = share;
         qprev = qk;
     }

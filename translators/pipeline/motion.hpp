@@ -50,8 +50,10 @@ public:
     MotionStage(const Kinematics& kinematics, JointEmitter& emitter);
 
     // Splits, feeds and writes the move. On an error (a split point out of reach) nothing is
-    // written and the message says where along the move.
-    IkResult emit(const MoveSpec& move, std::string& out, MoveResult* result = nullptr);
+    // written and the message says where along the move. `ended`, when given, receives the joints
+    // a tool-vector move really ended at (as solved) where they are not move.q1's: its continuous
+    // solution arrived on the other branch or another turn, or the pole policy chose another end.
+    IkResult emit(const MoveSpec& move, std::string& out, MoveResult* result = nullptr, std::vector<double>* ended = nullptr);
 
     // Deviation of the firmware's joint-linear path from qa to qb from the programmed move,
     // between move parameters sa and sb: largest of `samples` interior points (tests use many).
@@ -60,21 +62,12 @@ public:
         segment_.piece_error(move, sa, sb, qa, qb, samples, tip, angle);
     }
 
-    // Where the last move ended: its end joints can differ from the ones asked for when a tool
-    // vector's continuous solution arrives on the other branch or another turn.
-    // (As solved: the printed ones are rounded to the dialect's decimals.) Null when they are the
-    // end asked for (nearly always: then nothing is copied).
-    const std::vector<double>* final_joints_moved() const { return segment_.final_joints_moved(); }
-
-    // The orientation solutions of an axis the caller has already solved (the planner, for a move's
-    // end): kept so the stage does not solve that axis again.
-    void remember_solutions(const Kinematics::Solutions& solutions) const { segment_.remember_solutions(solutions); }
-
     // The split of the last move: parameter s at each piece's end and its joints.
     const std::vector<double>& split_params() const { return segment_.split_params(); }
     const std::vector<double>& split_joints() const { return segment_.split_joints(); }  // pieces x joints
 
 private:
+    IkResult emit_move(const MoveSpec& move, std::string& out, MoveResult* result);
     IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
     // Across a pole (pole_policy.hpp: cross): true, with the end on the other branch in `end`,
     // when the policy takes that way; else the continuous branch's split is kept for emit_one.

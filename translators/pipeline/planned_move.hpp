@@ -32,6 +32,9 @@ struct MoveSpec {
     // joints need not be on the continuous solution of p0's axis, and the move may first have to
     // join it (see MotionStage::join_from_held).
     bool start_held = false;
+    // The orientation solutions of p1's axis, when the planner solved them (a tool vector's end):
+    // the split takes them instead of solving that axis again.
+    std::optional<Kinematics::Solutions> end_solutions;
 };
 
 }  // namespace xlate5

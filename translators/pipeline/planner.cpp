@@ -131,7 +131,9 @@ void Planner::end_candidates(OrientationMode mode, const Pose& end, const std::v
     std::stable_sort(candidates_.begin(), candidates_.end(), [&](const Candidate& a, const Candidate& b) { return distance(a) < distance(b); });
 }
 
-void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
+// The usual end of a tool-space move: its joints in q_next_ (the continuous solution), its pose
+// in `next`; not ok when it cannot be reached or lies outside the limits.
+IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
     PlannerState& s = state_;
     copy_joints(q_next_, s.q);
     if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
@@ -141,10 +143,9 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     IkResult r = [&] {
         if (!mv.any_ijk) return IkResult{};
         end_solutions_ = kin_.orientation_solutions(mv.axis);
-        motion_.remember_solutions(end_solutions_);  // the move's end axis: the motion stage asks for it again
         return orient_within_limits(machine_, kin_.rotary_joints(), end_solutions_, s.q, s.q, q_next_, &chosen);
     }();
-    Pose next = s.pose;
+    next = s.pose;
     if (r.ok()) {
         if (!mv.any_xyz && !s.tip_known) {
             // Before the program has placed the tip (start, after G28) a rotary-only move turns
@@ -169,38 +170,96 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
         }
     }
     if (r.ok() && !limits_.contains(q_next_)) r = check_limits(machine_, q_next_);
-    // A travel move (tool space, no extrusion) may end on another solution of its pose: when its
-    // usual end is outside a joint's limits, or when the look-back replays it to unwind a joint
-    // for the printing that follows. Printing moves never change solution: their path is printed.
+    return r;
+}
+
+// A travel move (tool space, no extrusion) may end on another solution of its pose: when its
+// usual end is outside a joint's limits, or when the look-back replays it to unwind a joint for
+// the printing that follows. Printing moves never change solution: their path is printed.
+// Returns true when it does (q_next_ is then that end), with the kind of change for the report.
+bool Planner::other_end(const ToolMove& mv, const Pose& next, bool travel, IkResult& r, LineRun& run, SolutionChange& change) {
+    const int forced = travel ? run.end_candidate : -1;
+    if (travel) run.end_candidate = -1;
+    if (!travel || !(forced >= 0 || (!r.ok() && r.status == IkStatus::OutOfLimits))) return false;
+    end_candidates(mv.mode, next, *mv.angles, q_next_);
+    const std::size_t k = forced >= 0 ? std::size_t(forced) : 0;
+    if (k >= candidates_.size()) {
+        if (forced < 0) return false;
+        run.candidate_missing = true;
+        throw LineError(mv.column, "no other solution of this pose inside the limits");
+    }
+    // For the report: whole turns of the rotaries from the usual end are an unwind, anything
+    // else the other orientation branch.
+    change = SolutionChange::Turns;
+    for (std::size_t j = 0; j < q_next_.size(); ++j) {
+        if (!machine_.joints[j].rotary) continue;
+        const double d = candidates_[k].q[j] - q_next_[j];
+        if (!(std::abs(d - 360.0 * std::round(d / 360.0)) < 1e-6)) change = SolutionChange::Branch;
+    }
+    q_next_ = candidates_[k].q;
+    if (mv.mode == OrientationMode::Angles) state_.image = candidates_[k].image;
+    r = {};
+    return true;
+}
+
+// The planned move handed to the motion stage, from the current joints and pose to q_next_, next.
+MoveSpec Planner::planned(const ToolMove& mv, const Pose& next) const {
+    const PlannerState& s = state_;
+    MoveSpec spec;
+    spec.gcode = mv.gcode;
+    // Before the program has placed the tip, the move is a joint move (one piece, F as written).
+    spec.mode = (!mv.any_xyz && !s.tip_known) ? OrientationMode::Joints : mv.mode;
+    spec.q0 = &s.q;
+    spec.p0 = s.pose;
+    spec.q1 = &q_next_;
+    spec.p1 = next;
+    spec.end = &end_solved_;  // the stage uses it only while its joints are still q_next_'s
+    if (mv.any_ijk) spec.end_solutions = end_solutions_;  // the motion stage asks for them again
+    spec.commanded = mv.commanded;
+    spec.e = mv.e;
+    spec.e_relative = mv.e_relative;
+    spec.e_start = mv.e_position;
+    spec.feed = mv.feed;
+    spec.f = mv.f;
+    spec.inverse_time = mv.inverse_time && mv.f ? mv.f->value : 0.0;
+    return spec;
+}
+
+// An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move (no
+// extrusion), where a G92 cannot disturb a printed line: firmware without wrapping (Marlin, soft
+// endstops) then never runs out of range. The program's angles are unchanged by it: under G43.4
+// the image takes the turns removed, so the next programmed angle is written in the re-zeroed
+// frame (the table turns as programmed). Returns the G92s written.
+int Planner::rezero(std::string& out) {
+    PlannerState& s = state_;
+    int rezeros = 0;
+    const auto& rot = kin_.rotary_joints();
+    for (std::size_t k = 0; k < rot.size(); ++k) {
+        const std::size_t j = std::size_t(rot[k]);
+        const Joint& J = machine_.joints[j];
+        if (J.rezero_beyond <= 0 || std::abs(q_next_[j]) <= J.rezero_beyond) continue;
+        const double turns = std::round(q_next_[j] / 360.0);
+        which_.assign(q_next_.size(), false);
+        which_[j] = true;
+        q_next_[j] -= 360.0 * turns;
+        s.image.shift[k] -= 360.0 * turns;
+        s.rezeroed[k] += 360.0 * turns;
+        send_joints(which_, std::nullopt, q_next_, out);
+        ++rezeros;
+    }
+    return rezeros;
+}
+
+void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
+    PlannerState& s = state_;
+    Pose next;
+    IkResult r = solve_end(mv, next);
     const bool tool_space = mv.any_xyz || s.tip_known;
     const bool prints = mv.e && (mv.e_relative ? mv.e->value != 0 : mv.e->value != mv.e_position);
     const bool travel = tool_space && !prints && (mv.any_xyz || mv.any_rotary || mv.any_ijk);
     run.travels = run.travels || travel;
-    bool unwind = false;
     SolutionChange change = SolutionChange::None;
-    const int forced = travel ? run.end_candidate : -1;
-    if (travel) run.end_candidate = -1;
-    if (travel && (forced >= 0 || (!r.ok() && r.status == IkStatus::OutOfLimits))) {
-        end_candidates(mv.mode, next, *mv.angles, q_next_);
-        const std::size_t k = forced >= 0 ? std::size_t(forced) : 0;
-        if (k < candidates_.size()) {
-            // For the report: whole turns of the rotaries from the usual end are an unwind,
-            // anything else the other orientation branch.
-            change = SolutionChange::Turns;
-            for (std::size_t j = 0; j < q_next_.size(); ++j) {
-                if (!machine_.joints[j].rotary) continue;
-                const double d = candidates_[k].q[j] - q_next_[j];
-                if (!(std::abs(d - 360.0 * std::round(d / 360.0)) < 1e-6)) change = SolutionChange::Branch;
-            }
-            q_next_ = candidates_[k].q;
-            if (mv.mode == OrientationMode::Angles) s.image = candidates_[k].image;
-            unwind = true;
-            r = {};
-        } else if (forced >= 0) {
-            run.candidate_missing = true;
-            throw LineError(mv.column, "no other solution of this pose inside the limits");
-        }
-    }
+    bool unwind = other_end(mv, next, travel, r, run, change);
     if (!r.ok()) {
         run.hit_limit = r.status == IkStatus::OutOfLimits;
         run.linear_limit = run.hit_limit && r.linear;
@@ -216,22 +275,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
         passage = true;
         q_next_ = pole_q_;
     }
-    MoveSpec spec;
-    spec.gcode = mv.gcode;
-    // Before the program has placed the tip, the move is a joint move (one piece, F as written).
-    spec.mode = (!mv.any_xyz && !s.tip_known) ? OrientationMode::Joints : mv.mode;
-    spec.q0 = &s.q;
-    spec.p0 = s.pose;
-    spec.q1 = &q_next_;
-    spec.p1 = next;
-    spec.end = &end_solved_;  // the stage uses it only while its joints are still q_next_'s
-    spec.commanded = mv.commanded;
-    spec.e = mv.e;
-    spec.e_relative = mv.e_relative;
-    spec.e_start = mv.e_position;
-    spec.feed = mv.feed;
-    spec.f = mv.f;
-    spec.inverse_time = mv.inverse_time && mv.f ? mv.f->value : 0.0;
+    MoveSpec spec = planned(mv, next);
     // An unwinding travel move turns the rotaries linearly from their start to the chosen end
     // (angle form) while the split holds the tip on the straight travel line, rather than
     // reorienting in place at one end: the tip never leaves the path the slicer planned for it
@@ -243,13 +287,13 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     spec.start_held = start_held && !passage;
     MoveResult* measured = log_ && spec.mode != OrientationMode::Joints ? &move_result_ : nullptr;
     move_result_.pole_crossings = 0;  // set by the move that crosses, not kept from an earlier one
-    auto res = motion_.emit(spec, out, measured);
+    auto res = motion_.emit(spec, out, measured, &q_next_);
     if (!res.ok() && res.status == IkStatus::OutOfLimits && travel && !unwind && spec.mode == OrientationMode::Vector) {
         // The continuous path of this travel move leaves the limits, though its end (the
         // solution nearest the start inside them) does not: turn there in angle form instead.
         spec.mode = OrientationMode::Angles;
         unwind = true;
-        res = motion_.emit(spec, out, measured);
+        res = motion_.emit(spec, out, measured, &q_next_);
     }
     if (!res.ok()) {
         run.hit_limit = res.status == IkStatus::OutOfLimits;
@@ -268,29 +312,8 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
             if (s.q[b] * q_next_[b] < 0) measured->pole_crossings = 1;  // the tilt changed sign: the other branch
         }
     }
-    if (const std::vector<double>* moved = motion_.final_joints_moved(); moved && spec.mode == OrientationMode::Vector) q_next_ = *moved;
-    // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move
-    // (no extrusion), where a G92 cannot disturb a printed line: firmware without wrapping
-    // (Marlin, soft endstops) then never runs out of range.
-    // The program's angles are unchanged by it: under G43.4 the image takes the turns removed, so
-    // the next programmed angle is written in the re-zeroed frame (the table turns as programmed).
-    int rezeros = 0;
-    if (!prints) {  // under absolute E, E0 after E5 extrudes (backwards): only an unchanged E does not
-        const auto& rot = kin_.rotary_joints();
-        for (std::size_t k = 0; k < rot.size(); ++k) {
-            const std::size_t j = std::size_t(rot[k]);
-            const Joint& J = machine_.joints[j];
-            if (J.rezero_beyond <= 0 || std::abs(q_next_[j]) <= J.rezero_beyond) continue;
-            const double turns = std::round(q_next_[j] / 360.0);
-            which_.assign(q_next_.size(), false);
-            which_[j] = true;
-            q_next_[j] -= 360.0 * turns;
-            s.image.shift[k] -= 360.0 * turns;
-            s.rezeroed[k] += 360.0 * turns;
-            send_joints(which_, std::nullopt, q_next_, out);
-            ++rezeros;
-        }
-    }
+    // Under absolute E, E0 after E5 extrudes (backwards): only an unchanged E does not.
+    const int rezeros = prints ? 0 : rezero(out);
     // The move's events are logged whole, with its re-zeros.
     if (measured) {
         measured->rezeros = rezeros;

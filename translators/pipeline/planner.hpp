@@ -178,6 +178,11 @@ public:
     }
 
 private:
+    // tool_move's steps (planner.cpp).
+    IkResult solve_end(const ToolMove& mv, Pose& next);
+    bool other_end(const ToolMove& mv, const Pose& next, bool travel, IkResult& r, LineRun& run, SolutionChange& change);
+    MoveSpec planned(const ToolMove& mv, const Pose& next) const;
+    int rezero(std::string& out);
     void send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
                      std::string& out);
     // The image with no other turn or branch chosen: identity, but for the turns re-zeros took off.
