@@ -92,62 +92,72 @@ bool PoleHold::passage(const std::vector<double>& q0, const std::vector<double>&
 }
 
 // The rest of passage, out of line: a move near the pole, or from an inexact start.
+// hold's end near the pole (see kPoleHold): the turntable held within its budget of an exact
+// solution's angle, the tilt the nearest point of that great circle to the axis. False when that
+// end is not to be taken (out of reach, past the budget, or the usual end from an exact start).
+bool PoleHold::held_end(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& to,
+                        const Kinematics::Solutions* at_end, std::vector<double>& q, Eigen::Vector3d& end_axis,
+                        bool start_exact) const {
+    const std::size_t c = c_, b = b_;
+    const double tolerance = machine_.motion.angle_tolerance;
+    const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
+    const Eigen::Vector3d& pole = pole_;
+    const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
+    const double budget = tilt <= hold ? hold : hold * (region - tilt) / (region - hold);
+    // The turntable may stay this far off an exact solution's angle.
+    const double st = std::sin(tilt / kDegPerRad), sb = std::sin(budget / kDegPerRad);
+    const double off = st > sb ? std::asin(sb / st) * kDegPerRad : 180.0;
+    const Kinematics::Solutions solutions = at_end ? *at_end : kin_.orientation_solutions(to.axis);
+    // Each exact angle is taken on a turn inside the joint's limits (the nearest such): held
+    // toward one past them, the turntable would have to leave the region on the far side of
+    // its limit (rw2's A at its -168 home, the axis leaning toward +-180), so it is steered
+    // toward the one it can reach while the axis is still near the pole and any angle will do.
+    const Joint& J = machine_.joints[c];
+    double best = q0[c], least = 1e300;
+    for (int k = 0; k < solutions.count; ++k) {
+        const double exact = solutions.angle[k][0];
+        if (std::isnan(exact)) {  // free (on the pole): it stays
+            least = 0;
+            best = q0[c];
+            continue;
+        }
+        const double nearest = q0[c] + wrap180(exact - q0[c]);
+        for (const double turn : {0.0, -360.0, 360.0}) {
+            const double target = nearest + turn;
+            if (!inside_limits(J, target)) continue;  // (an unbounded joint: the nearest turn)
+            const double value = target + std::clamp(q0[c] - target, -off, off);
+            if (std::abs(value - q0[c]) < least) {
+                least = std::abs(value - q0[c]);
+                best = value;
+            }
+            break;  // the nearest turn inside the limits
+        }
+    }
+    // The tilt: the point of the great circle at that turntable angle nearest the axis
+    // (cos B along the pole, sin B along the tilt at 90 degrees), taken nearest B now.
+    q[c] = best;
+    q[b] = 90;
+    // tool_axis: forward's axis to the bit, without its translations.
+    const Eigen::Vector3d toward = kin_.tool_axis(q);
+    const double tilt_b = std::atan2(to.axis.dot(toward), to.axis.dot(pole)) * kDegPerRad;
+    q[b] = q0[b] + wrap180(tilt_b - q0[b]);
+    if (!kin_.solve_position(to.tip, q).ok() || !check_limits(machine_, q).ok()) return false;
+    end_axis = kin_.tool_axis(q);
+    if (angle_between(end_axis, to.axis) > budget + 1e-9) return false;
+    // The usual end from an exact start: nothing to choose (planar files, exact on the pole).
+    if (start_exact && std::abs(q[c] - usual[c]) < kSameAngle && std::abs(q[b] - usual[b]) < kSameAngle) return false;
+    return true;
+}
+
 bool PoleHold::hold(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& from, const Pose& to,
                     const Kinematics::Solutions* at_end, std::vector<double>& q, double& worst, bool need_worst, bool start_exact,
                     bool hold_end) {
     const std::size_t c = c_, b = b_;
     const double tolerance = machine_.motion.angle_tolerance;
-    const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
-    const Eigen::Vector3d& pole = pole_;
     const Eigen::Vector3d start_axis = axis_at(q0);  // as passage found it (a miss computes it again)
     q = usual;  // as solved: the continuous end (exact)
     Eigen::Vector3d end_axis;  // tool_axis(q), when hold_end
-    if (hold_end) {
-        const double tilt = std::min(angle_between(to.axis, pole), angle_between(to.axis, -pole));
-        const double budget = tilt <= hold ? hold : hold * (region - tilt) / (region - hold);
-        // The turntable may stay this far off an exact solution's angle.
-        const double st = std::sin(tilt / kDegPerRad), sb = std::sin(budget / kDegPerRad);
-        const double off = st > sb ? std::asin(sb / st) * kDegPerRad : 180.0;
-        const Kinematics::Solutions solutions = at_end ? *at_end : kin_.orientation_solutions(to.axis);
-        // Each exact angle is taken on a turn inside the joint's limits (the nearest such): held
-        // toward one past them, the turntable would have to leave the region on the far side of
-        // its limit (rw2's A at its -168 home, the axis leaning toward +-180), so it is steered
-        // toward the one it can reach while the axis is still near the pole and any angle will do.
-        const Joint& J = machine_.joints[c];
-        double best = q0[c], least = 1e300;
-        for (int k = 0; k < solutions.count; ++k) {
-            const double exact = solutions.angle[k][0];
-            if (std::isnan(exact)) {  // free (on the pole): it stays
-                least = 0;
-                best = q0[c];
-                continue;
-            }
-            const double nearest = q0[c] + wrap180(exact - q0[c]);
-            for (const double turn : {0.0, -360.0, 360.0}) {
-                const double target = nearest + turn;
-                if (!inside_limits(J, target)) continue;  // (an unbounded joint: the nearest turn)
-                const double value = target + std::clamp(q0[c] - target, -off, off);
-                if (std::abs(value - q0[c]) < least) {
-                    least = std::abs(value - q0[c]);
-                    best = value;
-                }
-                break;  // the nearest turn inside the limits
-            }
-        }
-        // The tilt: the point of the great circle at that turntable angle nearest the axis
-        // (cos B along the pole, sin B along the tilt at 90 degrees), taken nearest B now.
-        q[c] = best;
-        q[b] = 90;
-        // tool_axis: forward's axis to the bit, without its translations.
-        const Eigen::Vector3d toward = kin_.tool_axis(q);
-        const double tilt_b = std::atan2(to.axis.dot(toward), to.axis.dot(pole)) * kDegPerRad;
-        q[b] = q0[b] + wrap180(tilt_b - q0[b]);
-        if (!kin_.solve_position(to.tip, q).ok() || !check_limits(machine_, q).ok()) return false;
-        end_axis = kin_.tool_axis(q);
-        if (angle_between(end_axis, to.axis) > budget + 1e-9) return false;
-        // The usual end from an exact start: nothing to choose (planar files, exact on the pole).
-        if (start_exact && std::abs(q[c] - usual[c]) < kSameAngle && std::abs(q[b] - usual[b]) < kSameAngle) return false;
-    }
+    if (hold_end && !held_end(q0, usual, to, at_end, q, end_axis, start_exact)) return false;
     // The joint-linear turn from the start against the programmed axis's great circle. The first
     // point past the margin decides (worst is used only when the passage is taken, and then every
     // point was measured).

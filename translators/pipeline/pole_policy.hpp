@@ -72,6 +72,8 @@ private:
     bool hold(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& from, const Pose& to,
               const Kinematics::Solutions* at_end, std::vector<double>& q, double& worst, bool need_worst, bool start_exact,
               bool hold_end);
+    bool held_end(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& to,
+                  const Kinematics::Solutions* at_end, std::vector<double>& q, Eigen::Vector3d& end_axis, bool start_exact) const;
     Eigen::Vector3d axis_at(const std::vector<double>& q) const;
 
     const Kinematics& kin_;

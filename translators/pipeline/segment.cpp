@@ -52,47 +52,65 @@ double end_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Ei
 
 }  // namespace
 
+PrintedRounding::PrintedRounding(const Kinematics& kinematics)
+    : machine_(kinematics.machine()), joints_(kinematics.machine().joints.size()) {
+    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+    for (std::size_t j = 0; j < machine_.joints.size() && j < kMaxPrinted; ++j) {
+        const int d = printed_decimals(machine_, j);
+        if (d < 0 || d > 9) {
+            scale_[j] = 1;
+            below_[j] = -1;  // never: printed_value for every value
+            continue;
+        }
+        scale_[j] = kPow10[d];
+        // |v * 10^d| below half of the smaller of to_units' limits (1e15 scaled, kMaxWritten
+        // unscaled): both its range tests pass (a NaN fails this one too).
+        below_[j] = 0.5 * std::min(1e15, kMaxWritten * kPow10[d]);
+    }
+    for (const int j : kinematics.rotary_joints())
+        if (std::size_t(j) < kMaxPrinted) rotaries_[rotary_count_++] = std::size_t(j);
+}
+
+bool PrintedRounding::round_end(const double* q1, double* to, double* exact, const double* from) const {
+    const std::size_t n = joints_;
+    bool rotates = false;
+    for (std::size_t j = 0; j < n; ++j) {
+        const double v = q1[j];
+        exact[j] = v;
+        const double scaled = v * scale_[j];
+        // printed_value: to_units' units over the same power of ten.
+        const double p = std::abs(scaled) < below_[j] ? double(round_half_away(scaled)) / scale_[j] : printed_value(machine_, j, v);
+        to[j] = p;
+    }
+    for (std::size_t k = 0; k < rotary_count_; ++k) rotates |= to[rotaries_[k]] != from[rotaries_[k]];
+    return rotates;
+}
+
+const Kinematics::Solutions& SolutionCache::of(const Eigen::Vector3d& axis) const {
+    // Bit for bit the same axis (a signed zero counts: the solutions' angles can depend on it).
+    for (const Slot& c : slots_)
+        if (c.valid && std::memcmp(c.axis.data(), axis.data(), sizeof(double) * 3) == 0) return c.solutions;
+    return store(axis, kin_.orientation_solutions(axis));
+}
+
+const Kinematics::Solutions& SolutionCache::store(const Eigen::Vector3d& axis, Kinematics::Solutions solutions) const {
+    Slot& c = slots_[next_];
+    next_ = 1 - next_;
+    c.axis = axis;
+    c.solutions = std::move(solutions);
+    c.valid = true;
+    return c.solutions;
+}
+
 Segmenter::Segmenter(const Kinematics& kinematics)
-    : sample_angle_(kSampleMargin * kinematics.machine().motion.angle_tolerance),
+    : solutions_(kinematics),
+      sample_angle_(kSampleMargin * kinematics.machine().motion.angle_tolerance),
       chord_limit_(chord_within(sample_angle_.degrees() - 1e-6)),
       kin_(kinematics),
       machine_(kinematics.machine()),
       joints_(kinematics.machine().joints.size()),
-      limits_(kinematics.machine()) {
-    static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
-    for (std::size_t j = 0; j < machine_.joints.size() && j < kPrintJoints; ++j) {
-        const int d = printed_decimals(machine_, j);
-        if (d < 0 || d > 9) {
-            print_scale_[j] = 1;
-            print_below_[j] = -1;  // never: printed() for every value
-            continue;
-        }
-        print_scale_[j] = kPow10[d];
-        // |v * 10^d| below half of the smaller of to_units' limits (1e15 scaled, kMaxWritten
-        // unscaled): both its range tests pass (a NaN fails this one too).
-        print_below_[j] = 0.5 * std::min(1e15, kMaxWritten * kPow10[d]);
-    }
-    for (const int j : kin_.rotary_joints())
-        if (std::size_t(j) < kPrintJoints) print_rotaries_[print_rotary_count_++] = std::size_t(j);
-}
-
-bool Segmenter::print_end(const double* q1) {
-    const std::size_t n = joints_;
-    double* to = q1_printed_.data();
-    double* last = last_end_q_.data();
-    const double* q0 = q0_printed_.data();
-    bool rotates = false;
-    for (std::size_t j = 0; j < n; ++j) {
-        const double v = q1[j];
-        last[j] = v;
-        const double scaled = v * print_scale_[j];
-        // printed(): to_units' units over the same power of ten.
-        const double p = std::abs(scaled) < print_below_[j] ? double(round_half_away(scaled)) / print_scale_[j] : printed_value(machine_, j, v);
-        to[j] = p;
-    }
-    for (std::size_t k = 0; k < print_rotary_count_; ++k) rotates |= to[print_rotaries_[k]] != q0[print_rotaries_[k]];
-    return rotates;
-}
+      limits_(kinematics.machine()),
+      rounding_(kinematics) {}
 
 const GreatArc& Segmenter::arc_of(const MoveSpec& mv) const {
     if (!(mv.p0.axis == arc_.a && mv.p1.axis == arc_.b)) arc_ = GreatArc(mv.p0.axis, mv.p1.axis);
@@ -263,34 +281,6 @@ bool Segmenter::piece_within(const MoveSpec& mv, double sa, double sb, const dou
     return true;
 }
 
-const Segmenter::CachedSolutions* Segmenter::cached_solutions(const Eigen::Vector3d& axis) const {
-    // Bit for bit the same axis (a signed zero counts: the solutions' angles can depend on it).
-    for (const CachedSolutions& c : solved_)
-        if (c.valid && std::memcmp(c.axis.data(), axis.data(), sizeof(double) * 3) == 0) return &c;
-    return nullptr;
-}
-
-const Kinematics::Solutions& Segmenter::cache_solutions(const Eigen::Vector3d& axis, Kinematics::Solutions solutions) const {
-    CachedSolutions& c = solved_[solved_next_];
-    solved_next_ = 1 - solved_next_;
-    c.axis = axis;
-    c.solutions = std::move(solutions);
-    c.valid = true;
-    return c.solutions;
-}
-
-const Kinematics::Solutions& Segmenter::solutions_of(const Eigen::Vector3d& axis) const {
-    if (const CachedSolutions* c = cached_solutions(axis)) return c->solutions;
-    return cache_solutions(axis, kin_.orientation_solutions(axis));
-}
-
-void Segmenter::remember_solutions(const Kinematics::Solutions& solutions) const {
-    // Written without a search: a slot holding the same axis holds the same solutions (a pure
-    // function of its bits), so a second copy changes no answer; the other slot keeps the axis
-    // remembered before, this move's start.
-    cache_solutions(solutions.axis, solutions);
-}
-
 const Kinematics::PathEnd& Segmenter::find_end(const double* q) const {
     const std::size_t n = joints_;
     const bool is_end = q == q1_printed_.data();
@@ -396,9 +386,9 @@ IkResult Segmenter::split(const MoveSpec& mv) {
     end_slot_ = -1;
     const std::size_t n = joints_;
     bool rotates = false;
-    if (n <= kPrintJoints && mv.q1->size() == n && q0_printed_.size() == n && q1_printed_.size() == n && last_end_q_.size() == n) {
+    if (n <= PrintedRounding::kMaxPrinted && mv.q1->size() == n && q0_printed_.size() == n && q1_printed_.size() == n && last_end_q_.size() == n) {
         // The usual move (every one after the first): one pass, no copies or calls.
-        rotates = print_end(mv.q1->data());
+        rotates = rounding_.round_end(mv.q1->data(), q1_printed_.data(), last_end_q_.data(), q0_printed_.data());
     } else {
         round_printed(machine_, *mv.q1, q1_printed_);
         last_end_q_ = *mv.q1;
@@ -421,6 +411,104 @@ IkResult Segmenter::split(const MoveSpec& mv) {
     if (start_on_line && reach_clears(mv, tol)) return {};
     if (bounded_within(mv, 0, 1, q0.data(), q1.data(), tol)) return {};
     return march(mv, tol);
+}
+
+// Near a pole the continuous branch swings a joint round; the other branch may cut across within
+// the tolerance (a tilt through zero instead of a half turn): true, with qb and exact_b_ that
+// branch's end, when one passes.
+bool Segmenter::other_branch_passes(const MoveSpec& mv, double sa, double sb, const std::vector<double>& qa,
+                                    std::vector<double>& qb, double tol) {
+    std::vector<double>& alt = scratch_b_;
+    for (int b = 0; b < 2; ++b) {
+        // solve_at(mv, sb, qa, alt, b), on the try's own target. A branch whose rotaries are the
+        // continuous solve's to the bit is the branch it took: the position solve would give
+        // exact_b_ again, qb once rounded, which the test below skips; it is skipped here, before
+        // that solve.
+        ChosenSolution chosen;
+        if (!orient_at(mv, sb, target_, qa, alt, b, chosen).ok()) continue;
+        if (same_rotaries(alt, exact_b_)) continue;
+        if (!place(target_, alt, chosen).ok()) continue;
+        std::vector<double>& alt_exact = alt_exact_;  // a member: no allocation per try
+        alt_exact = alt;
+        round_printed(machine_, alt);
+        if (alt == qb) continue;
+        if (bounded_within(mv, sa, sb, qa.data(), alt.data(), tol) || piece_within(mv, sa, sb, qa.data(), alt.data(), tol)) {
+            qb = alt;
+            exact_b_ = alt_exact;
+            return true;
+        }
+    }
+    return false;
+}
+
+// The longest piece from sa (joints qa = march_a_, as printed) that passes: halved until one
+// passes, then closed in on the limit between the longest passing and the shortest failing
+// length. Its length in ok_len, its end in scratch_a_ (as printed) and ok_exact_ (as solved).
+IkResult Segmenter::longest_piece(const MoveSpec& mv, double tol, double sa, double step, double& ok_len) {
+    const auto& q1 = q1_printed_;
+    const std::vector<double>& qa = march_a_;
+    std::vector<double>& qb = march_b_;
+    double bad_len = 0;
+    ok_len = 0;
+    std::vector<double>& qok = scratch_a_;
+    double len = std::min(1.0 - sa, step);
+    bool predicted = false;  // this try's length came from the error measured on a failing one
+    int predictions = 0;
+    for (int refine = 0;;) {
+        const double sb = sa + len;
+        IkResult r;
+        if (sb >= 1.0 && mv.mode == OrientationMode::Angles) {
+            qb = q1;  // angle form fixes the end
+        } else if (mv.mode == OrientationMode::Vector) {
+            // solve_at's steps, the target kept for the other branches' tries below.
+            target_at(mv, std::min(sb, 1.0), target_);
+            ChosenSolution chosen;
+            r = orient_at(mv, std::min(sb, 1.0), target_, qa, qb, -1, chosen);
+            if (r.ok()) r = place(target_, qb, chosen);
+        } else {
+            r = solve_at(mv, std::min(sb, 1.0), qa, qb);
+        }
+        if (!r.ok()) {
+            r.message += " (at " + std::to_string(int(std::lround(std::min(sb, 1.0) * 100))) + "% of the move)";
+            return r;
+        }
+        if (sb >= 1.0 && mv.mode == OrientationMode::Angles) exact_b_ = *mv.q1;
+        else exact_b_ = qb;
+        round_printed(machine_, qb);
+        double middle_ratio = 0;  // the failing middle sample's error over the tolerance (0: not known)
+        bool pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol);
+        if (!pass) pass = piece_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, &middle_ratio);
+        if (!pass && mv.mode == OrientationMode::Vector) pass = other_branch_passes(mv, sa, std::min(sb, 1.0), qa, qb, tol);
+        if (pass) {
+            ok_len = len;
+            qok = qb;
+            ok_exact_ = exact_b_;
+        } else {
+            bad_len = len;
+            if (len < 1e-9) {
+                // Either a pole, or the continuous solution runs out of a joint's limits here
+                // and the nearest one inside them is on another branch or turn: say which.
+                if (auto rl = leaves_limits(mv, std::min(sb, 1.0), qa); !rl.ok()) return rl;
+                return {IkStatus::Singular, "the tool axis passes a pole here: a rotary joint would have to turn instantly"};
+            }
+        }
+        if (ok_len > 0 && (bad_len == 0 || (pass && predicted) || ++refine >= 4 || bad_len - ok_len < 0.02 * ok_len)) break;
+        // A chord's error grows with the square of the piece's length: a try that failed at
+        // its middle point (where that error is largest) by the ratio r gives the length that
+        // just passes, len / sqrt(r); aimed a little short of it (the ends' rounding adds an
+        // error that does not shrink with the piece), that try usually passes and is taken.
+        // Twice wrong (a path that does not follow the rule), the search halves as before.
+        predicted = !pass && middle_ratio > 1 && predictions < 2;
+        if (predicted) {
+            ++predictions;
+            len = len / std::sqrt(middle_ratio) * kPredictAim;
+            if (len >= kPredictAim * (1.0 - sa)) len = 1.0 - sa;  // the rest of the move looks within reach: no sliver left at the end
+            if (len <= ok_len) break;  // the longest passing try is already as long
+        } else {
+            len = ok_len > 0 ? 0.5 * (ok_len + bad_len) : 0.5 * len;
+        }
+    }
+    return {};
 }
 
 IkResult Segmenter::march(const MoveSpec& mv, double tol) {
@@ -447,92 +535,9 @@ IkResult Segmenter::march(const MoveSpec& mv, double tol) {
     std::vector<double>& qb = march_b_;
     qa = q0;
     while (sa < 1.0) {
-        // The longest piece that passes: halve until one passes, then close in on the limit
-        // between the longest passing and the shortest failing length.
-        double ok_len = 0, bad_len = 0;
-        std::vector<double>& qok = scratch_a_;
-        double len = std::min(1.0 - sa, step);
-        bool predicted = false;  // this try's length came from the error measured on a failing one
-        int predictions = 0;
-        for (int refine = 0;;) {
-            const double sb = sa + len;
-            IkResult r;
-            if (sb >= 1.0 && mv.mode == OrientationMode::Angles) {
-                qb = q1;  // angle form fixes the end
-            } else if (mv.mode == OrientationMode::Vector) {
-                // solve_at's steps, the target kept for the other branches' tries below.
-                target_at(mv, std::min(sb, 1.0), target_);
-                ChosenSolution chosen;
-                r = orient_at(mv, std::min(sb, 1.0), target_, qa, qb, -1, chosen);
-                if (r.ok()) r = place(target_, qb, chosen);
-            } else {
-                r = solve_at(mv, std::min(sb, 1.0), qa, qb);
-            }
-            if (!r.ok()) {
-                r.message += " (at " + std::to_string(int(std::lround(std::min(sb, 1.0) * 100))) + "% of the move)";
-                return r;
-            }
-            if (sb >= 1.0 && mv.mode == OrientationMode::Angles) exact_b_ = *mv.q1;
-            else exact_b_ = qb;
-            round_printed(machine_, qb);
-            double middle_ratio = 0;  // the failing middle sample's error over the tolerance (0: not known)
-            bool pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol);
-            if (!pass) pass = piece_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, &middle_ratio);
-            if (!pass && mv.mode == OrientationMode::Vector) {
-                // Near a pole the continuous branch swings a joint round; the other branch may
-                // cut across within the tolerance (a tilt through zero instead of a half turn).
-                std::vector<double>& alt = scratch_b_;
-                for (int b = 0; b < 2 && !pass; ++b) {
-                    // solve_at(mv, sb, qa, alt, b), on the try's own target. A branch whose
-                    // rotaries are the continuous solve's to the bit is the branch it took: the
-                    // position solve would give exact_b_ again, qb once rounded, which the test
-                    // below skips; it is skipped here, before that solve.
-                    ChosenSolution chosen;
-                    if (!orient_at(mv, std::min(sb, 1.0), target_, qa, alt, b, chosen).ok()) continue;
-                    if (same_rotaries(alt, exact_b_)) continue;
-                    if (!place(target_, alt, chosen).ok()) continue;
-                    std::vector<double>& alt_exact = alt_exact_;  // a member: no allocation per try
-                    alt_exact = alt;
-                    round_printed(machine_, alt);
-                    if (alt == qb) continue;
-                    const bool alt_pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol) ||
-                                          piece_within(mv, sa, std::min(sb, 1.0), qa.data(), alt.data(), tol);
-                    if (alt_pass) {
-                        pass = true;
-                        qb = alt;
-                        exact_b_ = alt_exact;
-                    }
-                }
-            }
-            if (pass) {
-                ok_len = len;
-                qok = qb;
-                ok_exact_ = exact_b_;
-            } else {
-                bad_len = len;
-                if (len < 1e-9) {
-                    // Either a pole, or the continuous solution runs out of a joint's limits here
-                    // and the nearest one inside them is on another branch or turn: say which.
-                    if (auto rl = leaves_limits(mv, std::min(sb, 1.0), qa); !rl.ok()) return rl;
-                    return {IkStatus::Singular, "the tool axis passes a pole here: a rotary joint would have to turn instantly"};
-                }
-            }
-            if (ok_len > 0 && (bad_len == 0 || (pass && predicted) || ++refine >= 4 || bad_len - ok_len < 0.02 * ok_len)) break;
-            // A chord's error grows with the square of the piece's length: a try that failed at
-            // its middle point (where that error is largest) by the ratio r gives the length that
-            // just passes, len / sqrt(r); aimed a little short of it (the ends' rounding adds an
-            // error that does not shrink with the piece), that try usually passes and is taken.
-            // Twice wrong (a path that does not follow the rule), the search halves as before.
-            predicted = !pass && middle_ratio > 1 && predictions < 2;
-            if (predicted) {
-                ++predictions;
-                len = len / std::sqrt(middle_ratio) * kPredictAim;
-                if (len >= kPredictAim * (1.0 - sa)) len = 1.0 - sa;  // the rest of the move looks within reach: no sliver left at the end
-                if (len <= ok_len) break;  // the longest passing try is already as long
-            } else {
-                len = ok_len > 0 ? 0.5 * (ok_len + bad_len) : 0.5 * len;
-            }
-        }
+        double ok_len = 0;
+        if (auto r = longest_piece(mv, tol, sa, step, ok_len); !r.ok()) return r;
+        const std::vector<double>& qok = scratch_a_;
         const double sb = std::min(1.0, sa + ok_len);
         qb = qok;
         if (sb >= 1.0) {

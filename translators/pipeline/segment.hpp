@@ -21,6 +21,49 @@
 
 namespace xlate5 {
 
+// The orientation solutions of the axes met last (one move's end axis is the next one's start),
+// keyed by the axis's bits: a pure function of them, so a hit gives what a solve would.
+class SolutionCache {
+public:
+    explicit SolutionCache(const Kinematics& kinematics) : kin_(kinematics) {}
+    const Kinematics::Solutions& of(const Eigen::Vector3d& axis) const;
+    // Solutions the caller has already solved, remembered without a search: a slot holding the
+    // same axis holds the same solutions, so a second copy changes no answer.
+    void remember(const Kinematics::Solutions& solutions) const { store(solutions.axis, solutions); }
+
+private:
+    struct Slot {
+        bool valid = false;
+        Eigen::Vector3d axis;
+        Kinematics::Solutions solutions;
+    };
+    const Kinematics::Solutions& store(const Eigen::Vector3d& axis, Kinematics::Solutions solutions) const;
+    const Kinematics& kin_;
+    mutable Slot slots_[2];
+    mutable int next_ = 0;
+};
+
+// The joints as the firmware will be given them, rounded to each joint's printed decimals with
+// the usual case worked out once per joint (machines of up to kMaxPrinted joints): a value whose
+// |value * scale| is below `below` is rounded at once (to_units' own arithmetic, its range tests
+// passed by that one); any other goes through printed_value.
+class PrintedRounding {
+public:
+    static constexpr std::size_t kMaxPrinted = 8;
+    PrintedRounding(const Kinematics& kinematics);
+    // q1 rounded into `to` and copied into `exact` in one pass, for a machine of at most
+    // kMaxPrinted joints; true when a rotary's printed value differs from `from`'s.
+    bool round_end(const double* q1, double* to, double* exact, const double* from) const;
+
+private:
+    const Machine& machine_;
+    std::size_t joints_;
+    double scale_[kMaxPrinted] = {};
+    double below_[kMaxPrinted] = {};
+    std::size_t rotaries_[kMaxPrinted] = {};  // kinematics' rotaries
+    std::size_t rotary_count_ = 0;
+};
+
 class Segmenter {
 public:
     static constexpr int kCheckSamples = 7;  // interior points checked per piece (see piece_error)
@@ -59,8 +102,8 @@ public:
 
     // The orientation solutions of an axis (remembered: one move's end is the next one's start),
     // and of an axis the caller has already solved, remembered for it.
-    const Kinematics::Solutions& solutions_of(const Eigen::Vector3d& axis) const;
-    void remember_solutions(const Kinematics::Solutions& solutions) const;
+    const Kinematics::Solutions& solutions_of(const Eigen::Vector3d& axis) const { return solutions_.of(axis); }
+    void remember_solutions(const Kinematics::Solutions& solutions) const { solutions_.remember(solutions); }
     // The programmed axis's great circle, and the programmed pose at move parameter s.
     const GreatArc& arc_of(const MoveSpec& mv) const;
     Pose pose_at(const MoveSpec& move, double s) const;
@@ -100,6 +143,9 @@ private:
     // The rest of split for a move that the bounds did not clear whole: sampled, and split if
     // it must be (split's usual move never gets here, and its code stays small).
     IkResult march(const MoveSpec& move, double tol);
+    IkResult longest_piece(const MoveSpec& move, double tol, double sa, double step, double& ok_len);
+    bool other_branch_passes(const MoveSpec& move, double sa, double sb, const std::vector<double>& qa, std::vector<double>& qb,
+                             double tol);
     // An OutOfLimits result when the continuous solution at s (from `previous`) is outside a
     // rotary joint's limits.
     IkResult leaves_limits(const MoveSpec& move, double s, const std::vector<double>& previous) const;
@@ -130,17 +176,7 @@ private:
     // The programmed axis's great circle of the move being split: its angle (an acos and a sine)
     // once per move, not once per try and sample point. Keyed by the two axes.
     mutable GreatArc arc_{Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitZ()};
-    // The orientation solutions of the axes met last: one move's end axis is the next one's start.
-    struct CachedSolutions {
-        bool valid = false;
-        Eigen::Vector3d axis;
-        Kinematics::Solutions solutions;
-    };
-    // The slot holding `axis` (bit for bit), or null; and the slot a new axis goes into.
-    const CachedSolutions* cached_solutions(const Eigen::Vector3d& axis) const;
-    const Kinematics::Solutions& cache_solutions(const Eigen::Vector3d& axis, Kinematics::Solutions solutions) const;
-    mutable CachedSolutions solved_[2];
-    mutable int solved_next_ = 0;
+    SolutionCache solutions_;
     mutable int ends_next_ = 0;
     AngleLimit sample_angle_;  // the split's angle limit (the angle tolerance with its sampling margin)
     double chord_limit_;       // the bound's form of it: a tool axis within this chord is inside it (segment.cpp)
@@ -155,18 +191,7 @@ private:
     // solved, and qs_, qs_exact_ are not filled.
     bool whole_ = false;
     std::vector<double> q0_printed_, q1_printed_;  // the move's ends as printed
-    // printed()'s usual case worked out once per joint (machines of up to kPrintJoints joints):
-    // a value whose |value * print_scale_| is below print_below_ is rounded at once (to_units'
-    // own arithmetic, its range tests passed by that one); any other goes through printed().
-    // print_rotaries_: kinematics' rotaries (split's test whether they turn).
-    double print_scale_[kPrintJoints] = {};
-    double print_below_[kPrintJoints] = {};
-    std::size_t print_rotaries_[kPrintJoints] = {};
-    std::size_t print_rotary_count_ = 0;
-    // split's start for a move whose joints have the stage's own size (n <= kPrintJoints): q1
-    // rounded into q1_printed_ and copied into last_end_q_ in one pass; true when a rotary's
-    // printed value differs from q0_printed_'s.
-    bool print_end(const double* q1);
+    PrintedRounding rounding_;
     // The last move's end: its joints as solved, and its tip (which they reach). Its joints as
     // printed are q1_printed_ until the next move's split.
     std::vector<double> last_end_q_;
