@@ -28,24 +28,41 @@ void LookBack::set_lines(std::size_t lines, int candidates) {
     candidates_ = candidates < 1 ? 1 : candidates > kMaxCandidates ? kMaxCandidates : candidates;
 }
 
-void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
+// Without look-back: the line's output goes out at once; only a travel move that itself runs
+// into a limit unwinds (the planner tries its other ends).
+void LookBack::feed_alone(std::string_view line, std::uint64_t line_no, std::string& out) {
     LineRun run;
     run.line_no = line_no;
-    if (lines_ == 0) {
-        const std::size_t moves_start = held_moves();
-        try {
-            interpreter_.feed_line(line, run, out);
-        } catch (const InputError& e) {
-            if (log_) log_->drop_held_from(moves_start);
-            if (!run.hit_limit) throw;
-            throw InputError(e.file(), e.line(), e.column(),
-                             e.message() + (run.linear_limit ? linear_limit_advice()
-                                                             : "; turn the joint back on a travel move before this line, or plan the path "
-                                                               "within the limits"));
-        }
-        if (log_) log_->release(held_moves());
-        return;
+    const std::size_t moves_start = held_moves();
+    try {
+        interpreter_.feed_line(line, run, out);
+    } catch (const InputError& e) {
+        if (log_) log_->drop_held_from(moves_start);
+        if (!run.hit_limit) throw;
+        throw InputError(e.file(), e.line(), e.column(),
+                         e.message() + (run.linear_limit ? linear_limit_advice()
+                                                         : "; turn the joint back on a travel move before this line, or plan the path "
+                                                           "within the limits"));
     }
+    if (log_) log_->release(held_moves());
+}
+
+// What a line refused on a joint limit is told to do, after the limit's own message.
+std::string LookBack::refusal_advice(bool linear, bool had_checkpoint) const {
+    if (linear) return linear_limit_advice();
+    if (had_checkpoint)
+        return "; turning it back on the travel move at line " + std::to_string(checkpoint_line_) +
+               " does not keep the printing from there to here within the limits: add a travel move (G0, or G1 "
+               "without E) nearer this line, where the joint can turn back, or plan the path within the limits";
+    return "; there is no travel move (G0, or G1 without E) within the " + std::to_string(lines_) +
+           " lines before this one to turn the joint back on: add one before this line, or plan the path "
+           "within the limits";
+}
+
+void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
+    if (lines_ == 0) return feed_alone(line, line_no, out);
+    LineRun run;
+    run.line_no = line_no;
     before_line_ = state_;
     // With no window open nothing is held (held_ is empty): the line's output goes straight to
     // `out`, where only a travel move's has to be taken back into held_ (below). One copy of the
@@ -74,18 +91,7 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
             state_ = before_line_;  // as for any refused line (above)
             to.resize(held_start);
             if (log_) log_->drop_held_from(moves_start);
-            std::string message = e.message();
-            if (linear)
-                message += linear_limit_advice();
-            else if (had_checkpoint)
-                message += "; turning it back on the travel move at line " + std::to_string(checkpoint_line_) +
-                           " does not keep the printing from there to here within the limits: add a travel move (G0, or G1 "
-                           "without E) nearer this line, where the joint can turn back, or plan the path within the limits";
-            else
-                message += "; there is no travel move (G0, or G1 without E) within the " + std::to_string(lines_) +
-                           " lines before this one to turn the joint back on: add one before this line, or plan the path "
-                           "within the limits";
-            throw InputError(e.file(), e.line(), e.column(), message);
+            throw InputError(e.file(), e.line(), e.column(), e.message() + refusal_advice(linear, had_checkpoint));
         }
     }
     if (direct && run.travels) {

@@ -49,6 +49,8 @@ public:
     bool holding() const { return have_checkpoint_ || !held_.empty(); }
 
 private:
+    void feed_alone(std::string_view line, std::uint64_t line_no, std::string& out);
+    std::string refusal_advice(bool linear, bool had_checkpoint) const;
     bool unwind_before(std::string_view line, std::uint64_t line_no, LineRun& last);
     void release(std::size_t bytes, std::size_t moves, std::string& out);
     std::size_t held_moves() const { return log_ ? log_->held_count() : 0; }
