@@ -34,52 +34,55 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
     return r;
 }
 
-IkResult MotionStage::emit_move(const MoveSpec& mv, std::string& out, MoveResult* result) {
-    split_for_ = nullptr;
-    if (mv.mode == OrientationMode::Vector && machine_.motion.segment) {
-        // Leaving a pole: at the start the tool axis is on a rotary axis, so that joint was free
-        // and kept its old angle, but the path leaves in a direction that needs another angle.
-        // Turn it first, with the tip and the tool axis held (a re-index about the pole), then
-        // make the move; never a jump inside one joint move.
-        std::vector<double>& q_eps = probe_q_;
-        // The probe's IK only where it matters: at a pole, on a move that turns.
-        const double probe = pole_leaving_probe(segment_.solutions_of(mv.p0.axis), kin_.rotary_joints().size(), mv.p0.axis, mv.p1.axis);
-        if (probe > 0 && segment_.solve_at(mv, probe, *mv.q0, q_eps).ok()) {
-            std::vector<double> turned;
-            if (auto r = pole_reindex(kin_, *mv.q0, q_eps, mv.p0.tip, turned); !r.ok()) return r;
-            if (!turned.empty()) {
-                MoveSpec turn = mv;
-                turn.mode = OrientationMode::Angles;
-                turn.q1 = &turned;
-                turn.p1 = mv.p0;
-                turn.p1.axis = kin_.forward(turned).axis;
-                turn.e.reset();
-                turn.f.reset();
-                turn.inverse_time = 0;
-                std::string text;
-                MoveResult first;
-                if (auto r1 = emit_one(turn, text, &first); !r1.ok()) return r1;
-                MoveSpec rest = mv;
-                rest.q0 = &turned;
-                if (auto r2 = emit_one(rest, text, result); !r2.ok()) return r2;
-                out += text;
-                if (result) {
-                    result->pieces += first.pieces;
-                    result->tip_error = std::max(result->tip_error, first.tip_error);
-                    result->angle_error = std::max(result->angle_error, first.angle_error);
-                    // The turn about the pole is rotary travel of this move too.
-                    result->travel.resize(first.travel.size(), 0.0);
-                    for (std::size_t j = 0; j < first.travel.size(); ++j) result->travel[j] += first.travel[j];
-                    result->minutes += first.minutes;
-                    for (std::size_t j = 0; j < result->low.size() && j < first.low.size(); ++j) {
-                        result->low[j] = std::min(result->low[j], first.low[j]);
-                        result->high[j] = std::max(result->high[j], first.high[j]);
-                    }
-                }
-                return {};
-            }
+// Leaving a pole (pole_policy.hpp: re-index): at the start the tool axis is on a rotary axis, so
+// that joint was free and kept its old angle, but the path leaves in a direction that needs
+// another angle. Turn it first, with the tip and the tool axis held (a re-index about the pole),
+// then make the move; never a jump inside one joint move. True when the move was written that
+// way, or failed (`r` says which).
+bool MotionStage::leave_pole(const MoveSpec& mv, std::string& out, MoveResult* result, IkResult& r) {
+    if (mv.mode != OrientationMode::Vector || !machine_.motion.segment) return false;
+    std::vector<double>& q_eps = probe_q_;
+    // The probe's IK only where it matters: at a pole, on a move that turns.
+    const double probe = pole_leaving_probe(segment_.solutions_of(mv.p0.axis), kin_.rotary_joints().size(), mv.p0.axis, mv.p1.axis);
+    if (!(probe > 0 && segment_.solve_at(mv, probe, *mv.q0, q_eps).ok())) return false;
+    std::vector<double> turned;
+    if (r = pole_reindex(kin_, *mv.q0, q_eps, mv.p0.tip, turned); !r.ok()) return true;
+    if (turned.empty()) return false;
+    MoveSpec turn = mv;
+    turn.mode = OrientationMode::Angles;
+    turn.q1 = &turned;
+    turn.p1 = mv.p0;
+    turn.p1.axis = kin_.forward(turned).axis;
+    turn.e.reset();
+    turn.f.reset();
+    turn.inverse_time = 0;
+    std::string text;
+    MoveResult first;
+    if (r = emit_one(turn, text, &first); !r.ok()) return true;
+    MoveSpec rest = mv;
+    rest.q0 = &turned;
+    if (r = emit_one(rest, text, result); !r.ok()) return true;
+    out += text;
+    if (result) {
+        result->pieces += first.pieces;
+        result->tip_error = std::max(result->tip_error, first.tip_error);
+        result->angle_error = std::max(result->angle_error, first.angle_error);
+        // The turn about the pole is rotary travel of this move too.
+        result->travel.resize(first.travel.size(), 0.0);
+        for (std::size_t j = 0; j < first.travel.size(); ++j) result->travel[j] += first.travel[j];
+        result->minutes += first.minutes;
+        for (std::size_t j = 0; j < result->low.size() && j < first.low.size(); ++j) {
+            result->low[j] = std::min(result->low[j], first.low[j]);
+            result->high[j] = std::max(result->high[j], first.high[j]);
         }
     }
+    r = {};
+    return true;
+}
+
+IkResult MotionStage::emit_move(const MoveSpec& mv, std::string& out, MoveResult* result) {
+    split_for_ = nullptr;
+    if (IkResult r; leave_pole(mv, out, result, r)) return r;
     // Only a vector move can cross (cross_pole's own first test, made here without the call).
     if (mv.mode == OrientationMode::Vector && cross_pole(mv, cross_end_)) {
         // Across the pole (Isa, Koc 2018, sec. 4.6: C patched linearly through the singular

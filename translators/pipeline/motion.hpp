@@ -68,6 +68,7 @@ public:
 
 private:
     IkResult emit_move(const MoveSpec& move, std::string& out, MoveResult* result);
+    bool leave_pole(const MoveSpec& move, std::string& out, MoveResult* result, IkResult& r);
     IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
     // Across a pole (pole_policy.hpp: cross): true, with the end on the other branch in `end`,
     // when the policy takes that way; else the continuous branch's split is kept for emit_one.

@@ -103,7 +103,8 @@ const Kinematics::Solutions& SolutionCache::store(const Eigen::Vector3d& axis, K
 }
 
 Segmenter::Segmenter(const Kinematics& kinematics)
-    : solutions_(kinematics),
+    : ends_(kinematics),
+      solutions_(kinematics),
       sample_angle_(kSampleMargin * kinematics.machine().motion.angle_tolerance),
       chord_limit_(chord_within(sample_angle_.degrees() - 1e-6)),
       kin_(kinematics),
@@ -281,23 +282,22 @@ bool Segmenter::piece_within(const MoveSpec& mv, double sa, double sb, const dou
     return true;
 }
 
-const Kinematics::PathEnd& Segmenter::find_end(const double* q) const {
+const Kinematics::PathEnd& EndCache::find(const double* q, bool is_end, const Kinematics::SolvedEnd* solved) const {
     const std::size_t n = joints_;
-    const bool is_end = q == q1_printed_.data();
     for (int i = 0; i < 2; ++i) {
-        CachedEnd& c = ends_[i];
+        Slot& c = slots_[i];
         if (c.n == n && std::equal(q, q + n, c.q)) {
             if (is_end) end_slot_ = i;
             return c.end;
         }
     }
-    const int k = ends_next_;
-    CachedEnd& c = ends_[k];
-    ends_next_ = 1 - ends_next_;
+    const int k = next_;
+    Slot& c = slots_[k];
+    next_ = 1 - next_;
     if (start_slot_ == k) start_slot_ = -1;
     if (end_slot_ == k) end_slot_ = -1;
     c.n = 0;  // (no machine has more joints than a slot holds: kinematics takes at most 8)
-    if (n <= kPrintJoints) {
+    if (n <= kMaxJointsHeld) {
         c.n = n;
         std::copy(q, q + n, c.q);
         // The slot found again for the next move's start (not for a NaN joint, which the
@@ -306,7 +306,7 @@ const Kinematics::PathEnd& Segmenter::find_end(const double* q) const {
     }
     // The move's printed end (split passes q1_printed_ itself), a rounding of the solve's own
     // end: bounded from it, no FK.
-    if (solved_end_ && is_end && kin_.near_end(*solved_end_, q, c.end)) return c.end;
+    if (solved && is_end && kin_.near_end(*solved, q, c.end)) return c.end;
     c.end = kin_.path_end(q);
     return c.end;
 }
@@ -376,14 +376,9 @@ IkResult Segmenter::split(const MoveSpec& mv) {
     const bool start_on_line = from_last && mv.p0.tip == last_end_tip_;
     // q1_printed_ holds the last move's end as printed (last_end_q_ rounded): taken, then refilled.
     // The ends' slots (path_end) follow: the last end's is the start's now.
-    if (from_last) {
-        q0_printed_.swap(q1_printed_);
-        start_slot_ = end_slot_;
-    } else {
-        round_printed(machine_, *mv.q0, q0_printed_);
-        start_slot_ = -1;
-    }
-    end_slot_ = -1;
+    if (from_last) q0_printed_.swap(q1_printed_);
+    else round_printed(machine_, *mv.q0, q0_printed_);
+    ends_.next_move(from_last);
     const std::size_t n = joints_;
     bool rotates = false;
     if (n <= PrintedRounding::kMaxPrinted && mv.q1->size() == n && q0_printed_.size() == n && q1_printed_.size() == n && last_end_q_.size() == n) {

@@ -64,6 +64,43 @@ private:
     std::size_t rotary_count_ = 0;
 };
 
+// The path ends the split met last (the end of one move is the start of the next): two slots of
+// joints with their PathEnd, and which of them hold the move's start and end as printed.
+class EndCache {
+public:
+    static constexpr std::size_t kMaxJointsHeld = 8;
+    explicit EndCache(const Kinematics& kinematics) : kin_(kinematics), joints_(kinematics.machine().joints.size()) {}
+    // The PathEnd at q: `start` when q is the move's start as printed, `end` when it is its end
+    // as printed, bounded from `solved` (the position solve's own end) where that holds for it.
+    const Kinematics::PathEnd& at(const double* q, bool start, bool end, const Kinematics::SolvedEnd* solved) const {
+        // The move's start, when it is the last move's end and that end's slot still holds it:
+        // that slot is the one the search would find (a slot is filled only when no slot holds
+        // its joints, so no two hold the same).
+        if (start && start_slot_ >= 0) return slots_[start_slot_].end;
+        return find(q, end, solved);
+    }
+    // A new move: its start is the last one's end (whose slot is known), or not.
+    void next_move(bool from_last) {
+        start_slot_ = from_last ? end_slot_ : -1;
+        end_slot_ = -1;
+    }
+
+private:
+    // The search of the slots, and the FK (or near_end) when neither holds q.
+    const Kinematics::PathEnd& find(const double* q, bool is_end, const Kinematics::SolvedEnd* solved) const;
+    struct Slot {
+        std::size_t n = 0;  // joints held (0: none)
+        double q[kMaxJointsHeld];
+        Kinematics::PathEnd end;
+    };
+    const Kinematics& kin_;
+    std::size_t joints_;
+    mutable Slot slots_[2];
+    mutable int next_ = 0;
+    // The slots holding the move's start and end as printed (-1: not known; the search finds them).
+    mutable int start_slot_ = -1, end_slot_ = -1;
+};
+
 class Segmenter {
 public:
     static constexpr int kCheckSamples = 7;  // interior points checked per piece (see piece_error)
@@ -152,24 +189,9 @@ private:
 
     // The ends bounded_within met last (the end of one move is the start of the next).
     const Kinematics::PathEnd& path_end(const double* q) const {
-        // The move's start as printed, when it is the last move's end and that end's slot still
-        // holds it: that slot is the one the search would find (a slot is filled only when no
-        // slot holds its joints, so no two hold the same).
-        if (q == q0_printed_.data() && start_slot_ >= 0) return ends_[start_slot_].end;
-        return find_end(q);
+        return ends_.at(q, q == q0_printed_.data(), q == q1_printed_.data(), solved_end_);
     }
-    // path_end's search of the slots, and its FK (or near_end) when neither holds q.
-    const Kinematics::PathEnd& find_end(const double* q) const;
-    static constexpr std::size_t kPrintJoints = 8;
-    struct CachedEnd {
-        std::size_t n = 0;  // joints held (0: none)
-        double q[kPrintJoints];
-        Kinematics::PathEnd end;
-    };
-    mutable CachedEnd ends_[2];
-    // The slots holding the ends of q0_printed_ and q1_printed_ as they are now (-1: not known;
-    // the search finds them then).
-    mutable int start_slot_ = -1, end_slot_ = -1;
+    EndCache ends_;
     // The move's solved end while it is split (split() sets it when it holds for the move's q1):
     // path_end bounds q1_printed_ from it.
     const Kinematics::SolvedEnd* solved_end_ = nullptr;
@@ -177,7 +199,6 @@ private:
     // once per move, not once per try and sample point. Keyed by the two axes.
     mutable GreatArc arc_{Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitZ()};
     SolutionCache solutions_;
-    mutable int ends_next_ = 0;
     AngleLimit sample_angle_;  // the split's angle limit (the angle tolerance with its sampling margin)
     double chord_limit_;       // the bound's form of it: a tool axis within this chord is inside it (segment.cpp)
 
