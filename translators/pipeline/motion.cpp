@@ -38,9 +38,8 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
 // that joint was free and kept its old angle, but the path leaves in a direction that needs
 // another angle. Turn it first, with the tip and the tool axis held (a re-index about the pole),
 // then make the move; never a jump inside one joint move. True when the move was written that
-// way, or failed (`r` says which).
+// way, or failed (`r` says which). Vector moves, when the machine splits.
 bool MotionStage::leave_pole(const MoveSpec& mv, std::string& out, MoveResult* result, IkResult& r) {
-    if (mv.mode != OrientationMode::Vector || !machine_.motion.segment) return false;
     std::vector<double>& q_eps = probe_q_;
     // The probe's IK only where it matters: at a pole, on a move that turns.
     const double probe = pole_leaving_probe(segment_.solutions_of(mv.p0.axis), kin_.rotary_joints().size(), mv.p0.axis, mv.p1.axis);
@@ -80,9 +79,11 @@ bool MotionStage::leave_pole(const MoveSpec& mv, std::string& out, MoveResult* r
     return true;
 }
 
-IkResult MotionStage::emit_move(const MoveSpec& mv, std::string& out, MoveResult* result) {
+inline IkResult MotionStage::emit_move(const MoveSpec& mv, std::string& out, MoveResult* result) {
     split_for_ = nullptr;
-    if (IkResult r; leave_pole(mv, out, result, r)) return r;
+    if (mv.mode == OrientationMode::Vector && machine_.motion.segment) {
+        if (IkResult r; leave_pole(mv, out, result, r)) return r;
+    }
     // Only a vector move can cross (cross_pole's own first test, made here without the call).
     if (mv.mode == OrientationMode::Vector && cross_pole(mv, cross_end_)) {
         // Across the pole (Isa, Koc 2018, sec. 4.6: C patched linearly through the singular

@@ -133,7 +133,7 @@ void Planner::end_candidates(OrientationMode mode, const Pose& end, const std::v
 
 // The usual end of a tool-space move: its joints in q_next_ (the continuous solution), its pose
 // in `next`; not ok when it cannot be reached or lies outside the limits.
-IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
+inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
     PlannerState& s = state_;
     copy_joints(q_next_, s.q);
     if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
@@ -177,7 +177,7 @@ IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
 // usual end is outside a joint's limits, or when the look-back replays it to unwind a joint for
 // the printing that follows. Printing moves never change solution: their path is printed.
 // Returns true when it does (q_next_ is then that end), with the kind of change for the report.
-bool Planner::other_end(const ToolMove& mv, const Pose& next, bool travel, IkResult& r, LineRun& run, SolutionChange& change) {
+inline bool Planner::other_end(const ToolMove& mv, const Pose& next, bool travel, IkResult& r, LineRun& run, SolutionChange& change) {
     const int forced = travel ? run.end_candidate : -1;
     if (travel) run.end_candidate = -1;
     if (!travel || !(forced >= 0 || (!r.ok() && r.status == IkStatus::OutOfLimits))) return false;
@@ -203,7 +203,7 @@ bool Planner::other_end(const ToolMove& mv, const Pose& next, bool travel, IkRes
 }
 
 // The planned move handed to the motion stage, from the current joints and pose to q_next_, next.
-MoveSpec Planner::planned(const ToolMove& mv, const Pose& next) const {
+inline MoveSpec Planner::planned(const ToolMove& mv, const Pose& next) const {
     const PlannerState& s = state_;
     MoveSpec spec;
     spec.gcode = mv.gcode;
