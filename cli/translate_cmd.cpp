@@ -15,7 +15,7 @@
 #include <unistd.h>
 
 #include "cli/options.hpp"
-#include "cli/preview.hpp"
+#include "translators/inspect/preview.hpp"
 #include "cli/progress.hpp"
 #include "cli/provenance.hpp"
 #include "translators/pipeline/compensation.hpp"
@@ -198,8 +198,9 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         struct stat in_stat{};
         const bool regular = ::fstat(in_fd, &in_stat) == 0 && S_ISREG(in_stat.st_mode);
         Progress progress(regular ? std::uint64_t(in_stat.st_size) : 0, !o.no_progress && ::isatty(2));
-        std::optional<Preview> preview;
-        if (!o.preview_html.empty()) preview.emplace(kinematics, *report);
+        std::optional<xlate5::Preview> preview;
+        // The report's counts of the written lines come from the preview's scan of them.
+        if (!o.preview_html.empty() || (!o.report.empty() && !o.inverse)) preview.emplace(kinematics, *report);
 
         // The first line says what the file is: binary G-code is refused, xlate5's own header
         // of the space this run writes is a second translation (refused unless forced), the
@@ -239,7 +240,8 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         }
         // The report files are written like the output: whole, or not at all.
         std::optional<OutputSink> report_sink, plot_sink, preview_sink;
-        if (preview) preview_sink.emplace(o.preview_html), preview_sink->write(preview->html(options.input_name + " on " + machine->name));
+        if (!o.preview_html.empty()) preview_sink.emplace(o.preview_html), preview_sink->write(preview->html(options.input_name + " on " + machine->name));
+        if (preview && !o.inverse) report->set_written(preview->report_json());
         if (report) {
             report->set_lines(stats.lines_in, stats.lines_out + (stats.lines_in == 0 ? 1 : 0));
             if (!o.report.empty()) report_sink.emplace(o.report), report_sink->write(report->json());
