@@ -23,12 +23,20 @@ double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, cons
     return (a + t * ab - p).norm();
 }
 
-// Six significant digits: the written joints (at most 3 decimals below 1000 mm) come out as
-// written, so the page's extremes are the report's.
+// Six significant digits: enough to draw.
 std::string num(double v) {
     if (!std::isfinite(v)) return "null";
     char b[32];
     std::snprintf(b, sizeof b, "%.6g", v);
+    return b;
+}
+
+// A written joint value as written (up to 9 decimals, values up to 1e9: 12 significant digits
+// and the decimals kept), so the page's joints and extremes are the file's and the report's.
+std::string joint_num(double v) {
+    if (!std::isfinite(v)) return "null";
+    char b[40];
+    std::snprintf(b, sizeof b, "%.12g", v);
     return b;
 }
 
@@ -234,7 +242,7 @@ void Preview::line(std::string_view l) {
         const double d = deviation(q_before_, q_now_, true);
         dev_since_ = std::max(dev_since_, d);
         // The worst swing since the last kept move is drawn with it.
-        if (d > 0.1 * kin_.machine().motion.tolerance && d > swing_dev_) swing_dev_ = d, swing_since_ = swing_now_;
+        if (d > kin_.machine().motion.tolerance && d > swing_dev_) swing_dev_ = d, swing_since_ = swing_now_;
     }
     check_feed();
     ++moves_;
@@ -598,7 +606,7 @@ std::string Preview::html(const std::string& title) const {
         data += i ? ",[" : "[";
         for (std::size_t j = 0; j < joints_; ++j) {
             if (j) data += ',';
-            data += num(q[j]);
+            data += joint_num(q[j]);
         }
         data += "]";
         const Pose p = kin_.forward(q);
@@ -651,7 +659,7 @@ std::string Preview::html(const std::string& title) const {
         const auto& J = m.joints[j];
         data += std::string(j ? "," : "") + "{\"name\": \"" + J.output + "\", \"input\": \"" + J.name + "\", \"unit\": \"" + (J.rotary ? "deg" : "mm") +
                 "\", \"min\": " + (J.min > -1e299 ? num(J.min) : "null") + ", \"max\": " + (J.max < 1e299 ? num(J.max) : "null") +
-                ", \"low\": " + num(low_[j]) + ", \"high\": " + num(high_[j]) + ", \"max_feed\": " + num(J.max_feed) + "}";
+                ", \"low\": " + joint_num(low_[j]) + ", \"high\": " + joint_num(high_[j]) + ", \"max_feed\": " + num(J.max_feed) + "}";
     }
     data += "], \"slowed\": [" + mark_list(slowed_marks_) + "]";
     data += ", \"chain\": {\"part\": " + chain_json(m.part_chain) + ", \"tool\": " + chain_json(m.tool_chain) + "}";

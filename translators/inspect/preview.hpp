@@ -11,7 +11,7 @@
 // the report, firmware_length (the written feed's length rule).
 // Deviation of a written move: how far the firmware's joint-linear path leaves the straight line
 // between the tips at its two ends, sampled; a thinned-out point keeps the worst of the moves it
-// stands for. A move whose tip swings off that line by more than a tenth of the tolerance keeps
+// stands for. A move whose tip swings off that line by more than the tolerance keeps
 // its sampled tips, so the swing is drawn as the firmware moves it.
 // Memory is bounded whatever the file size: at most kMaxPoints moves are kept, evenly spaced
 // (when full, every other one is dropped and the spacing doubles); docs/limits.md.
