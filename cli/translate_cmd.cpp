@@ -210,7 +210,7 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         // The pre-flight estimate of the written joints: for the report, and said on a terminal.
         const bool terminal_summary = !o.inverse && ::isatty(2) && !o.output.empty() && o.output != "-";
         std::optional<Preflight> preflight;
-        if (!o.inverse && (!o.report.empty() || terminal_summary)) preflight.emplace(*machine, o.baud);
+        if (!o.inverse && (!o.report.empty() || !o.preview_html.empty() || terminal_summary)) preflight.emplace(*machine, o.baud);
 
         // The first line says what the file is: binary G-code is refused, xlate5's own header
         // of the space this run writes is a second translation (refused unless forced), the
@@ -254,8 +254,13 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         }
         // The report files are written like the output: whole, or not at all.
         std::optional<OutputSink> report_sink, plot_sink, preview_sink;
+        if (preflight) {
+            preflight->finish();
+            std::vector<std::pair<std::uint64_t, std::uint64_t>> drains;
+            for (const auto& r : preflight->drains()) drains.emplace_back(r.first, r.last);
+            if (preview) preview->set_drains(std::move(drains));
+        }
         if (!o.preview_html.empty()) preview_sink.emplace(o.preview_html), preview_sink->write(preview->html(options.input_name + " on " + machine->name));
-        if (preflight) preflight->finish();
         if (preview && !o.inverse) report->set_written(preview->report_json() + (preflight ? "  \"preflight\": " + preflight->json() + ",\n" : ""));
         if (report) {
             report->set_lines(stats.lines_in, stats.lines_out + (stats.lines_in == 0 ? 1 : 0));

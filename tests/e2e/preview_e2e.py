@@ -142,6 +142,9 @@ def main():
     check(sum(s["listed"].get(k, 0) for k in ("pole", "unwind", "branch", "rezero")) == min(
         2000, rep["pole_crossings"] + rep["unwinds"] + rep["branch_changes"] + rep["rezeros"]), f"{name}: every report mark listed (up to 2000)")
     check(dom.count('data-kind="') == len(data["marks"]), f"{name}: the report's marks in the DOM")
+    ranges = [[r["first_line"], r["last_line"]] for r in rep["preflight"]["drain_ranges"]]
+    check(data["drains"] == ranges and s["listed"]["drains"] == len(ranges) == dom.count('data-link="drain"'),
+          f"{name}: the {len(ranges)} line ranges where the link drains the planner, listed as the report has them")
 
     # The scrubber at that line: the joints written there, and the tip forward kinematics gives.
     sc = s["scrubber"]

@@ -352,7 +352,7 @@ const char* kBody =
     "<input type=\"range\" id=\"scrub\" min=\"0\" max=\"0\" value=\"0\" style=\"width:640px\"></div>"
     "<div id=\"linetext\"></div><table id=\"joints-now\"></table></div>\n"
     "<div id=\"side\"><b>Marks</b> (click one to go there)<ul id=\"marks\"></ul><b>Slowed to a joint's max_feed</b><ul id=\"slowed\"></ul>"
-    "<b>Machine bodies</b> (default, from the chains)<ul id=\"bodies\"></ul></div></div>\n"
+    "<b>Where the serial link lets the planner drain</b> (--baud)<ul id=\"drains\"></ul><b>Machine bodies</b> (default, from the chains)<ul id=\"bodies\"></ul></div></div>\n"
     "<div id=\"joints\"></div>\n<pre id=\"summary\" style=\"display:none\"></pre>\n";
 
 // The page's script, on three.js and its OrbitControls (inlined above it).
@@ -558,6 +558,13 @@ function list(id, marks, attribute) {
 }
 list('marks', D.marks, 'data-kind');
 list('slowed', D.slowed, 'data-feed');
+for (const [first, last] of D.drains) {  // output line ranges: to the last kept move at or before the first line
+  const li = document.createElement('li'), b = document.createElement('button');
+  b.textContent = 'lines ' + first + '\u2013' + last; li.setAttribute('data-link', 'drain');
+  b.addEventListener('click', () => { let i = 0; while (i + 1 < n && D.line[i + 1] <= first) i++; pose(i); });
+  li.appendChild(b); document.getElementById('drains').appendChild(li);
+}
+summary.listed.drains = D.drains.length;
 for (const k of ['pole', 'unwind', 'branch', 'rezero', 'slowed']) summary.marks[k] = D.counts[k];
 summary.counts = D.counts;
 // The joints over the file against their limits, the marks as vertical lines.
@@ -661,7 +668,10 @@ std::string Preview::html(const std::string& title) const {
                 "\", \"min\": " + (J.min > -1e299 ? num(J.min) : "null") + ", \"max\": " + (J.max < 1e299 ? num(J.max) : "null") +
                 ", \"low\": " + joint_num(low_[j]) + ", \"high\": " + joint_num(high_[j]) + ", \"max_feed\": " + num(J.max_feed) + "}";
     }
-    data += "], \"slowed\": [" + mark_list(slowed_marks_) + "]";
+    data += "], \"slowed\": [" + mark_list(slowed_marks_) + "], \"drains\": [";
+    for (std::size_t i = 0; i < drains_.size(); ++i)
+        data += std::string(i ? "," : "") + "[" + std::to_string(drains_[i].first) + "," + std::to_string(drains_[i].second) + "]";
+    data += "]";
     data += ", \"chain\": {\"part\": " + chain_json(m.part_chain) + ", \"tool\": " + chain_json(m.tool_chain) + "}";
     data += ", \"bodies\": [";
     const auto bodies = default_bodies(m);

@@ -57,6 +57,9 @@ public:
 
     // A block of written output (whole lines); G0/G1 and G92 lines move or set the joints.
     void scan(std::string_view output);
+    // The pre-flight's line ranges where the serial link lets the planner drain (first, last output
+    // line), listed on the page.
+    void set_drains(std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges) { drains_ = std::move(ranges); }
     // The page: `title` names the input file and machine.
     std::string html(const std::string& title) const;
     // What the written output holds that the report's own counts do not: JSON members, one a line
@@ -108,6 +111,7 @@ private:
     std::vector<Mark> marks_, slowed_marks_;
     std::uint64_t slowed_ = 0, slowed_runs_ = 0;
     bool slowed_last_ = false;
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> drains_;
 };
 
 }  // namespace xlate5
