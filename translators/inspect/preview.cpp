@@ -346,7 +346,7 @@ const char* kBody =
     "<div id=\"controls\"><label>Colour by <select id=\"colour\"><option value=\"tilt\">tilt</option><option value=\"dev\">deviation</option>"
     "<option value=\"feed\">feed</option></select></label><label><input type=\"checkbox\" id=\"axis\"> tool axis</label>"
     "<label><input type=\"checkbox\" id=\"machine\" checked> machine</label><label><input type=\"checkbox\" id=\"upto\"> path up to the scrubber</label>"
-    "<button id=\"fit\">fit to part</button> <span id=\"legend\"></span></div>\n"
+    "<button id=\"fit\">fit to part</button> <button id=\"worst\">worst deviation</button> <span id=\"legend\"></span></div>\n"
     "<div id=\"main\"><div><div id=\"view\"></div><p id=\"nogl\"></p>"
     "<div><button id=\"back\">&#9664;</button> <button id=\"play\">play</button> <button id=\"step\">&#9654;</button> "
     "<input type=\"range\" id=\"scrub\" min=\"0\" max=\"0\" value=\"0\" style=\"width:640px\"></div>"
@@ -544,6 +544,10 @@ mode.addEventListener('change', () => { recolour(); draw(); });
 document.getElementById('axis').addEventListener('change', e => { axes.visible = e.target.checked; draw(); });
 document.getElementById('machine').addEventListener('change', e => { machine.visible = e.target.checked; draw(); });
 document.getElementById('fit').addEventListener('click', fit);
+document.getElementById('worst').addEventListener('click', () => {  // the kept move standing for the largest deviation
+  let w = 0; for (let i = 1; i < n; i++) if (D.pose[i][8] > D.pose[w][8]) w = i;
+  pose(w);
+});
 // The lists: every kept mark, a button each that moves the scrubber to its written move.
 function list(id, marks, attribute) {
   const ul = document.getElementById(id);
