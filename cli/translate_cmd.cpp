@@ -15,7 +15,8 @@
 #include <unistd.h>
 
 #include "cli/options.hpp"
-#include "cli/preview.hpp"
+#include "translators/inspect/preflight.hpp"
+#include "translators/inspect/preview.hpp"
 #include "cli/progress.hpp"
 #include "cli/provenance.hpp"
 #include "translators/pipeline/compensation.hpp"
@@ -80,6 +81,11 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
     app.add_option("--preview", o.preview_html,
                    "write a page to look at before printing: the tip path in 3D coloured by tilt or deviation, the tool axis, the pole crossings, unwinds, branch changes and re-zeros --report counts marked, each joint against its limits")
         ->option_text("FILE.html");
+    app.add_option("--baud", o.baud,
+                   with_default("the serial link's speed for the pre-flight estimate (--report's \"preflight\", and its summary on a terminal): "
+                                "bits/s, 10 bits a byte, lines framed with numbers and checksums", "115200"))
+        ->check(number_in(300, 1e8, "bits/s", false))
+        ->option_text("BITS");
     app.add_flag("--no-progress", o.no_progress, "no progress bar on standard error (there is one only when it is a terminal)");
     app.add_option("file", o.file,
                    "translate FILE in place, atomically (as a slicer's post-processing script: PrusaSlicer, OrcaSlicer, SuperSlicer "
@@ -198,8 +204,13 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         struct stat in_stat{};
         const bool regular = ::fstat(in_fd, &in_stat) == 0 && S_ISREG(in_stat.st_mode);
         Progress progress(regular ? std::uint64_t(in_stat.st_size) : 0, !o.no_progress && ::isatty(2));
-        std::optional<Preview> preview;
-        if (!o.preview_html.empty()) preview.emplace(kinematics, *report);
+        std::optional<xlate5::Preview> preview;
+        // The report's counts of the written lines come from the preview's scan of them.
+        if (!o.preview_html.empty() || (!o.report.empty() && !o.inverse)) preview.emplace(kinematics, *report);
+        // The pre-flight estimate of the written joints: for the report, and said on a terminal.
+        const bool terminal_summary = !o.inverse && ::isatty(2) && !o.output.empty() && o.output != "-";
+        std::optional<Preflight> preflight;
+        if (!o.inverse && (!o.report.empty() || !o.preview_html.empty() || terminal_summary)) preflight.emplace(*machine, o.baud);
 
         // The first line says what the file is: binary G-code is refused, xlate5's own header
         // of the space this run writes is a second translation (refused unless forced), the
@@ -229,17 +240,28 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         };
         const auto stats = translate_stream(
             reader, front, sink, !regular, [&](const StreamStats& s) { progress.update(s.bytes_in, s.lines_in); },
-            preview ? std::function<void(std::string_view)>([&](std::string_view block) { preview->scan(block); })
-                    : std::function<void(std::string_view)>(),
+            preview || preflight ? std::function<void(std::string_view)>([&](std::string_view block) {
+                if (preview) preview->scan(block);
+                if (preflight) preflight->scan(block);
+            })
+                                 : std::function<void(std::string_view)>(),
             first_line);
         if (stats.lines_in == 0) {
             sink.write(head);  // an empty input: the header alone, and said (a slicer's failed export, a wrong path)
             if (preview) preview->scan(head);
+            if (preflight) preflight->scan(head);
             std::cerr << printable(options.input_name) << ": note: the input is empty: the output holds only xlate5's header\n";
         }
         // The report files are written like the output: whole, or not at all.
         std::optional<OutputSink> report_sink, plot_sink, preview_sink;
-        if (preview) preview_sink.emplace(o.preview_html), preview_sink->write(preview->html(options.input_name + " on " + machine->name));
+        if (preflight) {
+            preflight->finish();
+            std::vector<std::pair<std::uint64_t, std::uint64_t>> drains;
+            for (const auto& r : preflight->drains()) drains.emplace_back(r.first, r.last);
+            if (preview) preview->set_drains(std::move(drains));
+        }
+        if (!o.preview_html.empty()) preview_sink.emplace(o.preview_html), preview_sink->write(preview->html(options.input_name + " on " + machine->name));
+        if (preview && !o.inverse) report->set_written(preview->report_json() + (preflight ? "  \"preflight\": " + preflight->json() + ",\n" : ""));
         if (report) {
             report->set_lines(stats.lines_in, stats.lines_out + (stats.lines_in == 0 ? 1 : 0));
             if (!o.report.empty()) report_sink.emplace(o.report), report_sink->write(report->json());
@@ -249,6 +271,7 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         if (report_sink) report_sink->commit();
         if (plot_sink) plot_sink->commit();
         if (preview_sink) preview_sink->commit();
+        if (preflight && terminal_summary) std::cerr << preflight->summary();
     } catch (const InputError& e) {
         return exit_with(std::make_exception_ptr(made ? traced(e, *made) : e));
     } catch (...) {

@@ -8,6 +8,7 @@ pkgs=(build-essential cmake pkg-config
       printcore python3-serial
       man-db    # man-db: the manual page test renders xlate5(1) with man -l
       file      # cpack -G DEB reads the binaries' dependencies with file and dpkg-shlibdeps
+      libjs-three   # three.js and its OrbitControls, inlined into the --preview page at build time
       chromium      # the --preview test loads the page in headless Chromium (skipped without it)
       prusa-slicer  # the post-processing test slices with xlate5 as its script (skipped without it)
       lintian)      # the package test checks the .deb with it (skipped without it)

@@ -12,6 +12,7 @@
 #include "translators/error.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
+#include "translators/inspect/preflight.hpp"
 #include "translators/inspect/report.hpp"
 #include "translators/pipeline/translator.hpp"
 
@@ -420,4 +421,32 @@ TEST_CASE("the plot's title escapes the file name by XML's rules: an '&' or a cr
         CHECK((rest.rfind("&amp;", 0) == 0 || rest.rfind("&lt;", 0) == 0 || rest.rfind("&gt;", 0) == 0 ||
                rest.rfind("&quot;", 0) == 0 || rest.rfind("&apos;", 0) == 0));
     }
+}
+
+TEST_CASE("preflight: a lone move takes its trapezoid; short moves over a slow link drain the planner, a fast link keeps it fed") {
+    using namespace xlate5;
+    const Machine m = load_machine("rw2");
+    // 100 mm along X at F6000 (100 mm/s) from rest to rest at 3000 mm/s^2: 1/30 s up, 1/30 s
+    // down over 10/6 mm each, the rest at 100 mm/s.
+    Preflight one(m, 115200);
+    one.scan("G28\nG1 X100 F6000\n");
+    one.finish();
+    const double want = 2 * (100.0 / 3000) + (100 - 2 * 100.0 * 100 / 6000) / 100;
+    CHECK(one.seconds() == doctest::Approx(want).epsilon(1e-9));
+    CHECK(one.drains().empty());
+    // 2000 moves of 0.05 mm at 50 mm/s take about 1 ms each; each line is about 30 bytes, 31 ms
+    // at 9600 baud: the planner runs dry from the start; at 10 Mbit/s it never does.
+    std::string file = "G28\n";
+    for (int i = 1; i <= 2000; ++i) file += "G1 X" + std::to_string(10 + 0.05 * i) + " Y10 F3000\n";
+    Preflight slow(m, 9600), fast(m, 1e7);
+    slow.scan(file), fast.scan(file);
+    slow.finish(), fast.finish();
+    MESSAGE("slow link: " << slow.summary() << "fast link: " << fast.summary());
+    REQUIRE(!slow.drains().empty());
+    CHECK(slow.drains().front().first <= 20);
+    CHECK(slow.seconds_with_link() > 2000 * 0.03);
+    CHECK(slow.seconds_with_link() > 10 * slow.seconds());
+    CHECK(fast.drains().empty());
+    CHECK(fast.seconds_with_link() == doctest::Approx(fast.seconds()).epsilon(0.05));
+    CHECK(fast.seconds() == doctest::Approx(slow.seconds()));
 }

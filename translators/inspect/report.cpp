@@ -196,6 +196,7 @@ std::string DeviationReport::json() const {
     o += "},\n";
     // At the feeds written, without acceleration: a lower bound of the print's duration.
     o += "  \"estimated_minutes\": " + num(minutes_) + ",\n";
+    o += written_;
     o += "  \"unwinds\": " + std::to_string(turns_) + ",\n";
     o += "  \"rezeros\": " + std::to_string(rezeros_) + ",\n";
     o += "  \"branch_changes\": " + std::to_string(branches_) + "\n}\n";

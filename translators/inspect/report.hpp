@@ -53,8 +53,12 @@ public:
     std::uint64_t pole_crossings() const { return pole_crossings_; }
     std::uint64_t unwinds() const { return turns_; }
     std::uint64_t branch_changes() const { return branches_; }
+    std::uint64_t output_moves() const { return pieces_; }
     std::uint64_t rezeros() const { return rezeros_; }
 
+    // Members an observer of the written output adds to json() (the preview's scan: what only the
+    // written lines tell), each line "  \"name\": value,\n".
+    void set_written(std::string members) { written_ = std::move(members); }
     std::string json() const;
     std::string svg() const;
 
@@ -92,6 +96,7 @@ private:
     double minutes_ = 0;
     std::uint64_t turns_ = 0, branches_ = 0, rezeros_ = 0;
     std::vector<Mark> marks_;
+    std::string written_;
     std::vector<Point> series_;  // at most kMaxPoints, each the worst of `bucket_` moves
     std::uint64_t bucket_ = 1, in_bucket_ = 0;
     static constexpr std::size_t kMaxPoints = 2000;

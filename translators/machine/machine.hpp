@@ -58,6 +58,15 @@ struct Dialect {
     bool inverse_time = false;    // write G93 inverse-time feeds (RepRapFirmware supports them)
 };
 
+// The firmware's planner, for the pre-flight estimate (inspect/preflight): Marlin 2.1's stock
+// Configuration.h values unless the machine file's [firmware] says otherwise.
+struct PlannerSettings {
+    double acceleration = 3000;        // mm/s^2 (deg/s^2 for a rotary-only move): DEFAULT_ACCELERATION
+    double junction_deviation = 0.013; // mm: JUNCTION_DEVIATION_MM
+    double min_segment_time = 0.02;    // s: MIN_SEGMENT_TIME (20000 us)
+    int blocks = 16;                   // BLOCK_BUFFER_SIZE: the planner's horizon
+};
+
 // How moves are split and fed (the motion stage).
 struct MotionSettings {
     double tolerance = 0.01;       // mm: the tip may leave the programmed line by at most this
@@ -81,6 +90,7 @@ struct Machine {
     Eigen::Vector3d tool_axis = Eigen::Vector3d::UnitZ();  // tool axis in the tip frame
     OrientationMode start_mode = OrientationMode::Angles;
     Dialect dialect;
+    PlannerSettings planner;
     MotionSettings motion;
     Compensation compensation;   // measured errors, subtracted from every emitted move
 

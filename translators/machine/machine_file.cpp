@@ -355,7 +355,20 @@ Machine build(const toml::table& root, const std::string& path, const std::map<s
     if (const auto* fw = root.get("firmware")) {
         const auto* t = fw->as_table();
         if (!t) r.fail(fw, "firmware", "expected a table");
-        r.only_keys(*t, "firmware", {"dialect", "linear_decimals", "rotary_decimals", "extrusion_decimals", "inverse_time"});
+        r.only_keys(*t, "firmware", {"dialect", "linear_decimals", "rotary_decimals", "extrusion_decimals", "inverse_time",
+                                         "acceleration", "junction_deviation", "min_segment_time", "planner_blocks"});
+        for (const char* k : {"acceleration", "junction_deviation", "min_segment_time", "planner_blocks"}) {
+            if (!t->contains(k)) continue;
+            const double v = r.number(t->get(k), std::string("firmware.") + k);
+            const std::string key = k;
+            if (key == "planner_blocks") {
+                if (v < 2 || v > 256 || v != std::floor(v)) r.fail(t->get(k), "firmware.planner_blocks", "expected a whole number 2..256");
+                m.planner.blocks = int(v);
+            } else {
+                if (!(v > 0) || v > 1e7) r.fail(t->get(k), std::string("firmware.") + k, "expected a positive number up to 1e7");
+                (key == "acceleration" ? m.planner.acceleration : key == "junction_deviation" ? m.planner.junction_deviation : m.planner.min_segment_time) = v;
+            }
+        }
         if (t->contains("dialect")) {
             const std::string d = r.string(t->get("dialect"), "firmware.dialect");
             if (d == "marlin") m.dialect.firmware = FirmwareDialect::Marlin;

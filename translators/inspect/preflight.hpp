@@ -1,0 +1,75 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The pre-flight estimate of a written file (--report's "preflight", and a summary on a
+// terminal): how long the firmware takes, with its own acceleration and junction rules, and
+// whether a serial link keeps its planner fed. Stage: an observer of the written output, like
+// the preview. May call: the machine data, firmware_length (the dialect's length rule).
+// The model (docs/preflight.md): each written move a block of the dialect's length at its
+// feed, capped by each joint's max_feed; Marlin's junction deviation limits the speed between
+// blocks; the planner plans over its horizon of `blocks` blocks (each block's exit speed such
+// that the last can stop), a trapezoid per block. The link sends every line as Marlin's hosts
+// do ("N<n> <line>*<checksum>", 10 bits a byte); the firmware takes a line when its buffer has
+// room, and the buffer drains when the next move has not arrived as the last one ends.
+// Memory is bounded: the horizon's blocks, and at most kMaxRanges drain ranges.
+#pragma once
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "translators/machine/machine.hpp"
+
+namespace xlate5 {
+
+class Preflight {
+public:
+    static constexpr std::size_t kMaxRanges = 100;
+    Preflight(const Machine& machine, double baud);
+
+    void scan(std::string_view output);  // whole lines of written output
+    void finish();                        // the end of the file: the planner runs out
+
+    double seconds() const { return done_; }             // planned motion, without link stalls
+    double seconds_with_link() const { return clock_; }  // with the link's stalls
+    std::string json() const;                            // the report's "preflight" object
+    std::string summary() const;                         // one paragraph for a terminal
+
+    struct Range {
+        std::uint64_t first, last;  // output lines
+        double stall;               // seconds the planner sat empty
+    };
+    const std::vector<Range>& drains() const { return ranges_; }
+
+private:
+    struct Block {
+        double length, nominal, entry_max, entry = 0, time = 0;
+        std::vector<double> unit;
+        std::uint64_t line;
+        double bytes_at;  // link time at which it arrived
+    };
+    void line(std::string_view l);
+    void add_move(const std::vector<double>& from, const std::vector<double>& to, double feed);
+    void plan_and_pop();
+    void execute(Block& b, double exit);
+
+    const Machine& m_;
+    double link_bytes_per_s_;
+    std::vector<double> q_;
+    double f_ = 0;
+    std::uint64_t lines_ = 0, sent_ = 0, bytes_ = 0, moves_ = 0, short_moves_ = 0;
+    std::string pending_;
+    std::deque<Block> window_;
+    double link_ = 0;          // when the link has sent everything so far (s)
+    double clock_ = 0;         // when the firmware finished the last executed block (s), stalls included
+    double done_ = 0;
+    double line_seconds_ = 0;  // the link's time for the line read
+    double prev_exit_ = 0;
+    std::vector<double> prev_unit_;
+    std::deque<double> finished_;  // when each of the last `blocks` executed blocks ended (buffer room)
+    std::vector<Range> ranges_;
+    std::uint64_t drains_ = 0;
+    double stall_ = 0, peak_need_ = 0;
+    std::deque<std::pair<double, double>> need_;  // last blocks' (bytes, seconds)
+};
+
+}  // namespace xlate5

@@ -1,0 +1,117 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// `--preview FILE.html`: one self-contained page to look at a translation before printing it: a
+// 3D view (three.js with its OrbitControls, inlined: three_js.hpp) of the tip path coloured by
+// tilt, deviation or feed, travels dashed, the tool axis on demand, the bed and the build volume,
+// and the machine itself posed by forward kinematics at the written line under a scrubber; the
+// report's pole crossings, unwinds, branch changes and re-zeros and the moves a joint's max_feed
+// slows, listed and clickable; every joint over the file against its limits.
+// Stage: an observer beside the pipeline. It reads the written output back (so it shows what the
+// firmware will be told), and joins the report's marks to the written move line each ended on,
+// so the page and the report count the same. May call: translators/kinematics, the machine data,
+// the report, firmware_length (the written feed's length rule).
+// Deviation of a written move: how far the firmware's joint-linear path leaves the straight line
+// between the tips at its two ends, sampled; a thinned-out point keeps the worst of the moves it
+// stands for. A move whose tip swings off that line by more than the tolerance keeps
+// its sampled tips, so the swing is drawn as the firmware moves it.
+// Memory is bounded whatever the file size: at most kMaxPoints moves are kept, evenly spaced
+// (when full, every other one is dropped and the spacing doubles); docs/limits.md.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "translators/inspect/report.hpp"
+#include "translators/kinematics/kinematics.hpp"
+
+namespace xlate5 {
+
+// A body of the machine drawn in the preview: a shape fixed to one frame of a chain. `frame`:
+// "part" or "tool" (the chain's end: the build plate, the nozzle tip) or "part:K" / "tool:K"
+// (the frame after the chain's first K elements, "tool:0" the machine's base); `pose`: the
+// shape's place in that frame, a 3 x 4 matrix row by row (rotation, then translation); a box's
+// size is its edges along the pose's x y z, a cylinder's (radius, radius, length) along its z.
+// The default set is drawn from the chains (default_bodies); a machine file's own geometry can
+// be fed in the same way.
+struct PreviewBody {
+    std::string name;
+    std::string frame;
+    enum class Shape { Box, Cylinder } shape = Shape::Box;
+    std::array<double, 3> size{};
+    std::array<double, 12> pose{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+};
+// A simple machine from the chains alone: the bed (a table disc when the part chain turns),
+// each rotary joint's axis as a cylinder, the nozzle and its holder along the tool axis.
+std::vector<PreviewBody> default_bodies(const Machine& machine);
+
+class Preview {
+public:
+    static constexpr std::size_t kMaxPoints = 4000;
+    static constexpr std::size_t kLineText = 80;  // characters of a kept line's text shown
+    // A joint is at its max_feed when the written feed moves it at this share of it or more.
+    static constexpr double kAtMaxFeed = 0.995;
+
+    // `events`: the translation's report, whose marks arrive before the output lines they belong to.
+    Preview(const Kinematics& kinematics, const DeviationReport& events);
+
+    // A block of written output (whole lines); G0/G1 and G92 lines move or set the joints.
+    void scan(std::string_view output);
+    // The pre-flight's line ranges where the serial link lets the planner drain (first, last output
+    // line), listed on the page.
+    void set_drains(std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges) { drains_ = std::move(ranges); }
+    // The page: `title` names the input file and machine.
+    std::string html(const std::string& title) const;
+    // What the written output holds that the report's own counts do not: JSON members, one a line
+    // (DeviationReport::set_written).
+    std::string report_json() const;
+
+    std::size_t points() const { return q_.size() / joints_; }
+    std::uint64_t move_lines() const { return moves_; }
+    std::uint64_t slowed_moves() const { return slowed_; }
+
+    enum class Kind { PoleCrossing, Unwind, BranchChange, Rezero, Slowed };
+    struct Mark {
+        Kind kind;
+        std::uint64_t move;  // written move number, from 0
+        double tip[3];
+    };
+    // The report's events at the written moves they ended on, then the slowed runs.
+    const std::vector<Mark>& marks() const { return marks_; }
+
+private:
+    void line(std::string_view l);
+    void keep();
+    double deviation(const std::vector<double>& from, const std::vector<double>& to, bool keep_samples);
+    void join_marks(std::uint64_t through);
+    void check_feed();
+
+    const Kinematics& kin_;
+    const DeviationReport& events_;
+    std::size_t joined_ = 0;       // the report's marks placed so far
+    std::size_t joints_;
+    std::vector<double> q_now_;
+    std::vector<double> q_;        // kept moves: joints, row by row
+    std::vector<char> prints_;     // kept moves: 1 when the move extrudes (it has an E word)
+    std::vector<double> feed_;     // kept moves: the feed written (modal)
+    std::vector<std::uint64_t> move_no_, line_no_;  // kept moves: written move number (from 0), output line (from 1)
+    std::vector<std::string> text_;  // kept moves: the line's text (at most kLineText characters)
+    std::vector<std::vector<double>> swing_;  // kept moves: sampled tips of a move that leaves its chord (else empty)
+    bool printing_ = false;        // the line being read extrudes
+    double f_ = 0;                 // modal feed as written
+    std::vector<double> low_, high_;  // every move's joints, not only the kept ones
+    std::uint64_t moves_ = 0, every_ = 1, lines_ = 0;
+    std::string pending_;          // a line cut by the block boundary
+    std::string_view current_;     // the line being read
+    std::vector<double> dev_;      // kept moves: worst tip deviation (mm) of the moves each stands for
+    double dev_since_ = 0;         // worst deviation of the moves since the last kept one
+    std::vector<double> swing_now_, swing_since_;  // sampled tips of the move read, of the worst since the last kept
+    double swing_dev_ = 0;
+    std::vector<double> q_before_; // joints before the move being read
+    std::vector<Mark> marks_, slowed_marks_;
+    std::uint64_t slowed_ = 0, slowed_runs_ = 0;
+    bool slowed_last_ = false;
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> drains_;
+};
+
+}  // namespace xlate5
