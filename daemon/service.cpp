@@ -388,9 +388,7 @@ void Service::sender_command(SenderSession& s, std::string_view command, proto::
         const auto owner = owner_.lock();
         const std::string why = "xlate5: busy: " + (owner ? owner->name() : std::string("another sender")) +
                                 " is printing; '" + proto::strip_comment(command) + "' was not run";
-        s.send_line("echo:" + why);
-        s.send_line("//action:notification " + why);
-        s.ok();
+        s.turned_away(why);
         return;
     }
     if (code.is('M', 999)) {
@@ -475,30 +473,16 @@ void Service::pump() {
 }
 
 void Service::refuse_line(const Pending& p, const std::string& cause) {
-    // The command's own text, not "sender:1023". OctoPrint takes any Error: that is not about
-    // line numbers or checksums as fatal and sends M112 to a healthy printer: a refused line
-    // is told with echo: and an action command instead (docs/service.md).
+    // The command's own text, not "sender:1023"; the words are SenderProtocol::refused's.
     auto session = p.session.lock();
     const std::string quoted = "line " + std::to_string(p.line_no) + " '" + proto::strip_comment(p.command) + "': " + cause;
     ++stats_.rejected;
     log_refusal(session, "refused " + quoted);
-    if (!p.numbered) {
-        // Typed in a terminal: refused, and nothing else changes.
-        if (session) {
-            session->send_line("echo:xlate5: refused " + quoted);
-            session->send_line("//action:notification xlate5: refused " + quoted);
-            session->ok();
-        }
-        return;
-    }
+    if (session) session->refused(quoted, p.numbered);
+    // Typed in a terminal: refused, and nothing else changes.
+    if (!p.numbered) return;
     // Part of a print: the print ends there; every line before it runs (what the look-back
     // held included), nothing after it.
-    if (session) {
-        session->send_line("//action:cancel");
-        session->send_line("echo:xlate5: print cancelled at " + quoted);
-        session->send_line("//action:notification xlate5: print cancelled at " + quoted);
-        session->ok();
-    }
     release_held();
     stop_healthy_ = true;
     ++stats_.cancelled;
@@ -541,17 +525,9 @@ void Service::enqueue_all(std::vector<std::string>& commands, std::uint64_t tag,
 void Service::process(const Pending& p) {
     auto session = p.session.lock();
     if (stopped() || !firmware_) {
-        if (session) {
-            if (stop_healthy_) {
-                // The print was cancelled; the printer is fine: not an Error: (OctoPrint would send M112).
-                session->send_line("echo:xlate5: not run: '" + proto::strip_comment(p.command) + "' (" + stop_reason_ +
-                                   "); start a new print or send M999");
-            } else {
-                session->send_line("Error:Printer stopped (xlate5): " + (stopped() ? stop_reason_ : std::string("no firmware")) +
-                                   ". Fix the cause and send M999 to restart.");
-            }
-            session->ok();
-        }
+        // A cancelled print leaves the printer fine: not an Error: (OctoPrint would send M112).
+        if (session)
+            session->not_run(proto::strip_comment(p.command), stopped() ? stop_reason_ : std::string("no firmware"), stop_healthy_);
         ++stats_.rejected;
         log_refusal(session, "line " + std::to_string(p.line_no) + " '" + proto::strip_comment(p.command) + "' not run: " +
                                  (stopped() ? stop_reason_ : std::string("no firmware")));
@@ -624,7 +600,7 @@ void Service::arm_busy() {
     busy_timer_.async_wait(lifetime_.guard([this](boost::system::error_code ec) {
         busy_armed_ = false;
         if (ec || pending_.empty()) return;
-        if (auto s = pending_.front().session.lock()) s->send_line("echo:busy: processing");
+        if (auto s = pending_.front().session.lock()) s->busy();
         arm_busy();
     }));
 }
