@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The sender side's protocol on its own, with no link and no pseudo-terminal: scripted sender
-// lines in, the replies and the commands handed to the service checked. The reference for what
+// lines in, the replies and the commands handed to the service checked. Then the service's
+// policy (ServeSteps: what is refused, acknowledged, held and released) on its own, against
+// offline translation. The reference for what
 // must be refused is Marlin's own receive code (queue.cpp, bugfix-2.1.x, as the project's
 // protocol notes quote it), written out below independently of the line checker.
 #include <doctest/doctest.h>
@@ -14,6 +16,9 @@
 #include "daemon/line_checker.hpp"
 #include "daemon/line_protocol.hpp"
 #include "daemon/sender_protocol.hpp"
+#include "daemon/serve_steps.hpp"
+#include "daemon/service.hpp"
+#include "helpers.hpp"
 
 using namespace xlate5;
 
@@ -304,4 +309,220 @@ TEST_CASE("sender protocol: at least as strict as Marlin's receive code on damag
     REQUIRE(run.size() == program.size());
     for (std::size_t i = 0; i < run.size(); ++i) CHECK(run[i] == proto::strip_comment(program[i]));
     MESSAGE("refused " << refused << ", dropped " << dropped << ", refused where Marlin takes " << stricter);
+}
+
+namespace {
+
+Machine rw2() { return load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/rw2.toml"); }
+
+// ServeSteps as Service sets it up: a translator for `machine`, Marlin's 96-byte line buffer.
+struct Steps {
+    Machine machine;
+    Kinematics kin;
+    ServeSteps steps;
+    explicit Steps(Machine m, ServeSteps::Position start = ServeSteps::Position::Unknown, std::size_t max_line = marlin::kMaxCmdSize)
+        : machine(std::move(m)), kin(machine), steps(machine, TranslatorOptions{}, start) {
+        steps.reset(kin);
+        FirmwareOptions f;
+        f.max_line = max_line;
+        steps.set_room({FirmwareProtocol(f).max_command()});
+    }
+    ServeSteps::Step line(const std::string& l, std::uint64_t n) { return steps.line(l, proto::command_code(proto::strip_comment(l)), n); }
+};
+
+void append(std::vector<std::string>& to, const ServeSteps::Batch& b) { to.insert(to.end(), b.lines.begin(), b.lines.end()); }
+
+}  // namespace
+
+TEST_CASE("serve steps: a print without waits is translated exactly as offline") {
+    const auto lines = test::unwinding_print(false);
+    Steps s(rw2(), ServeSteps::Position::Known);
+    std::vector<std::string> out;
+    std::uint64_t n = 0;
+    for (const auto& l : lines) {
+        const auto step = s.line(l, ++n);
+        REQUIRE(step.refused.empty());
+        CHECK(step.released.lines.empty());  // nothing released early: no wait or report came
+        CHECK_FALSE(step.firmware_answers);
+        append(out, step.own);
+    }
+    CHECK(s.steps.holding());  // the last window is open until the end
+    ServeSteps::Batch rest;
+    std::string bad;
+    REQUIRE(s.steps.release(rest, bad));
+    append(out, rest);
+    CHECK_FALSE(s.steps.holding());
+    CHECK(s.steps.lines_in() == lines.size());
+    CHECK(out == firmware_commands(s.machine, lines));
+}
+
+TEST_CASE("serve steps: a wait releases the held output first and is answered by the firmware") {
+    const auto lines = test::unwinding_print(true);
+    Steps s(rw2(), ServeSteps::Position::Known);
+    std::uint64_t n = 0;
+    bool released = false;
+    std::vector<std::string> out;
+    for (const auto& l : lines) {
+        const auto step = s.line(l, ++n);
+        if (!step.refused.empty()) {
+            // The turn back the look-back would have found lies behind the release: serve refuses
+            // a later line (serve --check says so), where offline translation unwinds.
+            CHECK(released);
+            CHECK_FALSE(step.too_long);
+            CHECK(step.refused.find("outside its limits") != std::string::npos);
+            break;
+        }
+        append(out, step.released);
+        if (l != "M400") {
+            CHECK(step.released.lines.empty());
+            append(out, step.own);
+            continue;
+        }
+        CHECK(step.firmware_answers);
+        REQUIRE_FALSE(step.released.lines.empty());
+        released = true;
+        // The window opened before it and reaches the M400 (the serials its output stands for).
+        CHECK(step.released.first < n);
+        CHECK(step.released.first + step.released.span - 1 == n);
+        CHECK_FALSE(s.steps.holding());
+        // Everything before the M400 is out, as offline translation of the lines before it
+        // gives them when it finishes there.
+        CHECK(out == firmware_commands(s.machine, std::vector<std::string>(lines.begin(), lines.begin() + std::ptrdiff_t(n - 1))));
+        CHECK(step.own.lines == std::vector<std::string>{"M400"});
+        append(out, step.own);
+    }
+    CHECK(released);
+    // Temperatures are answered by the firmware but never end a window.
+    Steps t(rw2(), ServeSteps::Position::Known);
+    n = 0;
+    for (const auto& l : test::unwinding_print(false)) t.line(l, ++n);
+    REQUIRE(t.steps.holding());
+    const auto m105 = t.line("M105", ++n);
+    CHECK(m105.firmware_answers);
+    CHECK(m105.released.lines.empty());
+    CHECK(m105.own.lines == std::vector<std::string>{"M105"});
+    CHECK(t.steps.holding());
+}
+
+TEST_CASE("serve steps: while the position is unknown only homing moves the machine") {
+    Steps s(rw2());
+    auto step = s.line("G1 X10 Y10 Z5", 1);
+    CHECK(step.refused.find("the printer's position is not known (the firmware has not reported it yet): home it (G28) first") == 0);
+    CHECK(step.own.lines.empty());
+    CHECK(s.steps.lines_in() == 0);  // refused before it is translated or counted
+    CHECK(s.line("M105", 2).refused.empty());
+    // Homing some axes leaves the others unknown; a G28 naming none homes them all.
+    CHECK(s.line("G28 A", 3).refused.empty());
+    CHECK(s.steps.position() == ServeSteps::Position::Unknown);
+    CHECK_FALSE(s.line("G0 X1", 4).refused.empty());
+    CHECK(s.line("G28 ; all", 5).refused.empty());
+    CHECK(s.steps.position() == ServeSteps::Position::Known);
+    CHECK(s.line("G1 X10 Y10 Z5", 6).refused.empty());
+    // The firmware stopped: unknown again, and said why.
+    s.steps.position_lost("it reset");
+    step = s.line("G1 X11", 7);
+    CHECK(step.refused.find("(the firmware stopped: it reset)") != std::string::npos);
+}
+
+TEST_CASE("serve steps: the position asked of the firmware, answered or not") {
+    Steps s(rw2());
+    REQUIRE(s.steps.ask_position());
+    CHECK(s.steps.position() == ServeSteps::Position::Asking);
+    // Nothing is taken from the senders while the question is out.
+    ServeSteps::QueueState q;
+    q.firmware = q.firmware_ready = true;
+    q.queue_lines = 64;
+    CHECK(s.steps.gate(q) == ServeSteps::Gate::Wait);
+    s.steps.position_unanswered();
+    CHECK(s.steps.position() == ServeSteps::Position::Unknown);
+    CHECK(s.steps.position_why() == "the firmware did not answer M114 with a position");
+    CHECK(s.steps.gate(q) == ServeSteps::Gate::Take);
+    // A report places the translator where the firmware is.
+    REQUIRE(s.steps.ask_position());
+    std::vector<double> q0(s.machine.joints.size(), 0.0);
+    q0[0] = 7;
+    s.steps.position_read(&q0, 2.5, "");
+    CHECK(s.steps.position() == ServeSteps::Position::Known);
+    CHECK(s.steps.translator().joints()[0] == doctest::Approx(7));
+    REQUIRE(s.steps.ask_position());
+    s.steps.position_read(nullptr, std::nullopt, "it has no B");
+    CHECK(s.steps.position_why() == "the firmware's M114 answer could not be read: it has no B");
+    // Not asked while the look-back holds output: the translator is ahead of the firmware.
+    Steps h(rw2(), ServeSteps::Position::Known);
+    std::uint64_t n = 0;
+    for (const auto& l : test::unwinding_print(false)) h.line(l, ++n);
+    REQUIRE(h.steps.holding());
+    CHECK_FALSE(h.steps.ask_position());
+    CHECK(h.steps.position() == ServeSteps::Position::Known);
+}
+
+TEST_CASE("serve steps: the firmware's line buffer decides before the ok") {
+    // A 40-byte buffer, of which N and the checksum take their room.
+    Steps s(rw2(), ServeSteps::Position::Known, 40);
+    FirmwareOptions f;
+    f.max_line = 40;
+    const std::size_t room = FirmwareProtocol(f).max_command();
+    REQUIRE(room == 25);
+    REQUIRE(s.steps.gate({}) == ServeSteps::Gate::Take);
+    // A command passed on as written that no line holds: refused before it is counted.
+    auto step = s.line("M23 /sd/a_very_long_file_name_indeed.gcode", 1);
+    CHECK(step.too_long);
+    CHECK(step.refused == "'M23 /sd/a_very_long_file_name_indeed.gcode' is longer than the firmware's line buffer (25 characters with "
+                          "its line number and checksum)");
+    CHECK(s.steps.lines_in() == 0);
+    // A message is shortened to fit, and said so.
+    step = s.line("M117 printing the second layer now", 2);
+    REQUIRE(step.refused.empty());
+    REQUIRE(step.own.lines.size() == 1);
+    CHECK(step.own.lines[0] == std::string("M117 printing the second layer now").substr(0, room));
+    CHECK(step.own.changed);
+    CHECK(step.own.split == 0);
+    // A move's F goes to a line of its own.
+    std::vector<std::string> parts;
+    CHECK(split_for_firmware({room}, "G1 X100.5 Y100.25 Z5.5 F1200", parts));
+    CHECK(parts == std::vector<std::string>{"G1 F1200", "G1 X100.5 Y100.25 Z5.5"});
+    CHECK_FALSE(split_for_firmware({room}, "G1 X100.5 Y100.25 Z5.5 A12.5 F1200", parts));
+}
+
+TEST_CASE("serve steps: a line the translator refuses leaves nothing queued") {
+    Steps s(rw2(), ServeSteps::Position::Known);
+    CHECK(s.line("G28", 1).refused.empty());
+    const auto step = s.line("G1 X10 Q5", 2);
+    CHECK_FALSE(step.refused.empty());
+    CHECK_FALSE(step.too_long);
+    CHECK(step.own.lines.empty());
+    CHECK(s.steps.lines_in() == 2);  // translated (and refused by the translator)
+}
+
+TEST_CASE("serve steps: which lines are taken from the senders, and when") {
+    Steps s(rw2(), ServeSteps::Position::Known);
+    using G = ServeSteps::Gate;
+    ServeSteps::QueueState q;
+    q.firmware = q.firmware_ready = true;
+    q.queue_lines = 4;
+    CHECK(s.steps.gate(q) == G::Take);
+    q.queued = 4;  // the queue is full: the sender waits for its ok (busy)
+    CHECK(s.steps.gate(q) == G::Wait);
+    q.queued = 0;
+    q.firmware_ready = false;  // greeting or resyncing
+    CHECK(s.steps.gate(q) == G::Wait);
+    q.stopped = true;  // stopped: answered at once (not run)
+    CHECK(s.steps.gate(q) == G::Take);
+    q.draining = true;  // draining: lines not yet acknowledged stay with the sender
+    CHECK(s.steps.gate(q) == G::Keep);
+    CHECK(s.steps.gate(ServeSteps::QueueState{}) == G::Take);  // no firmware: answered at once (not run)
+}
+
+TEST_CASE("serve steps: G28 reads axis letters as the interpreter does") {
+    const Machine m = rw2();
+    CHECK(homes_all(m, "G28"));
+    CHECK(homes_all(m, "G28 ; X"));
+    CHECK_FALSE(homes_all(m, "G28 X"));
+    CHECK_FALSE(homes_all(m, "G28 a"));
+    for (const auto& j : m.joints) {
+        CHECK(is_axis_letter(m, j.name));
+        CHECK_FALSE(homes_all(m, std::string("G28 ") + j.name));
+    }
+    CHECK_FALSE(is_axis_letter(m, 'E'));
+    CHECK(homes_all(m, "G28 E"));  // not an axis: the translator refuses the word, no position is claimed
 }
