@@ -2,9 +2,6 @@
 #include "daemon/service.hpp"
 
 #include <algorithm>
-#include <charconv>
-#include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <spdlog/spdlog.h>
 
@@ -467,42 +464,6 @@ void Service::ask_position() {
     firmware_->enqueue("M114", position_tag_);
 }
 
-std::optional<Service::Reported> Service::read_position(std::string_view report, std::string& why) const {
-    // "X:7.00 Y:0.00 Z:0.00 A:10.00 B:5.00 E:0.00 Count X:560 …": the words before "Count".
-    Reported r;
-    r.q.assign(machine_.joints.size(), 0.0);
-    std::vector<bool> seen(machine_.joints.size(), false);
-    std::string_view words = report.substr(0, report.find("Count"));
-    for (std::size_t i = 0; i + 1 < words.size(); ++i) {
-        if (words[i + 1] != ':' || (i > 0 && words[i - 1] != ' ')) continue;
-        std::string_view v = words.substr(i + 2);
-        while (!v.empty() && v.front() == ' ') v.remove_prefix(1);
-        const std::string_view token = v.substr(0, v.find(' '));
-        double x = 0;
-        const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), x);
-        const bool number = ec == std::errc() && end == token.data() + token.size() && std::isfinite(x);
-        if (words[i] == 'E') {
-            if (number) r.e = x;
-            continue;
-        }
-        for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
-            if (machine_.joints[j].output != words[i]) continue;
-            if (!number) {
-                why = std::string("its ") + words[i] + " is '" + std::string(token) + "', not a number";
-                return std::nullopt;
-            }
-            r.q[j] = x;
-            seen[j] = true;
-        }
-    }
-    for (std::size_t j = 0; j < machine_.joints.size(); ++j)
-        if (!seen[j]) {
-            why = std::string("it has no ") + machine_.joints[j].output;
-            return std::nullopt;
-        }
-    machine_.compensation.undo(r.q);
-    return r;
-}
 
 void Service::firmware_acked(std::uint64_t tag, std::string_view ok_payload) {
     if (tag != 0 && tag == position_tag_) {
@@ -533,33 +494,11 @@ void Service::firmware_fault(const std::string& why, std::size_t lines_not_execu
     check_drained();
 }
 
-std::string Service::tool_space_position(const Reported& at) const {
-    // The nominal joints read_position took from the firmware's report -> tip and angles in the
-    // part frame.
-    const std::vector<double>& q = at.q;
-    const Pose pose = kin_->forward(q);
-    const Eigen::Vector3d tip = pose.tip - steps_.translator().program_offset();
-    char buf[96];
-    std::snprintf(buf, sizeof buf, "X:%.2f Y:%.2f Z:%.2f", tip.x(), tip.y(), tip.z());
-    std::string out = buf;
-    // E right after Z: OctoPrint 1.x reads M114 only as "X: Y: Z: E:" (docs/service.md); the
-    // rotaries follow.
-    if (at.e) {
-        std::snprintf(buf, sizeof buf, " E:%.2f", *at.e);
-        out += buf;
-    }
-    for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
-        if (!machine_.joints[j].rotary) continue;
-        std::snprintf(buf, sizeof buf, " %c:%.2f", machine_.joints[j].name, q[j]);
-        out += buf;
-    }
-    return out;
-}
 
 void Service::firmware_message(std::string_view line) {
     if (line.rfind("X:", 0) == 0 && line.find(" Y:") != std::string_view::npos) {
         std::string why;
-        const auto at = read_position(line, why);
+        const auto at = read_position(machine_, line, why);
         if (steps_.position() == ServeSteps::Position::Asking && position_tag_ != 0) {
             // The service's own question: the answer places the translator; no sender asked.
             steps_.position_read(at ? &at->q : nullptr, at ? at->e : std::nullopt, why);
@@ -571,7 +510,7 @@ void Service::firmware_message(std::string_view line) {
             broadcast("echo:xlate5: the firmware's position report could not be read (" + why + "): " + std::string(line));
             return;
         }
-        broadcast(tool_space_position(*at));
+        broadcast(tool_space_position(machine_, *kin_, steps_.translator().program_offset(), *at));
         return;
     }
     broadcast(line);

@@ -17,6 +17,7 @@
 #include "daemon/firmware_link.hpp"
 #include "daemon/lifetime.hpp"
 #include "daemon/log_policy.hpp"
+#include "daemon/position_report.hpp"
 #include "daemon/sender_session.hpp"
 #include "daemon/serve_steps.hpp"
 #include "translators/kinematics/kinematics.hpp"
@@ -138,11 +139,6 @@ private:
     void broadcast(std::string_view line);
     void arm_busy();
     void check_drained();
-    // The joints (nominal) and E of a firmware's M114 report; nullopt, with why, when any of the
-    // machine's joints is missing or not a number.
-    struct Reported { std::vector<double> q; std::optional<double> e; };
-    std::optional<Reported> read_position(std::string_view report, std::string& why) const;
-    std::string tool_space_position(const Reported& at) const;
     void ask_position();
     void reset_translator();
     void release_held();

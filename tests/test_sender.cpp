@@ -7,7 +7,10 @@
 // protocol notes quote it), written out below independently of the line checker.
 #include <doctest/doctest.h>
 
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <map>
 #include <cstring>
 #include <random>
 #include <string>
@@ -15,6 +18,7 @@
 
 #include "daemon/line_checker.hpp"
 #include "daemon/line_protocol.hpp"
+#include "daemon/position_report.hpp"
 #include "daemon/sender_protocol.hpp"
 #include "daemon/serve_steps.hpp"
 #include "daemon/service.hpp"
@@ -525,4 +529,41 @@ TEST_CASE("serve steps: G28 reads axis letters as the interpreter does") {
     }
     CHECK_FALSE(is_axis_letter(m, 'E'));
     CHECK(homes_all(m, "G28 E"));  // not an axis: the translator refuses the word, no position is claimed
+}
+
+TEST_CASE("position report: the firmware's joints read, and told in tool space") {
+    const Machine m = rw2();
+    const Kinematics kin(m);
+    std::string why;
+    // Marlin's shape: the joints by their firmware letters, E, then the step counts (ignored).
+    const auto at = read_position(m, "X:7.00 Y:-3.50 Z:12.25 A:10.00 B:5.00 E:1.50 Count X:560 Y:0 Z:0 A:-28000 B:-6800", why);
+    REQUIRE(at);
+    REQUIRE(at->q.size() == m.joints.size());
+    std::vector<double> expected(m.joints.size(), 0.0);
+    for (std::size_t j = 0; j < m.joints.size(); ++j) {
+        const std::map<char, double> words = {{'X', 7}, {'Y', -3.5}, {'Z', 12.25}, {'A', 10}, {'B', 5}};
+        expected[j] = words.at(m.joints[j].output);
+    }
+    m.compensation.undo(expected);
+    for (std::size_t j = 0; j < m.joints.size(); ++j) CHECK(at->q[j] == doctest::Approx(expected[j]));
+    REQUIRE(at->e);
+    CHECK(*at->e == doctest::Approx(1.5));
+    // Refused whole: a joint missing, or not a number.
+    CHECK_FALSE(read_position(m, "X:7.00 Y:0.00 Z:0.00 A:10.00 E:0.00 Count X:1 Y:0 Z:0 A:0 B:0", why));
+    CHECK(why == "it has no B");
+    CHECK_FALSE(read_position(m, "X:7.00 Y:0.00 Z:0.00 A:nan B:5.00", why));
+    CHECK(why == "its A is 'nan', not a number");
+    // Told in tool space: the tip by the forward kinematics (in the program frame), E right after
+    // Z, then the rotary joints.
+    const Eigen::Vector3d offset(1, 2, 3);
+    const std::string told = tool_space_position(m, kin, offset, *at);
+    const Eigen::Vector3d tip = kin.forward(at->q).tip - offset;
+    double x = 0, y = 0, z = 0, e = 0, a = 0, b = 0;
+    REQUIRE(std::sscanf(told.c_str(), "X:%lf Y:%lf Z:%lf E:%lf A:%lf B:%lf", &x, &y, &z, &e, &a, &b) == 6);
+    CHECK(std::abs(x - tip.x()) <= 0.005);
+    CHECK(std::abs(y - tip.y()) <= 0.005);
+    CHECK(std::abs(z - tip.z()) <= 0.005);
+    CHECK(e == doctest::Approx(1.5));
+    CHECK(a == doctest::Approx(at->q[3]));
+    CHECK(b == doctest::Approx(at->q[4]));
 }
