@@ -30,9 +30,9 @@ import termios
 import time
 import tty
 
-# The comment-stripping the end-to-end test compares with: one rule for both.
+# The end-to-end tests' serve start-up and comment stripping: one rule for both.
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests", "e2e"))
-from service_e2e import strip  # noqa: E402
+from common import start_serve, strip  # noqa: E402
 
 
 def checksum(text):
@@ -214,21 +214,15 @@ def main():
         knobs = ("settle %g s, reply_timeout %g s, nudge %s, corrupt %g, drop %g, a reset every %d commands, seed %d"
                  % (settle, reply_timeout, "default" if nudge is None else "%g s" % nudge, corrupt, drop, reset_every, seed))
         print("soak: %d lines in %d prints of %d on %s; %s" % (prints * print_lines, prints, print_lines, machine, knobs), flush=True)
-        serve = subprocess.Popen([xlate5, "serve", "--machine", machine, "--printer", "sim", "--pty", pty,
-                                  "--record", record, "--reply-timeout", repr(reply_timeout), "--settle", repr(settle),
-                                  "--boot-wait", "0.2",
-                                  "--sim-fault", "corrupt=%r" % corrupt, "--sim-fault", "drop=%r" % drop,
-                                  "--sim-fault", "reset_every=%d" % reset_every, "--sim-fault", "seed=%d" % seed,
-                                  "--log-level", "warn"] + ([] if nudge is None else ["--nudge", repr(nudge)]), stderr=log)
+        serve = start_serve(xlate5, ["--machine", machine, "--printer", "sim",
+                                     "--record", record, "--reply-timeout", repr(reply_timeout), "--settle", repr(settle),
+                                     "--boot-wait", "0.2",
+                                     "--sim-fault", "corrupt=%r" % corrupt, "--sim-fault", "drop=%r" % drop,
+                                     "--sim-fault", "reset_every=%d" % reset_every, "--sim-fault", "seed=%d" % seed,
+                                     "--log-level", "warn"] + ([] if nudge is None else ["--nudge", repr(nudge)]), pty, log)
         samples = []
         start = time.time()
         try:
-            deadline = time.time() + 20
-            while not os.path.exists(pty):
-                if time.time() > deadline or serve.poll() is not None:
-                    log.seek(0)
-                    raise SystemExit("xlate5 serve did not start:\n" + log.read())
-                time.sleep(0.05)
             sender = Sender(pty)
             sent = complete = cut = 0
             last_sample = 0

@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The sender side: xlate5 as the printer an OctoPrint-style sender believes it talks to. Checks
-// "N<n> … *<cs>" lines the way Marlin does (Error:/Resend:/ok), handles the line-protocol and
-// emergency commands itself, and hands every other command to the service, which answers ok
-// once the command is in xlate5's queue. Stage: the service, sender end; may call
-// line_checker, line_protocol, link.
+// The sender side of the service, on a real link (stage: service, sender end; may call
+// sender_protocol, link): xlate5 as the printer an OctoPrint-style sender believes it talks to.
+// The protocol itself (Marlin's receive rules, the replies' words) is the I/O-free
+// SenderProtocol; this adapter feeds it the link's lines, writes the lines it says to write and
+// hands the service the commands it takes. The service answers ok once a command is in
+// xlate5's queue.
 #pragma once
 #include <chrono>
 #include <cstdint>
@@ -12,9 +13,9 @@
 #include <string_view>
 
 #include "daemon/lifetime.hpp"
-#include "daemon/line_checker.hpp"
 #include "daemon/line_protocol.hpp"
 #include "daemon/link.hpp"
+#include "daemon/sender_protocol.hpp"
 
 namespace xlate5 {
 
@@ -46,10 +47,18 @@ public:
     ~SenderSession();
     void start();
     void close();
-    void send_line(std::string_view line);      // one reply line; '\n' added
-    void ok(std::string_view payload = {});     // "ok" + payload
+    // The service's answers (SenderProtocol's events of the same names).
+    void send_line(std::string_view line) { proto_.say(line); after_event(); }  // one reply line
+    void ok(std::string_view payload = {}) { proto_.ok(payload); after_event(); }
+    void busy() { proto_.busy(); after_event(); }
+    void refused(std::string_view quoted, bool numbered) { proto_.refused(quoted, numbered); after_event(); }
+    void not_run(std::string_view command, std::string_view reason, bool healthy) {
+        proto_.not_run(command, reason, healthy);
+        after_event();
+    }
+    void turned_away(std::string_view why) { proto_.turned_away(why); after_event(); }
     const std::string& name() const { return name_; }
-    std::int64_t last_line() const { return checker_.last_line(); }
+    std::int64_t last_line() const { return proto_.last_line(); }
     bool open() const { return link_->open(); }
     void pause_reading() { link_->pause_reading(); }
     void resume_reading() { link_->resume_reading(); }
@@ -60,14 +69,13 @@ public:
     static constexpr std::size_t kMaxUnreadBytes = std::size_t(1) << 20;
 
 private:
-    void on_line(std::string_view line);
-    void refuse(std::string_view why);
+    void after_event();  // carry out the protocol's actions
+    void write(const std::string& line);
 
     std::shared_ptr<Link> link_;
     Host& host_;
     std::string name_;
-    proto::LineChecker checker_{/*strict_unnumbered=*/true};
-    std::uint64_t received_ = 0;
+    SenderProtocol proto_;
     std::chrono::steady_clock::time_point last_heard_ = std::chrono::steady_clock::now();
     Lifetime lifetime_;
 };

@@ -2,91 +2,12 @@
 #include "daemon/service.hpp"
 
 #include <algorithm>
-#include <charconv>
-#include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <spdlog/spdlog.h>
 
 #include "daemon/line_protocol.hpp"
-#include "translators/error.hpp"
 
 namespace xlate5 {
-namespace {
-
-// M114 prints joints to two decimals: a report this close to the translator's joints is them.
-constexpr double kReportResolution = 0.005;
-
-// Commands whose answer comes with (or before) the firmware's ok: the sender gets that ok, so
-// reports arrive where it expects them and waits (M400, M109) stay truthful.
-bool answered_by_firmware(const proto::Code& c) {
-    if (c.letter != 'M') return false;
-    switch (c.code10 / 10) {
-        case 20: case 27: case 31: case 105: case 109: case 114: case 119: case 190: case 211: case 400: case 503:
-            return c.code10 % 10 == 0;
-        default:
-            return false;
-    }
-}
-
-// A firmware that reads at most max_line bytes per line must never get a longer one: F moves to
-// a line of its own, a message is shortened; anything else is refused.
-template <class Firmware>
-bool split_for_firmware(const Firmware& fw, const std::string& cmd, std::vector<std::string>& parts) {
-    parts.clear();
-    if (fw.fits(cmd)) {
-        parts.push_back(cmd);
-        return true;
-    }
-    const auto code = proto::command_code(cmd);
-    if (code.letter == 'G' && (code.code10 == 0 || code.code10 == 10)) {
-        const auto f = cmd.find(" F");
-        if (f != std::string::npos) {
-            auto end = cmd.find(' ', f + 1);
-            const std::string fword = cmd.substr(f + 1, end == std::string::npos ? std::string::npos : end - f - 1);
-            std::string rest = cmd.substr(0, f) + (end == std::string::npos ? "" : cmd.substr(end));
-            const std::string feed = cmd.substr(0, cmd.find(' ')) + " " + fword;
-            if (fw.fits(feed) && fw.fits(rest)) {
-                parts.push_back(feed);  // F alone moves nothing and sets the feed for the next line
-                parts.push_back(rest);
-                return true;
-            }
-        }
-        return false;
-    }
-    if (code.letter == 'M' && (code.code10 == 1170 || code.code10 == 1180)) {
-        std::string s = cmd;
-        while (!s.empty() && !fw.fits(s)) s.pop_back();
-        parts.push_back(s);
-        return true;
-    }
-    return false;
-}
-
-// G28 with no axis named homes every axis: the position is known again.
-bool homes_all(std::string_view command) {
-    const std::string text = proto::strip_comment(command);
-    const auto space = text.find(' ');
-    if (space == std::string::npos) return true;
-    for (std::size_t i = space; i < text.size(); ++i)
-        if (std::string_view("XYZABCUVWxyzabcuvw").find(text[i]) != std::string_view::npos) return false;
-    return true;
-}
-
-// A command the translator passes on as written (not a move) that no firmware line could hold:
-// refused before the sender is answered, so that the lines acknowledged before it never wait
-// behind a line that cannot be sent (docs/service.md).
-template <class Firmware>
-std::optional<std::string> unsendable(const Firmware& fw, const proto::Code& code, std::string_view command) {
-    if (code.letter == 'G' && code.code10 <= 30 && code.code10 % 10 == 0) return std::nullopt;  // G0-G3: written anew
-    const std::string text = proto::strip_comment(command);
-    std::vector<std::string> parts;
-    if (split_for_firmware(fw, text, parts)) return std::nullopt;
-    return "'" + text + "' is longer than the firmware's line buffer (" + std::to_string(fw.max_command()) +
-           " characters with its line number and checksum)";
-}
-
-}  // namespace
 
 std::vector<std::string> firmware_commands(const Machine& machine, const std::vector<std::string>& lines, const TranslatorOptions& options) {
     // As `xlate5 translate` does it: with the look-back window, finished at the end.
@@ -111,73 +32,46 @@ std::vector<std::string> firmware_commands(const Machine& machine, const std::ve
 
 ServePlan plan_as_serve(const Machine& machine, const std::vector<std::string>& lines, const TranslatorOptions& options,
                         const FirmwareOptions& firmware) {
-    // The steps of Service::process, without the queue: M105 passes untranslated; a wait or a
-    // report releases what the look-back holds first; a line the translator refuses ends it.
+    // Service::process's steps (ServeSteps), without the queue: a file is printed from a known
+    // position, with no pauses; the first line refused ends it.
     const Kinematics kin(machine);
     TranslatorOptions o = options;
     o.input_name = "sender";
-    Translator t(kin, o);
-    t.set_lookback(Translator::kDefaultLookback);
-    const FirmwareProtocol fw(firmware);
+    ServeSteps steps(machine, o, ServeSteps::Position::Known);
+    steps.reset(kin);
+    steps.set_room({FirmwareProtocol(firmware).max_command()});
     ServePlan plan;
-    std::string text;
-    std::vector<std::string> fresh, parts;
-    const auto take = [&](std::uint64_t line_no, const std::string& line) {
-        fresh.clear();
-        proto::append_commands(text, fresh);
-        bool noted = false;
-        for (auto& cmd : fresh) {
-            if (!split_for_firmware(fw, cmd, parts)) {
-                plan.cancel = ServePlan::Point{line_no, line};
-                plan.cause = "'" + cmd + "' is longer than the firmware's line buffer";
-                plan.too_long = true;
-                return false;
-            }
-            if ((parts.size() > 1 || parts[0] != cmd) && !noted) plan.split.push_back({line_no, line}), noted = true;
-            plan.translated.push_back(std::move(cmd));
-            for (auto& p : parts) plan.commands.push_back(std::move(p));
-        }
-        return true;
+    const auto take = [&](std::uint64_t line_no, const std::string& line, ServeSteps::Batch& b) {
+        if (b.changed) plan.split.push_back({line_no, line});
+        for (auto& c : b.translated) plan.translated.push_back(std::move(c));
+        for (auto& c : b.lines) plan.commands.push_back(std::move(c));
+    };
+    const auto cancel = [&](std::uint64_t line_no, const std::string& line, std::string cause, bool too_long) {
+        plan.cancel = ServePlan::Point{line_no, line};
+        plan.cause = std::move(cause);
+        plan.too_long = too_long;
+        return plan;
     };
     std::uint64_t n = 0;
     for (const auto& line : lines) {
         ++n;
-        const auto code = proto::command_code(line);
-        text.clear();
-        if (code.is('M', 105)) {
-            text = proto::strip_comment(line) + "\n";
-            if (!take(n, line)) return plan;
-            continue;
-        }
-        if (const auto why = unsendable(fw, code, line)) {
-            plan.cancel = ServePlan::Point{n, line};
-            plan.cause = *why;
-            plan.too_long = true;
-            return plan;
-        }
-        if (answered_by_firmware(code)) {
-            t.finish(text);
-            if (!text.empty()) plan.releases.push_back({n, line});
-            if (!take(n, line)) return plan;
-            text.clear();
-        }
-        try {
-            t.feed(line, n, text);
-        } catch (const InputError& e) {
-            plan.cancel = ServePlan::Point{n, line};
-            plan.cause = e.message();
-            return plan;
-        }
-        if (!take(n, line)) return plan;
+        auto step = steps.line(line, proto::command_code(line), n);
+        if (!step.release_bad.empty()) return cancel(n, line, "'" + step.release_bad + "' is longer than the firmware's line buffer", true);
+        if (!step.released.translated.empty()) plan.releases.push_back({n, line});
+        take(n, line, step.released);
+        if (!step.refused.empty()) return cancel(n, line, step.refused, step.too_long);
+        take(n, line, step.own);
     }
-    text.clear();
-    t.finish(text);
-    take(n, "(end of the print)");
+    ServeSteps::Batch rest;
+    std::string bad;
+    if (!steps.release(rest, bad)) return cancel(n, "(end of the print)", "'" + bad + "' is longer than the firmware's line buffer", true);
+    take(n, "(end of the print)", rest);
     return plan;
 }
 
 Service::Service(asio::io_context& io, const Machine& machine, ServiceOptions options)
-    : io_(io), machine_(machine), opt_(std::move(options)), busy_timer_(io), drain_timer_(io), hold_timer_(io), idle_timer_(io) {
+    : io_(io), machine_(machine), opt_(std::move(options)), steps_(machine_, opt_.translator), busy_timer_(io), drain_timer_(io),
+      hold_timer_(io), idle_timer_(io) {
     kin_ = std::make_unique<Kinematics>(machine_);
     reset_translator();
 }
@@ -186,49 +80,27 @@ Service::~Service() {
     for (auto& s : sessions_) s->close();
 }
 
-void Service::reset_translator() {
-    // A fresh interpreter: modal state from the machine file, position unknown until homed or
-    // placed; the same look-back window as offline translation (output held until decided).
-    translator_ = std::make_unique<Translator>(*kin_, opt_.translator);
-    translator_->set_lookback(Translator::kDefaultLookback);
-    holding_ = false;
-}
+void Service::reset_translator() { steps_.reset(*kin_); }
 
 void Service::release_held() {
     // The end of the look-back window: what the translator holds is final.
-    if (!holding_ || !translator_ || !firmware_) return;
-    holding_ = false;
-    out_.clear();
-    translator_->finish(out_);
-    std::vector<std::string> commands, lines;
-    proto::append_commands(out_, commands);
+    if (!steps_.holding() || !firmware_) return;
+    ServeSteps::Batch batch;
     std::string bad;
-    if (!split_all(commands, lines, bad)) {
-        stop_healthy_ = true;
-        ++stats_.cancelled;
-        stop("'" + bad + "' is longer than the firmware's line buffer");
-        return;
-    }
-    enqueue_all(lines, 0, {}, window_first_, stats_.lines_in - window_first_ + 1);
+    if (!steps_.release(batch, bad)) return cancel_unsendable(bad);
+    stats_.split_long += batch.split;
+    enqueue_all(batch, 0, {});
 }
 
-bool Service::split_all(const std::vector<std::string>& commands, std::vector<std::string>& lines, std::string& bad) {
-    std::vector<std::string> parts;
-    for (const auto& cmd : commands) {
-        if (!split_for_firmware(*firmware_, cmd, parts)) {
-            bad = cmd;
-            return false;
-        }
-        if (parts.size() > 1) ++stats_.split_long;
-        for (auto& part : parts) lines.push_back(std::move(part));
-    }
-    return true;
+void Service::cancel_unsendable(const std::string& bad) {
+    stop_healthy_ = true;
+    ++stats_.cancelled;
+    stop("'" + bad + "' is longer than the firmware's line buffer");
 }
 
 bool Service::replace_machine(const Machine& machine) {
     if (!idle()) return false;
     auto kin = std::make_unique<Kinematics>(machine);
-    translator_.reset();
     machine_ = machine;
     kin_ = std::move(kin);
     reset_translator();
@@ -239,6 +111,7 @@ void Service::attach_firmware(std::shared_ptr<Link> link, FirmwareOptions option
     firmware_options_ = options;
     firmware_.reset();
     firmware_ = std::make_unique<FirmwareLink>(std::move(link), options, *this);
+    steps_.set_room({firmware_->max_command()});
     firmware_->start();
 }
 
@@ -339,7 +212,7 @@ void Service::sender_gone(SenderSession& s) {
     }));
 }
 
-bool Service::idle() const { return pending_.empty() && !holding_ && (!firmware_ || firmware_->idle()); }
+bool Service::idle() const { return pending_.empty() && !steps_.holding() && (!firmware_ || firmware_->idle()); }
 
 void Service::broadcast(std::string_view line) {
     for (auto& s : sessions_)
@@ -388,9 +261,7 @@ void Service::sender_command(SenderSession& s, std::string_view command, proto::
         const auto owner = owner_.lock();
         const std::string why = "xlate5: busy: " + (owner ? owner->name() : std::string("another sender")) +
                                 " is printing; '" + proto::strip_comment(command) + "' was not run";
-        s.send_line("echo:" + why);
-        s.send_line("//action:notification " + why);
-        s.ok();
+        s.turned_away(why);
         return;
     }
     if (code.is('M', 999)) {
@@ -442,7 +313,7 @@ void Service::sender_refused(SenderSession& s, std::string_view command, std::ui
 
 void Service::arm_hold() {
     // A pause in the stream ends the look-back window: what is held goes to the firmware.
-    if (!holding_) return;
+    if (!steps_.holding()) return;
     const auto seen = lines_seen_;
     hold_timer_.expires_after(std::chrono::milliseconds(std::int64_t(opt_.hold_seconds * 1000)));
     hold_timer_.async_wait(lifetime_.guard([this, seen](boost::system::error_code ec) {
@@ -453,13 +324,17 @@ void Service::arm_hold() {
 }
 
 void Service::pump() {
-    // While draining for a stop, lines not yet acknowledged stay with the sender, unsent.
-    while (!pending_.empty() && !draining_) {
-        if (!stopped() && position_ == Position::Asking) {
-            arm_busy();  // the firmware is asked where it is: nothing is translated before it answers
-            return;
-        }
-        if (!stopped() && firmware_ && (firmware_->state() != FirmwareLink::State::Ready || firmware_->queued() >= opt_.queue_lines)) {
+    while (!pending_.empty()) {
+        ServeSteps::QueueState q;
+        q.draining = draining_;
+        q.stopped = stopped();
+        q.firmware = firmware_ != nullptr;
+        q.firmware_ready = firmware_ && firmware_->state() == FirmwareLink::State::Ready;
+        q.queued = firmware_ ? firmware_->queued() : 0;
+        q.queue_lines = opt_.queue_lines;
+        const auto gate = steps_.gate(q);
+        if (gate == ServeSteps::Gate::Keep) break;
+        if (gate == ServeSteps::Gate::Wait) {
             arm_busy();  // the sender waits for its ok: keep it from timing out
             return;
         }
@@ -475,30 +350,16 @@ void Service::pump() {
 }
 
 void Service::refuse_line(const Pending& p, const std::string& cause) {
-    // The command's own text, not "sender:1023". OctoPrint takes any Error: that is not about
-    // line numbers or checksums as fatal and sends M112 to a healthy printer: a refused line
-    // is told with echo: and an action command instead (docs/service.md).
+    // The command's own text, not "sender:1023"; the words are SenderProtocol::refused's.
     auto session = p.session.lock();
     const std::string quoted = "line " + std::to_string(p.line_no) + " '" + proto::strip_comment(p.command) + "': " + cause;
     ++stats_.rejected;
     log_refusal(session, "refused " + quoted);
-    if (!p.numbered) {
-        // Typed in a terminal: refused, and nothing else changes.
-        if (session) {
-            session->send_line("echo:xlate5: refused " + quoted);
-            session->send_line("//action:notification xlate5: refused " + quoted);
-            session->ok();
-        }
-        return;
-    }
+    if (session) session->refused(quoted, p.numbered);
+    // Typed in a terminal: refused, and nothing else changes.
+    if (!p.numbered) return;
     // Part of a print: the print ends there; every line before it runs (what the look-back
     // held included), nothing after it.
-    if (session) {
-        session->send_line("//action:cancel");
-        session->send_line("echo:xlate5: print cancelled at " + quoted);
-        session->send_line("//action:notification xlate5: print cancelled at " + quoted);
-        session->ok();
-    }
     release_held();
     stop_healthy_ = true;
     ++stats_.cancelled;
@@ -508,7 +369,7 @@ void Service::refuse_line(const Pending& p, const std::string& cause) {
 Service::View Service::view() const {
     View v;
     if (const auto owner = owner_.lock()) v.sender = owner->name(), v.line = owner->last_line();
-    if (translator_) v.joints = translator_->joints(), v.pose = translator_->pose();
+    v.joints = steps_.translator().joints(), v.pose = steps_.translator().pose();
     return v;
 }
 
@@ -520,8 +381,9 @@ void Service::log_refusal(const std::shared_ptr<SenderSession>& s, const std::st
     spdlog::warn("{}: {}", s ? s->name() : std::string("a sender gone since"), what);
 }
 
-void Service::enqueue_all(std::vector<std::string>& commands, std::uint64_t tag, const std::weak_ptr<SenderSession>& who,
-                          std::uint64_t first, std::uint64_t span) {
+void Service::enqueue_all(ServeSteps::Batch& batch, std::uint64_t tag, const std::weak_ptr<SenderSession>& who) {
+    auto& commands = batch.lines;
+    const std::uint64_t first = batch.first, span = batch.span;
     // Each firmware line is marked with the sender line it comes from, so a fault counts sender
     // lines. Output the look-back released covers the lines of its window, which the translator
     // does not mark one by one: they are spread over it in order (an estimate within a line or
@@ -541,67 +403,27 @@ void Service::enqueue_all(std::vector<std::string>& commands, std::uint64_t tag,
 void Service::process(const Pending& p) {
     auto session = p.session.lock();
     if (stopped() || !firmware_) {
-        if (session) {
-            if (stop_healthy_) {
-                // The print was cancelled; the printer is fine: not an Error: (OctoPrint would send M112).
-                session->send_line("echo:xlate5: not run: '" + proto::strip_comment(p.command) + "' (" + stop_reason_ +
-                                   "); start a new print or send M999");
-            } else {
-                session->send_line("Error:Printer stopped (xlate5): " + (stopped() ? stop_reason_ : std::string("no firmware")) +
-                                   ". Fix the cause and send M999 to restart.");
-            }
-            session->ok();
-        }
+        // A cancelled print leaves the printer fine: not an Error: (OctoPrint would send M112).
+        if (session)
+            session->not_run(proto::strip_comment(p.command), stopped() ? stop_reason_ : std::string("no firmware"), stop_healthy_);
         ++stats_.rejected;
         log_refusal(session, "line " + std::to_string(p.line_no) + " '" + proto::strip_comment(p.command) + "' not run: " +
                                  (stopped() ? stop_reason_ : std::string("no firmware")));
         return;
     }
     if (!p.refused.empty()) return refuse_line(p, p.refused);
-    if (const auto why = unplaceable(p)) return refuse_line(p, *why);
-    if (firmware_)
-        if (const auto why = unsendable(*firmware_, p.code, p.command)) return refuse_line(p, *why);
-    ++stats_.lines_in;
-    const bool wait_for_firmware = answered_by_firmware(p.code);
-    std::vector<std::string> commands;
-    // The sender lines this line's output stands for: its own, and those of the look-back window
-    // it may release (see enqueue_all).
-    std::uint64_t first = stats_.lines_in;
-    if (p.code.is('M', 105)) {
-        // Temperatures: nothing to translate, and no reason to end the look-back window.
-        commands.push_back(proto::strip_comment(p.command));
-    } else {
-        // A wait or a report (M400, M114, M109 …) is answered by the firmware once everything
-        // before it ran: the look-back window ends there.
-        if (wait_for_firmware) release_held();
-        const bool was_holding = holding_;
-        if (was_holding) first = window_first_;
-        out_.clear();
-        try {
-            translator_->feed(p.command, p.line_no, out_);
-        } catch (const InputError& e) {
-            refuse_line(p, e.message());
-            return;
-        }
-        // Held only while a look-back window is open: with none, there is nothing undecided to
-        // wait for (no hold_seconds at the end of a print whose last window has closed).
-        holding_ = translator_->holding();
-        // A window opens here (or a new one after the old one's output came out).
-        if (holding_ && (!was_holding || !out_.empty())) window_first_ = stats_.lines_in;
-        if (out_.empty()) first = stats_.lines_in;
-        proto::append_commands(out_, commands);
-        if (p.code.is('G', 28) && position_ == Position::Unknown && homes_all(p.command)) position_ = Position::Known;
-    }
-    std::vector<std::string> lines;
-    std::string bad;
-    if (!split_all(commands, lines, bad)) {
-        refuse_line(p, "'" + bad + "' is longer than the firmware's line buffer");
-        return;
-    }
-    // All or nothing: a line that fails above leaves nothing of itself in the queue.
+    auto step = steps_.line(p.command, p.code, p.line_no);
+    stats_.lines_in = steps_.lines_in();
+    // What the look-back held goes first (before a wait or a report), whatever becomes of the line.
+    if (!step.release_bad.empty()) cancel_unsendable(step.release_bad);
+    stats_.split_long += step.released.split;
+    enqueue_all(step.released, 0, {});
+    if (!step.refused.empty()) return refuse_line(p, step.refused);
+    // All or nothing: a line refused above leaves nothing of itself in the queue.
     std::uint64_t tag = 0;
-    if (wait_for_firmware && !lines.empty()) tag = next_tag_++;
-    enqueue_all(lines, tag, p.session, first, stats_.lines_in - first + 1);
+    if (step.firmware_answers && !step.own.lines.empty()) tag = next_tag_++;
+    stats_.split_long += step.own.split;
+    enqueue_all(step.own, tag, p.session);
     if (session && tag == 0) session->ok();
 }
 
@@ -624,7 +446,7 @@ void Service::arm_busy() {
     busy_timer_.async_wait(lifetime_.guard([this](boost::system::error_code ec) {
         busy_armed_ = false;
         if (ec || pending_.empty()) return;
-        if (auto s = pending_.front().session.lock()) s->send_line("echo:busy: processing");
+        if (auto s = pending_.front().session.lock()) s->busy();
         arm_busy();
     }));
 }
@@ -637,64 +459,18 @@ void Service::firmware_ready(const std::vector<std::string>&) {
 void Service::ask_position() {
     // Nothing of a sender's is translated before the answer: a move translated from an assumed
     // position (the machine's home) can run far from where the sender meant.
-    if (!firmware_ || firmware_->state() != FirmwareLink::State::Ready || holding_) return;
-    position_ = Position::Asking;
+    if (!firmware_ || firmware_->state() != FirmwareLink::State::Ready || !steps_.ask_position()) return;
     position_tag_ = next_tag_++;
     firmware_->enqueue("M114", position_tag_);
 }
 
-std::optional<Service::Reported> Service::read_position(std::string_view report, std::string& why) const {
-    // "X:7.00 Y:0.00 Z:0.00 A:10.00 B:5.00 E:0.00 Count X:560 …": the words before "Count".
-    Reported r;
-    r.q.assign(machine_.joints.size(), 0.0);
-    std::vector<bool> seen(machine_.joints.size(), false);
-    std::string_view words = report.substr(0, report.find("Count"));
-    for (std::size_t i = 0; i + 1 < words.size(); ++i) {
-        if (words[i + 1] != ':' || (i > 0 && words[i - 1] != ' ')) continue;
-        std::string_view v = words.substr(i + 2);
-        while (!v.empty() && v.front() == ' ') v.remove_prefix(1);
-        const std::string_view token = v.substr(0, v.find(' '));
-        double x = 0;
-        const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), x);
-        const bool number = ec == std::errc() && end == token.data() + token.size() && std::isfinite(x);
-        if (words[i] == 'E') {
-            if (number) r.e = x;
-            continue;
-        }
-        for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
-            if (machine_.joints[j].output != words[i]) continue;
-            if (!number) {
-                why = std::string("its ") + words[i] + " is '" + std::string(token) + "', not a number";
-                return std::nullopt;
-            }
-            r.q[j] = x;
-            seen[j] = true;
-        }
-    }
-    for (std::size_t j = 0; j < machine_.joints.size(); ++j)
-        if (!seen[j]) {
-            why = std::string("it has no ") + machine_.joints[j].output;
-            return std::nullopt;
-        }
-    machine_.compensation.undo(r.q);
-    return r;
-}
-
-std::optional<std::string> Service::unplaceable(const Pending& p) const {
-    // While the position is unknown, only homing may move the machine.
-    if (position_ != Position::Unknown || p.code.letter != 'G') return std::nullopt;
-    const int g = p.code.code10;
-    if (g != 0 && g != 10 && g != 20 && g != 30) return std::nullopt;
-    return "the printer's position is not known (" + position_why_ + "): home it (G28) first";
-}
 
 void Service::firmware_acked(std::uint64_t tag, std::string_view ok_payload) {
     if (tag != 0 && tag == position_tag_) {
         position_tag_ = 0;
-        if (position_ == Position::Asking) {
-            position_ = Position::Unknown;
-            position_why_ = "the firmware did not answer M114 with a position";
-            spdlog::warn("position: {}", position_why_);
+        if (steps_.position() == ServeSteps::Position::Asking) {
+            steps_.position_unanswered();
+            spdlog::warn("position: {}", steps_.position_why());
         }
         pump();
         return;
@@ -709,8 +485,7 @@ void Service::firmware_progress() { pump(); }
 
 void Service::firmware_fault(const std::string& why, std::size_t lines_not_executed) {
     stop_healthy_ = false;
-    position_ = Position::Unknown;
-    position_why_ = "the firmware stopped: " + why;
+    steps_.position_lost(why);
     ++stats_.faults;
     broadcast("Error:xlate5: " + why + "; print stopped, " + std::to_string(lines_not_executed) +
               " queued lines not executed or not confirmed (nothing is replayed). Send M999 to restart.");
@@ -719,51 +494,23 @@ void Service::firmware_fault(const std::string& why, std::size_t lines_not_execu
     check_drained();
 }
 
-std::string Service::tool_space_position(const Reported& at) const {
-    // The nominal joints read_position took from the firmware's report -> tip and angles in the
-    // part frame.
-    const std::vector<double>& q = at.q;
-    const Pose pose = kin_->forward(q);
-    const Eigen::Vector3d tip = pose.tip - translator_->program_offset();
-    char buf[96];
-    std::snprintf(buf, sizeof buf, "X:%.2f Y:%.2f Z:%.2f", tip.x(), tip.y(), tip.z());
-    std::string out = buf;
-    // E right after Z: OctoPrint 1.x reads M114 only as "X: Y: Z: E:" (docs/service.md); the
-    // rotaries follow.
-    if (at.e) {
-        std::snprintf(buf, sizeof buf, " E:%.2f", *at.e);
-        out += buf;
-    }
-    for (std::size_t j = 0; j < machine_.joints.size(); ++j) {
-        if (!machine_.joints[j].rotary) continue;
-        std::snprintf(buf, sizeof buf, " %c:%.2f", machine_.joints[j].name, q[j]);
-        out += buf;
-    }
-    return out;
-}
 
 void Service::firmware_message(std::string_view line) {
     if (line.rfind("X:", 0) == 0 && line.find(" Y:") != std::string_view::npos) {
         std::string why;
-        const auto at = read_position(line, why);
-        if (position_ == Position::Asking && position_tag_ != 0) {
+        const auto at = read_position(machine_, line, why);
+        if (steps_.position() == ServeSteps::Position::Asking && position_tag_ != 0) {
             // The service's own question: the answer places the translator; no sender asked.
-            if (at) {
-                translator_->place_at(at->q, at->e, kReportResolution);
-                position_ = Position::Known;
-                spdlog::info("position: the firmware reports {}", line);
-            } else {
-                position_ = Position::Unknown;
-                position_why_ = "the firmware's M114 answer could not be read: " + why;
-                spdlog::warn("position: {} ('{}')", position_why_, line);
-            }
+            steps_.position_read(at ? &at->q : nullptr, at ? at->e : std::nullopt, why);
+            if (at) spdlog::info("position: the firmware reports {}", line);
+            else spdlog::warn("position: {} ('{}')", steps_.position_why(), line);
             return;
         }
         if (!at) {
             broadcast("echo:xlate5: the firmware's position report could not be read (" + why + "): " + std::string(line));
             return;
         }
-        broadcast(tool_space_position(*at));
+        broadcast(tool_space_position(machine_, *kin_, steps_.translator().program_offset(), *at));
         return;
     }
     broadcast(line);

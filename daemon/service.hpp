@@ -17,7 +17,9 @@
 #include "daemon/firmware_link.hpp"
 #include "daemon/lifetime.hpp"
 #include "daemon/log_policy.hpp"
+#include "daemon/position_report.hpp"
 #include "daemon/sender_session.hpp"
+#include "daemon/serve_steps.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
 #include "translators/pipeline/translator.hpp"
@@ -45,7 +47,7 @@ std::vector<std::string> firmware_commands(const Machine& machine, const std::ve
                                            const TranslatorOptions& options = {});
 
 // What `serve` does with a whole file, as a sender would print it (numbered lines, no pauses):
-// translated line by line exactly as Service::process does, for `serve --check`. It differs from
+// translated line by line through the same ServeSteps as Service::process, for `serve --check`. It differs from
 // offline translation only where the look-back's held output is released early.
 struct ServePlan {
     struct Point {
@@ -83,7 +85,7 @@ public:
     // Of the lines senders were answered ok for: how many are not yet executed (or confirmed),
     // and whether the look-back still holds output of theirs.
     std::size_t acknowledged_not_run() const { return firmware_ ? firmware_->sender_lines_queued() : 0; }
-    bool holding() const { return holding_; }
+    bool holding() const { return steps_.holding(); }
     // Calls `f` once the service is idle (at once if it is): nothing queued, held or in flight.
     void when_idle(std::function<void()> f);
     bool stopped() const { return !stop_reason_.empty(); }
@@ -137,30 +139,23 @@ private:
     void broadcast(std::string_view line);
     void arm_busy();
     void check_drained();
-    // The joints (nominal) and E of a firmware's M114 report; nullopt, with why, when any of the
-    // machine's joints is missing or not a number.
-    struct Reported { std::vector<double> q; std::optional<double> e; };
-    std::optional<Reported> read_position(std::string_view report, std::string& why) const;
-    std::string tool_space_position(const Reported& at) const;
     void ask_position();
-    std::optional<std::string> unplaceable(const Pending& p) const;
     void reset_translator();
     void release_held();
-    bool split_all(const std::vector<std::string>& commands, std::vector<std::string>& lines, std::string& bad);
+    void cancel_unsendable(const std::string& bad);
     void arm_hold();
     void arm_idle_check();
     bool claim(SenderSession& s);
     void clear_stop();
     void refuse_line(const Pending& p, const std::string& cause);
     void log_refusal(const std::shared_ptr<SenderSession>& s, const std::string& what);
-    void enqueue_all(std::vector<std::string>& commands, std::uint64_t tag, const std::weak_ptr<SenderSession>& who,
-                     std::uint64_t first, std::uint64_t span);
+    void enqueue_all(ServeSteps::Batch& batch, std::uint64_t tag, const std::weak_ptr<SenderSession>& who);
 
     asio::io_context& io_;
     Machine machine_;
     std::unique_ptr<Kinematics> kin_;
     ServiceOptions opt_;
-    std::unique_ptr<Translator> translator_;
+    ServeSteps steps_;  // the translator, the look-back window and the position: what is done with each line
     std::unique_ptr<FirmwareLink> firmware_;
     FirmwareOptions firmware_options_;
     std::function<std::shared_ptr<Link>()> reopen_;
@@ -170,25 +165,19 @@ private:
     std::uint64_t next_tag_ = 1;
     // Where the machine is: the translator starts every move from its joints, so they must be
     // the firmware's. Asked with M114 whenever the firmware is greeted; kept across senders.
-    enum class Position { Unknown, Asking, Known };
-    Position position_ = Position::Unknown;
-    std::string position_why_ = "the firmware has not reported it yet";
     std::uint64_t position_tag_ = 0;  // the service's own M114
-    std::uint64_t window_first_ = 0;  // the serial (stats_.lines_in) of the look-back window's first line
     std::string stop_reason_;
     bool draining_ = false;
     std::function<void(const std::string&)> drained_;
     std::function<void()> idle_waiter_;
     asio::steady_timer busy_timer_, drain_timer_, hold_timer_, idle_timer_;
     bool idle_armed_ = false;  // a check for silent TCP senders is due
-    bool holding_ = false;            // the translator may hold output (look-back)
     std::uint64_t lines_seen_ = 0;
     bool stop_healthy_ = false;       // stopped by a refused line, not by the firmware: the printer is fine
     std::weak_ptr<SenderSession> owner_;  // the sender printing
     std::uint64_t owner_lines_ = 0;       // lines_in when it began
     std::chrono::steady_clock::time_point owner_since_;
     bool busy_armed_ = false;
-    std::string out_;  // translator output scratch
     ServiceStats stats_;
     std::string last_error_;
     LogBudget refusal_log_{10, std::chrono::seconds(60)};  // each refused line logged, 10 a minute at most

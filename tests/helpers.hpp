@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Small helpers shared by the tests: split output into lines and words.
+// Small helpers shared by the tests: split output into lines and words, run the xlate5 binary.
 #pragma once
 #include <doctest/doctest.h>
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -85,6 +87,42 @@ struct TempDir {
 // The third-party corpus (XLATE5_CORPUS_DIR, ../shared/corpus next to the checkout; the variable
 // of that name in the environment wins): read at test time, never copied into the repository. A
 // checkout without it skips the tests that read it, and says so once on standard error.
+#ifdef XLATE5_BINARY
+// What a run of the xlate5 binary gave.
+struct RunResult {
+    int code = -1;
+    std::string out, err;
+};
+// Standard input of a run: /dev/null, this text (from a file), or what the prefix pipes in.
+struct RunInput {
+    std::optional<std::string> text;
+    bool piped = false;
+};
+
+// Runs the xlate5 binary with `args` (quoted already) through the shell, standard output and
+// error to files in `dir`. `prefix` goes before the binary: env(1), a limit, a pipe into it.
+inline RunResult run_xlate5(const TempDir& dir, const std::string& args, const std::string& prefix = "", const RunInput& in = {}) {
+    const std::filesystem::path stdin_file = dir.path / ".stdin", out = dir.path / ".stdout", err = dir.path / ".stderr";
+    std::string redirect = " </dev/null";
+    if (in.piped) redirect.clear();
+    if (in.text) {
+        std::ofstream(stdin_file, std::ios::binary) << *in.text;
+        redirect = " <" + quote(stdin_file.string());
+    }
+    const std::string cmd = prefix + quote(XLATE5_BINARY) + " " + args + redirect + " >" + quote(out.string()) + " 2>" + quote(err.string());
+    const int status = std::system(cmd.c_str());
+    RunResult r;
+    REQUIRE(status != -1);
+    REQUIRE(WIFEXITED(status));
+    r.code = WEXITSTATUS(status);
+    r.out = read(out);
+    r.err = read(err);
+    std::error_code ec;
+    for (const auto& f : {stdin_file, out, err}) std::filesystem::remove(f, ec);
+    return r;
+}
+#endif
+
 inline std::string corpus_dir() {
     const char* env = std::getenv("XLATE5_CORPUS_DIR");
     return env && *env ? env : XLATE5_CORPUS_DIR;

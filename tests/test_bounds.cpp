@@ -28,10 +28,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Result {
-    int code = -1;
-    std::string out, err;
-};
+using Result = RunResult;
 
 // Address space for one run: several times what any bounded reader here needs (each reads at
 // most 32 MiB of input and its translation), a small part of what an unbounded read of
@@ -46,19 +43,7 @@ const std::string kLimit = std::string(kAddressSanitized ? "" : "prlimit --as=10
 // `prefix` goes before the binary (a limit, a pipe into it); standard input is /dev/null unless
 // `from_pipe`.
 Result run(const TempDir& dir, const std::string& args, const std::string& prefix = kLimit, bool from_pipe = false) {
-    const fs::path out = dir.path / ".stdout", err = dir.path / ".stderr";
-    const std::string cmd = prefix + quote(XLATE5_BINARY) + " " + args + (from_pipe ? "" : " </dev/null") + " >" + quote(out.string()) +
-                            " 2>" + quote(err.string());
-    const int status = std::system(cmd.c_str());
-    Result r;
-    REQUIRE(status != -1);
-    REQUIRE(WIFEXITED(status));
-    r.code = WEXITSTATUS(status);
-    r.out = read(out);
-    r.err = read(err);
-    fs::remove(out);
-    fs::remove(err);
-    return r;
+    return run_xlate5(dir, args, prefix, RunInput{std::nullopt, from_pipe});
 }
 
 }  // namespace

@@ -40,29 +40,12 @@ namespace {
 
 
 
-struct Result {
-    int code = -1;
-    std::string out, err;
-};
+using Result = RunResult;
 
 // Runs the xlate5 binary with `args` (already quoted), standard input from `stdin_text`, under
 // `env` (an env(1) prefix, e.g. "env -u XLATE5_MACHINES ").
 Result run(const TempDir& dir, const std::string& args, const std::string& stdin_text = "", const std::string& env = "") {
-    const fs::path in = dir.path / ".stdin", out = dir.path / ".stdout", err = dir.path / ".stderr";
-    std::ofstream(in, std::ios::binary) << stdin_text;
-    const std::string cmd = env + quote(XLATE5_BINARY) + " " + args + " <" + quote(in.string()) + " >" + quote(out.string()) + " 2>" +
-                            quote(err.string());
-    const int status = std::system(cmd.c_str());
-    Result r;
-    REQUIRE(status != -1);
-    REQUIRE(WIFEXITED(status));
-    r.code = WEXITSTATUS(status);
-    r.out = read(out);
-    r.err = read(err);
-    fs::remove(in);
-    fs::remove(out);
-    fs::remove(err);
-    return r;
+    return run_xlate5(dir, args, env, RunInput{stdin_text});
 }
 
 // The lines of a translation's output after its first, which must be xlate5's header naming

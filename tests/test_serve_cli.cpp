@@ -39,23 +39,9 @@ using namespace xlate5::test;
 
 namespace {
 
-struct Result {
-    int code = -1;
-    std::string out, err;
-};
+using Result = RunResult;
 
-Result run(const TempDir& dir, const std::string& args) {
-    const fs::path out = dir.path / ".stdout", err = dir.path / ".stderr";
-    const std::string cmd = quote(XLATE5_BINARY) + " " + args + " </dev/null >" + quote(out.string()) + " 2>" + quote(err.string());
-    const int status = std::system(cmd.c_str());
-    Result r;
-    REQUIRE(status != -1);
-    REQUIRE(WIFEXITED(status));
-    r.code = WEXITSTATUS(status);
-    r.out = read(out);
-    r.err = read(err);
-    return r;
-}
+Result run(const TempDir& dir, const std::string& args) { return run_xlate5(dir, args); }
 
 std::string long_name(const ServeSetting& s) {
     const std::string n = s.names;

@@ -26,22 +26,15 @@ import time
 from printrun import gcoder
 from printrun.printcore import printcore
 
+import common
+
 
 def start_serve(xlate5, tmp, extra_config=""):
     pty = os.path.join(tmp, "printer")
     record = os.path.join(tmp, "executed.gcode")
     log = open(os.path.join(tmp, "serve.log"), "w+")
-    config = os.path.join(tmp, "printer.toml")
-    with open(config, "w") as f:
-        f.write('machine = "rw2"\n[sender]\nhold_seconds = 0.3\n[firmware]\nport = "sim"\nboot_wait = 0.2\n[sim]\nrecord = "%s"\n' % record + extra_config)
-    serve = subprocess.Popen([xlate5, "serve", "--config", config, "--pty", pty], stderr=log)
-    deadline = time.time() + 20
-    while not os.path.exists(pty):
-        if time.time() > deadline or serve.poll() is not None:
-            log.seek(0)
-            raise SystemExit("xlate5 serve did not start:\n" + log.read())
-        time.sleep(0.05)
-    return serve, pty, record, log
+    config = common.sim_config(tmp, "rw2", record, "[sender]\nhold_seconds = 0.3\n" + extra_config)
+    return common.start_serve(xlate5, ["--config", config], pty, log), pty, record, log
 
 
 def connect(pty):

@@ -14,20 +14,9 @@ import sys
 import tempfile
 import time
 
+from common import sim_config, start_serve, strip
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-
-
-def strip(line):
-    line = line.split(";", 1)[0]
-    out, depth = [], 0
-    for ch in line:
-        if ch == "(":
-            depth += 1
-        elif ch == ")" and depth:
-            depth -= 1
-        elif not depth:
-            out.append(ch)
-    return "".join(out).strip()
 
 
 def main():
@@ -37,17 +26,9 @@ def main():
         pty = os.path.join(tmp, "printer")
         record = os.path.join(tmp, "executed.gcode")
         log = open(os.path.join(tmp, "serve.log"), "w+")
-        config = os.path.join(tmp, "printer.toml")
-        with open(config, "w") as f:
-            f.write('machine = "%s"\n[firmware]\nport = "sim"\nboot_wait = 0.2\n[sim]\nrecord = "%s"\n' % (machine, record))
-        serve = subprocess.Popen([xlate5, "serve", "--config", config, "--pty", pty, *extra], stderr=log)
+        config = sim_config(tmp, machine, record)
+        serve = start_serve(xlate5, ["--config", config, *extra], pty, log)
         try:
-            deadline = time.time() + 20
-            while not os.path.exists(pty):
-                if time.time() > deadline or serve.poll() is not None:
-                    log.seek(0)
-                    raise SystemExit("xlate5 serve did not start:\n" + log.read())
-                time.sleep(0.05)
             result = subprocess.run(["/usr/bin/python3", os.path.join(HERE, "senders.py"), sender, pty, path],
                                     capture_output=True, text=True, timeout=900)
             print(result.stdout.strip())

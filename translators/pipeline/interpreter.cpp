@@ -83,9 +83,11 @@ PassedNumber Interpreter::passed(const Param& p, bool inches) const {
     return {v, p.text};
 }
 
-bool Interpreter::is_axis_letter(char c) const {
-    return c == 'X' || c == 'Y' || c == 'Z' || c == 'I' || c == 'J' || c == 'K' || joint_of(c) >= 0;
+bool is_axis_letter(const Machine& machine, char c) {
+    return c == 'X' || c == 'Y' || c == 'Z' || c == 'I' || c == 'J' || c == 'K' || machine.joint_index(c) >= 0;
 }
+
+bool Interpreter::is_axis_letter(char c) const { return xlate5::is_axis_letter(machine_, c); }
 
 void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& out, const LineState* before) {
     try {

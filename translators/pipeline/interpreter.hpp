@@ -47,6 +47,10 @@ class KeepOutStage;
 // MAX_CMD_SIZE - 1: the characters Marlin reads of a line (PROTOCOL.md rule 4).
 inline constexpr std::size_t kMarlinLineChars = 95;
 
+// The letters that name an axis in a command's words on `machine`: X Y Z, the arc's I J K and
+// the machine's joints. The service reads G28's words with it too (homes_all).
+bool is_axis_letter(const Machine& machine, char letter);
+
 class Interpreter {
 public:
     Interpreter(const Kinematics& kinematics, LineState& state, Planner& planner, std::string input_name, char extruder_letter);
