@@ -5,6 +5,8 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <sys/wait.h>
 #include <filesystem>
 #include <random>
 #include <sstream>
@@ -205,6 +207,13 @@ TEST_CASE("rw2: the sweep finds a contact between a move's ends where neither en
     std::string more;
     CHECK_THROWS_WITH_AS(t.feed("G0 X60 Y100 Z2", ++n, more), doctest::Contains("collision: nozzle meets printed part at line"), InputError);
     CHECK(stage->beads() == 30);
+    // The translator goes on after the refused line as if it never came (the service refuses
+    // such a line to its sender and goes on): over the wall instead, clear, and printing on.
+    CHECK_NOTHROW(t.feed("G0 X40 Y100 Z10", ++n, more));
+    CHECK_NOTHROW(t.feed("G0 X60 Y100 Z10", ++n, more));
+    CHECK_NOTHROW(t.feed("G0 Z0.2", ++n, more));
+    CHECK_NOTHROW(t.feed("G1 X60 Y110 E1", ++n, more));
+    CHECK(stage->beads() > 30);
 }
 
 TEST_CASE("rw2: the sweep never misses what dense sampling finds (property)") {
@@ -354,4 +363,37 @@ TEST_CASE("s3deformfdm with its authors' meshes: the ring raises no collision; t
     // Lifted clear, over the table beside the ring, then down through the table's top.
     const Outcome hit = run(k, tool + "G1 Z150\nG1 X100 Y0 Z150 I0 J0 K1\nG1 Z-10\n", CollisionPolicy::Refuse, 0, OrientationMode::Vector);
     CHECK(hit.error.find(":1: collision: nozzle meets C table at ") != std::string::npos);
+}
+
+TEST_CASE("cli: --collision refuse (the default), warn and off; the report counts what warn found") {
+    test::TempDir dir;
+    const auto machine = dir.write("rw2-bodies.toml", read_machine_file(machine_path("rw2")) + "\n" +
+                                                          test::read(fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path() / "tests" / "bodies" / "rw2.toml"));
+    const std::string wall = rw2_wall();
+    const auto in = dir.write("in.gcode", wall + "G1 X38 Y100 Z20 B60\nG1 Z6.2\nG1 X38 Y110 E0.5\n");
+    const int line = int(lines_of(wall).size()) + 2;
+    auto xlate5 = [&](const std::string& machine_arg, const std::string& args, const std::string& out) {
+        const std::string cmd = std::string(XLATE5_BINARY) + " --machine " + test::quote(machine_arg) + " -i " + test::quote(in.string()) + " -o " +
+                                test::quote((dir.path / out).string()) + " " + args + " 2>" + test::quote((dir.path / "err").string());
+        const int rc = std::system(cmd.c_str());
+        return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+    };
+    CHECK(xlate5(machine.string(), "", "refused.gcode") == 1);
+    const std::string err = test::read(dir.path / "err");
+    CHECK(err.rfind(in.string() + ":" + std::to_string(line) + ":1: collision: heater block meets printed part at line ", 0) == 0);
+    CHECK(!fs::exists(dir.path / "refused.gcode"));  // nothing half-written
+
+    CHECK(xlate5(machine.string(), "--collision warn --report " + test::quote((dir.path / "r.json").string()), "warned.gcode") == 0);
+    CHECK(test::read(dir.path / "err").find(":" + std::to_string(line) + ": warning: collision: heater block meets printed part") !=
+          std::string::npos);
+    const std::string report = test::read(dir.path / "r.json");
+    CHECK(report.find("\"collisions\": {\"count\": ") != std::string::npos);
+    CHECK(report.find("\"collisions\": {\"count\": 0") == std::string::npos);
+
+    // Off, and warned: the output is the translation without bodies, byte for byte.
+    CHECK(xlate5(machine.string(), "--collision off", "off.gcode") == 0);
+    CHECK(xlate5(machine_path("rw2"), "", "plain.gcode") == 0);
+    auto body = [](const std::string& text) { return text.substr(text.find('\n')); };  // the header names the machine file
+    CHECK(body(test::read(dir.path / "off.gcode")) == body(test::read(dir.path / "plain.gcode")));
+    CHECK(body(test::read(dir.path / "warned.gcode")) == body(test::read(dir.path / "plain.gcode")));
 }
