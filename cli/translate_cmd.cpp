@@ -108,6 +108,12 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
         ->check(number_in(0, 100, "mm of filament per mm", false));
     app.add_option("--waypoint-feed", o.waypoint_feed, with_default("waypoints: feed of the printing moves, mm/min", "1200"))
         ->check(number_in(1, 1e6, "mm/min", false));
+    app.add_option("--collision", o.collision,
+                   with_default("a machine with [[bodies]]: a move whose tool bodies meet the printed part, the bed or a body is "
+                                "refused (exit 1), warned of on stderr and written, or not checked",
+                                "refuse"))
+        ->check(CLI::IsMember({"refuse", "warn", "off"}))
+        ->option_text("refuse|warn|off");
     app.add_option("--keep-out", o.keep_out, "ITEMS.csv (x, y, height per line): R of a nozzle turning about its own axis (addin4) "
                                             "is set normal to the path, toward the nearest item at or below the current Z");
 }
@@ -188,6 +194,16 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
             options.report = &*report;
         }
         options.compact_words = o.compact_words;
+        options.collision = o.collision == "off" ? CollisionPolicy::Off : o.collision == "warn" ? CollisionPolicy::Warn : CollisionPolicy::Refuse;
+        if (machine->geometry && options.collision != CollisionPolicy::Off) {
+            if (report) report->set_collision_checked();
+            const bool warn = options.collision == CollisionPolicy::Warn;
+            const std::string name = options.input_name;
+            options.on_collision = [&report, warn, name](const CollisionEvent& ev) {
+                if (report) report->add_collision(ev.line, ev.message());
+                if (warn) std::cerr << printable(name) << ":" << ev.line << ": warning: " << printable(ev.message()) << "\n";
+            };
+        }
         Translator translator(kinematics, options);
         FrontOptions front_options;
         front_options.format = o.inverse || from_machine ? InputFormat::GCode : *parse_input_format(o.input_format);

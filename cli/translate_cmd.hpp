@@ -25,6 +25,8 @@ struct TranslateOptions {
     bool force = false;
     // Retargeting: the input is joint-space G-code written for this machine (--from).
     std::string from;
+    // The collision check of a machine with [[bodies]]: refuse, warn or off.
+    std::string collision = "refuse";
 };
 
 // Input made by another command (join): the lines of `fd`, each traced back to the file and

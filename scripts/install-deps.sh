@@ -5,6 +5,7 @@ set -euo pipefail
 pkgs=(build-essential cmake pkg-config
       libeigen3-dev libboost-dev libtomlplusplus-dev libspdlog-dev libfmt-dev
       doctest-dev libcli11-dev libserialport-dev libsystemd-dev
+      libfcl-dev libassimp-dev   # the collision check: FCL, and assimp to read machine meshes
       printcore python3-serial
       man-db    # man-db: the manual page test renders xlate5(1) with man -l
       file      # cpack -G DEB reads the binaries' dependencies with file and dpkg-shlibdeps

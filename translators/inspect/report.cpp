@@ -189,6 +189,11 @@ std::string DeviationReport::json() const {
         o += "  \"rotary_travel_ratio\": " + (rotary_bound_ > 0 ? num(travel / rotary_bound_) : std::string("null")) + ",\n";
     }
     o += "  \"printing_moves_turning_over_90_deg\": " + std::to_string(printing_turns_) + ",\n";
+    if (collision_checked_) {
+        o += "  \"collisions\": {\"count\": " + std::to_string(collision_count_) + ", \"list\": [";
+        for (std::size_t i = 0; i < collisions_.size(); ++i) o += std::string(i ? ", " : "") + "\"" + escape(collisions_[i]) + "\"";
+        o += "]},\n";
+    }
     // Extremes over the translated tool-space moves (joint-space G49 moves are passed on as written).
     o += "  \"joint_range\": {";
     for (std::size_t i = 0; i < ranges_.size(); ++i)

@@ -37,6 +37,14 @@ public:
     void add_time(double minutes) { minutes_ += minutes; }
     void add_solution_change(int turns, int branch) { turns_ += std::uint64_t(turns), branches_ += std::uint64_t(branch); }
     void set_lines(std::uint64_t in, std::uint64_t out) { lines_in_ = in, lines_out_ = out; }
+    // The collision check ran (the machine has bodies): the report counts and lists what it found
+    // (the first kMaxMarks, as "line: message"), under "collisions".
+    void set_collision_checked() { collision_checked_ = true; }
+    void add_collision(std::uint64_t line, const std::string& message) {
+        ++collision_count_;
+        if (collisions_.size() < kMaxMarks) collisions_.push_back(std::to_string(line) + ": " + message);
+    }
+    std::uint64_t collisions() const { return collision_count_; }
 
     // Where the counted events happened: each at the input line of its move and at the output's
     // move lines (the emitter's count once the move was written), so a preview of the output
@@ -97,6 +105,9 @@ private:
     std::uint64_t turns_ = 0, branches_ = 0, rezeros_ = 0;
     std::vector<Mark> marks_;
     std::string written_;
+    bool collision_checked_ = false;
+    std::uint64_t collision_count_ = 0;
+    std::vector<std::string> collisions_;
     std::vector<Point> series_;  // at most kMaxPoints, each the worst of `bucket_` moves
     std::uint64_t bucket_ = 1, in_bucket_ = 0;
     static constexpr std::size_t kMaxPoints = 2000;

@@ -5,6 +5,7 @@
 #pragma once
 #include <Eigen/Geometry>
 
+#include "translators/machine/geometry.hpp"
 #include "translators/pipeline/compensation.hpp"
 #include <map>
 #include <memory>
@@ -93,6 +94,8 @@ struct Machine {
     PlannerSettings planner;
     MotionSettings motion;
     Compensation compensation;   // measured errors, subtracted from every emitted move
+    // Its solid parts for the collision check ([[bodies]], geometry.hpp); null: none given.
+    std::shared_ptr<const MachineGeometry> geometry;
 
     int joint_index(char name) const {
         for (std::size_t i = 0; i < joints.size(); ++i)

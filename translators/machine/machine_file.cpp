@@ -14,6 +14,7 @@
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
 #include "translators/inputs/expr.hpp"
+#include "translators/machine/geometry_loader.hpp"
 #include "translators/machine/machine.hpp"
 #include "translators/suggest.hpp"
 #include "translators/inputs/small_file.hpp"
@@ -312,7 +313,7 @@ toml::table parse(const std::string& text, const std::string& path) {
 Machine build(const toml::table& root, const std::string& path, const std::map<std::string, double>& overrides) {
     Reader r(path, root);
     r.only_keys(root, "", {"name", "description", "source", "parameters", "joints", "part_chain", "tool_chain",
-                           "tool", "input", "firmware", "motion", "compensation"});
+                           "tool", "input", "firmware", "motion", "compensation", "bodies", "collision"});
     Machine m;
     m.source_path = path;
     m.name = r.string(root.get("name"), "name");
@@ -411,6 +412,7 @@ Machine build(const toml::table& root, const std::string& path, const std::map<s
         m.compensation = load_terms(r, m, std::as_const(root)["compensation"]);
         m.compensation.source = path;
     }
+    load_geometry(root, path, r.params, m);
     return m;
 }
 

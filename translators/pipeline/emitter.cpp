@@ -169,6 +169,7 @@ void JointEmitter::invalidate(const std::vector<double>& q) {
 void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, std::span<const double> sent,
                         const std::vector<bool>& commanded, std::optional<PassedNumber> e, std::optional<PassedNumber> f,
                         bool inverse_time) {
+    if (observer_) observer_->piece(std::span<const double>(believed_.data(), q.size()), q, e);
     if (inverse_time != inverse_time_) {
         out += inverse_time ? "G93\n" : "G94\n";
         inverse_time_ = inverse_time;
@@ -293,6 +294,7 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
 
 void JointEmitter::set_position(std::string& out, std::span<const double> q, std::span<const double> sent,
                                 const std::vector<bool>& which, std::optional<PassedNumber> e) {
+    if (observer_ && e) observer_->e_set(e->value);
     // Klipper's G92 reads X Y Z E alone, and one with none of them sets all four to 0: an extra
     // axis is set through its manual stepper, which takes SET_POSITION only while unregistered
     // from its G-code letter. Those lines go after the G92 of the others (if any).

@@ -33,6 +33,18 @@ double printed_value(const Machine& m, std::size_t j, double v);
 void finish_move(std::string& out, std::size_t start, std::size_t empty, const std::optional<PassedNumber>& e,
                  const std::optional<PassedNumber>& f);
 
+// Told of every move piece before it is written (the collision stage, collide.hpp), from the
+// joints the firmware is believed at to `to`; it may throw LineError to refuse the piece. And
+// of every G92 E (the extruder's position, for absolute E).
+class PieceObserver {
+public:
+    virtual void piece(std::span<const double> from, std::span<const double> to, const std::optional<PassedNumber>& e) = 0;
+    virtual void e_set(double e) = 0;
+
+protected:
+    ~PieceObserver() = default;
+};
+
 class JointEmitter {
 public:
     explicit JointEmitter(const Machine& machine);
@@ -87,6 +99,10 @@ public:
         last_f_size_ = 0;
     }
 
+    // Every piece is shown to `observer` first (null: none). Not copied by operator=: the
+    // look-back's snapshots restore what was written, never who watches.
+    void set_observer(PieceObserver* observer) { observer_ = observer; }
+
     // Appends one joint word (" A12.5") as the emitter would print it.
     void append_joint(std::string& out, std::size_t joint, double value) const;
 
@@ -125,6 +141,7 @@ private:
     std::size_t last_f_size_ = 0;
     bool inverse_time_ = false;       // the firmware's feed mode as xlate5 last set it
     std::uint64_t moves_written_ = 0;
+    PieceObserver* observer_ = nullptr;
 };
 
 }  // namespace xlate5

@@ -90,6 +90,7 @@ bool is_axis_letter(const Machine& machine, char c) {
 bool Interpreter::is_axis_letter(char c) const { return xlate5::is_axis_letter(machine_, c); }
 
 void Interpreter::feed_line(std::string_view line, LineRun& run, std::string& out, const LineState* before) {
+    state_.collide.line = run.line_no;  // the beads this line lays are its own (collide.hpp)
     try {
         lex_line(line, block_);
         if (block_.empty()) {

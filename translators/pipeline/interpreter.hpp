@@ -20,6 +20,7 @@
 
 #include "translators/inputs/gcode_lexer.hpp"
 #include "translators/kinematics/kinematics.hpp"
+#include "translators/pipeline/collide.hpp"
 #include "translators/pipeline/line_commands.hpp"
 #include "translators/machine/machine.hpp"
 #include "translators/pipeline/modes.hpp"
@@ -40,6 +41,7 @@ struct ModalState {
 struct LineState {
     ModalState modal;
     PlannerState planner;
+    CollideCursor collide;  // the collision stage's place in the printed part: rolled back with the line
 };
 
 class KeepOutStage;

@@ -25,6 +25,12 @@ struct Translator::Forward {
             keep_out.emplace(kin, *o.keep_out, state.line.planner, planner);
             interpreter.set_keep_out(&*keep_out);
         }
+        // The collision check watches every piece the emitter writes (collide.hpp).
+        if (kin.machine().geometry && o.collision != CollisionPolicy::Off) {
+            collide = std::make_unique<CollisionStage>(kin.machine(), o.collision, state.line.collide, state.line.modal.modes);
+            collide->on_collision = o.on_collision;
+            state.emitter.set_observer(collide.get());
+        }
     }
 
     static ForwardState start(const Kinematics& kin, const TranslatorOptions& o) {
@@ -41,6 +47,7 @@ struct Translator::Forward {
     std::optional<KeepOutStage> keep_out;
     Interpreter interpreter;
     LookBack lookback;
+    std::unique_ptr<CollisionStage> collide;
 };
 
 Translator::Translator(const Kinematics& kinematics, TranslatorOptions options) {
@@ -119,6 +126,7 @@ const Eigen::Vector3d& Translator::program_offset() const {
     static const Eigen::Vector3d kNone = Eigen::Vector3d::Zero();  // joint space has no program frame
     return forward_ ? forward_->state.line.modal.offset : kNone;
 }
+CollisionStage* Translator::collision() { return forward_ ? forward_->collide.get() : nullptr; }
 OrientationMode Translator::mode() const { return forward_ ? forward_->state.line.modal.mode : OrientationMode::Joints; }
 const Modes& Translator::modes() const { return forward_ ? forward_->state.line.modal.modes : inverse_->modes(); }
 

@@ -42,6 +42,10 @@ struct TranslatorOptions {
     // Told what was changed on the way to keep the output runnable (a display text shortened to
     // Marlin's 95 characters); the command line writes it on stderr. Empty: not told.
     std::function<void(const std::string&)> notice;
+    // The collision check (collide.hpp), when the machine has [[bodies]]: a colliding piece
+    // refuses its line (Refuse), is told and written (Warn), or is not checked (Off).
+    CollisionPolicy collision = CollisionPolicy::Refuse;
+    std::function<void(const CollisionEvent&)> on_collision;  // told of every collision found
 };
 
 class InverseTranslator;
@@ -80,6 +84,8 @@ public:
     const Eigen::Vector3d& program_offset() const;
     OrientationMode mode() const;
     const Modes& modes() const;
+    // The collision stage, or null (no bodies, --collision off, the inverse direction).
+    CollisionStage* collision();
 
 private:
     struct Forward;

@@ -1,0 +1,84 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The collision stage: every move piece the emitter is about to write is checked, over its
+// joint-linear sweep, for the machine's tool-side bodies meeting the part printed so far, the
+// part-side bodies (bed, table, fixtures) or the bodies fixed to the base; every extruding piece
+// then adds its bead to the printed part. On FCL (broad phase: a dynamic AABB tree of the beads).
+// It watches the emitter (PieceObserver) and keeps its place in the printed part in the line's
+// state (CollideCursor), so a line refused or translated again by the look-back lays its beads
+// once. Derivation of the sweep's bound: docs/machines.md, "Bodies". May call: kinematics data
+// of the machine (its chains), FCL.
+#pragma once
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "translators/machine/machine.hpp"
+#include "translators/pipeline/emitter.hpp"
+#include "translators/pipeline/modes.hpp"
+
+namespace xlate5 {
+
+// Part of the line's state (LineState): how many beads the printed part holds, the extruder's
+// absolute position as last written, and the input line being translated.
+struct CollideCursor {
+    std::uint64_t beads = 0;
+    double e = 0;
+    std::uint64_t line = 0;
+};
+
+enum class CollisionPolicy { Refuse, Warn, Off };
+
+struct CollisionEvent {
+    std::uint64_t line = 0;      // the input line whose move collides
+    std::string tool_body;
+    std::string other;           // a body's name, or "printed part"
+    std::uint64_t bead_line = 0; // the printed part: the line that printed the bead met
+    Eigen::Vector3d at = Eigen::Vector3d::Zero();  // part frame, mm
+    // "collision: <tool body> meets <printed part at line N | body> at X Y Z"
+    std::string message() const;
+};
+
+// The printed part's bound (docs/limits.md): beads held at once. Past it the line is refused.
+inline constexpr std::size_t kMaxBeads = 2'000'000;
+
+class CollisionStage final : public PieceObserver {
+public:
+    // `machine` must have geometry. `cursor` and `modes` are the live line state's.
+    CollisionStage(const Machine& machine, CollisionPolicy policy, CollideCursor& cursor, const Modes& modes);
+    ~CollisionStage();
+    CollisionStage(const CollisionStage&) = delete;
+    CollisionStage& operator=(const CollisionStage&) = delete;
+
+    void piece(std::span<const double> from, std::span<const double> to, const std::optional<PassedNumber>& e) override;
+    void e_set(double e) override { cursor_.e = e; }
+
+    // The first contact of a tool body over the joint-linear sweep from q0 to q1, if any.
+    std::optional<CollisionEvent> sweep(std::span<const double> q0, std::span<const double> q1);
+    // The contacts at one pose (xlate5 pose): every tool body against every obstacle.
+    std::vector<CollisionEvent> touching(std::span<const double> q);
+    // The least distance (mm) between a tool body and an obstacle or bead at joints q, every
+    // pair measured (no broad phase): the reference the tests hold the sweep against.
+    double clearance(std::span<const double> q);
+    // Adds the bead from the tip at q0 to the tip at q1, `e` mm of filament (<= 0: the default width).
+    void add_bead(std::span<const double> q0, std::span<const double> q1, double e, std::uint64_t line);
+    std::size_t beads() const;
+
+    // Told of every collision found (warn and refuse).
+    std::function<void(const CollisionEvent&)> on_collision;
+    std::uint64_t distance_queries() const;  // for the benchmark
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+    CollideCursor& cursor_;
+    const Modes& modes_;
+    CollisionPolicy policy_;
+};
+
+}  // namespace xlate5
