@@ -286,7 +286,7 @@ TEST_CASE("the bundled examples raise no collision on their machines") {
     const fs::path examples = fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path() / "examples";
     for (const auto& [machine, file] : std::vector<std::pair<std::string, std::string>>{{"rw2", "rw2_flared_wall.gcode"}
                                                                                           }) {
-        CAPTURE(file);
+        CAPTURE_BINDING(file);
         const Machine m = load_with_bodies(machine);
         REQUIRE(m.geometry);
         const Kinematics k(m);
