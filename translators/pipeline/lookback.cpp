@@ -70,6 +70,8 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
     const bool direct = !have_checkpoint_;
     std::string& to = direct ? out : held_;
     const std::size_t held_start = to.size(), moves_start = held_moves();
+    run.pole.seen = have_checkpoint_ ? choices_ : 0;
+    const int seen_before = run.pole.seen;
     try {
         interpreter_.feed_line(line, run, to, &before_line_.line);  // one copy of the state per line, not two
     } catch (const InputError& e) {
@@ -106,8 +108,12 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
         have_checkpoint_ = true;
         checkpoint_line_ = line_no;
         chosen_ = -1;
+        flips_ = PoleChoices{};
+        choices_ = run.pole.seen - seen_before;  // the travel line's own choices start the window's count
         window_text_.clear();
         window_lines_.clear();
+    } else if (have_checkpoint_) {
+        choices_ = run.pole.seen;
     }
     if (!have_checkpoint_ && held_.empty()) {
         // No window open (most lines): nothing is held, and the window's lists are empty since it
@@ -145,45 +151,87 @@ bool LookBack::unwind_before(std::string_view line, std::uint64_t line_no, LineR
     const std::string held_saved = held_;
     const MoveLog::Held log_saved = log_ ? log_->held() : MoveLog::Held{};
     const int was = chosen_;
-    for (int k = 0; k < candidates_; ++k) {
-        if (k == was) continue;
-        state_ = checkpoint_;
-        held_.clear();
-        if (log_) log_->drop_held();
-        bool ok = true, missing = false;
-        try {
-            std::size_t at = 0;
-            bool first = true;
-            for (const std::uint64_t no : window_lines_) {
-                const std::size_t nl = window_text_.find('\n', at);
-                LineRun run;
-                run.line_no = no;
-                if (first) run.end_candidate = k;  // the checkpoint's travel move ends on solution k
-                first = false;
-                try {
-                    interpreter_.feed_line(std::string_view(window_text_).substr(at, nl - at), run, held_);
-                } catch (const InputError&) {
-                    missing = run.candidate_missing;
-                    throw;
-                }
-                at = nl + 1;
+    // The travel move's ends in turn, the one it took first (its choices so far kept), then the
+    // others. With each, as it is, then with one more branch choice near a pole taken the other
+    // way: which branch a printed loop needs where it passes a bounded turning joint's pole can
+    // depend on where it goes long after. At most kMaxReplays translations of the window.
+    int replays = 0;
+    bool missing = false;
+    for (int k = -2; k < candidates_ && !missing && replays < kMaxReplays; ++k) {
+        const int candidate = k == -2 ? was : k;
+        if (k != -2 && k == was) continue;
+        const PoleChoices base = k == -2 ? flips_ : PoleChoices{};
+        // The end as it is (tried already, for the end taken, by the line's own translation).
+        int choices = last.pole.seen;  // the choices up to where the line failed
+        if (k != -2) {
+            ++replays;
+            if (replay(candidate, base, line, line_no, last, missing)) {
+                chosen_ = candidate;
+                flips_ = base;
+                return true;
             }
-            last = LineRun{};
-            last.line_no = line_no;
-            interpreter_.feed_line(line, last, held_);
-        } catch (const InputError&) {
-            ok = false;
+            if (missing) break;
+            choices = last.pole.seen;
         }
-        if (ok) {
-            chosen_ = k;
-            return true;
+        if (base.n_flips >= PoleChoices::kMaxFlips) continue;
+        for (int d = 0; d < choices && replays < kMaxReplays; ++d) {
+            bool taken = false;
+            for (int i = 0; i < base.n_flips; ++i) taken = taken || base.flips[i] == d;
+            if (taken) continue;
+            PoleChoices flips = base;
+            flips.flips[flips.n_flips++] = d;
+            bool none = false;
+            ++replays;
+            if (replay(candidate, flips, line, line_no, last, none)) {
+                chosen_ = candidate;
+                flips_ = flips;
+                return true;
+            }
         }
-        if (missing) break;
     }
     state_ = before_line_;
     held_ = held_saved;
     if (log_) log_->set_held(log_saved);
     return false;
+}
+
+// The window translated again from the checkpoint, its travel move ending on solution
+// `candidate` (-1: its usual end) and the branch choices in `flips` taken the other way, then the
+// line: true when all of it fits. `missing`: there is no solution `candidate`.
+bool LookBack::replay(int candidate, const PoleChoices& flips, std::string_view line, std::uint64_t line_no, LineRun& last,
+                      bool& missing) {
+    state_ = checkpoint_;
+    held_.clear();
+    if (log_) log_->drop_held();
+    PoleChoices pole = flips;
+    pole.seen = 0;
+    try {
+        std::size_t at = 0;
+        bool first = true;
+        for (const std::uint64_t no : window_lines_) {
+            const std::size_t nl = window_text_.find('\n', at);
+            LineRun run;
+            run.line_no = no;
+            run.pole = pole;
+            if (first) run.end_candidate = candidate;  // the checkpoint's travel move ends on this solution
+            first = false;
+            try {
+                interpreter_.feed_line(std::string_view(window_text_).substr(at, nl - at), run, held_);
+            } catch (const InputError&) {
+                missing = run.candidate_missing;
+                throw;
+            }
+            pole.seen = run.pole.seen;
+            at = nl + 1;
+        }
+        last = LineRun{};
+        last.line_no = line_no;
+        last.pole = pole;
+        interpreter_.feed_line(line, last, held_);
+    } catch (const InputError&) {
+        return false;
+    }
+    return true;
 }
 
 void LookBack::release(std::size_t bytes, std::size_t moves, std::string& out) {

@@ -34,6 +34,10 @@ public:
     static constexpr std::size_t kMaxHeldBytes = std::size_t(8) << 20;
     // End solutions of a travel move tried in turn (nearest first) before a line is refused.
     static constexpr int kMaxCandidates = 64;
+    // With each, the window's branch choices near a pole (PoleChoices) taken the other way one
+    // more at a time: the window is translated again at most this many times before a line is
+    // refused.
+    static constexpr int kMaxReplays = 256;
 
     // `log` may be null (no report).
     LookBack(Interpreter& interpreter, ForwardState& state, MoveLog* log);
@@ -52,6 +56,8 @@ private:
     void feed_alone(std::string_view line, std::uint64_t line_no, std::string& out);
     std::string refusal_advice(bool linear, bool had_checkpoint) const;
     bool unwind_before(std::string_view line, std::uint64_t line_no, LineRun& last);
+    bool replay(int candidate, const PoleChoices& flips, std::string_view line, std::uint64_t line_no, LineRun& last,
+                bool& missing);
     void release(std::size_t bytes, std::size_t moves, std::string& out);
     std::size_t held_moves() const { return log_ ? log_->held_count() : 0; }
 
@@ -63,6 +69,8 @@ private:
     bool have_checkpoint_ = false;
     std::uint64_t checkpoint_line_ = 0;
     int chosen_ = -1;  // the solution the checkpoint's travel move took (-1: its usual end)
+    PoleChoices flips_;   // the window's branch choices near a pole taken the other way (a replay)
+    int choices_ = 0;     // the window's branch choices so far
     ForwardState before_line_, checkpoint_;
     std::string window_text_;  // input lines from the checkpoint's travel move on, '\n'-separated
     std::vector<std::uint64_t> window_lines_;

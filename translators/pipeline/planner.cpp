@@ -271,7 +271,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     bool start_held = false;
     if (!unwind && mv.mode == OrientationMode::Vector && (mv.any_xyz || s.tip_known) &&
         pole_hold_.passage(s.q, q_next_, s.pose, next, mv.any_ijk ? &end_solutions_ : nullptr, pole_q_, passage_angle,
-                           log_ != nullptr, start_held)) {
+                           log_ != nullptr, start_held, run.pole)) {
         passage = true;
         q_next_ = pole_q_;
     }

@@ -110,6 +110,7 @@ struct LineRun {
     bool hit_limit = false;          // out: it failed on a joint limit
     bool linear_limit = false;       // out: ... of a linear joint (the part is placed out of reach)
     bool candidate_missing = false;  // out: there is no solution end_candidate
+    PoleChoices pole;                // in and out: the window's branch choices near a pole (a replay flips some)
 };
 
 // A tool-space move as the interpreter read it (G0/G1 under G43.4/G43.5, or an arc's chord).

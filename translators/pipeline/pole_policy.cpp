@@ -67,7 +67,7 @@ void PoleHold::remember_axis(const std::vector<double>& q, const Eigen::Vector3d
 // that tool_move takes it inline.
 bool PoleHold::passage(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& from, const Pose& to,
                        const Kinematics::Solutions* at_end, std::vector<double>& q, double& worst, bool need_worst,
-                       bool& start_held) {
+                       bool& start_held, PoleChoices& choices) {
     // Machines whose tool axis at zero lies along the first rotary (has_flip): there the pole is
     // that rotary's axis and the second tilts the tool along a great circle through it.
     if (!checks_) return false;
@@ -88,7 +88,7 @@ bool PoleHold::passage(const std::vector<double>& q0, const std::vector<double>&
     // where it was programmed (a crossing within it is the motion stage's).
     const bool short_move = short_turn_.below(from.axis.dot(to.axis));
     if (start_exact && !short_move) return false;
-    return hold(q0, usual, from, to, at_end, q, worst, need_worst, start_exact, near_pole && short_move);
+    return hold(q0, usual, from, to, at_end, q, worst, need_worst, start_exact, near_pole && short_move, choices);
 }
 
 // The rest of passage, out of line: a move near the pole, or from an inexact start.
@@ -97,7 +97,7 @@ bool PoleHold::passage(const std::vector<double>& q0, const std::vector<double>&
 // end is not to be taken (out of reach, past the budget, or the usual end from an exact start).
 bool PoleHold::held_end(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& to,
                         const Kinematics::Solutions* at_end, std::vector<double>& q, Eigen::Vector3d& end_axis,
-                        bool start_exact) const {
+                        bool start_exact, PoleChoices& choices) const {
     const std::size_t c = c_, b = b_;
     const double tolerance = machine_.motion.angle_tolerance;
     const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
@@ -113,26 +113,31 @@ bool PoleHold::held_end(const std::vector<double>& q0, const std::vector<double>
     // its limit (rw2's A at its -168 home, the axis leaning toward +-180), so it is steered
     // toward the one it can reach while the axis is still near the pole and any angle will do.
     const Joint& J = machine_.joints[c];
-    double best = q0[c], least = 1e300;
+    double options[2];  // a solution set holds at most two
+    int n = 0;
     for (int k = 0; k < solutions.count; ++k) {
         const double exact = solutions.angle[k][0];
         if (std::isnan(exact)) {  // free (on the pole): it stays
-            least = 0;
-            best = q0[c];
+            options[n++] = q0[c];
             continue;
         }
         const double nearest = q0[c] + wrap180(exact - q0[c]);
         for (const double turn : {0.0, -360.0, 360.0}) {
             const double target = nearest + turn;
             if (!inside_limits(J, target)) continue;  // (an unbounded joint: the nearest turn)
-            const double value = target + std::clamp(q0[c] - target, -off, off);
-            if (std::abs(value - q0[c]) < least) {
-                least = std::abs(value - q0[c]);
-                best = value;
-            }
+            options[n++] = target + std::clamp(q0[c] - target, -off, off);
             break;  // the nearest turn inside the limits
         }
     }
+    // The nearest (the first of equals), and the nearest clearly apart from it.
+    double best = q0[c], least = 1e300, other = 0, other_least = 1e300;
+    for (int i = 0; i < n; ++i)
+        if (std::abs(options[i] - q0[c]) < least) least = std::abs(options[i] - q0[c]), best = options[i];
+    for (int i = 0; i < n; ++i)
+        if (std::abs(options[i] - best) > kPoleClearlyLess && std::abs(options[i] - q0[c]) < other_least)
+            other_least = std::abs(options[i] - q0[c]), other = options[i];
+    // Two options clearly apart: a branch choice, which the look-back may ask to take the other way.
+    if (other_least < 1e300 && choices.next_flipped()) best = other;
     // The tilt: the point of the great circle at that turntable angle nearest the axis
     // (cos B along the pole, sin B along the tilt at 90 degrees), taken nearest B now.
     q[c] = best;
@@ -151,13 +156,13 @@ bool PoleHold::held_end(const std::vector<double>& q0, const std::vector<double>
 
 bool PoleHold::hold(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& from, const Pose& to,
                     const Kinematics::Solutions* at_end, std::vector<double>& q, double& worst, bool need_worst, bool start_exact,
-                    bool hold_end) {
+                    bool hold_end, PoleChoices& choices) {
     const std::size_t c = c_, b = b_;
     const double tolerance = machine_.motion.angle_tolerance;
     const Eigen::Vector3d start_axis = axis_at(q0);  // as passage found it (a miss computes it again)
     q = usual;  // as solved: the continuous end (exact)
     Eigen::Vector3d end_axis;  // tool_axis(q), when hold_end
-    if (hold_end && !held_end(q0, usual, to, at_end, q, end_axis, start_exact)) return false;
+    if (hold_end && !held_end(q0, usual, to, at_end, q, end_axis, start_exact, choices)) return false;
     // The joint-linear turn from the start against the programmed axis's great circle. The first
     // point past the margin decides (worst is used only when the passage is taken, and then every
     // point was measured).

@@ -47,6 +47,24 @@ constexpr double kPoleSlack = 1e-9;   // degrees: rounding in pole_passage's two
 // degrees less.
 constexpr double kPoleClearlyLess = 1.0;
 
+// The branch choices the hold made near a pole (held_end: the exact angles of more than one
+// solution within reach, clearly apart), counted across a look-back window. Each takes the
+// nearest angle unless the look-back asks for the other one there: which branch a printed loop
+// needs where it passes a bounded turning joint's pole can depend on where the loop goes long
+// after (lookback.cpp).
+struct PoleChoices {
+    static constexpr int kMaxFlips = 4;
+    int seen = 0;                  // choices made so far (in: before the line; out: after it)
+    int flips[kMaxFlips] = {};     // choices to take the other way (indices into seen's count)
+    int n_flips = 0;
+    bool next_flipped() {
+        const int i = seen++;
+        for (int k = 0; k < n_flips; ++k)
+            if (flips[k] == i) return true;
+        return false;
+    }
+};
+
 class PoleHold {
 public:
     explicit PoleHold(const Kinematics& kinematics);
@@ -64,16 +82,17 @@ public:
     // `at_end`, when given, holds the orientation solutions of to.axis.
     bool passage(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& from, const Pose& to,
                  const Kinematics::Solutions* at_end, std::vector<double>& q, double& worst, bool need_worst,
-                 bool& start_held);
+                 bool& start_held, PoleChoices& choices);
     // A move's end as solved, whose axis the next move's start asks for.
     void remember_axis(const std::vector<double>& q, const Eigen::Vector3d& axis);
 
 private:
     bool hold(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& from, const Pose& to,
               const Kinematics::Solutions* at_end, std::vector<double>& q, double& worst, bool need_worst, bool start_exact,
-              bool hold_end);
+              bool hold_end, PoleChoices& choices);
     bool held_end(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& to,
-                  const Kinematics::Solutions* at_end, std::vector<double>& q, Eigen::Vector3d& end_axis, bool start_exact) const;
+                  const Kinematics::Solutions* at_end, std::vector<double>& q, Eigen::Vector3d& end_axis, bool start_exact,
+                  PoleChoices& choices) const;
     Eigen::Vector3d axis_at(const std::vector<double>& q) const;
 
     const Kinematics& kin_;
