@@ -6,10 +6,12 @@
 # crashes in build-fuzz/fuzz-artifacts/. Exit status 1 if any target found a crash.
 # Longer runs: fuzz/README.md.
 # `fuzz.sh --build-only` builds the targets and their seeds and runs nothing.
+# XLATE5_FUZZ_BUILD names another build tree configured with -DXLATE5_FUZZ=ON (scripts/test.sh
+# builds the sanitizer tests and the fuzz targets in one tree, so the libraries compile once).
 set -euo pipefail
 seconds="${1:-60}"
 root="$(cd "$(dirname "$0")/.." && pwd)"
-build="$root/build-fuzz"
+build="${XLATE5_FUZZ_BUILD:-$root/build-fuzz}"
 "$root/scripts/install-deps.sh" fuzz
 if [ ! -f "$build/CMakeCache.txt" ]; then
   CC=clang CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \

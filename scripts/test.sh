@@ -14,7 +14,6 @@ test_jobs=$((jobs + 1))
 
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j"$jobs"
-ctest --test-dir build --output-on-failure -j"$test_jobs"
 
 echo "--- benchmarks (figures only; see bench/)"
 ./build/bench/bench_translate 100000 rw2 0.01
@@ -26,20 +25,23 @@ rm -f "$floor_input"
 ./build/bench/bench_service 5000 0
 bench/instructions.sh build 20000  # exact counts: the steady figure where times move with the machine
 
-# -O1 without debug info: the sanitizer build is about finding bugs, and compiles much faster.
-# Built with clang (installed for the fuzz targets in any case): the same tree and flags took
-# 286 s against g++'s 406 s on two cores, the slowest step of this script.
+ctest --test-dir build --output-on-failure -j"$test_jobs"
+
+# The sanitizer tests and the fuzz targets in one clang tree (ASan + UBSan, libFuzzer's coverage
+# on the libraries), so the libraries compile once; -O1 without debug info: the tree is about
+# finding bugs, and compiles much faster. Built with clang (needed for the fuzz targets in any
+# case): the same tree and flags took 286 s against g++'s 406 s on two cores.
 # The packaging tests (manual page, completion, .deb) check files, not memory: release only.
 cmake -S . -B build-asan -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1" \
-    -DXLATE5_SANITIZE=ON -DXLATE5_BENCH=OFF >/dev/null
+    -DXLATE5_SANITIZE=ON -DXLATE5_FUZZ=ON -DXLATE5_BENCH=OFF >/dev/null
 cmake --build build-asan -j"$jobs"
-# The fuzz targets (clang; only they are built; fuzz/README.md).
+export XLATE5_FUZZ_BUILD=$PWD/build-asan
 ./scripts/fuzz.sh --build-only
 
-# The sanitizer tests mostly wait on pseudo-terminals and timers, so each fuzz target runs 10 s
-# on its seeds meanwhile; the tests' output is printed after the fuzz figures.
 asan_log=$(mktemp)
 trap 'rm -f "$asan_log"' EXIT
+# The sanitizer tests mostly wait on pseudo-terminals and timers, so each fuzz target runs 10 s
+# on its seeds meanwhile; the tests' output is printed after the fuzz figures.
 ( ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
     ctest --test-dir build-asan --output-on-failure -j"$test_jobs" -E '^(man_page|bash_completion|debian_package)$' \
     > "$asan_log" 2>&1 ) &
