@@ -289,7 +289,7 @@ Kinematics::Kinematics(const Machine& machine)
     // joint_path_bound_split's shape: the rotaries, then the linear joints alone.
     bound_count_ = int(terms_.size());
     while (bound_rotary_ < bound_count_ && terms_[std::size_t(bound_rotary_)].rotary) ++bound_rotary_;
-    bound_split_ = bound_count_ <= 8;
+    bound_split_ = bound_count_ <= int(kMaxJoints);
     for (int k = 0; k < bound_count_ && bound_split_; ++k) {
         bound_split_ = terms_[std::size_t(k)].rotary == (k < bound_rotary_);
         bound_[k] = terms_[std::size_t(k)];
@@ -323,8 +323,8 @@ Kinematics::Kinematics(const Machine& machine)
         bool fits = true;
         for (const auto& e : machine.part_chain) {
             if (e.kind == ChainElement::Kind::Rotary) {
-                if (arm < 8) reach_.arm[arm] = e.point.norm() + before + tool_total;
-                fits = fits && ++arm <= 8;
+                if (arm < int(kMaxJoints)) reach_.arm[arm] = e.point.norm() + before + tool_total;
+                fits = fits && ++arm <= int(kMaxJoints);
             }
             before += moves(e);
         }
@@ -333,10 +333,10 @@ Kinematics::Kinematics(const Machine& machine)
             if (e.kind != ChainElement::Kind::Rotary) continue;
             double after = 0;
             for (std::size_t m = k + 1; m < machine.tool_chain.size(); ++m) after += moves(machine.tool_chain[m]);
-            if (arm < 8) reach_.arm[arm] = e.point.norm() + after;
-            fits = fits && ++arm <= 8;
+            if (arm < int(kMaxJoints)) reach_.arm[arm] = e.point.norm() + after;
+            fits = fits && ++arm <= int(kMaxJoints);
         }
-        for (int i = 0; i < arm && i < 8; ++i) reach_.lever_arm = std::max(reach_.lever_arm, reach_.arm[i]);
+        for (int i = 0; i < arm && i < int(kMaxJoints); ++i) reach_.lever_arm = std::max(reach_.lever_arm, reach_.arm[i]);
         has_reach_ = fits && std::isfinite(reach_.lever_arm);
         // Per joint: how far the tip moves per unit of it at most (mm per mm, mm per degree).
         shift_per_unit_.assign(machine.joints.size(), 0.0);
@@ -363,7 +363,7 @@ Kinematics::Kinematics(const Machine& machine)
     }
     if (!varies) {
         const std::vector<double> zero(machine.joints.size(), 0.0);
-        Eigen::Vector3d part_dirs[8], tool_dirs[8];
+        Eigen::Vector3d part_dirs[kMaxJoints], tool_dirs[kMaxJoints];
         for (std::size_t j = 0; j < machine.joints.size(); ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();
         Eigen::Matrix3d Rp, Rt, J;
         Eigen::Vector3d tp, tt;
@@ -395,8 +395,8 @@ Kinematics::Kinematics(const Machine& machine)
             }
         }
     }
-    solved_ends_ = !twice && line_shifts_.size() <= 8 && machine.joints.size() <= 8;
-    arm_count_ = std::min(int(line_shifts_.size()), 8);
+    solved_ends_ = !twice && line_shifts_.size() <= kMaxJoints && machine.joints.size() <= kMaxJoints;
+    arm_count_ = std::min(int(line_shifts_.size()), int(kMaxJoints));
     std::vector<bool> counted(machine.joints.size(), false);  // each joint's reach term once
     for (std::size_t j = 0; j < machine.joints.size(); ++j)
         if (!machine.joints[j].rotary && shift_per_unit_[j] > 0) {
@@ -782,7 +782,7 @@ Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const
         });
     M3 Rp, Rt;
     V3 tp, tt;
-    AxisLine lines[8];  // at most 5 joints (the loader checks)
+    AxisLine lines[kMaxJoints];  // at most 5 joints (the loader checks)
     int count = 0;
     walk(part_links_, q, Rp, tp, nullptr, lever_arm ? lines : nullptr, &count);
     walk(tool_links_, q, Rt, tt, nullptr, lever_arm ? lines : nullptr, &count);
@@ -836,7 +836,7 @@ Kinematics::PathBound Kinematics::joint_path_bound(const PathEnd& a, const doubl
 // sum takes the same terms in the same order, without a test of each term's kind.
 Kinematics::PathBound Kinematics::joint_path_bound_split(const PathEnd& a, const double* qa, const double* qb) const {
     PathBound out;
-    double rate[8];
+    double rate[kMaxJoints];
     const int nr = bound_rotary_, n = bound_count_;
     double w = 0, s = 0, l = 0;
     for (int k = 0; k < nr; ++k) {
@@ -869,7 +869,7 @@ Kinematics::PathBound Kinematics::joint_path_bound_split(const PathEnd& a, const
 
 Kinematics::PathBound Kinematics::joint_path_bound_general(const PathEnd& a, const double* qa, const double* qb) const {
     PathBound out;
-    double rate[8];  // each term's w_i (radians) or v_k (mm); the loader allows at most 5 joints, two rotary
+    double rate[kMaxJoints];  // each term's w_i (radians) or v_k (mm); the loader allows at most 5 joints, two rotary
     const std::size_t n = terms_.size();
     double w = 0, s = 0, l = 0;
     for (std::size_t k = 0; k < n; ++k) {
@@ -1049,9 +1049,9 @@ IkResult Kinematics::solve_scalar(const Eigen::Vector3d& tip, std::vector<double
     if (end) end->valid = false;
     const std::size_t n = machine_.joints.size();  // at most 5 (the loader checks)
     // Only the entries the walks write are read (see solve_cols_): no zeroing.
-    Eigen::Vector3d part_dirs[8], tool_dirs[8];
+    Eigen::Vector3d part_dirs[kMaxJoints], tool_dirs[kMaxJoints];
     const bool want_end = end && solved_ends_;
-    AxisLine lines[8];
+    AxisLine lines[kMaxJoints];
     int count = 0;
     M3 Rp, Rt;
     V3 tp, tt, up;
@@ -1093,7 +1093,7 @@ IkResult Kinematics::solve_scalar(const Eigen::Vector3d& tip, std::vector<double
     q[std::size_t(linear_[1])] += dq.y;
     q[std::size_t(linear_[2])] += dq.z;
     if (want_end) {
-        double moved[8] = {};
+        double moved[kMaxJoints] = {};
         moved[linear_[0]] = dq.x;
         moved[linear_[1]] = dq.y;
         moved[linear_[2]] = dq.z;
@@ -1106,14 +1106,14 @@ IkResult Kinematics::solve_position_general(const Eigen::Vector3d& tip, std::vec
                                             SolvedEnd* end) const {
     if (constant_jacobian_) return solve_position(tip, q, axis, end);
     const std::size_t n = machine_.joints.size();  // at most 5 (the loader checks)
-    Eigen::Vector3d part_dirs[8], tool_dirs[8];
+    Eigen::Vector3d part_dirs[kMaxJoints], tool_dirs[kMaxJoints];
     for (std::size_t j = 0; j < n; ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();
     Eigen::Matrix3d Rp, Rt;
     Eigen::Vector3d tp, tt;
     // With `end` the walk also records the rotaries' axis lines (the same R and t either way).
     const bool want_end = end && solved_ends_;
     if (end) end->valid = false;
-    AxisLine lines[8];
+    AxisLine lines[kMaxJoints];
     int count = 0;
     {
         M3 R;
@@ -1140,7 +1140,7 @@ IkResult Kinematics::solve_position_general(const Eigen::Vector3d& tip, std::vec
         // The lever arms at the solution from the walk's own lines: the linear joints moved by
         // dq carry the tip (those of the tool chain) and the axis lines behind them (those ahead
         // of each line in its chain) along their directions; nothing turns.
-        double moved[8] = {};
+        double moved[kMaxJoints] = {};
         for (int i = 0; i < 3; ++i) moved[linear_[std::size_t(i)]] = dq[i];
         fill_solved_end(line_shifts_, tool_linear_, n, moved, v3(tt), lines, count, part_dirs, tool_dirs, tip, q, *end);
     }

@@ -98,7 +98,7 @@ public:
     struct PathEnd {
         Pose pose;
         double lever_arm = 0;  // the largest of `arm`
-        double arm[8] = {};    // the distance from each rotary element's axis, in chain order (part chain, then tool chain)
+        double arm[kMaxJoints] = {};    // the distance from each rotary element's axis, in chain order (part chain, then tool chain)
         // An end bounded rather than measured (near_end): the true tip and tool axis are within
         // these of `pose` (mm, and a unit vector's length), and `arm` holds upper bounds.
         double tip_slack = 0, axis_slack = 0;
@@ -213,7 +213,7 @@ private:
     // terms_ when it is its rotaries and then its linear joints alone (joint_path_bound_split).
     bool bound_split_ = false;
     int bound_rotary_ = 0, bound_count_ = 0;
-    BoundTerm bound_[8];
+    BoundTerm bound_[kMaxJoints];
     PathBound joint_path_bound_split(const PathEnd& a, const double* qa, const double* qb) const;
 
     Machine machine_;

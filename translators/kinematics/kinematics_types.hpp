@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The values kinematics and the joint-limit policy exchange: a pose, the raw orientation
+// The values kinematics and the joint-limit policy exchange: the joint bound, a pose, the raw orientation
 // solutions of a tool axis, the result of a solve, and angle wrapping. Calls nothing.
 #pragma once
 #include <Eigen/Core>
@@ -8,6 +8,11 @@
 #include <string>
 
 namespace xlate5 {
+
+// The most joints a machine may have: the length of every fixed per-joint array (the emitter's,
+// the split's, the path bound's), so none allocates per move. The emitter refuses a machine with
+// more.
+inline constexpr std::size_t kMaxJoints = 8;
 
 // Tip position and tool axis (unit, tip -> holder), both in the part frame.
 struct Pose {
