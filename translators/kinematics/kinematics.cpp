@@ -11,52 +11,14 @@
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
+#include "translators/kinematics/scalar3.hpp"
 #include "translators/pipeline/joint_limits.hpp"
 
 namespace xlate5 {
 
+using namespace kin;
+
 namespace {
-
-constexpr double kDeg = kRadPerDeg;
-// A projected vector shorter than this leaves subproblem 1 without an answer: the joint is on
-// its singular pole and keeps its previous angle.
-constexpr double kFreeEps = 1e-7;
-// Orientations this close (radians, squared for gamma) to the reachable set count as reachable.
-constexpr double kReachEps = 1e-6;
-
-// The chain walk below is written out in scalars: the same operations, in the same order and
-// so to the last bit, as Eigen's fixed-size products (a 3x3 matrix times a column sums rows 0 and
-// 1 as (a0 + a1) + a2 and row 2 as a0 + (a1 + a2); test_kinematics holds the two against each
-// other), with every value in its own variable so that it stays in a register (Eigen's 3-vectors
-// went through memory in part-overlapping loads and stores, which stall).
-struct V3 {
-    double x, y, z;
-};
-struct M3 {
-    double xx, xy, xz, yx, yy, yz, zx, zy, zz;  // row, column
-};
-
-inline V3 v3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
-inline V3 operator+(const V3& a, const V3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-inline V3 operator-(const V3& a, const V3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-inline V3 operator*(const V3& a, double s) { return {a.x * s, a.y * s, a.z * s}; }
-
-inline V3 operator*(const M3& m, const V3& v) {
-    return {(m.xx * v.x + m.xy * v.y) + m.xz * v.z, (m.yx * v.x + m.yy * v.y) + m.yz * v.z, m.zx * v.x + (m.zy * v.y + m.zz * v.z)};
-}
-
-inline M3 operator*(const M3& a, const M3& b) {
-    const V3 c0 = a * V3{b.xx, b.yx, b.zx}, c1 = a * V3{b.xy, b.yy, b.zy}, c2 = a * V3{b.xz, b.yz, b.zz};
-    return {c0.x, c1.x, c2.x, c0.y, c1.y, c2.y, c0.z, c1.z, c2.z};
-}
-
-// Eigen's normalized(): v / |v|, the squares summed (a0 + a1) + a2; a zero vector is returned as is.
-inline V3 normalized(const V3& v) {
-    const double n = (v.x * v.x + v.y * v.y) + v.z * v.z;
-    if (!(n > 0)) return v;
-    const double r = std::sqrt(n);
-    return {v.x / r, v.y / r, v.z / r};
-}
 
 // Eigen's AngleAxis::toRotationMatrix, entry for entry.
 inline M3 rot(const V3& axis, double degrees) {
@@ -82,15 +44,13 @@ Subproblem1 subproblem1_terms(const Eigen::Vector3d& w, const Eigen::Vector3d& p
     return {w.dot(pp.cross(qq)), pp.dot(qq), false};
 }
 double angle_of(const Subproblem1& t) { return t.free ? std::numeric_limits<double>::quiet_NaN() : std::atan2(t.y, t.x); }
-// atan2(-y, -x) from phi = atan2(y, x), y non-zero: the opposite direction, half a turn away, in
-// (-pi, pi] as atan2 gives it (to an ulp of it, not atan2's own bits). Both orientation paths use
-// it where a second solution's terms are the first's negated, so they stay the same to the bit.
-double opposite_angle(double phi) { return phi > 0 ? phi - kPi : phi + kPi; }
 double subproblem1(const Eigen::Vector3d& w, const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
     return angle_of(subproblem1_terms(w, p, q));
 }
 
-// The walk's form of a chain (see ChainLink and walk below).
+}  // namespace
+
+// See chain.hpp; the walk below.
 std::vector<ChainLink> compile_chain(const std::vector<ChainElement>& chain) {
     std::vector<ChainLink> links;
     bool fresh = true;
@@ -132,8 +92,6 @@ std::vector<ChainLink> compile_chain(const std::vector<ChainElement>& chain) {
     }
     return links;
 }
-
-}  // namespace
 
 double angle_of_dot(double dot) { return std::acos(std::clamp(dot, -1.0, 1.0)) * kDegPerRad; }
 
@@ -214,56 +172,7 @@ Kinematics::Kinematics(const Machine& machine)
     // R(w1, t1 + 180) R(w2, -t2) p = R(w1, t1) R(w2, t2) R(w1, 180) p = R(w1, t1) R(w2, t2) p.
     flip_ = rotary_.size() == 2 && std::abs(w_[0].dot(w_[1])) < 1e-9 && w_[0].cross(p_).norm() < 1e-9;
 
-    // orientation_solutions' shortcut: both rotary axes +-1 times a coordinate axis, exactly.
-    auto coordinate_axis = [](const Eigen::Vector3d& w) {
-        for (int k = 0; k < 3; ++k)
-            if (std::abs(w[k]) == 1 && w[(k + 1) % 3] == 0 && w[(k + 2) % 3] == 0) return k;
-        return -1;
-    };
-    if (rotary_.size() == 2) {
-        OrientShortcut& f = orient_;
-        f.i = coordinate_axis(w_[0]);
-        f.j = coordinate_axis(w_[1]);
-        f.on = f.i >= 0 && f.j >= 0 && f.i != f.j;
-        if (f.on) {
-            // The general path's constants, computed as it computes them.
-            const Eigen::Vector3d& w1 = w_[0];
-            const Eigen::Vector3d& w2 = w_[1];
-            const Eigen::Vector3d n = w1.cross(w2);
-            const Eigen::Vector3d pp2 = p_ - w2 * w2.dot(p_);
-            const int k = 3 - f.i - f.j;
-            f.pattern = f.i * 2 + (f.j > f.i ? f.j - 1 : f.j);  // (0,1) (0,2) (1,0) (1,2) (2,0) (2,1)
-            f.w1i = w1[f.i], f.w2j = w2[f.j], f.nk = n[k];
-            f.sign1 = sign_[0], f.sign2 = sign_[1];
-            f.a = w1.dot(w2);
-            f.den = f.a * f.a - 1.0;
-            f.w2p = w2.dot(p_);
-            f.aw2p = f.a * f.w2p;
-            f.psq = p_.squaredNorm();
-            f.nn = n.squaredNorm();
-            // x / 2^m and x * 2^-m round the same real number (2^-m exact), so they agree to the bit.
-            auto power_of_two = [](double v) {
-                int e = 0;
-                return std::isfinite(v) && std::abs(std::frexp(v, &e)) == 0.5;
-            };
-            f.den_inv = 1.0 / f.den, f.nn_inv = 1.0 / f.nn;
-            f.exact_inv = power_of_two(f.den) && power_of_two(f.nn) && power_of_two(f.den_inv) && power_of_two(f.nn_inv);
-            for (int m = 0; m < 3; ++m) f.pp2[m] = pp2[m];
-            f.free2 = pp2.norm() < kFreeEps;
-            f.g0_identity = g0_ == Eigen::Matrix3d::Identity();
-            for (int r = 0; r < 3; ++r)
-                for (int c = 0; c < 3; ++c) f.g0[r * 3 + c] = g0_(r, c);
-            // |v| < kFreeEps as |v|^2 < free_sq: the square root is correctly rounded and so
-            // never decreasing, and free_sq is the least double whose root reaches kFreeEps.
-            double t = kFreeEps * kFreeEps;
-            while (std::sqrt(t) >= kFreeEps) t = std::nextafter(t, 0.0);
-            while (std::sqrt(t) < kFreeEps) t = std::nextafter(t, 1.0);
-            f.free_sq = t;
-            // What the shortcut takes for granted, as the general path computes it: n along k
-            // alone, pp2 zero along j.
-            f.on = n[f.i] == 0 && n[f.j] == 0 && pp2[f.j] == 0;
-        }
-    }
+    if (rotary_.size() == 2) orient_.load(w_[0], w_[1], p_, g0_, sign_[0], sign_[1]);
 
     // The bound's terms (see joint_path_bound): the part chain from the part back to the base,
     // then the tool chain. Each rotary element's arm index is its place in forward()'s walk (part
@@ -427,72 +336,10 @@ Kinematics::Kinematics(const Machine& machine)
         const V3 up = M3{1, 0, 0, 0, 1, 0, 0, 0, 1} * v3(machine.tool_axis);
         tool_up_[0] = up.x, tool_up_[1] = up.y, tool_up_[2] = up.z;
     }
-    // The closed form's shape (see TwoTurns), checked link by link; its constants taken once.
-    {
-        using K = ChainLink::Kind;
-        auto coordinate = [](K kind) { return kind == K::RotaryX ? 0 : kind == K::RotaryY ? 1 : kind == K::RotaryZ ? 2 : -1; };
-        bool on = part_links_.size() == 2 && tool_plain_ && tool_links_.size() == 3 && linear_.size() == 3 && line_shifts_.size() == 2;
-        for (std::size_t k = 0; on && k < 3; ++k) on = solve_cols_[k].tool && !solve_cols_[k].part;
-        for (std::size_t m = 0; on && m < 3; ++m)  // three distinct joints: the three unknowns
-            for (std::size_t l = 0; l < m; ++l) on = on && tool_links_[m].joint != tool_links_[l].joint;
-        if (on) {
-            const ChainLink &a = part_links_[0], &b = part_links_[1];
-            const int k1 = coordinate(a.kind), k2 = coordinate(b.kind);
-            on = k1 >= 0 && k2 >= 0 && k1 != k2 && !a.shifts && !b.shifts && a.fresh && !b.fresh;
-            if (on) {
-                TwoTurns& f = turns_;
-                f.pattern = k1 * 3 + k2;
-                f.j1 = a.joint, f.j2 = b.joint;
-                f.sign1 = a.sign, f.sign2 = b.sign;
-                // The walk's first line: R the identity and t zero there.
-                const M3 I{1, 0, 0, 0, 1, 0, 0, 0, 1};
-                const V3 p0 = V3{0, 0, 0} + I * V3{a.point[0], a.point[1], a.point[2]};
-                const V3 d0 = normalized(I * V3{a.axis[0], a.axis[1], a.axis[2]});
-                f.line0_point[0] = p0.x, f.line0_point[1] = p0.y, f.line0_point[2] = p0.z;
-                f.line0_dir[0] = d0.x, f.line0_dir[1] = d0.y, f.line0_dir[2] = d0.z;
-                for (int i = 0; i < 3; ++i) f.point2[i] = b.point[i], f.axis2[i] = b.axis[i];
-                // C: each unknown's direction (its joint's tool link) as a column.
-                Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
-                for (std::size_t m = 0; m < 3; ++m) {
-                    f.tool_joint[m] = tool_links_[m].joint;
-                    for (int i = 0; i < 3; ++i) f.tool_dir[m][i] = tool_links_[m].axis[i];
-                    for (std::size_t k = 0; k < 3; ++k)
-                        if (linear_[k] == tool_links_[m].joint)
-                            C.col(Eigen::Index(k)) = Eigen::Vector3d(tool_links_[m].axis[0], tool_links_[m].axis[1], tool_links_[m].axis[2]);
-                }
-                // As the general solve's test of its Jacobian Rp^T C, whose determinant is C's.
-                f.singular = !(std::abs(C.determinant()) > 1e-9);
-                if (orient_.on)  // the shortcut's solutions carry their atan2 terms
-                    for (int r = 0; r < 2; ++r) {
-                        if (rotary_[std::size_t(r)] == f.j1) f.r1 = r;
-                        if (rotary_[std::size_t(r)] == f.j2) f.r2 = r;
-                    }
-                if (f.r1 < 0 || f.r2 < 0) f.r1 = f.r2 = -1;
-                if (!f.singular) {
-                    const Eigen::Matrix3d Ci = C.inverse();
-                    for (int row = 0; row < 3; ++row)
-                        for (int col = 0; col < 3; ++col) f.col_inv[row * 3 + col] = Ci(row, col);
-                }
-            }
-        }
-    }
+    turns_.load(part_links_, tool_links_, linear_, rotary_, orient_.on(), tool_up_, solved_ends_);
 }
 
 namespace {
-
-// A rotary joint's axis in the base frame (dir unit); only the bound's lever arms use it, so it
-// need not match Eigen's rounding (the bound keeps a slack).
-struct AxisLine {
-    V3 point, dir;
-};
-
-// The distance of x from an axis line (measured in the base frame, as forward() and the
-// position solve's end measure the lever arms).
-inline double distance_from(const V3& x, const AxisLine& line) {
-    const V3 d = x - line.point, u = line.dir;
-    const V3 off = d - u * (u.x * d.x + u.y * d.y + u.z * d.z);
-    return std::sqrt(off.x * off.x + off.y * off.y + off.z * off.z);
-}
 
 // The position solve's end (both solves): the lever arms at the solution from the walk's own
 // lines. The linear joints moved by `moved` carry the tip `tt` (those of the tool chain) and the
@@ -636,12 +483,6 @@ void walk_rotation(const std::vector<ChainLink>& chain, const double* q, M3& R) 
     walk_links<false>(chain, q, R, t, nullptr, nullptr, nullptr);
 }
 
-// R^T v, as Eigen sums a transposed product: every row (a0 + a1) + a2.
-inline V3 transposed_times(const M3& m, const V3& v) {
-    return {(m.xx * v.x + m.yx * v.y) + m.zx * v.z, (m.xy * v.x + m.yy * v.y) + m.zy * v.z, (m.xz * v.x + m.yz * v.y) + m.zz * v.z};
-}
-
-
 // The tool axis in the part frame from the two chains' rotations (forward and tool_axis alike).
 inline Eigen::Vector3d part_axis(const M3& Rp, const M3& Rt, const Eigen::Vector3d& tool) {
     const V3 axis = normalized(transposed_times(Rp, Rt * v3(tool)));
@@ -651,77 +492,6 @@ inline Eigen::Vector3d part_axis(const M3& Rp, const M3& Rt, const Eigen::Vector
 }  // namespace
 
 namespace {
-
-// fn(k1, k2) for TwoTurns' pattern (k1 * 3 + k2, one of the six pairs of distinct coordinate
-// axes), the axes as compile-time constants (std::integral_constant): the one place the six
-// instances are named. The caller has checked that the machine has the shape (pattern >= 0).
-template <class Fn>
-[[gnu::always_inline]] inline decltype(auto) on_two_turns(int pattern, Fn&& fn) {
-    using C0 = std::integral_constant<int, 0>;
-    using C1 = std::integral_constant<int, 1>;
-    using C2 = std::integral_constant<int, 2>;
-    switch (pattern) {
-        case 0 * 3 + 1: return fn(C0{}, C1{});
-        case 0 * 3 + 2: return fn(C0{}, C2{});
-        case 1 * 3 + 0: return fn(C1{}, C0{});
-        case 1 * 3 + 2: return fn(C1{}, C2{});
-        case 2 * 3 + 0: return fn(C2{}, C0{});
-        default: return fn(C2{}, C1{});  // 2 * 3 + 1
-    }
-}
-
-// TwoTurns' part rotation Rp = R1 R2 (R1 about coordinate axis k1 by the first joint's angle
-// times its sign, R2 about k2 likewise) as the two turns' cosines and signed sines: vectors are
-// turned in closed form, two planar turns each, as Grutle (Oslo 2015) writes machine XYZ =
-// R_x(A) R_z(C) p in pseudo code 4.1 (the case k1 = x, k2 = z). Not the chain walk's bits (its
-// products also sum the exact zeros of each turn's matrix, and (1 - c) + c on the axis):
-// test_kinematics holds the two together to rounding.
-template <int k1, int k2>
-struct TwoTurnRotation {
-    double c1, s1, c2, s2;
-    // The turn about coordinate axis k by (c, s) of v, or with kBack its inverse.
-    template <int k, bool kBack>
-    [[gnu::always_inline]] static V3 turn(double c, double s, const V3& v) {
-        constexpr int i = (k + 1) % 3, j = (k + 2) % 3;
-        double a[3] = {v.x, v.y, v.z};
-        const double vi = a[i], vj = a[j];
-        if (kBack) a[i] = c * vi + s * vj, a[j] = c * vj - s * vi;
-        else a[i] = c * vi - s * vj, a[j] = s * vi + c * vj;
-        return {a[0], a[1], a[2]};
-    }
-    V3 apply(const V3& v) const { return turn<k1, false>(c1, s1, turn<k2, false>(c2, s2, v)); }  // Rp v
-    V3 back(const V3& v) const { return turn<k2, true>(c2, s2, turn<k1, true>(c1, s1, v)); }     // Rp^T v
-};
-
-template <int k1, int k2, class TwoTurns>
-[[gnu::always_inline]] inline TwoTurnRotation<k1, k2> two_turn_rotation(const TwoTurns& f, const double* q) {
-    const double a1 = q[f.j1] * kDeg, a2 = q[f.j2] * kDeg;
-    return {std::cos(a1), f.sign1 * std::sin(a1), std::cos(a2), f.sign2 * std::sin(a2)};
-}
-
-// The rotation at q from the orientation solve's terms, q's two turns being solution `chosen`'s
-// angles (a whole number of turns from them): cos = x / |(x, y)|, sin = y / |(x, y)| of the atan2
-// that gave each. False when the solution carries no terms.
-template <int k1, int k2, class TwoTurns>
-[[gnu::always_inline]] inline bool two_turn_rotation_from(const TwoTurns& f, const ChosenSolution& chosen, TwoTurnRotation<k1, k2>& r) {
-    if (!chosen.from || chosen.branch < 0 || !chosen.from->has_terms || f.r1 < 0) return false;
-    const OrientationSolutions& s = *chosen.from;
-    const double* t1 = s.terms[chosen.branch][f.r1];
-    const double* t2 = s.terms[chosen.branch][f.r2];
-    const double i1 = 1.0 / std::sqrt(t1[0] * t1[0] + t1[1] * t1[1]), i2 = 1.0 / std::sqrt(t2[0] * t2[0] + t2[1] * t2[1]);
-    // The turn's sine is the joint's angle's times the turn's sign.
-    r = {t1[1] * i1, f.sign1 * t1[0] * i1, t2[1] * i2, f.sign2 * t2[0] * i2};
-    return true;
-}
-
-// The two turns' axis lines in the base frame: the first fixed, the second turned by the first.
-template <int k1, int k2, class TwoTurns>
-[[gnu::always_inline]] inline void two_turn_lines(const TwoTurns& f, const TwoTurnRotation<k1, k2>& r, AxisLine* lines) {
-    using R = TwoTurnRotation<k1, k2>;
-    lines[0] = {V3{f.line0_point[0], f.line0_point[1], f.line0_point[2]}, V3{f.line0_dir[0], f.line0_dir[1], f.line0_dir[2]}};
-    lines[1] = {R::template turn<k1, false>(r.c1, r.s1, V3{f.point2[0], f.point2[1], f.point2[2]}),
-                R::template turn<k1, false>(r.c1, r.s1, V3{f.axis2[0], f.axis2[1], f.axis2[2]})};
-}
 
 // The linear joints' step dq = J^-1 (tip - current) from J's columns, as Eigen computes a fixed-size 3x3:
 // the determinant as bruteforce_det3_helper sums it, the inverse from the first column's
@@ -742,11 +512,6 @@ template <int k1, int k2, class TwoTurns>
     return true;
 }
 
-// The error of a singular Jacobian, out of the solve's way.
-[[gnu::noinline, gnu::cold]] IkResult singular_jacobian() {
-    return {IkStatus::Singular, "the linear axes cannot move the tip in every direction here"};
-}
-
 }  // namespace
 
 void Kinematics::eval(const std::vector<ChainLink>& chain, const double* q, Eigen::Matrix3d& R_out, Eigen::Vector3d& t_out,
@@ -761,13 +526,7 @@ void Kinematics::eval(const std::vector<ChainLink>& chain, const double* q, Eige
 Pose Kinematics::forward(const std::vector<double>& q) const { return forward(q.data(), nullptr); }
 
 Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
-    // TwoTurns' shape: the part chain's rotation in closed form, the tool chain's the identity.
-    if (turns_.pattern >= 0)
-        return on_two_turns(turns_.pattern, [&](auto c1, auto c2) {
-            const auto r = two_turn_rotation<decltype(c1)::value, decltype(c2)::value>(turns_, q.data());
-            const V3 u = normalized(r.back(V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
-            return Eigen::Vector3d(u.x, u.y, u.z);
-        });
+    if (turns_.on()) return turns_.tool_axis(q.data());
     M3 Rp, Rt;
     walk_rotation(part_links_, q.data(), Rp);
     walk_rotation(tool_links_, q.data(), Rt);
@@ -776,10 +535,7 @@ Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
 
 // With `lever_arm`: also the tip's largest distance from a rotary joint's axis.
 Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const {
-    if (turns_.pattern >= 0)
-        return on_two_turns(turns_.pattern, [&](auto c1, auto c2) {
-            return forward_two_turns<decltype(c1)::value, decltype(c2)::value>(q, lever_arm, arms);
-        });
+    if (turns_.on()) return turns_.forward(q, lever_arm, arms);
     M3 Rp, Rt;
     V3 tp, tt;
     AxisLine lines[kMaxJoints];  // at most 5 joints (the loader checks)
@@ -961,84 +717,10 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
 // from solve_scalar so that the closed form does not pay for solve_scalar's frame.
 IkResult Kinematics::solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
                                    ChosenSolution chosen) const {
-    if (turns_.pattern < 0) return solve_scalar(tip, q, axis, end);
-    return on_two_turns(turns_.pattern, [&](auto c1, auto c2) {
-        return solve_two_turns<decltype(c1)::value, decltype(c2)::value>(tip, q, axis, end, chosen);
-    });
+    if (!turns_.on()) return solve_scalar(tip, q, axis, end);
+    return turns_.solve(tip, q, axis, end, chosen);
 }
 
-
-// forward() for the TwoTurns shape: the tool chain's fresh linear links give the tip in the
-// base frame, the part rotation's inverse takes it (and the tool axis) to the part frame.
-template <int k1, int k2>
-Pose Kinematics::forward_two_turns(const double* q, double* lever_arm, double* arms) const {
-    const TwoTurns& f = turns_;
-    const auto r = two_turn_rotation<k1, k2>(f, q);
-    V3 tt{0, 0, 0};
-    for (int m = 0; m < 3; ++m) tt = tt + V3{f.tool_dir[m][0], f.tool_dir[m][1], f.tool_dir[m][2]} * q[f.tool_joint[m]];
-    Pose pose;
-    const V3 tip = r.back(tt);
-    pose.tip = Eigen::Vector3d(tip.x, tip.y, tip.z);
-    const V3 u = normalized(r.back(V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
-    pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
-    if (lever_arm) {
-        AxisLine lines[2];
-        two_turn_lines(f, r, lines);
-        *lever_arm = 0;
-        for (int i = 0; i < 2; ++i) {
-            const double arm = distance_from(tt, lines[i]);
-            if (arms) arms[i] = arm;
-            *lever_arm = std::max(*lever_arm, arm);
-        }
-    }
-    return pose;
-}
-
-// The position solve for the TwoTurns shape in closed form: the tip wanted in the part frame,
-// turned into the base frame (Rp tip), is where the tool chain's linear links must put it, so
-// the three unknowns are C^-1 Rp tip (C: their directions, inverted at load). The general solve's
-// step q += J^-1 (tip - current), with J = Rp^T C, is the same up to rounding.
-template <int k1, int k2>
-IkResult Kinematics::solve_two_turns(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
-                                     ChosenSolution chosen) const {
-    const TwoTurns& f = turns_;
-    if (end) end->valid = false;
-    const bool want_end = end && solved_ends_;
-    TwoTurnRotation<k1, k2> r;
-    if (!two_turn_rotation_from(f, chosen, r)) r = two_turn_rotation<k1, k2>(f, q.data());
-    V3 u{0, 0, 0};
-    if (axis || want_end) {
-        u = normalized(r.back(V3{tool_up_[0], tool_up_[1], tool_up_[2]}));
-        if (axis) *axis = Eigen::Vector3d(u.x, u.y, u.z);
-    }
-    if (f.singular) {
-        if (want_end) end->end.pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
-        return singular_jacobian();
-    }
-    const V3 x = r.apply(v3(tip));  // the tip in the base frame: where the tool chain puts it
-    const V3 lin = M3{f.col_inv[0], f.col_inv[1], f.col_inv[2], f.col_inv[3], f.col_inv[4], f.col_inv[5], f.col_inv[6], f.col_inv[7], f.col_inv[8]} * x;
-    q[std::size_t(linear_[0])] = lin.x;
-    q[std::size_t(linear_[1])] = lin.y;
-    q[std::size_t(linear_[2])] = lin.z;
-    if (want_end) {
-        // The lever arms at the solution: the tip's distance from each turn's axis line.
-        AxisLine lines[2];
-        two_turn_lines(f, r, lines);
-        PathEnd& e = end->end;
-        e.pose.axis = Eigen::Vector3d(u.x, u.y, u.z);
-        e.lever_arm = 0;
-        e.tip_slack = e.axis_slack = 0;
-        for (int i = 0; i < 2; ++i) {
-            e.arm[i] = distance_from(x, lines[i]);
-            e.lever_arm = std::max(e.lever_arm, e.arm[i]);
-        }
-        e.pose.tip = tip;
-        if (end->q.size() == q.size()) std::copy(q.begin(), q.end(), end->q.begin());  // no call for the usual case
-        else end->q = q;
-        end->valid = true;
-    }
-    return {};
-}
 
 // The general solve in the walk's scalars: the same operations in the same order as
 // solve_position_general's Eigen products (a matrix times a column as M3 * V3, a transposed one
@@ -1197,95 +879,7 @@ Kinematics::Solutions Kinematics::orientation_solutions(const Eigen::Vector3d& a
 }
 
 bool Kinematics::orientation_shortcut(const Eigen::Vector3d& axis, Solutions& out) const {
-    if (!orient_.on) return false;
-    // The general path below with the rotary axes +-1 times coordinate axes i and j (see
-    // OrientShortcut): every product with one of their zero entries is left out, and with it every
-    // term that is zero for any finite input (a projection's component along the axis it is
-    // projected off). A sum that keeps one non-zero term is then that term to the last bit; only
-    // a sum of zeros could differ, in the sign of its zero, and a zero's sign changes nothing but
-    // other zeros' signs here (no division by a value that can be zero) until an atan2 takes it
-    // as y (x's sign matters only when y is zero). So where an atan2's y comes out zero, a joint
-    // is free, the input is not a finite non-zero vector or the axis is on a pole (one solution),
-    // all rare, the general path answers instead.
-    const OrientShortcut& f = orient_;
-    const double x = axis.x(), y = axis.y(), z = axis.z();
-    const double sq = (x * x + y * y) + z * z;  // axis.normalized()
-    if (!(sq > 0 && sq <= std::numeric_limits<double>::max())) return false;
-    const double r = std::sqrt(sq);
-    double u[3] = {x / r, y / r, z / r};
-    if (!f.g0_identity) {  // u = g0^T v; with g0 the identity, each row's one term 1 * v
-        const V3 t = transposed_times(M3{f.g0[0], f.g0[1], f.g0[2], f.g0[3], f.g0[4], f.g0[5], f.g0[6], f.g0[7], f.g0[8]}, V3{u[0], u[1], u[2]});
-        u[0] = t.x, u[1] = t.y, u[2] = t.z;
-    }
-    // The atan2 terms (y, x) of each branch's phi1 and phi2: t[0..3] branch 1, t[4..7] branch 2;
-    // false where the general path must answer.
-    double t[8] = {};  // (set before every use: the zeros only tell the compiler so)
-    int status = 0;  // 0: both branches, 1: unreachable, 2: the general path
-    auto terms = [&](auto ci, auto cj) {
-        constexpr int i = decltype(ci)::value, j = decltype(cj)::value, k = 3 - i - j;
-        constexpr int i1 = (i + 1) % 3, i2 = (i + 2) % 3, j1 = (j + 1) % 3, j2 = (j + 2) % 3;
-        const double w1u = f.w1i * u[i];  // w1 . u
-        const double na = f.aw2p - w1u, nb = f.a * w1u - f.w2p;
-        double alpha, beta, gamma2;
-        if (f.exact_inv) {  // the quotients below as products, to the bit (see OrientShortcut)
-            alpha = na * f.den_inv, beta = nb * f.den_inv;
-            gamma2 = (f.psq - alpha * alpha - beta * beta - 2.0 * alpha * beta * f.a) * f.nn_inv;
-        } else {
-            alpha = na / f.den, beta = nb / f.den;
-            gamma2 = (f.psq - alpha * alpha - beta * beta - 2.0 * alpha * beta * f.a) / f.nn;
-        }
-        if (gamma2 < -kReachEps * kReachEps) return void(status = 1);
-        const double gamma = std::sqrt(std::max(gamma2, 0.0));
-        if (gamma == 0.0) return void(status = 2);
-        // c = alpha w1 + beta w2 + s gamma n: one term per component.
-        const double ci_ = alpha * f.w1i, cj_ = beta * f.w2j, ck = gamma * f.nk, ck2 = (-1.0 * gamma) * f.nk;
-        // Subproblem 1 about w2 takes p to c: p projected off w2 is the constant pp2 (zero along
-        // j), c's projection is c less its j component. About w1, c to u: c and u less their i
-        // components.
-        const double q2 = ci_ * ci_ + ck * ck, q2b = ci_ * ci_ + ck2 * ck2;
-        const double p1 = cj_ * cj_ + ck * ck, p1b = cj_ * cj_ + ck2 * ck2;
-        const double q1 = u[j] * u[j] + u[k] * u[k];
-        if (f.free2 || !(std::min(std::min(q2, q2b), std::min(std::min(p1, p1b), q1)) >= f.free_sq)) return void(status = 2);
-        for (int b = 0; b < 2; ++b) {
-            double c[3];
-            c[i] = ci_, c[j] = cj_, c[k] = b == 0 ? ck : ck2;
-            t[4 * b + 0] = f.w1i * (c[i1] * u[i2] - c[i2] * u[i1]);
-            t[4 * b + 1] = c[i1] * u[i1] + c[i2] * u[i2];
-            t[4 * b + 2] = f.w2j * (f.pp2[j1] * c[j2] - f.pp2[j2] * c[j1]);
-            t[4 * b + 3] = f.pp2[j1] * c[j1] + f.pp2[j2] * c[j2];
-        }
-        if (t[0] == 0 || t[2] == 0 || t[4] == 0 || t[6] == 0) status = 2;
-    };
-    using std::integral_constant;
-    switch (f.pattern) {
-        case 0: terms(integral_constant<int, 0>{}, integral_constant<int, 1>{}); break;
-        case 1: terms(integral_constant<int, 0>{}, integral_constant<int, 2>{}); break;
-        case 2: terms(integral_constant<int, 1>{}, integral_constant<int, 0>{}); break;
-        case 3: terms(integral_constant<int, 1>{}, integral_constant<int, 2>{}); break;
-        case 4: terms(integral_constant<int, 2>{}, integral_constant<int, 0>{}); break;
-        default: terms(integral_constant<int, 2>{}, integral_constant<int, 1>{}); break;
-    }
-    if (status == 2) return false;
-    out.axis = axis;
-    out.count = 0;
-    if (status == 1) return true;  // out of reach
-    // The second tilt from the first when its terms are the first's with y negated (as in the
-    // general path below).
-    const double phi1 = std::atan2(t[0], t[1]), phi2 = std::atan2(t[2], t[3]);
-    // (t[0] is not zero here.)
-    const double phi1b = t[4] == -t[0] && t[5] == -t[1] ? opposite_angle(phi1) : std::atan2(t[4], t[5]);
-    const bool odd = t[7] == t[3] && std::signbit(t[7]) == std::signbit(t[3]) && -t[6] == t[2] && std::signbit(t[6]) != std::signbit(t[2]);
-    const double phi2b = odd ? -phi2 : std::atan2(t[6], t[7]);
-    out.angle[0][0] = f.sign1 * phi1 / kDeg;
-    out.angle[0][1] = f.sign2 * phi2 / kDeg;
-    out.angle[1][0] = f.sign1 * phi1b / kDeg;
-    out.angle[1][1] = f.sign2 * phi2b / kDeg;
-    out.count = 2;
-    out.has_terms = true;
-    // (The angle is sign * atan2(y, x), so atan2(sign * y, x): the sign is +-1.)
-    for (int b = 0; b < 2; ++b)
-        for (int r = 0; r < 2; ++r) out.terms[b][r][0] = (r == 0 ? f.sign1 : f.sign2) * t[4 * b + 2 * r], out.terms[b][r][1] = t[4 * b + 2 * r + 1];
-    return true;
+    return orient_.solve(axis, out);
 }
 
 Kinematics::Solutions Kinematics::orientation_solutions_general(const Eigen::Vector3d& axis) const {
