@@ -1,12 +1,13 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The math, used by the planner, the motion stage, calibration and --inverse: forward kinematics
-// and the closed-form inverse of any machine with up to two rotary joints (Paden-Kahan
-// subproblems 1 and 2). No machine has its own formula here. May call: the machine data, and
-// joint_limits (the one definition of the limits) for the choice inverse() makes.
-//
-// The contract is forward(q) and inverse(pose, previous). Below them, plain queries that the
-// planner combines under its own policy: the orientation solutions per branch and the position
-// solve for given rotaries.
+// The kinematics' face, as LinuxCNC's trtfuncs.c: forward(q), inverse(pose, previous), the
+// orientation solutions of a tool axis with the position solve (which the planner combines under
+// its own policy), and the path bound (how far the firmware's joint-space path strays). Any
+// machine with up to two rotary joints, no machine's own formula: the general chain solver
+// (chain.cpp, Paden-Kahan subproblems 1 and 2) is the specification; the fast paths
+// (two_turns.hpp, orientation_shortcut.hpp) are chosen once at load where the machine's shape
+// allows them, and the tests hold them equal to it. Used by the planner, the motion stage,
+// calibration and --inverse. May call: the machine data, and joint_limits (the one definition of
+// the limits) for the choice inverse() makes.
 #pragma once
 #include <Eigen/Core>
 #include <limits>
@@ -82,7 +83,7 @@ public:
     // The firmware's path from joints qa to qb (every joint at a constant rate): its end poses,
     // and upper bounds on how far, anywhere along it, the tip (mm) and the tool axis (a unit
     // vector) leave the chords between those ends. Cheaper than sampling the path; see
-    // kinematics.cpp for the derivation.
+    // path_bound.cpp for the derivation.
     using PathEnd = xlate5::PathEnd;
     using SolvedEnd = xlate5::SolvedEnd;
     PathEnd path_end(const double* q) const;
@@ -163,7 +164,7 @@ private:
     void eval(const std::vector<ChainLink>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
               Eigen::Vector3d* linear_dirs) const;
     Pose forward(const double* q, double* lever_arm, double* arms = nullptr) const;
-    // solve_position's path for a Jacobian that varies, in the walk's scalars (kinematics.cpp).
+    // solve_position's path for a Jacobian that varies, in the walk's scalars (chain.cpp).
     IkResult solve_scalar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
     // solve_two_turns where the machine has that shape, else solve_scalar.
     IkResult solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,

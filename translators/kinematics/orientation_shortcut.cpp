@@ -62,9 +62,34 @@ void OrientationShortcut::load(const Eigen::Vector3d& w1, const Eigen::Vector3d&
     f.on_ = n[f.i] == 0 && n[f.j] == 0 && pp2[f.j] == 0;
 }
 
+namespace {
+
+// The shortcut's two solutions from their atan2 terms t (y, x of phi1 and phi2, branch 1 then
+// branch 2) and the joints' signs.
+void both_branches(const double* t, double sign1, double sign2, OrientationSolutions& out) {
+    // The second tilt from the first when its terms are the first's with y negated (as in the
+    // general path, chain.cpp).
+    const double phi1 = std::atan2(t[0], t[1]), phi2 = std::atan2(t[2], t[3]);
+    // (t[0] is not zero here.)
+    const double phi1b = t[4] == -t[0] && t[5] == -t[1] ? opposite_angle(phi1) : std::atan2(t[4], t[5]);
+    const bool odd = t[7] == t[3] && std::signbit(t[7]) == std::signbit(t[3]) && -t[6] == t[2] && std::signbit(t[6]) != std::signbit(t[2]);
+    const double phi2b = odd ? -phi2 : std::atan2(t[6], t[7]);
+    out.angle[0][0] = sign1 * phi1 / kDeg;
+    out.angle[0][1] = sign2 * phi2 / kDeg;
+    out.angle[1][0] = sign1 * phi1b / kDeg;
+    out.angle[1][1] = sign2 * phi2b / kDeg;
+    out.count = 2;
+    out.has_terms = true;
+    // (The angle is sign * atan2(y, x), so atan2(sign * y, x): the sign is +-1.)
+    for (int b = 0; b < 2; ++b)
+        for (int r = 0; r < 2; ++r) out.terms[b][r][0] = (r == 0 ? sign1 : sign2) * t[4 * b + 2 * r], out.terms[b][r][1] = t[4 * b + 2 * r + 1];
+}
+
+}  // namespace
+
 bool OrientationShortcut::solve(const Eigen::Vector3d& axis, OrientationSolutions& out) const {
     if (!on_) return false;
-    // The general path below with the rotary axes +-1 times coordinate axes i and j (see
+    // The general path (chain.cpp) with the rotary axes +-1 times coordinate axes i and j (see
     // the class): every product with one of their zero entries is left out, and with it every
     // term that is zero for any finite input (a projection's component along the axis it is
     // projected off). A sum that keeps one non-zero term is then that term to the last bit; only
@@ -135,22 +160,7 @@ bool OrientationShortcut::solve(const Eigen::Vector3d& axis, OrientationSolution
     out.axis = axis;
     out.count = 0;
     if (status == 1) return true;  // out of reach
-    // The second tilt from the first when its terms are the first's with y negated (as in the
-    // general path below).
-    const double phi1 = std::atan2(t[0], t[1]), phi2 = std::atan2(t[2], t[3]);
-    // (t[0] is not zero here.)
-    const double phi1b = t[4] == -t[0] && t[5] == -t[1] ? opposite_angle(phi1) : std::atan2(t[4], t[5]);
-    const bool odd = t[7] == t[3] && std::signbit(t[7]) == std::signbit(t[3]) && -t[6] == t[2] && std::signbit(t[6]) != std::signbit(t[2]);
-    const double phi2b = odd ? -phi2 : std::atan2(t[6], t[7]);
-    out.angle[0][0] = f.sign1 * phi1 / kDeg;
-    out.angle[0][1] = f.sign2 * phi2 / kDeg;
-    out.angle[1][0] = f.sign1 * phi1b / kDeg;
-    out.angle[1][1] = f.sign2 * phi2b / kDeg;
-    out.count = 2;
-    out.has_terms = true;
-    // (The angle is sign * atan2(y, x), so atan2(sign * y, x): the sign is +-1.)
-    for (int b = 0; b < 2; ++b)
-        for (int r = 0; r < 2; ++r) out.terms[b][r][0] = (r == 0 ? f.sign1 : f.sign2) * t[4 * b + 2 * r], out.terms[b][r][1] = t[4 * b + 2 * r + 1];
+    both_branches(t, f.sign1, f.sign2, out);
     return true;
 }
 
