@@ -580,7 +580,7 @@ TEST_CASE("the joint-path bound holds against dense sampling of the path on ever
 namespace {
 
 // The chain walk as Eigen's own products write it: the reference the scalar walk in
-// kinematics.cpp must equal to the last bit (the split's decisions, and so the output, hang on it).
+// chain.cpp must equal to the last bit (the split's decisions, and so the output, hang on it).
 void eigen_chain(const std::vector<ChainElement>& chain, const std::vector<double>& q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
                  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>& lines) {
     R.setIdentity();

@@ -1,36 +1,26 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The math, used by the planner, the motion stage, calibration and --inverse: forward kinematics
-// and the closed-form inverse of any machine with up to two rotary joints (Paden-Kahan
-// subproblems 1 and 2). No machine has its own formula here. May call: the machine data, and
-// joint_limits (the one definition of the limits) for the choice inverse() makes.
-//
-// The contract is forward(q) and inverse(pose, previous). Below them, plain queries that the
-// planner combines under its own policy: the orientation solutions per branch and the position
-// solve for given rotaries.
+// The kinematics' face, as LinuxCNC's trtfuncs.c: forward(q), inverse(pose, previous), the
+// orientation solutions of a tool axis with the position solve (which the planner combines under
+// its own policy), and the path bound (how far the firmware's joint-space path strays). Any
+// machine with up to two rotary joints, no machine's own formula: the general chain solver
+// (chain.cpp, Paden-Kahan subproblems 1 and 2) is the specification; the fast paths
+// (two_turns.hpp, orientation_shortcut.hpp) are chosen once at load where the machine's shape
+// allows them, and the tests hold them equal to it. Used by the planner, the motion stage,
+// calibration and --inverse. May call: the machine data, and joint_limits (the one definition of
+// the limits) for the choice inverse() makes.
 #pragma once
 #include <Eigen/Core>
 #include <limits>
 #include <string>
 #include <vector>
 
+#include "translators/kinematics/chain.hpp"
 #include "translators/kinematics/kinematics_types.hpp"
+#include "translators/kinematics/orientation_shortcut.hpp"
+#include "translators/kinematics/two_turns.hpp"
 #include "translators/machine/machine.hpp"
 
 namespace xlate5 {
-
-// A chain element compiled for the walk in kinematics.cpp: the loader's element with the
-// shortcuts its numbers allow, which give the same results to the last bit, up to the sign of a
-// zero (a product term that is an exact zero left out, a product with the identity skipped, an
-// element that changes nothing dropped).
-struct ChainLink {
-    enum class Kind : unsigned char { Fixed, Shift, Linear, Rotary, RotaryX, RotaryY, RotaryZ } kind = Kind::Fixed;
-    bool fresh = false;  // nothing ahead of it in its chain rotates: the walk's rotation is still the identity
-    bool shifts = true;  // Fixed: a translation; Rotary: its axis misses the origin (else t is left as it is)
-    int joint = -1;
-    double sign = 1;     // RotaryX/Y/Z: the axis is +1 or -1 times that coordinate axis, exactly
-    double axis[3] = {}, point[3] = {}, shift[3] = {};
-    double rot[9] = {};  // Fixed: its rotation, row by row (Shift: the identity, not stored)
-};
 
 // The angle (degrees) between two unit vectors, from their dot product.
 double angle_of_dot(double dot);
@@ -93,25 +83,10 @@ public:
     // The firmware's path from joints qa to qb (every joint at a constant rate): its end poses,
     // and upper bounds on how far, anywhere along it, the tip (mm) and the tool axis (a unit
     // vector) leave the chords between those ends. Cheaper than sampling the path; see
-    // kinematics.cpp for the derivation.
-    // An end of such a path: its pose, and the tip's largest distance from a rotary joint's axis.
-    struct PathEnd {
-        Pose pose;
-        double lever_arm = 0;  // the largest of `arm`
-        double arm[8] = {};    // the distance from each rotary element's axis, in chain order (part chain, then tool chain)
-        // An end bounded rather than measured (near_end): the true tip and tool axis are within
-        // these of `pose` (mm, and a unit vector's length), and `arm` holds upper bounds.
-        double tip_slack = 0, axis_slack = 0;
-    };
+    // path_bound.cpp for the derivation.
+    using PathEnd = xlate5::PathEnd;
+    using SolvedEnd = xlate5::SolvedEnd;
     PathEnd path_end(const double* q) const;
-    // An end the position solve found: its joints as solved and its PathEnd, which the solve
-    // gives for a few operations more than its own walk (solve_position). `valid` is false when
-    // it did not (the machine's Jacobian is fixed, or no solve was made).
-    struct SolvedEnd {
-        std::vector<double> q;
-        PathEnd end;
-        bool valid = false;
-    };
     // The PathEnd at joints q near a solved end (the end rounded to the printed decimals), with
     // no FK: the solved pose with the slack that moving its joints to q can add (each rotary
     // turns the tip by at most its angle times the tip's distance from its axis, a linear joint
@@ -161,7 +136,7 @@ public:
     // orientation_solutions is the shortcut where the machine's rotary axes allow it and it
     // answers (false: it leaves the axis to the general path), else the general path: the same
     // bits. Apart for the tests that hold the two against each other.
-    bool has_orientation_shortcut() const { return orient_.on; }
+    bool has_orientation_shortcut() const { return orient_.on(); }
     bool orientation_shortcut(const Eigen::Vector3d& axis, Solutions& out) const;
     Solutions orientation_solutions_general(const Eigen::Vector3d& axis) const;
     const std::vector<int>& rotary_joints() const { return rotary_; }
@@ -175,28 +150,25 @@ public:
     // The machine has the TwoTurns shape (pentarod's A/C table): forward(), tool_axis() and the
     // position solve are in closed form there, equal to the chain walk's products to rounding
     // rather than to the bit (the tests hold them to it).
-    bool has_two_turns() const { return turns_.pattern >= 0; }
+    bool has_two_turns() const { return turns_.on(); }
 
 private:
-    struct Factor;
+    // The constructor's steps, in this order (kinematics.cpp).
+    void load_orientation(const Machine& machine);
+    void load_bound_terms(const Machine& machine);
+    void load_reach(const Machine& machine);
+    void load_position_solve(const Machine& machine);
+    void load_solved_ends(const Machine& machine);
     // Base -> a chain's end (rotation, translation); `linear_dirs`, when given, receives each linear
     // joint's direction.
     void eval(const std::vector<ChainLink>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
               Eigen::Vector3d* linear_dirs) const;
     Pose forward(const double* q, double* lever_arm, double* arms = nullptr) const;
-    // solve_position's path for a Jacobian that varies, in the walk's scalars (kinematics.cpp).
+    // solve_position's path for a Jacobian that varies, in the walk's scalars (chain.cpp).
     IkResult solve_scalar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const;
     // solve_two_turns where the machine has that shape, else solve_scalar.
     IkResult solve_varying(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
                            ChosenSolution chosen) const;
-    // forward() and the position solve for a machine of the shape TwoTurns describes, in closed
-    // form (one instance per pair of coordinate axes, chosen at load; tool_axis() has its own, in
-    // kinematics.cpp).
-    template <int k1, int k2>
-    Pose forward_two_turns(const double* q, double* lever_arm, double* arms) const;
-    template <int k1, int k2>
-    IkResult solve_two_turns(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
-                             ChosenSolution chosen) const;
     // The position solve's 3x3 Jacobian from the chains' linear directions; false when singular.
     bool linear_jacobian(const Eigen::Matrix3d& Rp, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,
                          Eigen::Matrix3d& J) const;
@@ -213,7 +185,7 @@ private:
     // terms_ when it is its rotaries and then its linear joints alone (joint_path_bound_split).
     bool bound_split_ = false;
     int bound_rotary_ = 0, bound_count_ = 0;
-    BoundTerm bound_[8];
+    BoundTerm bound_[kMaxJoints];
     PathBound joint_path_bound_split(const PathEnd& a, const double* qa, const double* qb) const;
 
     Machine machine_;
@@ -224,22 +196,7 @@ private:
     Eigen::Matrix3d g0_ = Eigen::Matrix3d::Identity();
     Eigen::Vector3d p_ = Eigen::Vector3d::UnitZ();
     bool flip_ = false;
-    // orientation_solutions' shortcut, for two rotaries along coordinate axes: w1 = w1i e_i,
-    // w2 = w2j e_j, n = w1 x w2 = nk e_k (w1i, w2j, nk +-1), and the general path's constants.
-    struct OrientShortcut {
-        bool on = false, g0_identity = false, free2 = false;
-        int i = 0, j = 1, pattern = 0;  // pattern: which of the six (i, j)
-        double w1i = 1, w2j = 1, nk = 1;
-        double sign1 = 1, sign2 = 1;  // sign_
-        double a = 0, den = -1, w2p = 0, aw2p = 0, psq = 1, nn = 1;
-        // den and nn both powers of two (+-1 for coordinate axes at right angles, as pentarod's):
-        // a quotient by either is then the product with its exact reciprocal, to the last bit.
-        bool exact_inv = false;
-        double den_inv = -1, nn_inv = 1;
-        double pp2[3] = {};  // p projected off w2
-        double g0[9] = {};   // row by row
-        double free_sq = 0;  // |v|^2 below this: |v| < kFreeEps
-    } orient_;
+    OrientationShortcut orient_;  // orientation_solutions' fast path (orientation_shortcut.hpp)
     std::vector<int> linear_;               // the first three linear joints: the position solve's unknowns
     bool constant_jacobian_ = false;        // no rotation ahead of a linear joint: its inverse is fixed
     PathEnd reach_;                         // see reach()
@@ -264,22 +221,7 @@ private:
     bool tool_plain_ = false;
     double tool_up_[3] = {};
     std::vector<int> tool_linear_;      // the tool chain's linear joints (they carry the tip)
-    // A part chain of two turns about +-1 times coordinate axes k1 != k2, both through the origin
-    // (no shift), and a tool chain of three fresh linear links giving the three unknowns
-    // (pentarod's A/C table): forward(), tool_axis() and the position solve in closed form, their
-    // constants taken once here.
-    struct TwoTurns {
-        int pattern = -1;  // k1 * 3 + k2; -1: the machine has another shape
-        int j1 = 0, j2 = 0;
-        double sign1 = 1, sign2 = 1;
-        double point2[3] = {}, axis2[3] = {};       // the second turn's link, as the walk reads it
-        double line0_point[3] = {}, line0_dir[3] = {};  // the first turn's axis line (R, t still the identity and zero)
-        int tool_joint[3] = {};
-        double tool_dir[3][3] = {};  // the tool links' axes, in chain order
-        double col_inv[9] = {};      // the inverse of the matrix of the unknowns' directions (columns), row by row
-        bool singular = false;       // the directions do not span space: no position solve
-        int r1 = -1, r2 = -1;        // the turns' columns of OrientationSolutions::angle (-1: no shortcut gives them)
-    } turns_;
+    TwoTurns turns_;  // forward, tool_axis and the position solve's closed form (two_turns.hpp)
     bool solved_ends_ = false;
     // near_end's terms, looked up once: each linear joint with its mm per unit, each rotary
     // element with its radians per unit and its arm.

@@ -1,18 +1,44 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The values kinematics and the joint-limit policy exchange: a pose, the raw orientation
+// The values kinematics and the joint-limit policy exchange: the joint bound, a pose, the raw orientation
 // solutions of a tool axis, the result of a solve, and angle wrapping. Calls nothing.
 #pragma once
 #include <Eigen/Core>
 #include <cmath>
 #include <cstddef>
 #include <string>
+#include <vector>
 
 namespace xlate5 {
+
+// The most joints a machine may have: the length of every fixed per-joint array (the emitter's,
+// the split's, the path bound's), so none allocates per move. The emitter refuses a machine with
+// more.
+inline constexpr std::size_t kMaxJoints = 8;
 
 // Tip position and tool axis (unit, tip -> holder), both in the part frame.
 struct Pose {
     Eigen::Vector3d tip = Eigen::Vector3d::Zero();
     Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+};
+
+// An end of the firmware's path between two joint vectors (Kinematics::path_end): its pose, and
+// the tip's largest distance from a rotary joint's axis.
+struct PathEnd {
+    Pose pose;
+    double lever_arm = 0;          // the largest of `arm`
+    double arm[kMaxJoints] = {};   // the distance from each rotary element's axis, in chain order (part chain, then tool chain)
+    // An end bounded rather than measured (near_end): the true tip and tool axis are within
+    // these of `pose` (mm, and a unit vector's length), and `arm` holds upper bounds.
+    double tip_slack = 0, axis_slack = 0;
+};
+
+// An end the position solve found: its joints as solved and its PathEnd, which the solve gives
+// for a few operations more than its own walk. `valid` is false when it did not (the machine's
+// Jacobian is fixed, or no solve was made).
+struct SolvedEnd {
+    std::vector<double> q;
+    PathEnd end;
+    bool valid = false;
 };
 
 enum class IkStatus { Ok, Unreachable, OutOfLimits, Singular };

@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "translators/kinematics/kinematics_types.hpp"
 #include "translators/machine/machine.hpp"
 
 namespace xlate5 {
@@ -116,7 +117,6 @@ private:
 
     // Fixed arrays, not vectors: the look-back copies the emitter with every line, and a copy of
     // these is one block of memory. Every member is copied by operator= (above): keep it so. A machine has at most 5 joints (the loader checks).
-    static constexpr std::size_t kMaxJoints = 8;
     const Machine* machine_;  // a pointer, so a copy of the emitter is its whole state (the translator's snapshots)
     std::size_t joints_ = 0;
     // Per joint, from the machine: the start of its word (" " and its output letter, stored at

@@ -38,11 +38,12 @@ struct AngleImage {
 };
 
 // to = from, for joint vectors: when the sizes agree (always, after the first move), value by
-// value without a loop (a machine has at most 8 joints, the emitter's bound): a loop or
+// value without a loop (a machine has at most kMaxJoints joints): a loop or
 // vector assignment costs about twice as much for five doubles (versioning, or a call of memmove).
 inline void copy_joints(std::vector<double>& to, const std::vector<double>& from) {
     const std::size_t n = from.size();
-    if (to.size() != n || n > 8) {
+    static_assert(kMaxJoints == 8, "the switch below copies up to 8 joints");
+    if (to.size() != n || n > kMaxJoints) {
         to = from;
         return;
     }

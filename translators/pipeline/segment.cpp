@@ -55,7 +55,7 @@ double end_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Ei
 PrintedRounding::PrintedRounding(const Kinematics& kinematics)
     : machine_(kinematics.machine()), joints_(kinematics.machine().joints.size()) {
     static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
-    for (std::size_t j = 0; j < machine_.joints.size() && j < kMaxPrinted; ++j) {
+    for (std::size_t j = 0; j < machine_.joints.size() && j < kMaxJoints; ++j) {
         const int d = printed_decimals(machine_, j);
         if (d < 0 || d > 9) {
             scale_[j] = 1;
@@ -68,7 +68,7 @@ PrintedRounding::PrintedRounding(const Kinematics& kinematics)
         below_[j] = 0.5 * std::min(1e15, kMaxWritten * kPow10[d]);
     }
     for (const int j : kinematics.rotary_joints())
-        if (std::size_t(j) < kMaxPrinted) rotaries_[rotary_count_++] = std::size_t(j);
+        if (std::size_t(j) < kMaxJoints) rotaries_[rotary_count_++] = std::size_t(j);
 }
 
 bool PrintedRounding::round_end(const double* q1, double* to, double* exact, const double* from) const {
@@ -296,8 +296,8 @@ const Kinematics::PathEnd& EndCache::find(const double* q, bool is_end, const Ki
     next_ = 1 - next_;
     if (start_slot_ == k) start_slot_ = -1;
     if (end_slot_ == k) end_slot_ = -1;
-    c.n = 0;  // (no machine has more joints than a slot holds: kinematics takes at most 8)
-    if (n <= kMaxJointsHeld) {
+    c.n = 0;  // (no machine has more joints than a slot holds: kinematics takes at most kMaxJoints)
+    if (n <= kMaxJoints) {
         c.n = n;
         std::copy(q, q + n, c.q);
         // The slot found again for the next move's start (not for a NaN joint, which the
@@ -381,7 +381,7 @@ IkResult Segmenter::split(const MoveSpec& mv) {
     ends_.next_move(from_last);
     const std::size_t n = joints_;
     bool rotates = false;
-    if (n <= PrintedRounding::kMaxPrinted && mv.q1->size() == n && q0_printed_.size() == n && q1_printed_.size() == n && last_end_q_.size() == n) {
+    if (n <= kMaxJoints && mv.q1->size() == n && q0_printed_.size() == n && q1_printed_.size() == n && last_end_q_.size() == n) {
         // The usual move (every one after the first): one pass, no copies or calls.
         rotates = rounding_.round_end(mv.q1->data(), q1_printed_.data(), last_end_q_.data(), q0_printed_.data());
     } else {

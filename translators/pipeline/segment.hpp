@@ -44,23 +44,22 @@ private:
 };
 
 // The joints as the firmware will be given them, rounded to each joint's printed decimals with
-// the usual case worked out once per joint (machines of up to kMaxPrinted joints): a value whose
+// the usual case worked out once per joint (machines of up to kMaxJoints joints): a value whose
 // |value * scale| is below `below` is rounded at once (to_units' own arithmetic, its range tests
 // passed by that one); any other goes through printed_value.
 class PrintedRounding {
 public:
-    static constexpr std::size_t kMaxPrinted = 8;
     PrintedRounding(const Kinematics& kinematics);
     // q1 rounded into `to` and copied into `exact` in one pass, for a machine of at most
-    // kMaxPrinted joints; true when a rotary's printed value differs from `from`'s.
+    // kMaxJoints joints; true when a rotary's printed value differs from `from`'s.
     bool round_end(const double* q1, double* to, double* exact, const double* from) const;
 
 private:
     const Machine& machine_;
     std::size_t joints_;
-    double scale_[kMaxPrinted] = {};
-    double below_[kMaxPrinted] = {};
-    std::size_t rotaries_[kMaxPrinted] = {};  // kinematics' rotaries
+    double scale_[kMaxJoints] = {};
+    double below_[kMaxJoints] = {};
+    std::size_t rotaries_[kMaxJoints] = {};  // kinematics' rotaries
     std::size_t rotary_count_ = 0;
 };
 
@@ -68,7 +67,6 @@ private:
 // joints with their PathEnd, and which of them hold the move's start and end as printed.
 class EndCache {
 public:
-    static constexpr std::size_t kMaxJointsHeld = 8;
     explicit EndCache(const Kinematics& kinematics) : kin_(kinematics), joints_(kinematics.machine().joints.size()) {}
     // The PathEnd at q: `start` when q is the move's start as printed, `end` when it is its end
     // as printed, bounded from `solved` (the position solve's own end) where that holds for it.
@@ -90,7 +88,7 @@ private:
     const Kinematics::PathEnd& find(const double* q, bool is_end, const Kinematics::SolvedEnd* solved) const;
     struct Slot {
         std::size_t n = 0;  // joints held (0: none)
-        double q[kMaxJointsHeld];
+        double q[kMaxJoints];
         Kinematics::PathEnd end;
     };
     const Kinematics& kin_;
