@@ -105,7 +105,7 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
         if (config.port == "sim") {
             a.sim = std::make_shared<VirtualPrinter>(io, a.sim_pty->release_master(), so);
             a.sim->start();
-            spdlog::info("firmware: the virtual printer ({}) on {}", so.reprap ? "RepRapFirmware-like" : "Marlin-like", device);
+            spdlog::info("firmware: the virtual printer ({}) on {}", so.reprap ? "RepRapFirmware-like" : so.klipper ? "Klipper-like" : "Marlin-like", device);
         } else {
             spdlog::info("firmware: {} at {} baud", device, config.baud);
         }
@@ -185,7 +185,10 @@ namespace {
 // The firmware end as the start log and `serve --check` describe it.
 std::string link_summary(const ServeConfig& c) {
     const auto& f = c.firmware;
-    std::string port = c.port.empty() ? "no port set" : c.port == "sim" ? std::string("the built-in virtual printer (") + (c.sim.reprap ? "RepRapFirmware" : "Marlin") + "-like)" : c.port;
+    std::string port = c.port.empty() ? "no port set" : c.port == "sim" ? std::string("the built-in virtual printer (") + (c.sim.reprap ? "RepRapFirmware" : c.sim.klipper ? "Klipper" : "Marlin") + "-like)" : c.port;
+    if (f.klipper)
+        return port + ", klipper; " + std::to_string(f.window > 0 ? f.window : klipper::kWindow) + " lines and " +
+               std::to_string(klipper::kReadBytes - 1) + " bytes in flight at most (one of klippy's reads), plain lines";
     const std::string window = f.reprap ? "1 line in flight (RepRapFirmware drops a bad line without a word)"
                                : f.window > 0 ? std::to_string(f.window) + " lines in flight"
                                               : "2 lines in flight (more when ADVANCED_OK reports a larger buffer)";
