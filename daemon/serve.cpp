@@ -79,6 +79,15 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
     sopt.translator.start_mode = config.mode;
     sopt.translator.extruder_letter = config.extruder_letter;
     if (config.port.empty()) throw IoError("firmware.port: not set (a serial device, or \"sim\" for the built-in virtual printer)");
+    // Klipper drops the words of an extra axis it was not told about, and its G92 reads only
+    // X Y Z E: only the Klipper dialect's output (MANUAL_STEPPER registration and SET_POSITION)
+    // runs as translated there.
+    if (config.firmware.klipper && machine.dialect.firmware != FirmwareDialect::Klipper)
+        for (const auto& j : machine.joints)
+            if (j.output != 'X' && j.output != 'Y' && j.output != 'Z' && !j.absent)
+                throw IoError("firmware.flavor: klipper, but machine " + machine.name + " writes its " + std::string(1, j.output) +
+                              " words in another dialect (its [firmware] dialect): Klipper would drop them or, after a G92, zero X Y Z E; "
+                              "set dialect = \"klipper\" in the machine file (docs/firmware.md, Klipper)");
     a.service = std::make_unique<Service>(io, machine, sopt);
     Service& service = *a.service;
 
