@@ -21,6 +21,42 @@ from common import start_serve, strip
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
+def refused(xlate5, machine, tmp):
+    """Klipper refuses a move ("!! Must home axis first": this file has no G28): serve stops the
+    print there, names the line to the sender and its log, and sends nothing more: without that,
+    the G28 behind it would home and the moves after it run. What was already in flight when the
+    "!!" came (here the G28) still runs: Klipper does not stop at an error (docs/firmware.md)."""
+    path = os.path.join(tmp, "unhomed.gcode")
+    with open(path, "w") as f:
+        f.write("G90\nG1 X10 Y10 Z250 F600\nG28\nG1 X20 Y10 Z250\nG1 X30 Y10 Z250\n")
+    pty = os.path.join(tmp, "printer2")
+    record = os.path.join(tmp, "executed2.gcode")
+    log = open(os.path.join(tmp, "serve2.log"), "w+")
+    config = os.path.join(tmp, "printer2.toml")
+    with open(config, "w") as f:
+        f.write('machine = "%s"\n[firmware]\nport = "sim"\nflavor = "klipper"\nboot_wait = 0.2\n'
+                '[sim]\nflavor = "klipper"\nrecord = "%s"\n' % (machine, record))
+    serve = start_serve(xlate5, ["--config", config], pty, log)
+    try:
+        result = subprocess.run(["/usr/bin/python3", os.path.join(HERE, "senders.py"), "printcore", pty, path],
+                                capture_output=True, text=True, timeout=120)
+    finally:
+        serve.send_signal(signal.SIGTERM)
+        serve.wait(timeout=120)
+    log.seek(0)
+    served = log.read()
+    out = result.stdout + result.stderr
+    if "Klipper refused 'G1" not in served or "Must home axis first" not in served:
+        raise SystemExit("serve did not stop at Klipper's refusal:\n" + served)
+    if "Klipper refused" not in out:
+        raise SystemExit("the sender was not told which line Klipper refused:\n" + out)
+    with open(record) as f:
+        moves = [l for l in f if l.startswith("G1")]
+    if moves:
+        raise SystemExit("moves ran after Klipper refused one: %s" % moves)
+    print("klipper: the refused move stopped the print, named to the sender; no move ran after it")
+
+
 def main():
     xlate5, machine_toml, path = sys.argv[1:4]
     with tempfile.TemporaryDirectory(prefix="xlate5-klipper-") as tmp:
@@ -77,6 +113,7 @@ def main():
         if not any(c.startswith("MANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=A") for c in executed):
             raise SystemExit("the extra axes were never registered with Klipper")
         print("klipper: %d commands executed once each, in order, identical to the offline translation" % len(executed))
+        refused(xlate5, machine, tmp)
 
 
 if __name__ == "__main__":
