@@ -28,7 +28,7 @@ const std::vector<ServeSetting> kSettings = {
     {"extruder_letter", "--extruder-letter", Kind::Text, 0, 0, "", "", "the input letter that carries extrusion"},
     {"firmware.port", "--port", Kind::Text, 0, 0, "", "", "the firmware's serial device (see 'xlate5 ports'), or 'sim'"},
     {"firmware.baud", "--baud", Kind::Whole, 300, 4000000, "", "", "the firmware's baud rate"},
-    {"firmware.flavor", "--flavor", Kind::Choice, 0, 0, "", "marlin|reprap", "the firmware"},
+    {"firmware.flavor", "--flavor", Kind::Choice, 0, 0, "", "marlin|reprap|klipper", "the firmware"},
     {"firmware.window", "--window", Kind::Whole, 0, 64, "lines", "", "lines in flight; 0: 2, or learned from ADVANCED_OK"},
     {"firmware.rx_bytes", "--rx-bytes", Kind::Whole, 64, 1 << 20, "bytes", "",
      "bytes in flight at most: the firmware's serial receive buffer less one"},
@@ -63,7 +63,7 @@ const std::vector<ServeSetting> kSettings = {
     {"sender.max_tcp", "--max-tcp", Kind::Whole, 1, 1024, "connections", "", "TCP senders connected at once; more are turned away"},
     {"sender.idle_seconds", "--idle-seconds", Kind::Number, 1, 86400, "s", "",
      "a TCP sender that sends nothing this long (and is not printing) is disconnected"},
-    {"sim.flavor", "--sim-flavor", Kind::Choice, 0, 0, "", "marlin|reprap", "virtual printer personality"},
+    {"sim.flavor", "--sim-flavor", Kind::Choice, 0, 0, "", "marlin|reprap|klipper", "virtual printer personality"},
     {"sim.advanced_ok", "--sim-advanced-ok", Kind::Switch, 0, 0, "", "", "virtual printer: Marlin's ADVANCED_OK"},
     {"sim.buffer", "--sim-buffer", Kind::Whole, 1, 64, "lines", "", "virtual printer: command buffer (BUFSIZE)"},
     {"sim.planner", "--sim-planner", Kind::Whole, 1, 256, "moves", "", "virtual printer: planner slots"},
@@ -122,7 +122,10 @@ void store(ServeConfig& c, const std::string& k, const Value& v) {
         c.extruder_letter = char(std::toupper(static_cast<unsigned char>(v.text[0])));
     } else if (k == "firmware.port") c.port = v.text;
     else if (k == "firmware.baud") c.baud = int(whole());
-    else if (k == "firmware.flavor") c.firmware.reprap = v.text == "reprap";
+    else if (k == "firmware.flavor") {
+        c.firmware.reprap = v.text == "reprap";
+        c.firmware.klipper = v.text == "klipper";
+    }
     else if (k == "firmware.window") c.firmware.window = int(whole());
     else if (k == "firmware.rx_bytes") c.firmware.rx_bytes = std::size_t(whole());
     else if (k == "firmware.max_line") c.firmware.max_line = std::size_t(whole());
@@ -147,7 +150,10 @@ void store(ServeConfig& c, const std::string& k, const Value& v) {
     else if (k == "sender.max_pending") c.max_pending = std::size_t(whole());
     else if (k == "sender.max_tcp") c.max_tcp = std::size_t(whole());
     else if (k == "sender.idle_seconds") c.idle_seconds = v.number;
-    else if (k == "sim.flavor") c.sim.reprap = v.text == "reprap";
+    else if (k == "sim.flavor") {
+        c.sim.reprap = v.text == "reprap";
+        c.sim.klipper = v.text == "klipper";
+    }
     else if (k == "sim.advanced_ok") c.sim.advanced_ok = v.on;
     else if (k == "sim.buffer") c.sim.buffer = int(whole());
     else if (k == "sim.planner") c.sim.planner = int(whole());
@@ -222,7 +228,7 @@ std::string serve_setting_text(const ServeConfig& c, const ServeSetting& s) {
     if (k == "extruder_letter") return std::string(1, c.extruder_letter);
     if (k == "firmware.port") return c.port;
     if (k == "firmware.baud") return num(c.baud);
-    if (k == "firmware.flavor") return c.firmware.reprap ? "reprap" : "marlin";
+    if (k == "firmware.flavor") return c.firmware.reprap ? "reprap" : c.firmware.klipper ? "klipper" : "marlin";
     if (k == "firmware.window") return num(c.firmware.window);
     if (k == "firmware.rx_bytes") return num(double(c.firmware.rx_bytes));
     if (k == "firmware.max_line") return num(double(c.firmware.max_line));
@@ -245,7 +251,7 @@ std::string serve_setting_text(const ServeConfig& c, const ServeSetting& s) {
     if (k == "sender.max_pending") return num(double(c.max_pending));
     if (k == "sender.max_tcp") return num(double(c.max_tcp));
     if (k == "sender.idle_seconds") return num(c.idle_seconds);
-    if (k == "sim.flavor") return c.sim.reprap ? "reprap" : "marlin";
+    if (k == "sim.flavor") return c.sim.reprap ? "reprap" : c.sim.klipper ? "klipper" : "marlin";
     if (k == "sim.advanced_ok") return c.sim.advanced_ok ? "true" : "false";
     if (k == "sim.buffer") return num(c.sim.buffer);
     if (k == "sim.planner") return num(c.sim.planner);

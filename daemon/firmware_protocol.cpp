@@ -62,6 +62,7 @@ FirmwareProtocol::FirmwareProtocol(FirmwareOptions options) : opt_(options) {}
 int FirmwareProtocol::window() const {
     if (opt_.reprap) return 1;  // a dropped line is never reported: anything sent after it would run out of order
     if (opt_.window > 0) return opt_.window;
+    if (opt_.klipper) return klipper::kWindow;
     return learned_window_ > 0 ? learned_window_ : 2;
 }
 
@@ -73,6 +74,7 @@ constexpr std::size_t kNumberRoom = 10, kChecksumRoom = 4, kNewline = 1;
 bool FirmwareProtocol::fits(std::string_view command) const { return command.size() <= max_command(); }
 
 std::size_t FirmwareProtocol::max_command() const {
+    if (opt_.klipper) return budget() - kNewline;  // Klipper reads lines of any length; xlate5 sends no N or checksum
     const std::size_t frame = kNumberRoom + kChecksumRoom + kNewline;
     return opt_.max_line > frame ? opt_.max_line - frame : 0;
 }
@@ -112,7 +114,9 @@ void FirmwareProtocol::restart(Time now) {
     abandon_tail();
     greetings_ = 0;
     greet(now);
-    if (opt_.reprap) return;
+    // Klipper has no M999 (its "Unknown command"): after an error it runs on, and after a
+    // shutdown only FIRMWARE_RESTART revives it, which the greeting's STATUS tells.
+    if (opt_.reprap || opt_.klipper) return;
     if (half_sent) m999_after_quiet_ = true;
     else write_line("M999\n");
 }
@@ -147,6 +151,18 @@ void FirmwareProtocol::send_greeting(Time now) {
         return;
     }
     ++stats_.greetings;
+    if (opt_.klipper) {
+        // Klipper ignores line numbers and M110 (gcode.py: cmd_M110 passes): M115 answers
+        // "ok FIRMWARE_NAME:Klipper …" on its ok line, and STATUS says whether it is ready.
+        write_line("M115\n");
+        write_line("STATUS\n");
+        klipper_ready_ = false;
+        klipper_not_ready_.clear();
+        greet_ = Greet::AwaitReport;
+        quiet_deadline_.reset();
+        reply_deadline_ = now + seconds(opt_.reply_timeout);
+        return;
+    }
     // M110 sets the numbering (it skips the number check); M115 says what the firmware is.
     // Marlin sets the number again when M110 runs, and both lines are often in its buffer before
     // it does (one USB packet; a busy loop): a numbered M115 taken as the next line would be
@@ -171,11 +187,16 @@ void FirmwareProtocol::become_ready() {
     }
     const std::string& name = m115_.front();
     const bool rrf = name.find("RepRapFirmware") != std::string::npos;
-    if (opt_.reprap != rrf) {
-        fault(std::string("flavour mismatch: xlate5 is set for ") + (opt_.reprap ? "RepRapFirmware" : "Marlin") +
+    const bool klippy = name.find("FIRMWARE_NAME:Klipper") != std::string::npos;
+    if (opt_.reprap != rrf || opt_.klipper != klippy) {
+        fault(std::string("flavour mismatch: xlate5 is set for ") + (opt_.reprap ? "RepRapFirmware" : opt_.klipper ? "Klipper" : "Marlin") +
               " (firmware.flavor), but the firmware reports: " + name);
         return;
     }
+    klipper_waits_ = 0;
+    klipper_silence_ = 0;
+    klipper_gcode_.clear();
+    klipper_base_.clear();
     state_ = State::Ready;
     credited_n_ = next_n_ - 1;
     greetings_ = 0;
@@ -222,7 +243,7 @@ void FirmwareProtocol::emergency_stop(std::string_view command, Time) {
 void FirmwareProtocol::port_closed(const std::string& why) { fault(why); }
 
 void FirmwareProtocol::send_entry(Entry e, Time now, std::size_t room) {
-    std::string line = proto::numbered(e.n, e.command) + "\n";
+    std::string line = (e.n >= 0 ? proto::numbered(e.n, e.command) : e.command) + "\n";
     e.bytes = line.size();
     if (line.size() > room) {
         // Only its first bytes fit the receive buffer: they go now, the rest when an ok frees room.
@@ -241,7 +262,8 @@ void FirmwareProtocol::send_entry(Entry e, Time now, std::size_t room) {
 
 void FirmwareProtocol::arm_nudge(Time now) {
     // RepRapFirmware gets no nudge: it is sent one line at a time and resends on silence anyway.
-    if (opt_.reprap || opt_.nudge <= 0 || opt_.nudge >= opt_.reply_timeout) return;
+    // Nor Klipper: it answers an empty line with an ok of its own, which would credit a line.
+    if (opt_.reprap || opt_.klipper || opt_.nudge <= 0 || opt_.nudge >= opt_.reply_timeout) return;
     nudge_deadline_ = now + seconds(opt_.nudge);
 }
 
@@ -259,8 +281,28 @@ void FirmwareProtocol::on_nudge() {
     ++stats_.nudges;
 }
 
+void FirmwareProtocol::transmit_klipper(Time now) {
+    // Every line draws exactly one ok, in order, once it ran (a move: once it is in the
+    // toolhead's queue): plain oks credit lines in order. The bounds keep what Klipper holds
+    // unread within one of its reads (kReadBytes) and below the 20 pending lines at which it stops
+    // reading the pty (so an M112 is still seen out of order).
+    const std::size_t limit = std::size_t(window());
+    while (!unsent_.empty() && in_flight_.size() < limit) {
+        const Item& item = unsent_.front();
+        // Klipper's M114 leaves out the axes beyond X Y Z E; GET_POSITION names them all, and its
+        // answer is given back as an M114 report (on_klipper_line).
+        std::string command = proto::command_code(item.command).is('M', 114) ? std::string("GET_POSITION") : item.command;
+        const std::size_t bytes = command.size() + kNewline;
+        if (!in_flight_.empty() && bytes_in_flight_ + bytes > budget()) break;
+        Entry e{-1, std::move(command), item.tag, 0, false, false, item.origin};
+        unsent_.pop_front();
+        send_entry(std::move(e), now);
+    }
+}
+
 void FirmwareProtocol::transmit(Time now) {
     if (state_ != State::Ready || sync_ != Sync::None) return;
+    if (opt_.klipper) return transmit_klipper(now);
     if (!tail_.empty() && !write_tail()) return;  // a line in two parts is finished before any other
     if (extra_oks_ && !advanced_ok_) {
         // Plain oks cannot be counted: a group of lines goes with an M105 behind it, and the next
@@ -539,6 +581,20 @@ void FirmwareProtocol::on_reply_timeout(Time now) {
             return;
         }
     }
+    if (opt_.klipper) {
+        // A pseudo-terminal loses nothing, and Klipper answers a line only once it ran: silence is
+        // a long command (G28, M109, G4, a full toolhead queue), never a lost line. Nothing is
+        // probed or repeated; only after long_timeout is it taken as gone.
+        --stats_.timeouts;
+        klipper_silence_ += opt_.reply_timeout;
+        if (klipper_silence_ >= opt_.long_timeout) {
+            fault("Klipper has not answered for " + std::to_string(int(klipper_silence_)) + " s");
+            return;
+        }
+        spdlog::info("firmware: Klipper still busy with '{}' ({:.0f} s)", in_flight_.front().command, klipper_silence_);
+        reply_deadline_ = now + seconds(opt_.reply_timeout);
+        return;
+    }
     if (++timeouts_in_row_ > opt_.max_timeouts) {
         fault("the firmware has not answered for " + std::to_string(int(opt_.reply_timeout * opt_.max_timeouts)) + " s");
         return;
@@ -612,6 +668,8 @@ void FirmwareProtocol::on_line(std::string_view line, Time now) {
         else spdlog::info("firmware: {}", line);
         return;
     }
+    if (opt_.klipper && state_ == State::Greeting) return on_klipper_greeting(r, line, now);
+    if (opt_.klipper) return on_klipper_line(r, line, now);
     if (is_protocol_reply(r.kind)) {
         timeouts_in_row_ = 0;
         long_waits_ = 0;
@@ -687,6 +745,152 @@ void FirmwareProtocol::on_line(std::string_view line, Time now) {
             emit(Action::Kind::Message, std::string(line));
             return;
     }
+}
+
+namespace {
+
+bool starts(std::string_view line, std::string_view prefix) { return line.rfind(prefix, 0) == 0; }
+
+// The words of a command whose letters Klipper's range error leaves out (it prints X Y Z and
+// [E]): "G1 X20 A200 F600" -> "A200".
+std::string other_axis_words(std::string_view command) {
+    std::string out;
+    std::size_t i = command.find(' ');
+    while (i != std::string_view::npos && i < command.size()) {
+        while (i < command.size() && command[i] == ' ') ++i;
+        const std::size_t end = std::min(command.find(' ', i), command.size());
+        if (end > i) {
+            const char l = command[i];
+            if (l >= 'A' && l <= 'W' && l != 'E' && l != 'F' && l != 'N') out += (out.empty() ? "" : " ") + std::string(command.substr(i, end - i));
+        }
+        i = end;
+    }
+    return out;
+}
+
+// GET_POSITION's "gcode: X:1.000000 Y:… E:… A:…" less its "gcode base: …": the position as
+// M114 reports it (gcode_move.py: last_position - base_position), with every axis Klipper has.
+std::string klipper_report(std::string_view gcode, std::string_view base) {
+    const auto values = [](std::string_view s) {
+        std::vector<std::pair<char, double>> out;
+        for (std::size_t i = 0; i + 1 < s.size(); ++i) {
+            if (s[i + 1] != ':' || (i > 0 && s[i - 1] != ' ')) continue;
+            double v = 0;
+            const auto r = std::from_chars(s.data() + i + 2, s.data() + s.size(), v);
+            if (r.ec == std::errc()) out.emplace_back(s[i], v);
+        }
+        return out;
+    };
+    const auto g = values(gcode), b = values(base);
+    std::string out;
+    char buf[48];
+    for (const auto& [letter, v] : g) {
+        double offset = 0;
+        for (const auto& [l, w] : b)
+            if (l == letter) offset = w;
+        std::snprintf(buf, sizeof buf, "%s%c:%.6f", out.empty() ? "" : " ", letter, v - offset);
+        out += buf;
+    }
+    return out;
+}
+
+}  // namespace
+
+void FirmwareProtocol::on_klipper_greeting(const proto::Reply& r, std::string_view line, Time now) {
+    if (greet_ != Greet::AwaitReport) {
+        if (r.kind == proto::ReplyKind::Ok || starts(line, "!!") || starts(line, "//")) quiet_deadline_ = now + seconds(opt_.settle);  // stale: wait on
+        if (r.kind != proto::ReplyKind::Ok) spdlog::info("firmware: {}", line);
+        return;
+    }
+    if (r.kind == proto::ReplyKind::Ok && m115_.empty()) {
+        // M115's ok carries the report (gcode.py: gcmd.ack(msg)); a plain ok is stale.
+        std::string_view p = r.payload;
+        while (!p.empty() && p.front() == ' ') p.remove_prefix(1);
+        if (starts(p, "FIRMWARE_NAME")) m115_ = {std::string(p)};
+        return;
+    }
+    if (starts(line, "// Klipper state: Ready")) {
+        klipper_ready_ = true;
+        return;
+    }
+    if (starts(line, "!!")) {
+        klipper_not_ready_ = std::string(line);
+        return;
+    }
+    if (r.kind != proto::ReplyKind::Ok) {
+        spdlog::info("firmware: {}", line);
+        return;
+    }
+    // STATUS answered.
+    reply_deadline_.reset();
+    if (klipper_ready_) {
+        greet_ = Greet::Settle;
+        quiet_deadline_ = now + seconds(opt_.settle);
+        return;
+    }
+    // Starting, restarting or shut down: asked again, boot_wait later.
+    if (++klipper_waits_ > klipper::kNotReadyGreetings) {
+        fault("Klipper is not ready (" + klipper_not_ready_ + "); after a shutdown it needs FIRMWARE_RESTART");
+        return;
+    }
+    spdlog::warn("firmware: Klipper is not ready ({}); asking again in {:.1f} s", klipper_not_ready_, opt_.boot_wait);
+    --greetings_;
+    m115_.clear();
+    greet_ = Greet::Quiet;
+    quiet_deadline_ = now + seconds(std::max(opt_.boot_wait, opt_.settle));
+}
+
+void FirmwareProtocol::on_klipper_line(const proto::Reply& r, std::string_view line, Time now) {
+    klipper_silence_ = 0;
+    if (reply_deadline_ && r.kind == proto::ReplyKind::Ok) reply_deadline_ = now + seconds(opt_.reply_timeout);
+    const bool asking_position = !in_flight_.empty() && in_flight_.front().command == "GET_POSITION";
+    if (r.kind == proto::ReplyKind::Ok) {
+        if (in_flight_.empty()) {
+            // Every line xlate5 sent is answered: another writer on Klipper's pty, or its own output.
+            ++stats_.stray_oks;
+            spdlog::warn("firmware: an ok with no line in flight (another host writing to Klipper's pty?)");
+            return;
+        }
+        if (asking_position) {
+            if (!klipper_gcode_.empty()) emit(Action::Kind::Message, klipper_report(klipper_gcode_, klipper_base_));
+            klipper_gcode_.clear();
+            klipper_base_.clear();
+        }
+        credit_front(r.payload);
+        transmit(now);
+        emit(Action::Kind::Progress);
+        return;
+    }
+    if (asking_position && starts(line, "// ")) {
+        // GET_POSITION's lines: "gcode:" and "gcode base:" make the report; the rest is kept from senders.
+        if (starts(line, "// gcode: ")) klipper_gcode_ = std::string(line.substr(10));
+        else if (starts(line, "// gcode base: ")) klipper_base_ = std::string(line.substr(15));
+        else spdlog::debug("firmware: {}", line);
+        return;
+    }
+    if (starts(line, "// Klipper state: Shutdown") || starts(line, "// Klipper state: Disconnect")) {
+        emit(Action::Kind::Message, std::string(line));
+        fault("Klipper stopped (" + std::string(line.substr(3)) + "): nothing more runs until FIRMWARE_RESTART");
+        return;
+    }
+    if (starts(line, "!!")) {
+        // The error of the line in front (its ok follows). Klipper would run on with the next
+        // line from a position the translator did not plan; the print stops here instead.
+        if (in_flight_.empty()) {
+            emit(Action::Kind::Message, std::string(line));
+            return;
+        }
+        const std::string& command = in_flight_.front().command;
+        std::string why = "Klipper refused '" + command + "': " + std::string(line.substr(std::min<std::size_t>(3, line.size())));
+        if (line.find("Move out of range") != std::string_view::npos) {
+            const std::string others = other_axis_words(command);
+            if (!others.empty()) why += " (its message leaves out " + others + ": check those axes' position_min/max against the machine file)";
+        }
+        emit(Action::Kind::Message, std::string(line));
+        fault(why);
+        return;
+    }
+    emit(Action::Kind::Message, std::string(line));
 }
 
 bool FirmwareProtocol::own_fragment(std::string_view line) const {

@@ -54,8 +54,17 @@ inline constexpr int kPlannerSize = 16;               // BLOCK_BUFFER_SIZE
 inline constexpr double kKeepaliveSeconds = 2.0;      // DEFAULT_KEEPALIVE_INTERVAL
 }  // namespace marlin
 
+// Klipper's host side (klippy/gcode.py, GCodeIO and GCodeDispatch) as its pseudo-terminal shows it.
+namespace klipper {
+inline constexpr std::size_t kReadBytes = 4096;       // GCodeIO reads the pty 4096 bytes at a time
+inline constexpr int kPendingStop = 20;               // lines pending while busy before it stops reading the pty
+inline constexpr int kWindow = 16;                    // xlate5's lines in flight: below kPendingStop, so M112 is seen at once
+inline constexpr int kNotReadyGreetings = 60;         // greetings (boot_wait apart) while STATUS says "not ready"
+}  // namespace klipper
+
 struct FirmwareOptions {
     bool reprap = false;            // RepRapFirmware: a bad line is dropped without a word; never more than one in flight
+    bool klipper = false;           // Klipper's pty: plain lines, one ok each in order, "!!" errors (docs/firmware.md)
     int window = 0;                 // lines in flight; 0: 2, or learned from ADVANCED_OK's B
     std::size_t rx_bytes = marlin::kRxBufferSize - 1;  // bytes in flight at most (the firmware's serial receive buffer)
     std::size_t max_line = marlin::kMaxCmdSize;        // the firmware's line buffer, terminator included
@@ -141,6 +150,10 @@ private:
     void send_greeting(Time now);
     void become_ready();
     void transmit(Time now);
+    void transmit_klipper(Time now);
+    void on_klipper_line(const proto::Reply& r, std::string_view line, Time now);
+    void on_klipper_greeting(const proto::Reply& r, std::string_view line, Time now);
+    std::size_t budget() const { return opt_.klipper ? klipper::kReadBytes - 1 : opt_.rx_bytes; }
     void send_entry(Entry e, Time now, std::size_t room = SIZE_MAX);
     bool write_tail();
     void finish_tail();
@@ -191,6 +204,14 @@ private:
     int learned_window_ = 0;
     std::vector<std::string> m115_;
     FirmwareStats stats_;
+    // Klipper: the STATUS of the greeting ("// Klipper state: Ready", or an "!!" when not ready),
+    // the greetings made while it was not ready, and GET_POSITION's "gcode:" and "gcode base:"
+    // lines (its answer to the M114 xlate5 was asked for).
+    bool klipper_ready_ = false;
+    std::string klipper_not_ready_;
+    int klipper_waits_ = 0;
+    double klipper_silence_ = 0;
+    std::string klipper_gcode_, klipper_base_;
 };
 
 }  // namespace xlate5

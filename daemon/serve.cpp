@@ -79,6 +79,15 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
     sopt.translator.start_mode = config.mode;
     sopt.translator.extruder_letter = config.extruder_letter;
     if (config.port.empty()) throw IoError("firmware.port: not set (a serial device, or \"sim\" for the built-in virtual printer)");
+    // Klipper drops the words of an extra axis it was not told about, and its G92 reads only
+    // X Y Z E: only the Klipper dialect's output (MANUAL_STEPPER registration and SET_POSITION)
+    // runs as translated there.
+    if (config.firmware.klipper && machine.dialect.firmware != FirmwareDialect::Klipper)
+        for (const auto& j : machine.joints)
+            if (j.output != 'X' && j.output != 'Y' && j.output != 'Z' && !j.absent)
+                throw IoError("firmware.flavor: klipper, but machine " + machine.name + " writes its " + std::string(1, j.output) +
+                              " words in another dialect (its [firmware] dialect): Klipper would drop them or, after a G92, zero X Y Z E; "
+                              "set dialect = \"klipper\" in the machine file (docs/firmware.md, Klipper)");
     a.service = std::make_unique<Service>(io, machine, sopt);
     Service& service = *a.service;
 
@@ -105,7 +114,7 @@ void assemble(asio::io_context& io, const ServeConfig& config, const Machine& ma
         if (config.port == "sim") {
             a.sim = std::make_shared<VirtualPrinter>(io, a.sim_pty->release_master(), so);
             a.sim->start();
-            spdlog::info("firmware: the virtual printer ({}) on {}", so.reprap ? "RepRapFirmware-like" : "Marlin-like", device);
+            spdlog::info("firmware: the virtual printer ({}) on {}", so.reprap ? "RepRapFirmware-like" : so.klipper ? "Klipper-like" : "Marlin-like", device);
         } else {
             spdlog::info("firmware: {} at {} baud", device, config.baud);
         }
@@ -185,7 +194,10 @@ namespace {
 // The firmware end as the start log and `serve --check` describe it.
 std::string link_summary(const ServeConfig& c) {
     const auto& f = c.firmware;
-    std::string port = c.port.empty() ? "no port set" : c.port == "sim" ? std::string("the built-in virtual printer (") + (c.sim.reprap ? "RepRapFirmware" : "Marlin") + "-like)" : c.port;
+    std::string port = c.port.empty() ? "no port set" : c.port == "sim" ? std::string("the built-in virtual printer (") + (c.sim.reprap ? "RepRapFirmware" : c.sim.klipper ? "Klipper" : "Marlin") + "-like)" : c.port;
+    if (f.klipper)
+        return port + ", klipper; " + std::to_string(f.window > 0 ? f.window : klipper::kWindow) + " lines and " +
+               std::to_string(klipper::kReadBytes - 1) + " bytes in flight at most (one of klippy's reads), plain lines";
     const std::string window = f.reprap ? "1 line in flight (RepRapFirmware drops a bad line without a word)"
                                : f.window > 0 ? std::to_string(f.window) + " lines in flight"
                                               : "2 lines in flight (more when ADVANCED_OK reports a larger buffer)";

@@ -6,6 +6,7 @@
 #include <spdlog/spdlog.h>
 
 #include "daemon/line_protocol.hpp"
+#include "translators/machine/firmware_config.hpp"
 
 namespace xlate5 {
 
@@ -452,6 +453,14 @@ void Service::arm_busy() {
 }
 
 void Service::firmware_ready(const std::vector<std::string>&) {
+    // The Klipper dialect's preamble (each extra axis registered as a G-code axis), at every
+    // greeting: a Klipper restart forgets it, and without it Klipper drops A/B/C words silently.
+    // Empty for the other dialects. Ahead of the position question, whose answer then has them.
+    if (firmware_) {
+        std::vector<std::string> preamble;
+        proto::append_commands(firmware_preamble(machine_), preamble);
+        for (auto& c : preamble) firmware_->enqueue(std::move(c));
+    }
     ask_position();
     pump();
 }

@@ -103,6 +103,17 @@ void VirtualPrinter::boot() {
         checker_.set_last_line(1000);
         stale_resend_due_ = true;
     }
+    if (opt_.klipper) {
+        // klippy's pty says nothing until written to; its axes start where the machine is.
+        klast_.clear();
+        kbase_.clear();
+        for (std::size_t i = 0; i < opt_.start.size() && i < opt_.axes.size(); ++i)
+            if (std::string("XYZ").find(opt_.axes[i]) != std::string::npos) klast_[opt_.axes[i]] = opt_.start[i];
+        khomed_ = opt_.klipper_homed;
+        kshutdown_ = false;
+        kregistered_.clear();
+        return;
+    }
     reply("start");
     reply(opt_.reprap ? "RepRapFirmware (virtual, xlate5) started" : "echo:Marlin 2.1.2 (virtual printer, xlate5)");
 }
@@ -142,6 +153,7 @@ void VirtualPrinter::reply(std::string line) {
 
 void VirtualPrinter::on_line(std::string_view raw) {
     if (unplugged_) return;
+    if (opt_.klipper) return klipper_line(std::string(raw));
     std::string line(raw);
     auto& f = opt_.faults;
     // M112 is acted on by the emergency parser as its bytes arrive, ahead of everything queued.

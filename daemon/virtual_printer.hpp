@@ -32,6 +32,7 @@
 #include <deque>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <optional>
 #include <memory>
 #include <random>
@@ -75,6 +76,11 @@ struct SimFaults {
 
 struct SimOptions {
     bool reprap = false;       // RepRapFirmware personality (drops bad lines silently)
+    // Klipper's host (klippy) on its pseudo-terminal (virtual_klipper.cpp): plain lines, N and *
+    // ignored, one ok per line once it ran, "!!" errors, "//" messages; XYZE-only G92 and M114.
+    bool klipper = false;
+    std::map<char, std::pair<double, double>> limits;  // Klipper: position_min/max per axis letter ("Move out of range")
+    bool klipper_homed = false;  // Klipper: X Y Z homed at start (else moves need G28 first)
     bool advanced_ok = false;  // Marlin ADVANCED_OK: "ok N<n> P<p> B<b>"
     int buffer = marlin::kBufSize;         // command buffer (BUFSIZE)
     int planner = marlin::kPlannerSize;    // planner slots
@@ -135,6 +141,21 @@ private:
     void boot();
     void halt(const std::string& why);
     std::string position_report() const;
+    // Klipper (virtual_klipper.cpp).
+    void klipper_line(std::string line);
+    void klipper_run();
+    void klipper_execute(const std::string& raw);
+    bool klipper_g1(const std::string& upper, std::string& error);
+    void klipper_error(const std::string& message);
+    void klipper_shutdown(const std::string& why);
+    std::string klipper_axes(const std::vector<std::pair<char, double>>& v) const;
+    std::deque<std::string> kpending_;
+    std::map<char, double> klast_, kbase_;        // gcode_move's last_position and base_position, by letter
+    std::map<char, std::string> kregistered_;     // extra axis letter -> manual_stepper name
+    std::map<std::string, double> kstepper_;      // manual_stepper positions
+    bool kabsolute_ = true, kabsolute_e_ = true, khomed_ = false, kshutdown_ = false, kbusy_ = false;
+    std::string kshutdown_why_;
+    double kspeed_ = 25;  // mm/s
 
     std::shared_ptr<DescriptorLink> link_;
     SimOptions opt_;

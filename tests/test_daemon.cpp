@@ -861,3 +861,76 @@ TEST_CASE("TCP senders are bounded in number and disconnected when silent; the p
     REQUIRE(rig.run_until([&] { return !fifth->got.empty() && fifth->got.back() == "ok"; }, 5));
     CHECK(fifth->closed.empty());
 }
+
+// The virtual printer's Klipper personality against klippy's rules (gcode.py, gcode_move.py,
+// manual_stepper.py; docs/firmware.md, "Klipper").
+namespace {
+SimOptions klipper_sim() {
+    SimOptions so;
+    so.klipper = true;
+    so.axes = "XYZAB";
+    so.start = {1, 2, 3, 0, 0};
+    return so;
+}
+std::vector<std::string> replies_from(const RawPrinter& p, std::size_t from) {
+    return {p.replies.begin() + std::ptrdiff_t(std::min(from, p.replies.size())), p.replies.end()};
+}
+}  // namespace
+
+TEST_CASE("virtual printer, Klipper: one ok per line once it ran, even empty, comment, unknown and refused ones; N and * unchecked") {
+    SimOptions so = klipper_sim();
+    so.klipper_homed = true;
+    RawPrinter p(so);
+    p.host->send("N5 M115*99\n\n; a comment\nG93\nN7 G1 X10*0\nG20\nM110 N100\nM114\n");
+    p.settle(0.3);
+    const std::vector<std::string> want = {"ok FIRMWARE_NAME:Klipper FIRMWARE_VERSION:v0.13.0-xlate5-double",
+                                           "ok", "ok", "// Unknown command:\"G93\"", "ok", "ok",
+                                           "!! Machine does not support G20 (inches) command", "ok", "ok",
+                                           "X:10.000 Y:2.000 Z:3.000 E:0.000", "ok"};
+    CHECK(p.replies == want);
+}
+
+TEST_CASE("virtual printer, Klipper: G92 reads X Y Z E only, A moves only once registered, SET_POSITION only when not") {
+    SimOptions so = klipper_sim();
+    so.klipper_homed = true;
+    so.limits['A'] = {-168, 168};
+    RawPrinter p(so);
+    // An unregistered A word is dropped without a word; registered, it moves and GET_POSITION has it.
+    p.host->send("G1 X10 A30\nM114\nMANUAL_STEPPER STEPPER=axis_a GCODE_AXIS=A\nG1 A30\n"
+                 "MANUAL_STEPPER STEPPER=axis_a SET_POSITION=0\nG1 A200\nG92 A-168\nM114\nGET_POSITION\n");
+    p.settle(0.3);
+    const auto& r = p.replies;
+    const auto count = [&](std::string_view s) { return std::count_if(r.begin(), r.end(), [&](const std::string& x) { return x.rfind(s, 0) == 0; }); };
+    CHECK(count("ok") == 9);
+    const auto at = [&](std::string_view s) { return std::find_if(r.begin(), r.end(), [&](const std::string& x) { return x.rfind(s, 0) == 0; }) - r.begin(); };
+    CHECK(r[1] == "X:10.000 Y:2.000 Z:3.000 E:0.000");  // M114: no A
+    CHECK(p.saw("!! Must unregister from gcode axis first"));
+    // Klipper's range error leaves the extra axes out; the position stays.
+    CHECK(p.saw("!! Move out of range: 10.000 2.000 3.000 [0.000]"));
+    // A G92 with none of X Y Z E is a bare G92: all four zeroed.
+    CHECK(r[std::size_t(at("X:0.000"))] == "X:0.000 Y:0.000 Z:0.000 E:0.000");
+    CHECK(p.saw("// gcode: X:10.000000 Y:2.000000 Z:3.000000 E:0.000000 A:30.000000"));
+    CHECK(p.saw("// gcode base: X:10.000000 Y:2.000000 Z:3.000000 E:0.000000 A:0.000000"));
+}
+
+TEST_CASE("virtual printer, Klipper: moves before G28 are refused, and M112 acts as it arrives, ahead of a dwell") {
+    SimOptions so = klipper_sim();
+    so.faults.slow_seconds = 2;
+    RawPrinter p(so);
+    p.host->send("G1 X5\nG28\nG1 X5\n");
+    p.settle(0.2);
+    CHECK(p.saw("!! Must home axis first: 5.000 2.000 3.000 [0.000]"));
+    CHECK_FALSE(p.saw("Klipper state"));
+    p.host->send("G4 P2000\nM112\n");  // the G28 still homes: the M112 does not wait for it or the G4
+    p.settle(0.3);
+    CHECK(p.saw("// Klipper state: Shutdown"));
+    p.settle(4.5);
+    CHECK(p.saw("!! Shutdown due to M112 command"));  // the G1 X5 after G28 and the G4: refused, shut down
+    const auto from = p.replies.size();
+    p.host->send("STATUS\nFIRMWARE_RESTART\nSTATUS\n");
+    p.settle(0.2);
+    const auto after = replies_from(p, from);
+    CHECK(std::find(after.begin(), after.end(), "!! Shutdown due to M112 command") != after.end());
+    CHECK(after.back() == "ok");
+    CHECK(std::count(after.begin(), after.end(), "// Klipper state: Ready") == 2);
+}

@@ -532,20 +532,13 @@ TEST_CASE("retargeting S4's file onto the Core R-Theta itself: the same poses ba
     // The polar machine's own file through its FK, tool space (7 decimals) and its IK again:
     // the absent Y is solved within kAbsentSlack of 0 and never written; every written pose is
     // the file's own, within the tolerance (--no-segment: one joint move per move, as S4 wrote it).
-    // The first 3 990 lines: at line 4 001 the nozzle stands 0.004 degrees off vertical, where
-    // the tool vector's 7 decimals leave C uncertain by a milliradian and Y comes out 0.002 mm,
-    // past its slack (the line is refused, naming it): a polar machine's C near the pole should
-    // come from the tip, which the general solve does not do.
+    // The whole file: from line 4 001 the nozzle stands 0.004 degrees off vertical, where the
+    // tool vector's 7 decimals leave C uncertain by a milliradian and Y came out 0.002 mm (the
+    // line was refused); C now comes from the tip there (Kinematics::polar_turn).
     if (xlate5::test::corpus_absent()) return;
     xlate5::test::TempDir dir;
     int rc = 0;
-    std::string head;
-    {
-        const auto all = xlate5::test::lines_of(xlate5::test::read(xlate5::test::corpus_dir() + "/s4/pi_3mm_side_paint_rtheta.gcode"));
-        REQUIRE(all.size() > 3990);
-        for (std::size_t i = 0; i < 3990; ++i) head += all[i] + "\n";
-    }
-    const auto s4 = dir.write("s4_head.gcode", head);
+    const std::filesystem::path s4 = xlate5::test::corpus_dir() + "/s4/pi_3mm_side_paint_rtheta.gcode";
     const auto ta = run_xlate5("--machine core-rtheta --inverse --preview-form G43.5", s4, dir, rc);
     REQUIRE(rc == 0);
     const auto jb = dir.write("b.gcode", run_xlate5("--machine core-rtheta --from core-rtheta --no-segment", s4, dir, rc));
@@ -559,6 +552,40 @@ TEST_CASE("retargeting S4's file onto the Core R-Theta itself: the same poses ba
     const auto tb = run_xlate5("--machine core-rtheta --inverse --preview-form G43.5", jb, dir, rc);
     REQUIRE(rc == 0);
     const auto start = tool_poses(ta), end = tool_poses(tb);
-    REQUIRE(start.size() > 3000);
+    REQUIRE(start.size() > 5000);
     check_same_path(start, end, 0.01, 0.5);
+}
+
+TEST_CASE("core-rtheta: a vertical nozzle takes C from the tip, as S4's cartesian_to_rtheta does") {
+    // With the tool axis on C's pole the axis says nothing about C; S4's transform takes
+    // C = atan2(y, x) and X = hypot(x, y) (B = 0). Before Kinematics::polar_turn the solve kept
+    // the previous C and left the tip off the radial line (Y 10 mm, refused). Axes exactly
+    // vertical, and 1e-7 off in a random direction (a 7-decimal vector's rounding).
+    const Machine m = machine("core-rtheta");
+    const Kinematics k(m);
+    REQUIRE(k.is_polar());
+    std::mt19937_64 rng(37);
+    std::uniform_real_distribution<double> pos(-50, 50), noise(-1e-7, 1e-7);
+    std::vector<double> q = m.home_joints();
+    for (int i = 0; i < 2000; ++i) {
+        const Eigen::Vector3d tip(pos(rng), pos(rng), 5 + std::abs(pos(rng)));
+        if (std::hypot(tip.x(), tip.y()) < 1) continue;
+        const Eigen::Vector3d axis = i % 2 ? Eigen::Vector3d(noise(rng), noise(rng), 1).normalized() : Eigen::Vector3d::UnitZ();
+        const std::vector<double> prev = q;
+        CAPTURE(i);
+        const IkResult r = k.inverse({tip, axis}, prev, q);
+        REQUIRE_MESSAGE(r.ok(), r.message);
+        const double c = q[std::size_t(joint(m, 'C'))], x = q[std::size_t(joint(m, 'X'))], b = q[std::size_t(joint(m, 'B'))];
+        const Rtheta near = s4_joints(tip.x(), tip.y(), tip.z(), 0, 42);
+        const bool far = angle_diff(c, near.c + 180) < 1e-4;
+        // At the tilt the noise gives (B is -t on the far side).
+        const Rtheta s = s4_joints(tip.x(), tip.y(), tip.z(), rad(far ? -b : b), 42);
+        CHECK(std::abs(q[std::size_t(joint(m, 'Y'))]) < 1e-9);
+        // S4's C, or half a turn from it with X on the far side of the bed's axis.
+        CHECK((far || angle_diff(c, s.c) < 1e-4));
+        CHECK(std::abs((far ? -x : x) - s.x) < 1e-9);
+        CHECK(std::abs(q[std::size_t(joint(m, 'Z'))] - s.z) < 1e-9);
+        CHECK(std::abs(q[std::size_t(joint(m, 'B'))]) < 1e-3);
+        CHECK((k.forward(q).tip - tip).norm() < 1e-9);
+    }
 }

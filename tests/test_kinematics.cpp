@@ -674,7 +674,9 @@ TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit o
                 // check): the same bits; it moves only the linear joints.
                 std::vector<double> solved = q;
                 Eigen::Vector3d solved_axis;
-                if (k.solve_position(tip + Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5), solved, &solved_axis).ok() &&
+                // (Not on a polar machine: where the absent joint would leave its slack, as a tip moved
+                // off the radial plane makes it, the solve turns C too: Kinematics::solve_polar.)
+                if (!k.is_polar() && k.solve_position(tip + Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5), solved, &solved_axis).ok() &&
                     !(k.has_two_turns() ? same_bits(solved_axis, p.axis) : same_bits(solved_axis, axis)))
                     ++differ;
             }
@@ -1200,6 +1202,8 @@ TEST_CASE("the position solve in scalars equals its Eigen general path bit for b
                 std::vector<double> qa = q, qb = q;
                 Eigen::Vector3d aa(7, 7, 7), ab(7, 7, 7);
                 Kinematics::SolvedEnd ea, eb;
+                // A polar machine's solve may turn C (solve_polar), which the general path does not.
+                if (k.is_polar()) continue;
                 const IkResult ra = k.solve_position(tip, qa, ask & 1 ? &aa : nullptr, ask & 2 ? &ea : nullptr);
                 const IkResult rb = k.solve_position_general(tip, qb, ask & 1 ? &ab : nullptr, ask & 2 ? &eb : nullptr);
                 bool ok = ra.status == rb.status && ra.message == rb.message && qa.size() == qb.size() &&

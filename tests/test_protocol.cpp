@@ -1027,3 +1027,120 @@ TEST_CASE("protocol: a firmware that answers lines twice cannot make xlate5 over
     CHECK(s.p.stats().stray_oks > 0);
     MESSAGE("most bytes in the firmware's buffer: " << most_bytes << " before the first poll, " << most_after << " after");
 }
+
+// Klipper (klippy/gcode.py): M115's report rides on its ok line, STATUS says whether it is ready,
+// every line draws exactly one ok in order, errors are "!! …" before that ok.
+namespace {
+FirmwareOptions klipper_options() {
+    FirmwareOptions o;
+    o.klipper = true;
+    return o;
+}
+void klipper_greet(Script& s, bool ready_first = true) {
+    s.p.open(s.t);
+    s.pass(s.opt.boot_wait + s.opt.settle + 0.05);  // no "start": boot_wait, then quiet
+    auto w = s.take_writes();
+    REQUIRE(w == std::vector<std::string>{"M115", "STATUS"});
+    s.reply("ok FIRMWARE_NAME:Klipper FIRMWARE_VERSION:v0.13.0");
+    if (!ready_first) {
+        s.reply("// Printer is not ready");
+        s.reply("!! Printer is not ready");
+        s.reply("ok");
+        CHECK(!s.ready);
+        s.pass(s.opt.boot_wait + s.opt.settle + 0.05);
+        w = s.take_writes();
+        REQUIRE(w == std::vector<std::string>{"M115", "STATUS"});
+        s.reply("ok FIRMWARE_NAME:Klipper FIRMWARE_VERSION:v0.13.0");
+    }
+    s.reply("// Klipper state: Ready");
+    s.reply("ok");
+    s.pass(s.opt.settle + 0.05);
+}
+}  // namespace
+
+TEST_CASE("protocol, Klipper: the greeting reads M115's ok line and waits for STATUS to say ready") {
+    Script s(klipper_options());
+    klipper_greet(s, false);
+    CHECK(s.ready);
+    CHECK(s.faults.empty());
+    REQUIRE(s.p.m115().size() == 1);
+    CHECK(s.p.m115()[0] == "FIRMWARE_NAME:Klipper FIRMWARE_VERSION:v0.13.0");
+}
+
+TEST_CASE("protocol, Klipper: a Marlin answering is a flavour mismatch, and a Klipper for --flavor marlin too") {
+    Script s(klipper_options());
+    s.p.open(s.t);
+    s.pass(s.opt.boot_wait + s.opt.settle + 0.05);
+    s.take_writes();
+    s.reply("ok FIRMWARE_NAME:Marlin 2.1.2");
+    s.reply("// Klipper state: Ready");
+    s.reply("ok");
+    s.pass(s.opt.settle + 0.05);
+    REQUIRE(s.faults.size() == 1);
+    CHECK(s.faults[0].find("flavour mismatch") != std::string::npos);
+
+    Script m;  // Marlin's greeting answered by a Klipper: M110 and M115 each get an ok
+    m.p.open(m.t);
+    m.reply("start");
+    m.pass(m.opt.settle + 0.1);
+    m.take_writes();
+    m.reply("ok");
+    m.reply("FIRMWARE_NAME:Klipper FIRMWARE_VERSION:v0.13.0");
+    m.reply("ok");
+    m.pass(m.opt.settle + 0.1);
+    REQUIRE(m.faults.size() == 1);
+    CHECK(m.faults[0].find("flavour mismatch") != std::string::npos);
+}
+
+TEST_CASE("protocol, Klipper: plain lines up to the window, each ok credits the oldest, never an empty line") {
+    Script s(klipper_options());
+    klipper_greet(s);
+    for (int i = 0; i < 40; ++i) s.enqueue("G1 X" + std::to_string(i), std::uint64_t(i + 1));
+    auto w = s.take_writes();
+    REQUIRE(w.size() == std::size_t(klipper::kWindow));
+    for (int i = 0; i < klipper::kWindow; ++i) CHECK(w[std::size_t(i)] == "G1 X" + std::to_string(i));  // no N, no checksum
+    for (int i = 0; i < 40; ++i) {
+        s.pass(3);  // a long silence (a full toolhead queue): nothing is probed or repeated
+        s.reply("ok");
+    }
+    w = s.take_writes();
+    CHECK(w.size() == 40 - std::size_t(klipper::kWindow));
+    CHECK(s.blank_lines == 0);
+    REQUIRE(s.acked.size() == 40);
+    for (std::size_t i = 0; i < 40; ++i) CHECK(s.acked[i].first == i + 1);
+    CHECK(s.faults.empty());
+}
+
+TEST_CASE("protocol, Klipper: M114 goes as GET_POSITION and comes back as a report with every axis") {
+    Script s(klipper_options());
+    klipper_greet(s);
+    s.enqueue("M114", 7);
+    REQUIRE(s.take_writes() == std::vector<std::string>{"GET_POSITION"});
+    for (const char* l : {"// mcu: stepper_x:0 stepper_y:0 stepper_z:0", "// toolhead: X:10.000000 Y:0.000000 Z:300.000000 E:5.000000 A:-100.000000",
+                          "// gcode: X:10.000000 Y:0.000000 Z:300.000000 E:5.000000 A:-100.000000",
+                          "// gcode base: X:0.000000 Y:0.000000 Z:0.000000 E:4.000000 A:-268.000000",
+                          "// gcode homing: X:0.000000 Y:0.000000 Z:0.000000"})
+        s.reply(l);
+    CHECK(s.messages.empty());
+    s.reply("ok");
+    REQUIRE(s.messages.size() == 1);
+    CHECK(s.messages[0] == "X:10.000000 Y:0.000000 Z:300.000000 E:1.000000 A:168.000000");
+    REQUIRE(s.acked.size() == 1);
+    CHECK(s.acked[0].first == 7);
+}
+
+TEST_CASE("protocol, Klipper: an !! error stops the print and names the line and the axes its message leaves out") {
+    Script s(klipper_options());
+    klipper_greet(s);
+    s.enqueue("G1 X20 F600", 1);
+    s.enqueue("G1 A200", 2);
+    s.enqueue("G1 X30", 3);
+    s.reply("ok");
+    s.reply("!! Move out of range: 20.000 0.000 300.000 [5.000]");
+    REQUIRE(s.faults.size() == 1);
+    CHECK(s.faults[0].find("'G1 A200'") != std::string::npos);
+    CHECK(s.faults[0].find("leaves out A200") != std::string::npos);
+    CHECK(s.lost[0] == 2);  // G1 A200 and G1 X30: not known to have run
+    REQUIRE(!s.messages.empty());
+    CHECK(s.messages[0].rfind("!! Move out of range", 0) == 0);
+}

@@ -518,3 +518,15 @@ TEST_CASE("serve --http: the status JSON escapes what a sender wrote and writes 
     none.joint_names = {"X"};
     CHECK(contains(status_json(none), R"("position":null)"));
 }
+
+TEST_CASE("serve --flavor klipper: a machine whose rotaries are not in the Klipper dialect is refused at start") {
+    // Klipper drops A/B words of an unregistered axis and its G92 reads only X Y Z E: rw2's
+    // Marlin-dialect output (G92 A-168) would zero Z there.
+    TempDir d;
+    const std::string pty = (d.path / "printer").string();
+    const Result r = run(d, "serve -m rw2 --port sim --flavor klipper --sim-flavor klipper --pty " + quote(pty));
+    CHECK(r.code != 0);
+    CHECK(contains(r.err, "firmware.flavor: klipper, but machine rw2 writes its A words in another dialect"));
+    CHECK(contains(r.err, "dialect = \"klipper\""));
+    CHECK_FALSE(fs::exists(fs::symlink_status(pty)));
+}

@@ -310,6 +310,7 @@ Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const
 
 IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
                                     ChosenSolution chosen) const {
+    if (polar_.on) return solve_polar(tip, q, axis, end, chosen);
     // With the rotary joints fixed the tip is affine in the linear joints: one 3x3 solve is exact.
     if (constant_jacobian_) {
         if (end) end->valid = false;  // this path walks no axis lines: the motion stage measures the end instead

@@ -61,6 +61,7 @@ Kinematics::Kinematics(const Machine& machine)
     load_position_solve(machine);
     load_solved_ends(machine);
     turns_.load(part_links_, tool_links_, linear_, rotary_, orient_.on(), tool_up_, solved_ends_);
+    find_polar();
 }
 
 void Kinematics::load_orientation(const Machine& machine) {

@@ -152,6 +152,12 @@ public:
     // rather than to the bit (the tests hold them to it).
     bool has_two_turns() const { return turns_.on(); }
 
+    // A polar machine (core-rtheta): the part turns about one rotary (C) so that the tip lies in
+    // the plane an absent linear joint (Y, held at its home) leaves; the other rotary (B) tilts in
+    // that plane, and the tool axis at B = 0 is C's pole. There C comes from the tip, not from the
+    // tool axis, whose azimuth rounding makes arbitrary near the pole (docs/machines.md).
+    bool is_polar() const { return polar_.on; }
+
 private:
     // The constructor's steps, in this order (kinematics.cpp).
     void load_orientation(const Machine& machine);
@@ -159,6 +165,20 @@ private:
     void load_reach(const Machine& machine);
     void load_position_solve(const Machine& machine);
     void load_solved_ends(const Machine& machine);
+    // solve_position on a polar machine: as before while the absent joint stays within its slack,
+    // else with polar_turn's rotaries.
+    IkResult solve_polar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
+                         ChosenSolution chosen) const;
+    // C turned to the nearest angle that puts the
+    // tip in the absent joint's plane (and B's sign flipped when that keeps the axis nearer), when
+    // the tool axis moves by at most kPolarSnapDegrees doing so. False: q left as it was.
+    bool polar_turn(const Eigen::Vector3d& tip, std::vector<double>& q) const;
+    void find_polar();
+    struct Polar {
+        bool on = false;
+        int c = -1, b = -1, absent = -1;
+    } polar_;
+
     // Base -> a chain's end (rotation, translation); `linear_dirs`, when given, receives each linear
     // joint's direction.
     void eval(const std::vector<ChainLink>& chain, const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& t,
