@@ -172,6 +172,7 @@ void Preflight::execute(Block& b, double exit_limit) {
     b.time = trapezoid(b.length, v0, v1, b.nominal, a);
     prev_exit_ = v1;
     done_ += b.time;
+    if (executed) executed(b.line, b.time);
     // The firmware: it starts the block when the last ended and the block has arrived.
     if (b.bytes_at > clock_ && moves_ > 1 && !finished_.empty()) {
         const double stall = b.bytes_at - clock_;
