@@ -17,6 +17,7 @@
 #include "cli/options.hpp"
 #include "translators/inspect/preflight.hpp"
 #include "translators/inspect/preview.hpp"
+#include "translators/inspect/slicer_times.hpp"
 #include "cli/progress.hpp"
 #include "cli/provenance.hpp"
 #include "translators/pipeline/compensation.hpp"
@@ -86,6 +87,11 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
                                 "bits/s, 10 bits a byte, lines framed with numbers and checksums", "115200"))
         ->check(number_in(300, 1e8, "bits/s", false))
         ->option_text("BITS");
+    app.add_flag("--keep-slicer-times", o.keep_slicer_times,
+                 "leave the slicer's M73 P/R Q/S, ;TIME:, ;TIME_ELAPSED: and '; estimated printing time' as it wrote them; "
+                 "without it, an output file (-o FILE, or FILE in place) has them rewritten from xlate5's own estimate of "
+                 "what it wrote (docs/preflight.md); standard output, a pipe or a device keeps them as written (a stream "
+                 "cannot know its total before its end)");
     app.add_flag("--no-progress", o.no_progress, "no progress bar on standard error (there is one only when it is a terminal)");
     app.add_option("file", o.file,
                    "translate FILE in place, atomically (as a slicer's post-processing script: PrusaSlicer, OrcaSlicer, SuperSlicer "
@@ -227,6 +233,10 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         const bool terminal_summary = !o.inverse && ::isatty(2) && !o.output.empty() && o.output != "-";
         std::optional<Preflight> preflight;
         if (!o.inverse && (!o.report.empty() || !o.preview_html.empty() || terminal_summary)) preflight.emplace(*machine, o.baud);
+        // The slicer's time lines are rewritten in an output file (its total is known at the end:
+        // a stream keeps them as written); the file is read back only when a block held one.
+        const bool retime = !o.inverse && !o.keep_slicer_times && !sink.temporary().empty();
+        bool times_seen = false;
 
         // The first line says what the file is: binary G-code is refused, xlate5's own header
         // of the space this run writes is a second translation (refused unless forced), the
@@ -256,9 +266,10 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         };
         const auto stats = translate_stream(
             reader, front, sink, !regular, [&](const StreamStats& s) { progress.update(s.bytes_in, s.lines_in); },
-            preview || preflight ? std::function<void(std::string_view)>([&](std::string_view block) {
+            preview || preflight || retime ? std::function<void(std::string_view)>([&](std::string_view block) {
                 if (preview) preview->scan(block);
                 if (preflight) preflight->scan(block);
+                if (retime && !times_seen) times_seen = may_hold_slicer_times(block);
             })
                                  : std::function<void(std::string_view)>(),
             first_line);
@@ -283,7 +294,11 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
             if (!o.report.empty()) report_sink.emplace(o.report), report_sink->write(report->json());
             if (!o.plot.empty()) plot_sink.emplace(o.plot), plot_sink->write(report->svg());
         }
-        sink.commit();
+        // The output with the slicer's time lines from the estimate: a second temporary file,
+        // renamed into place instead of the first (which its sink removes).
+        std::optional<OutputSink> retimed;
+        if (retime && times_seen) retimed.emplace(o.output), retime_file(*machine, o.baud, sink.temporary(), *retimed);
+        (retimed ? *retimed : sink).commit();
         if (report_sink) report_sink->commit();
         if (plot_sink) plot_sink->commit();
         if (preview_sink) preview_sink->commit();

@@ -13,7 +13,7 @@ namespace xlate5::cli {
 
 struct TranslateOptions {
     std::string input = "-", output = "-", mode, preview = "G43.4", extruder = "E", report, plot, compensation, preview_html;
-    bool inverse = false, no_segment = false, compact_words = false, no_progress = false;
+    bool inverse = false, no_segment = false, compact_words = false, no_progress = false, keep_slicer_times = false;
     double baud = 115200;  // the serial link the pre-flight estimate budgets
     double tolerance = 0, angle_tolerance = 0;
     // Other inputs: CL data and waypoint tables (input_front), keep-out items (keep_out).

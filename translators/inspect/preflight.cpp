@@ -5,6 +5,7 @@
 #include "translators/pipeline/motion.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -91,11 +92,12 @@ void Preflight::line(std::string_view l) {
         const char letter = text[i];
         std::size_t end = text.find(' ', i);
         if (end == std::string_view::npos) end = text.size();
-        const std::string word(text.substr(i + 1, end - i - 1));
+        std::string_view word = text.substr(i + 1, end - i - 1);
         i = end;
-        char* stop = nullptr;
-        const double v = std::strtod(word.c_str(), &stop);
-        if (stop == word.c_str() || !std::isfinite(v)) continue;
+        // from_chars: correctly rounded as strtod, a tenth of its cost (strtod was half the scan's).
+        if (!word.empty() && word[0] == '+') word.remove_prefix(1);
+        double v = 0;
+        if (std::from_chars(word.data(), word.data() + word.size(), v).ec != std::errc() || !std::isfinite(v)) continue;
         if (letter == 'F' && move) f_ = v;
         for (std::size_t j = 0; j < to.size(); ++j)
             if (m_.joints[j].output == letter) to[j] = v;
@@ -172,6 +174,7 @@ void Preflight::execute(Block& b, double exit_limit) {
     b.time = trapezoid(b.length, v0, v1, b.nominal, a);
     prev_exit_ = v1;
     done_ += b.time;
+    if (executed) executed(b.line, b.time);
     // The firmware: it starts the block when the last ended and the block has arrived.
     if (b.bytes_at > clock_ && moves_ > 1 && !finished_.empty()) {
         const double stall = b.bytes_at - clock_;

@@ -13,6 +13,7 @@
 #pragma once
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -39,6 +40,10 @@ public:
         double stall;               // seconds the planner sat empty
     };
     const std::vector<Range>& drains() const { return ranges_; }
+
+    // Told of each block as the planner executes it, in order: the output line of its move and
+    // the seconds it takes (the slicer's time lines are rewritten from these).
+    std::function<void(std::uint64_t line, double seconds)> executed;
 
 private:
     struct Block {

@@ -31,6 +31,9 @@ public:
 
     void write(std::string_view text);
     void commit();  // flush, fsync, and rename over the target (in place: close)
+    // The temporary file written so far, before commit() (to read it back); "" for standard
+    // output and a file written in place.
+    const std::string& temporary() const { return temp_; }
 
     // Temporary files at most registered at once for removal on a signal (a process writes its
     // output, a report and a plot); a further sink throws IoError.
