@@ -260,6 +260,24 @@ struct CollisionStage::Impl {
         return n->d <= kContact;
     }
 
+    static bool any_overlap(fcl::CollisionObjectd*, fcl::CollisionObjectd*, void* data) {
+        *static_cast<bool*>(data) = true;
+        return true;  // one is enough
+    }
+    // Whether any bead's box meets `box` (the tree calls back only for overlapping boxes).
+    bool overlaps_part(const fcl::AABBd& box) {
+        const Eigen::Vector3d size = (box.max_ - box.min_).cwiseMax(1e-9);
+        if (!probe_box) probe_box = std::make_shared<fcl::Boxd>(size);
+        probe_box->side = size;
+        probe_box->computeLocalAABB();
+        fcl::CollisionObjectd probe(probe_box, Iso(Eigen::Translation3d(box.center())));
+        probe.computeAABB();
+        bool hit = false;
+        part.collide(&probe, &hit, &any_overlap);
+        return hit;
+    }
+    std::shared_ptr<fcl::Boxd> probe_box;
+
     // The first contact over the sweep q0 -> q1, or none.
     std::optional<CollisionEvent> sweep(const double* q0, const double* q1) {
         const std::size_t n = q.size();
@@ -274,6 +292,7 @@ struct CollisionStage::Impl {
         snap(q0, a);
         std::vector<double> dstep(n);
         for (std::size_t j = 0; j < n; ++j) dstep[j] = dq[j] / steps;
+        const bool step_turns = turn > 0;
         for (int k = 0; k < steps; ++k) {
             const double sa = double(k) / steps, sb = double(k + 1) / steps;
             pose_at(q0, q1, sb, b);
@@ -291,7 +310,9 @@ struct CollisionStage::Impl {
                 place(int(i), b.pose[i]);
                 box += solids[i].object->getAABB();
                 D[i] = bound(int(i), a, dstep.data());
-                grow(box, 0.5 * D[i] + kContact);
+                // Without rotation every solid only translates, along a straight line in the part
+                // frame: the join of its end boxes holds its whole sweep, no growth needed.
+                grow(box, (step_turns ? 0.5 * D[i] : 0.0) + kContact);
                 swept[i] = box;
             }
             std::optional<CollisionEvent> first;
@@ -329,7 +350,9 @@ struct CollisionStage::Impl {
                 }
                 // The printed part: the nearest bead by the broad phase's distance query (its
                 // tree prunes every bead farther than the best found), advanced the same way.
-                if (!beads.empty()) {
+                // The printed part: none of its beads' boxes meets the tool body's swept box
+                // (one walk of the tree, no GJK), nothing to advance against.
+                if (!beads.empty() && overlaps_part(swept[std::size_t(t)])) {
                     const double rate = D[std::size_t(t)] / (sb - sa);
                     double s = sa;
                     for (int it = 0;; ++it) {
