@@ -43,6 +43,9 @@ constexpr double kSubStepTurn = 2.0 * kPi / 180.0;
 // Advances per body pair and sub-step before the pair is taken as touching (a contact closer
 // than the advance can resolve at a reasonable cost).
 constexpr int kMaxAdvances = 20000;
+// GJK stops once its distance is within this fraction of the truth (it approaches from above):
+// every distance is scaled down by it, so the advance stays conservative.
+constexpr double kGjkTolerance = 1e-2;
 
 std::shared_ptr<fcl::CollisionGeometryd> make_geometry(const BodyShape& s) {
     switch (s.kind) {
@@ -213,9 +216,10 @@ struct CollisionStage::Impl {
         ++queries;
         fcl::DistanceRequestd request;
         request.gjk_solver_type = fcl::GST_INDEP;  // FCL's own GJK: several times faster than libccd's here
+        request.distance_tolerance = kGjkTolerance;
         fcl::DistanceResultd result;
         fcl::distance(&a, &b, request, result);
-        return result.min_distance;
+        return result.min_distance * (1 - kGjkTolerance);
     }
 
     Eigen::Vector3d contact_point(const fcl::CollisionObjectd& a, const fcl::CollisionObjectd& b) {
@@ -253,9 +257,11 @@ struct CollisionStage::Impl {
         ++*n->queries;
         fcl::DistanceRequestd request;
         request.gjk_solver_type = fcl::GST_INDEP;  // FCL's own GJK: several times faster than libccd's here
+        request.distance_tolerance = kGjkTolerance;
         fcl::DistanceResultd result;
         fcl::distance(a, b, request, result);
-        if (result.min_distance < n->d) n->d = result.min_distance, n->other = a == n->probe ? b : a;
+        const double md = result.min_distance * (1 - kGjkTolerance);
+        if (md < n->d) n->d = md, n->other = a == n->probe ? b : a;
         dist = n->d;  // the best so far: the tree skips what lies farther
         return n->d <= kContact;
     }
