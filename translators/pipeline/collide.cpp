@@ -43,6 +43,9 @@ constexpr double kSubStepTurn = 2.0 * kPi / 180.0;
 // Advances per body pair and sub-step before the pair is taken as touching (a contact closer
 // than the advance can resolve at a reasonable cost).
 constexpr int kMaxAdvances = 20000;
+// GJK stops once its distance is within this fraction of the truth (it approaches from above):
+// every distance is scaled down by it, so the advance stays conservative.
+constexpr double kGjkTolerance = 1e-2;
 
 std::shared_ptr<fcl::CollisionGeometryd> make_geometry(const BodyShape& s) {
     switch (s.kind) {
@@ -213,9 +216,10 @@ struct CollisionStage::Impl {
         ++queries;
         fcl::DistanceRequestd request;
         request.gjk_solver_type = fcl::GST_INDEP;  // FCL's own GJK: several times faster than libccd's here
+        request.distance_tolerance = kGjkTolerance;
         fcl::DistanceResultd result;
         fcl::distance(&a, &b, request, result);
-        return result.min_distance;
+        return result.min_distance * (1 - kGjkTolerance);
     }
 
     Eigen::Vector3d contact_point(const fcl::CollisionObjectd& a, const fcl::CollisionObjectd& b) {
@@ -253,12 +257,32 @@ struct CollisionStage::Impl {
         ++*n->queries;
         fcl::DistanceRequestd request;
         request.gjk_solver_type = fcl::GST_INDEP;  // FCL's own GJK: several times faster than libccd's here
+        request.distance_tolerance = kGjkTolerance;
         fcl::DistanceResultd result;
         fcl::distance(a, b, request, result);
-        if (result.min_distance < n->d) n->d = result.min_distance, n->other = a == n->probe ? b : a;
+        const double md = result.min_distance * (1 - kGjkTolerance);
+        if (md < n->d) n->d = md, n->other = a == n->probe ? b : a;
         dist = n->d;  // the best so far: the tree skips what lies farther
         return n->d <= kContact;
     }
+
+    static bool any_overlap(fcl::CollisionObjectd*, fcl::CollisionObjectd*, void* data) {
+        *static_cast<bool*>(data) = true;
+        return true;  // one is enough
+    }
+    // Whether any bead's box meets `box` (the tree calls back only for overlapping boxes).
+    bool overlaps_part(const fcl::AABBd& box) {
+        const Eigen::Vector3d size = (box.max_ - box.min_).cwiseMax(1e-9);
+        if (!probe_box) probe_box = std::make_shared<fcl::Boxd>(size);
+        probe_box->side = size;
+        probe_box->computeLocalAABB();
+        fcl::CollisionObjectd probe(probe_box, Iso(Eigen::Translation3d(box.center())));
+        probe.computeAABB();
+        bool hit = false;
+        part.collide(&probe, &hit, &any_overlap);
+        return hit;
+    }
+    std::shared_ptr<fcl::Boxd> probe_box;
 
     // The first contact over the sweep q0 -> q1, or none.
     std::optional<CollisionEvent> sweep(const double* q0, const double* q1) {
@@ -274,6 +298,7 @@ struct CollisionStage::Impl {
         snap(q0, a);
         std::vector<double> dstep(n);
         for (std::size_t j = 0; j < n; ++j) dstep[j] = dq[j] / steps;
+        const bool step_turns = turn > 0;
         for (int k = 0; k < steps; ++k) {
             const double sa = double(k) / steps, sb = double(k + 1) / steps;
             pose_at(q0, q1, sb, b);
@@ -291,7 +316,9 @@ struct CollisionStage::Impl {
                 place(int(i), b.pose[i]);
                 box += solids[i].object->getAABB();
                 D[i] = bound(int(i), a, dstep.data());
-                grow(box, 0.5 * D[i] + kContact);
+                // Without rotation every solid only translates, along a straight line in the part
+                // frame: the join of its end boxes holds its whole sweep, no growth needed.
+                grow(box, (step_turns ? 0.5 * D[i] : 0.0) + kContact);
                 swept[i] = box;
             }
             std::optional<CollisionEvent> first;
@@ -329,7 +356,9 @@ struct CollisionStage::Impl {
                 }
                 // The printed part: the nearest bead by the broad phase's distance query (its
                 // tree prunes every bead farther than the best found), advanced the same way.
-                if (!beads.empty()) {
+                // The printed part: none of its beads' boxes meets the tool body's swept box
+                // (one walk of the tree, no GJK), nothing to advance against.
+                if (!beads.empty() && overlaps_part(swept[std::size_t(t)])) {
                     const double rate = D[std::size_t(t)] / (sb - sa);
                     double s = sa;
                     for (int it = 0;; ++it) {

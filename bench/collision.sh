@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
+# The collision check's cost (issue 38: at most as much again as translation): each bundled
+# example with bodies, translated with --collision off and --collision warn, the machine being
+# machines/NAME.toml with tests/bodies/NAME.toml appended (no bundled machine has bodies yet).
+# Prints the best of 3 wall times and instructions per line (callgrind, as instructions.sh:
+# (count for the first LINES lines - count for the first 5) / (LINES - 5)), and the number of
+# collisions warn reports on the whole file (false alarms: the examples print as written).
+#
+#   bench/collision.sh [BUILD_DIR=build] [LINES=300]
+set -euo pipefail
+build=${1:-build}
+lines=${2:-300}
+here=$(cd "$(dirname "$0")/.." && pwd)
+command -v valgrind >/dev/null || { echo "collision.sh: valgrind is not installed (apt install valgrind)"; exit 2; }
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"' EXIT
+x=$build/cli/xlate5
+collected() {  # collected MACHINE FILE MODE
+    valgrind --tool=callgrind --callgrind-out-file="$dir/cg.out" "$x" -m "$1" -i "$2" -o /dev/null --collision "$3" 2>&1 |
+        sed -n 's/.*Collected : \([0-9]*\).*/\1/p'
+}
+best_time() {  # best_time MACHINE FILE MODE: least of 3 wall times, s
+    for _ in 1 2 3; do
+        /usr/bin/time -f %e "$x" -m "$1" -i "$2" -o /dev/null --collision "$3" 2>&1 >/dev/null | tail -1
+    done | sort -n | head -1
+}
+printf '%-26s %9s %9s %12s %12s %10s\n' file "off s" "warn s" "off ins/ln" "warn ins/ln" collisions
+for pair in rw2:rw2_flared_wall pentarod:pentarod_dome; do
+    m=${pair%%:*} f=$here/examples/${pair#*:}.gcode
+    cat "$here/machines/$m.toml" "$here/tests/bodies/$m.toml" >"$dir/$m.toml"
+    head -"$lines" "$f" >"$dir/part.gcode"
+    head -5 "$f" >"$dir/head.gcode"
+    per() {  # per MODE: instructions a line over lines 6..LINES
+        awk -v w="$(collected "$dir/$m.toml" "$dir/part.gcode" "$1")" -v h="$(collected "$dir/$m.toml" "$dir/head.gcode" "$1")" \
+            -v n="$lines" 'BEGIN { printf "%.0f", (w - h) / (n - 5) }'
+    }
+    found=$("$x" -m "$dir/$m.toml" -i "$f" -o /dev/null --collision warn 2>&1 | grep -c "warning: collision" || true)
+    printf '%-26s %9s %9s %12s %12s %10s\n' "${pair#*:}" "$(best_time "$dir/$m.toml" "$f" off)" \
+        "$(best_time "$dir/$m.toml" "$f" warn)" "$(per off)" "$(per warn)" "$found"
+done
