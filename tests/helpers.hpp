@@ -226,4 +226,23 @@ inline std::vector<std::string> unwinding_print(bool wait_after_travel) {
     return lines;
 }
 
+// An ASCII STL of a cube of `size` mm at the origin, two triangles a face, outward normals by the
+// right-hand rule (for the slicers the tests run).
+inline std::string cube_stl(int size) {
+    const int quads[6][4][3] = {{{0, 0, 0}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0}}, {{0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}},
+                                {{0, 0, 0}, {1, 0, 0}, {1, 0, 1}, {0, 0, 1}}, {{0, 1, 0}, {0, 1, 1}, {1, 1, 1}, {1, 1, 0}},
+                                {{0, 0, 0}, {0, 0, 1}, {0, 1, 1}, {0, 1, 0}}, {{1, 0, 0}, {1, 1, 0}, {1, 1, 1}, {1, 0, 1}}};
+    std::ostringstream stl;
+    stl << "solid cube\n";
+    for (const auto& q : quads)
+        for (const int t : {1, 2}) {
+            stl << " facet normal 0 0 0\n  outer loop\n";
+            for (const int k : {0, t, t + 1})
+                stl << "   vertex " << size * q[k][0] << " " << size * q[k][1] << " " << size * q[k][2] << "\n";
+            stl << "  endloop\n endfacet\n";
+        }
+    stl << "endsolid cube\n";
+    return stl.str();
+}
+
 }  // namespace xlate5::test

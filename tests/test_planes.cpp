@@ -392,20 +392,7 @@ TEST_CASE("post-processing: PrusaSlicer slices a generated cube with xlate5 as i
         return;
     }
     TempDir d;
-    // A 20 mm cube, two triangles a face, outward normals by the right-hand rule.
-    const int quads[6][4][3] = {{{0, 0, 0}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0}}, {{0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}},
-                                {{0, 0, 0}, {1, 0, 0}, {1, 0, 1}, {0, 0, 1}}, {{0, 1, 0}, {0, 1, 1}, {1, 1, 1}, {1, 1, 0}},
-                                {{0, 0, 0}, {0, 0, 1}, {0, 1, 1}, {0, 1, 0}}, {{1, 0, 0}, {1, 1, 0}, {1, 1, 1}, {1, 0, 1}}};
-    std::ostringstream stl;
-    stl << "solid cube\n";
-    for (const auto& q : quads)
-        for (const int t : {1, 2}) {
-            stl << " facet normal 0 0 0\n  outer loop\n";
-            for (const int k : {0, t, t + 1}) stl << "   vertex " << 20 * q[k][0] << " " << 20 * q[k][1] << " " << 20 * q[k][2] << "\n";
-            stl << "  endloop\n endfacet\n";
-        }
-    stl << "endsolid cube\n";
-    d.write("cube.stl", stl.str());
+    d.write("cube.stl", cube_stl(20));
     const std::string slice = "prusa-slicer --export-gcode cube.stl --center 100,100 ";
     const std::string script = std::string(XLATE5_BINARY) + " --machine rw2 --no-progress";
     auto sh = [&](const std::string& cmd) { return std::system(("cd " + quote(d.path.string()) + " && " + cmd + " >/dev/null 2>&1").c_str()); };

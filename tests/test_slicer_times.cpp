@@ -201,20 +201,7 @@ TEST_CASE("slicer times: a PrusaSlicer file's M73 follow xlate5's estimate of th
         return;
     }
     TempDir d;
-    // A 20 mm cube, two triangles a face.
-    const int quads[6][4][3] = {{{0, 0, 0}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0}}, {{0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}},
-                                {{0, 0, 0}, {1, 0, 0}, {1, 0, 1}, {0, 0, 1}}, {{0, 1, 0}, {0, 1, 1}, {1, 1, 1}, {1, 1, 0}},
-                                {{0, 0, 0}, {0, 0, 1}, {0, 1, 1}, {0, 1, 0}}, {{1, 0, 0}, {1, 1, 0}, {1, 1, 1}, {1, 0, 1}}};
-    std::ostringstream stl;
-    stl << "solid cube\n";
-    for (const auto& q : quads)
-        for (const int t : {1, 2}) {
-            stl << " facet normal 0 0 0\n  outer loop\n";
-            for (const int k : {0, t, t + 1}) stl << "   vertex " << 20 * q[k][0] << " " << 20 * q[k][1] << " " << 20 * q[k][2] << "\n";
-            stl << "  endloop\n endfacet\n";
-        }
-    stl << "endsolid cube\n";
-    d.write("cube.stl", stl.str());
+    d.write("cube.stl", cube_stl(20));
     // Marlin 2 flavour with remaining times: M73 P R and Q S, and the footer of both modes.
     REQUIRE(std::system(("cd " + quote(d.path.string()) +
                          " && prusa-slicer --export-gcode --remaining-times --gcode-flavor marlin2 --center 100,100 -o cube.gcode cube.stl "
