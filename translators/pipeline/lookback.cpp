@@ -157,13 +157,14 @@ bool LookBack::unwind_before(std::string_view line, std::uint64_t line_no, LineR
     // depend on where it goes long after. At most kMaxReplays translations of the window.
     int replays = 0;
     bool missing = false;
-    for (int k = -2; k < candidates_ && !missing && replays < kMaxReplays; ++k) {
-        const int candidate = k == -2 ? was : k;
-        if (k != -2 && k == was) continue;
-        const PoleChoices base = k == -2 ? flips_ : PoleChoices{};
+    for (int k = -1; k < candidates_ && !missing && replays < kMaxReplays; ++k) {
+        const bool taken = k < 0;  // first the end taken (-1 its usual one), then the others
+        if (!taken && k == was) continue;
+        const int candidate = taken ? was : k;
+        const PoleChoices base = taken ? flips_ : PoleChoices{};
         // The end as it is (tried already, for the end taken, by the line's own translation).
         int choices = last.pole.seen;  // the choices up to where the line failed
-        if (k != -2) {
+        if (!taken) {
             ++replays;
             if (replay(candidate, base, line, line_no, last, missing)) {
                 chosen_ = candidate;
