@@ -21,6 +21,28 @@ from common import start_serve, strip
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
+def print_through_serve(xlate5, machine, tmp, name, path, sim_extra, timeout):
+    """printcore streams `path` through `xlate5 serve --flavor klipper` to the Klipper double,
+    which records what it ran in TMP/NAME.executed. Returns (sender's result, serve's exit code,
+    serve's log, the record's path)."""
+    pty = os.path.join(tmp, name + ".pty")
+    record = os.path.join(tmp, name + ".executed")
+    log = open(os.path.join(tmp, name + ".log"), "w+")
+    config = os.path.join(tmp, name + ".toml")
+    with open(config, "w") as f:
+        f.write('machine = "%s"\n[firmware]\nport = "sim"\nflavor = "klipper"\nboot_wait = 0.2\n'
+                '[sim]\nflavor = "klipper"\nrecord = "%s"\n%s' % (machine, record, sim_extra))
+    serve = start_serve(xlate5, ["--config", config], pty, log)
+    try:
+        result = subprocess.run(["/usr/bin/python3", os.path.join(HERE, "senders.py"), "printcore", pty, path],
+                                capture_output=True, text=True, timeout=timeout)
+    finally:
+        serve.send_signal(signal.SIGTERM)
+        code = serve.wait(timeout=120)
+    log.seek(0)
+    return result, code, log.read(), record
+
+
 def refused(xlate5, machine, tmp):
     """Klipper refuses a move ("!! Must home axis first": this file has no G28): serve stops the
     print there, names the line to the sender and its log, and sends nothing more: without that,
@@ -29,22 +51,7 @@ def refused(xlate5, machine, tmp):
     path = os.path.join(tmp, "unhomed.gcode")
     with open(path, "w") as f:
         f.write("G90\nG1 X10 Y10 Z250 F600\nG28\nG1 X20 Y10 Z250\nG1 X30 Y10 Z250\n")
-    pty = os.path.join(tmp, "printer2")
-    record = os.path.join(tmp, "executed2.gcode")
-    log = open(os.path.join(tmp, "serve2.log"), "w+")
-    config = os.path.join(tmp, "printer2.toml")
-    with open(config, "w") as f:
-        f.write('machine = "%s"\n[firmware]\nport = "sim"\nflavor = "klipper"\nboot_wait = 0.2\n'
-                '[sim]\nflavor = "klipper"\nrecord = "%s"\n' % (machine, record))
-    serve = start_serve(xlate5, ["--config", config], pty, log)
-    try:
-        result = subprocess.run(["/usr/bin/python3", os.path.join(HERE, "senders.py"), "printcore", pty, path],
-                                capture_output=True, text=True, timeout=120)
-    finally:
-        serve.send_signal(signal.SIGTERM)
-        serve.wait(timeout=120)
-    log.seek(0)
-    served = log.read()
+    result, _, served, record = print_through_serve(xlate5, machine, tmp, "refused", path, "", 120)
     out = result.stdout + result.stderr
     if "Klipper refused 'G1" not in served or "Must home axis first" not in served:
         raise SystemExit("serve did not stop at Klipper's refusal:\n" + served)
@@ -67,28 +74,13 @@ def main():
         assert n == 1, "the machine file names no dialect"
         with open(machine, "w") as f:
             f.write(text)
-        pty = os.path.join(tmp, "printer")
-        record = os.path.join(tmp, "executed.gcode")
-        log = open(os.path.join(tmp, "serve.log"), "w+")
-        config = os.path.join(tmp, "printer.toml")
-        with open(config, "w") as f:
-            f.write('machine = "%s"\n[firmware]\nport = "sim"\nflavor = "klipper"\nboot_wait = 0.2\n'
-                    '[sim]\nflavor = "klipper"\nrecord = "%s"\nplanner = 8\n[sim.faults]\nmove_ms = 2\n' % (machine, record))
-        serve = start_serve(xlate5, ["--config", config], pty, log)
-        try:
-            result = subprocess.run(["/usr/bin/python3", os.path.join(HERE, "senders.py"), "printcore", pty, path],
-                                    capture_output=True, text=True, timeout=900)
-            print(result.stdout.strip())
-            if result.returncode != 0:
-                print(result.stderr[-3000:])
-                log.seek(0)
-                print(log.read()[-3000:])
-                raise SystemExit("the sender failed")
-        finally:
-            serve.send_signal(signal.SIGTERM)
-            code = serve.wait(timeout=120)
-        log.seek(0)
-        served = log.read()
+        result, code, served, record = print_through_serve(xlate5, machine, tmp, "print", path,
+                                                           "planner = 8\n[sim.faults]\nmove_ms = 2\n", 900)
+        print(result.stdout.strip())
+        if result.returncode != 0:
+            print(result.stderr[-3000:])
+            print(served[-3000:])
+            raise SystemExit("the sender failed")
         if code != 0:
             raise SystemExit("xlate5 serve exited with %d:\n%s" % (code, served))
         if "firmware ready: FIRMWARE_NAME:Klipper" not in served:
