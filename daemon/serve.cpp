@@ -217,7 +217,7 @@ std::string status_line(Service& service, const std::string& waiting_for) {
     const auto& st = service.stats();
     std::string s = "STATUS=";
     if (service.stopped()) s += "stopped: " + service.stop_reason() + "; ";
-    else s += service.idle() ? "idle; " : "printing; ";
+    else s += std::string(service.activity()) + "; ";
     s += std::to_string(st.lines_in) + " lines from senders, " + std::to_string(st.lines_out) + " to the firmware";
     if (auto* fw = service.firmware())
         s += ", queue " + std::to_string(fw->queued()) + ", resends " + std::to_string(fw->stats().resend_requests) + ", timeouts " +
@@ -345,7 +345,7 @@ int run_serve(const ServeConfig& config) {
                 return status_json(s);
             }
             Service& service = *parts.service;
-            s.state = service.stopped() ? "stopped" : service.idle() ? "idle" : "printing";
+            s.state = service.activity();
             s.stop_reason = service.stop_reason();
             if (auto* fw = service.firmware()) {
                 using State = FirmwareLink::State;

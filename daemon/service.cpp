@@ -213,6 +213,14 @@ void Service::sender_gone(SenderSession& s) {
     }));
 }
 
+const char* Service::activity() const {
+    if (stopped()) return "stopped";
+    if (idle()) return "idle";
+    if (position_tag_ != 0 && pending_.empty() && !steps_.holding() && (!firmware_ || firmware_->sender_lines_queued() == 0))
+        return "reading position";
+    return "printing";
+}
+
 bool Service::idle() const { return pending_.empty() && !steps_.holding() && (!firmware_ || firmware_->idle()); }
 
 void Service::broadcast(std::string_view line) {

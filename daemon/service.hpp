@@ -89,6 +89,10 @@ public:
     // Calls `f` once the service is idle (at once if it is): nothing queued, held or in flight.
     void when_idle(std::function<void()> f);
     bool stopped() const { return !stop_reason_.empty(); }
+    // What the service is doing, in one word for the status page and systemd: "stopped",
+    // "idle", "reading position" (its own M114 after a greeting, no sender's line waiting) or
+    // "printing". Not idle while it reads the position, yet no print is running.
+    const char* activity() const;
     const std::string& stop_reason() const { return stop_reason_; }
     FirmwareLink* firmware() { return firmware_.get(); }
     const ServiceStats& stats() const { return stats_; }

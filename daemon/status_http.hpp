@@ -21,7 +21,7 @@ namespace xlate5 {
 // What the JSON says, gathered by serve.cpp from the service (all read-only copies).
 struct StatusSnapshot {
     std::string version, machine;
-    std::string state;        // "starting", "waiting for port", "idle", "printing", "stopped"
+    std::string state;        // "starting", "waiting for port", "idle", "reading position", "printing", "stopped"
     std::string stop_reason;  // when stopped
     std::string port, firmware_state;  // firmware_state: "booting", "greeting", "ready", "faulted", "" (no firmware yet)
     std::uint64_t queued = 0, window = 0, sent = 0, acked = 0, resends = 0, timeouts = 0;

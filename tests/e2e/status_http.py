@@ -153,10 +153,14 @@ def main():
             check(s["authentication"] == "none", "authentication: %s" % s["authentication"])
             check(s["print"]["sender"] == "" and s["print"]["line"] is None, "a sender before any: %s" % s["print"])
             check(list(s["position"]["joints"].keys()) == letters, "joints %s, the machine file's %s" % (list(s["position"]["joints"]), letters))
+            # Greeted, then its own M114: never "printing" before a sender sends anything.
             deadline = time.time() + 10
-            while s["firmware"]["state"] != "ready" and time.time() < deadline:
+            seen = set()
+            while (s["firmware"]["state"] != "ready" or s["state"] != "idle") and time.time() < deadline:
+                seen.add(s["state"])
                 time.sleep(0.1)
                 s = status(base)
+            check(seen <= {"starting", "idle", "reading position"}, "states before a sender: %s" % sorted(seen))
             check(s["state"] == "idle" and s["firmware"]["state"] == "ready", "state at start: %s / %s" % (s["state"], s["firmware"]["state"]))
 
             # A sender prints three numbered lines; M400 returns once the firmware ran them.
