@@ -298,12 +298,14 @@ TEST_CASE("files xlate5 cannot accept fail at the right line with a cause" * doc
     TranslatorOptions joints_a;
     joints_a.start_mode = OrientationMode::Joints;
     joints_a.extruder_letter = 'A';
+    TranslatorOptions joints_e;
+    joints_e.start_mode = OrientationMode::Joints;
     const Case cases[] = {
         {"rw2", "linuxcnc/metric_pipe.ngc", "parameters and expressions are not supported", {}},
         {"rw2", "nx_cldata/APT_Variable_Axis.cls", "is not a G-code word", {}},
         {"rw2", "s4/pi_3mm_side_paint_rtheta.gcode", "not a tool-space word", {}},
         {"koc5", "s3deformfdm/ring_Gcode.txt", "outside its limits", joints_a},
-        {"rw2", "s3deformfdm/ring_Gcode.txt", "not a joint", TranslatorOptions{"", OrientationMode::Joints, 'E', false, OrientationMode::Angles}},
+        {"rw2", "s3deformfdm/ring_Gcode.txt", "not a joint", joints_e},
     };
     for (const Case& c : cases) {
         CAPTURE(c.file);

@@ -577,7 +577,8 @@ TEST_CASE("CL E with --extrusion-per-mm: written at the firmware's decimals, its
             for (int i = 0; std::getline(s, f, ','); ++i) {
                 char b[40];
                 std::snprintf(b, sizeof b, "%.6f", i < 3 ? std::stod(f) * 25.4 : std::stod(f));
-                g += (i ? "," : "") + std::string(b);
+                if (i) g += ',';
+                g += b;
             }
             line = g;
         } else if (line.rfind("FEDRAT/IPM,", 0) == 0) {
@@ -595,7 +596,7 @@ TEST_CASE("a UTF-8 byte-order mark opens G-code, CL data and keep-out items; a k
     const std::string cl = "UNITS/MM\nRAPID\nGOTO/1,2,3\n";
     CHECK(translate_text("xyzac-trt", bom + cl, FrontOptions{}) == translate_text("xyzac-trt", cl, FrontOptions{}));
     const auto plain = parse_keep_out("10, 20, 0\n30 40 5\n", "i.csv");
-    for (const std::string text : {bom + "10, 20, 0\n30 40 5\n", std::string("x,y,height\n10, 20, 0\n30 40 5\n"),
+    for (const std::string& text : {bom + "10, 20, 0\n30 40 5\n", std::string("x,y,height\n10, 20, 0\n30 40 5\n"),
                                    bom + "\"X\";\"Y\";\"Height (mm)\"\r\n10, 20, 0\n30 40 5\n"}) {
         CAPTURE(text);
         const auto items = parse_keep_out(text, "i.csv");
