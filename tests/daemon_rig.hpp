@@ -120,7 +120,9 @@ struct Rig {
     Machine machine;
     Assembly parts;
 
-    explicit Rig(const std::string& machine_name, const std::function<void(ServeConfig&)>& tweak = {}) {
+    // `with_bodies`: the machine with its test bodies (tests/bodies/NAME.toml), so the
+    // collision check runs in the service.
+    explicit Rig(const std::string& machine_name, const std::function<void(ServeConfig&)>& tweak = {}, bool with_bodies = false) {
         // XLATE5_TEST_LOG=debug shows the service's log while a test runs.
         const char* level = std::getenv("XLATE5_TEST_LOG");
         spdlog::set_level(level ? spdlog::level::from_str(level) : spdlog::level::off);
@@ -133,7 +135,8 @@ struct Rig {
         config.hold_seconds = 0.2;      // the test senders stream without pauses
         config.sim.keep_executed = true;
         if (tweak) tweak(config);
-        machine = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + config.machine + ".toml");
+        machine = with_bodies ? load_with_bodies(config.machine)
+                              : load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + config.machine + ".toml");
         assemble(io, config, machine, parts);
     }
     Service& service() { return *parts.service; }

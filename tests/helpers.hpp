@@ -245,4 +245,27 @@ inline std::string cube_stl(int size) {
     return stl.str();
 }
 
+// A bundled machine with the bodies of tests/bodies/NAME.toml appended: GUESSES from its source
+// document (each file says which), not shipped in machines/ because the check's cost is still
+// far above the translation's (docs/limits.md). pentarod's could not be shipped anyway: the
+// bundled pentarod_dome example prints its dome downward from the plate, through it (Z to -12 mm).
+inline std::string machine_text_with_bodies(const std::string& name) {
+    const std::filesystem::path dir(XLATE5_MACHINE_DIR_FOR_TESTS);
+    return read_machine_file((dir / (name + ".toml")).string()) + "\n" + read(dir.parent_path() / "tests" / "bodies" / (name + ".toml"));
+}
+inline Machine load_with_bodies(const std::string& name) {
+    return load_machine_text(machine_text_with_bodies(name), std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/" + name + ".toml");
+}
+
+// rw2: a wall along Y at X 50, Y 80..120, 30 layers of 0.2 mm (6 mm high), printed with relative E.
+inline std::string rw2_wall() {
+    std::string s = "G21\nG90\nM83\nG43.4\nG1 X50 Y80 Z0.2 A0 B0 F3000\n";
+    for (int k = 0; k < 30; ++k) {
+        char line[80];
+        std::snprintf(line, sizeof line, "G1 X50 Y80 Z%.2f\nG1 X50 Y120 E1.5\nG1 X50 Y80\n", 0.2 * (k + 1));
+        s += line;
+    }
+    return s + "G1 Z20\n";
+}
+
 }  // namespace xlate5::test

@@ -362,6 +362,37 @@ TEST_CASE("a refused print line cancels the print with OctoPrint's action comman
     CHECK(e2 == offline(rig.machine, both));
 }
 
+TEST_CASE("a collision stops the print before its line reaches the firmware; every line before it runs") {
+    // rw2 with its test bodies: a wall printed, then the head tilted 60 degrees toward it and
+    // lowered beside it, so its heater block comes down on the wall's top (test_collide's case).
+    Rig rig("rw2", {}, /*with_bodies=*/true);
+    REQUIRE(rig.ready());
+    std::vector<std::string> lines = {"G28", "G92 A-168", "G1 A0 B0 F3000"};
+    for (const auto& l : lines_of(rw2_wall())) lines.push_back(l);
+    lines.push_back("G1 X38 Y100 Z20 B60");
+    const std::vector<std::string> before = lines;
+    lines.push_back("G1 Z6.2");
+    lines.push_back("G1 X38 Y110 E0.5");
+    const std::string number = std::to_string(before.size() + 1);
+    TestSender sender(rig.io, rig.config.pty);
+    sender.stream(lines);
+    REQUIRE(rig.run_until([&] { return sender.done(); }, 20));
+    rig.run_until([&] { return rig.service().idle(); }, 5);
+    bool cancel = false, quoted = false;
+    for (const auto& r : sender.received) {
+        CHECK_MESSAGE(r.rfind("Error", 0) != 0, "OctoPrint would send M112 on: " << r);
+        cancel = cancel || r == "//action:cancel";
+        quoted = quoted || (r.rfind("echo:xlate5: print cancelled at line " + number + " 'G1 Z6.2': ", 0) == 0 &&
+                            contains(r, "collision: heater block meets printed part at line "));
+    }
+    CHECK(cancel);
+    CHECK(quoted);
+    CHECK(rig.service().stopped());
+    CHECK(contains(rig.service().stop_reason(), "collision"));
+    // The firmware ran the translation of every line before the colliding one, and nothing of it.
+    CHECK(rig.executed_after_hello() == offline(rig.machine, before));
+}
+
 TEST_CASE("a typo in a terminal (an unnumbered line) is refused with echo: and a notification; the rest runs") {
     Rig rig("rw2");
     const std::vector<std::string> good = {"G28", "G92 A-168", "G1 A0 B0 F3000", "G1 X10 Y10 Z5", "G1 X20 Y10 Z5"};
