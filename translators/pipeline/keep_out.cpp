@@ -183,33 +183,10 @@ void KeepOutStage::send(const ToolMove& mv, double r, LineRun& run, std::string&
     planner_.tool_move(m, run, out);
 }
 
-void KeepOutStage::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
-    if (mv.any_rotary) throw LineError(mv.column, "with --keep-out R is computed from the path: the input must not turn it");
-    if (mv.mode != OrientationMode::Angles) throw LineError(mv.column, "--keep-out works in angle form (G43.4)");
-    const Eigen::Vector3d p1 = state_.pose.tip, p2 = mv.tip;
-    const Eigen::Vector2d d = (p2 - p1).head<2>();
-    if (items_.items.empty() || !state_.tip_known || !mv.any_xyz || d.norm() < kNoDirection) {
-        planner_.tool_move(mv, run, out);
-        return;
-    }
-    planner_.programmed_angles(current_);
-    const double r_now = current_[std::size_t(r_)];
-    const double shift = state_.q[std::size_t(r_)] - r_now;  // programmed R -> joint (one rotary: no flip)
-    const bool prints = mv.e && (mv.e_relative ? mv.e->value != 0 : mv.e->value != mv.e_position);
-    if (!prints) {
-        // A travel move: R at its end, reached along the move; the planner and the look-back may
-        // end it on another turn inside the limits (unwinding).
-        const int k = nearest(p2.head<2>(), p2.z());
-        if (k < 0) {
-            planner_.tool_move(mv, run, out);
-            return;
-        }
-        send(mv, continuous(r_now, normal_toward(p2.head<2>(), d, k, mv.column), p2.head<2>(), k, -1, shift), run, out);
-        return;
-    }
-
+void KeepOutStage::find_pieces(const Eigen::Vector3d& p1, const Eigen::Vector3d& p2) {
     // Pieces: constant eligibility (split where Z reaches an item's height), then constant
     // nearest item (split where the path crosses the bisector toward a nearer one).
+    const Eigen::Vector2d d = (p2 - p1).head<2>();
     std::vector<double> cuts{0.0, 1.0};
     const double z1 = p1.z(), z2 = p2.z();
     if (z1 != z2)
@@ -246,6 +223,64 @@ void KeepOutStage::tool_move(const ToolMove& mv, LineRun& run, std::string& out)
             k = to;
         }
     }
+}
+
+void KeepOutStage::turn_in_place(const ToolMove& mv, const Eigen::Vector3d& at, double target, double shift, double e_at,
+                                 LineRun& run, std::string& out) {
+    const Joint& J = kin_.machine().joints[std::size_t(r_)];
+    const double q = target + shift;
+    if (q < J.min - 1e-9 || q > J.max + 1e-9) {
+        // Reported as a limit hit: the look-back then unwinds on the travel move before.
+        run.hit_limit = true;
+        std::ostringstream s;
+        s << "R would turn to " << q << " (limits " << J.min << " .. " << J.max
+          << ") while printing; add a travel move before this line where it can unwind";
+        throw LineError(mv.column, s.str());
+    }
+    ToolMove turn = mv;
+    turn.any_xyz = false;
+    turn.tip = at;
+    turn.e.reset();
+    turn.f.reset();
+    turn.e_position = e_at;
+    turn_only_.assign(mv.commanded->size(), false);
+    turn.commanded = &turn_only_;
+    LineRun turn_run;  // a turn in place is no travel move: it never unwinds
+    turn_run.line_no = run.line_no;
+    try {
+        send(turn, target, turn_run, out);
+    } catch (...) {
+        run.hit_limit = run.hit_limit || turn_run.hit_limit;
+        throw;
+    }
+}
+
+void KeepOutStage::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
+    if (mv.any_rotary) throw LineError(mv.column, "with --keep-out R is computed from the path: the input must not turn it");
+    if (mv.mode != OrientationMode::Angles) throw LineError(mv.column, "--keep-out works in angle form (G43.4)");
+    const Eigen::Vector3d p1 = state_.pose.tip, p2 = mv.tip;
+    const Eigen::Vector2d d = (p2 - p1).head<2>();
+    if (items_.items.empty() || !state_.tip_known || !mv.any_xyz || d.norm() < kNoDirection) {
+        planner_.tool_move(mv, run, out);
+        return;
+    }
+    planner_.programmed_angles(current_);
+    const double r_now = current_[std::size_t(r_)];
+    const double shift = state_.q[std::size_t(r_)] - r_now;  // programmed R -> joint (one rotary: no flip)
+    const bool prints = mv.e && (mv.e_relative ? mv.e->value != 0 : mv.e->value != mv.e_position);
+    if (!prints) {
+        // A travel move: R at its end, reached along the move; the planner and the look-back may
+        // end it on another turn inside the limits (unwinding).
+        const int k = nearest(p2.head<2>(), p2.z());
+        if (k < 0) {
+            planner_.tool_move(mv, run, out);
+            return;
+        }
+        send(mv, continuous(r_now, normal_toward(p2.head<2>(), d, k, mv.column), p2.head<2>(), k, -1, shift), run, out);
+        return;
+    }
+
+    find_pieces(p1, p2);
 
     // Each piece: turn in place to its R where it differs, then the piece with its share of E.
     double t0 = 0, r = r_now, e_at = mv.e_position, e_sent = 0;
@@ -258,32 +293,7 @@ void KeepOutStage::tool_move(const ToolMove& mv, LineRun& run, std::string& out)
         if (k >= 0) {
             const double target = continuous(r, normal_toward(at.head<2>(), d, k, mv.column), at.head<2>(), before, k, shift);
             if (std::abs(target - r) > 1e-9) {
-                const Joint& J = kin_.machine().joints[std::size_t(r_)];
-                const double q = target + shift;
-                if (q < J.min - 1e-9 || q > J.max + 1e-9) {
-                    // Reported as a limit hit: the look-back then unwinds on the travel move before.
-                    run.hit_limit = true;
-                    std::ostringstream s;
-                    s << "R would turn to " << q << " (limits " << J.min << " .. " << J.max
-                      << ") while printing; add a travel move before this line where it can unwind";
-                    throw LineError(mv.column, s.str());
-                }
-                ToolMove turn = mv;
-                turn.any_xyz = false;
-                turn.tip = at;
-                turn.e.reset();
-                turn.f.reset();
-                turn.e_position = e_at;
-                turn_only_.assign(mv.commanded->size(), false);
-                turn.commanded = &turn_only_;
-                LineRun turn_run;  // a turn in place is no travel move: it never unwinds
-                turn_run.line_no = run.line_no;
-                try {
-                    send(turn, target, turn_run, out);
-                } catch (...) {
-                    run.hit_limit = run.hit_limit || turn_run.hit_limit;
-                    throw;
-                }
+                turn_in_place(mv, at, target, shift, e_at, run, out);
                 r = target;
             }
         }

@@ -70,6 +70,12 @@ private:
     // the nozzle never points directly away from items a or b (at p); `shift` maps it to the joint.
     double continuous(double from, double r, const Eigen::Vector2d& p, int a, int b, double shift) const;
     void send(const ToolMove& mv, double r, LineRun& run, std::string& out);
+    // A printing move's pieces into pieces_: constant eligibility, then constant nearest item.
+    void find_pieces(const Eigen::Vector3d& p1, const Eigen::Vector3d& p2);
+    // Before a piece: R turned in place to `target` (programmed; + shift: the joint) at `at`;
+    // throws at R's limits.
+    void turn_in_place(const ToolMove& mv, const Eigen::Vector3d& at, double target, double shift, double e_at, LineRun& run,
+                       std::string& out);
 
     const Kinematics& kin_;
     const KeepOutItems& items_;
