@@ -584,8 +584,8 @@ for (const m of allMarks) {
   const s = new THREE.Mesh(markDot, new THREE.MeshBasicMaterial({color: KIND[m[0]].colour}));
   s.position.set(m[2], m[3], m[4]); part.add(s);
 }
-// Collisions at their contacts, larger and red.
-const hitDot = new THREE.SphereBufferGeometry(size / 60, 12, 8), hitMaterial = new THREE.MeshBasicMaterial({color: 0xff0000});
+// Collisions at their contacts, red.
+const hitDot = new THREE.SphereBufferGeometry(size / 200, 8, 6), hitMaterial = new THREE.MeshBasicMaterial({color: 0xff0000});
 for (const c of D.collisions) { const s = new THREE.Mesh(hitDot, hitMaterial); s.position.set(...c.contact); part.add(s); }
 // The bed's build volume (the linear joints' travel) and the axes, in the machine's base frame.
 const lo = D.volume.lo.map((v, k) => D.volume.hi[k] > v ? v : box.min.getComponent(k));
@@ -766,7 +766,7 @@ D.joints.forEach((j, k) => {
     h.strokeStyle = KIND[m[0]].colour; h.beginPath(); h.moveTo(x, 10); h.lineTo(x, 80); h.stroke();
   }
   h.strokeStyle = '#f00'; h.lineWidth = 2;
-  for (const c of D.collisions) { const x = 60 + c.at * 830; h.beginPath(); h.moveTo(x, 10); h.lineTo(x, 80); h.stroke(); }
+  for (const c of D.collisions) { const x = 60 + c.at * 830; h.beginPath(); h.moveTo(x, 2); h.lineTo(x, 10); h.stroke(); }  // a tick above: many may crowd
   h.lineWidth = 1;
   c.addEventListener('click', e => pose(Math.round((e.offsetX - 60) / 830 * (n - 1))));
 });
@@ -774,6 +774,9 @@ pose(0);
 fit();
 const at = hash.get('line');
 if (at !== null) { let i = 0; while (i + 1 < n && D.line[i + 1] <= Number(at)) i++; pose(i); }
+// #collision=K: as a click on the K-th listed collision.
+const hit = hash.get('collision'), hits = document.querySelectorAll('#collisions li[data-collision] button');
+if (hit !== null && hits[Number(hit)]) hits[Number(hit)].click();
 document.title = document.title + ' (drawn)';
 )JS";
 
