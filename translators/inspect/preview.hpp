@@ -2,9 +2,10 @@
 // `--preview FILE.html`: one self-contained page to look at a translation before printing it: a
 // 3D view (three.js with its OrbitControls, inlined: three_js.hpp) of the tip path coloured by
 // tilt, deviation or feed, travels dashed, the tool axis on demand, the bed and the build volume,
-// and the machine itself posed by forward kinematics at the written line under a scrubber; the
-// report's pole crossings, unwinds, branch changes and re-zeros and the moves a joint's max_feed
-// slows, listed and clickable; every joint over the file against its limits.
+// and the machine itself (its file's collision bodies, else a default from the chains) posed by
+// forward kinematics at the written line under a scrubber; the report's pole crossings, unwinds,
+// branch changes, re-zeros and collisions and the moves a joint's max_feed slows, listed and
+// clickable; every joint over the file against its limits.
 // Stage: an observer beside the pipeline. It reads the written output back (so it shows what the
 // firmware will be told), and joins the report's marks to the written move line each ended on,
 // so the page and the report count the same. May call: translators/kinematics, the machine data,
