@@ -206,7 +206,9 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
             const bool warn = options.collision == CollisionPolicy::Warn;
             const std::string name = options.input_name;
             options.on_collision = [&report, warn, name](const CollisionEvent& ev) {
-                if (report) report->add_collision(ev.line, ev.message());
+                if (report)
+                    report->add_collision(ev.line, ev.message(),
+                                          {ev.line, ev.moves_written, ev.bead_line, ev.tool_body, ev.other, {ev.at.x(), ev.at.y(), ev.at.z()}});
                 if (warn) std::cerr << printable(name) << ":" << ev.line << ": warning: " << printable(ev.message()) << "\n";
             };
         }

@@ -450,3 +450,42 @@ TEST_CASE("preflight: a lone move takes its trapezoid; short moves over a slow l
     CHECK(fast.seconds_with_link() == doctest::Approx(fast.seconds()).epsilon(0.05));
     CHECK(fast.seconds() == doctest::Approx(slow.seconds()));
 }
+
+TEST_CASE("preflight: a dwell lets the planner run out and waits its time; heating waits are counted apart") {
+    using namespace xlate5;
+    const Machine m = load_machine("rw2");
+    // Each 100 mm move at F6000 (100 mm/s) from rest to rest at 3000 mm/s^2 (the planner runs out
+    // before each dwell, as Marlin's G4 synchronizes): 1/30 s up and down over 10/6 mm each, the
+    // rest at 100 mm/s. Dwells: P milliseconds, S seconds, S over P when both (Marlin's G4).
+    const double stop_to_stop = 2 * (100.0 / 3000) + (100 - 2 * 100.0 * 100 / 6000) / 100;
+    const std::string file = "G28\nG1 X100 F6000\nG4 P500\nG1 X200\nG04 S2\nG1 X300\nG4 P250 S1\nM109 S200\nM190 S60\nM104 S0\nG40\n";
+    Preflight p(m, 115200);
+    p.scan(file);
+    p.finish();
+    CHECK(p.dwells() == 3);
+    CHECK(p.dwell_seconds() == doctest::Approx(0.5 + 2 + 1).epsilon(1e-12));
+    CHECK(p.heat_waits() == 2);
+    CHECK(p.seconds() == doctest::Approx(3 * stop_to_stop + 3.5).epsilon(1e-9));
+    CHECK(p.json().find("\"dwells\": 3, \"dwell_seconds\": 3.5, \"heat_waits_not_included\": 2") != std::string::npos);
+    CHECK(p.summary().find("3 dwells (G4) add 3.5 s") != std::string::npos);
+    // Without waits (the slicer's time lines): one 300 mm move at speed, no dwell.
+    Preflight motion(m, 115200, false);
+    motion.scan(file);
+    motion.finish();
+    const double through = 2 * (100.0 / 3000) + (300 - 2 * 100.0 * 100 / 6000) / 100;
+    CHECK(motion.seconds() == doctest::Approx(through).epsilon(1e-9));
+    CHECK(motion.dwells() == 0);
+    // M400 stops the planner without a wait.
+    Preflight m400(m, 115200);
+    m400.scan("G28\nG1 X100 F6000\nM400\nG1 X200\n");
+    m400.finish();
+    CHECK(m400.seconds() == doctest::Approx(2 * stop_to_stop).epsilon(1e-9));
+    // Klipper's G4 reads P (milliseconds) alone.
+    Machine k = m;
+    k.dialect.firmware = FirmwareDialect::Klipper;
+    Preflight klipper(k, 115200);
+    klipper.scan(file);
+    klipper.finish();
+    CHECK(klipper.dwell_seconds() == doctest::Approx(0.5 + 0 + 0.25).epsilon(1e-12));
+    CHECK(klipper.seconds() == doctest::Approx(3 * stop_to_stop + 0.75).epsilon(1e-9));
+}

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 
 namespace xlate5 {
 
@@ -35,8 +36,42 @@ double trapezoid(double length, double v0, double v1, double v, double a) {
 
 }  // namespace
 
-Preflight::Preflight(const Machine& machine, double baud)
-    : m_(machine), link_bytes_per_s_(baud / 10), q_(machine.home_joints()) {}
+Preflight::Preflight(const Machine& machine, double baud, bool waits)
+    : m_(machine), link_bytes_per_s_(baud / 10), waits_(waits), q_(machine.home_joints()) {}
+
+namespace {
+
+// The command of a line ("G4", "M109": its letter and number, leading zeros read as the
+// firmware reads them), and whether it is `letter` `number`.
+bool is_command(std::string_view text, char letter, int number) {
+    if (text.size() < 2 || text[0] != letter) return false;
+    int v = 0;
+    std::size_t i = 1;
+    for (; i < text.size() && std::isdigit(static_cast<unsigned char>(text[i])); ++i) v = 10 * v + (text[i] - '0');
+    return i > 1 && v == number && (i == text.size() || text[i] == ' ');
+}
+
+// The number after ` <letter>` in a line's words, if given.
+std::optional<double> word(std::string_view text, char letter) {
+    for (std::size_t i = 1; i + 1 < text.size(); ++i) {
+        if (text[i] != letter || text[i - 1] != ' ') continue;
+        double v = 0;
+        const char* b = text.data() + i + 1;
+        if (*b == '+') ++b;
+        if (std::from_chars(b, text.data() + text.size(), v).ec == std::errc() && std::isfinite(v)) return v;
+    }
+    return std::nullopt;
+}
+
+}  // namespace
+
+void Preflight::wait(double seconds) {
+    while (!window_.empty()) plan_and_pop();
+    prev_exit_ = 0;
+    // The wait starts when the last block has ended and the line has arrived.
+    clock_ = std::max(clock_, link_) + seconds;
+    done_ += seconds;
+}
 
 void Preflight::scan(std::string_view output) {
     while (!output.empty()) {
@@ -72,6 +107,23 @@ void Preflight::line(std::string_view l) {
     bytes_ += bytes;
     line_seconds_ = double(bytes) / link_bytes_per_s_;
     link_ += line_seconds_;
+    if (waits_ && !text.empty() && (text[0] == 'G' || text[0] == 'M')) {
+        if (is_command(text, 'G', 4)) {
+            // Marlin (and RepRapFirmware): S seconds over P milliseconds; Klipper: P alone.
+            const bool seconds_word = m_.dialect.firmware != FirmwareDialect::Klipper;
+            const auto s = seconds_word ? word(text, 'S') : std::nullopt;
+            const auto p = word(text, 'P');
+            const double d = std::max(0.0, s ? *s : p ? *p / 1000 : 0.0);
+            ++dwells_, dwell_ += d;
+            wait(d);
+            return;
+        }
+        if (is_command(text, 'M', 400)) return wait(0);
+        if (is_command(text, 'M', 109) || is_command(text, 'M', 190) || is_command(text, 'M', 191) || is_command(text, 'M', 116)) {
+            ++heat_waits_;
+            return;
+        }
+    }
     if (text.size() < 3 || text[0] != 'G') return;
     if (text.substr(0, 3) == "G28" && (text.size() == 3 || text[3] == ' ')) {
         bool named = false;
@@ -197,7 +249,8 @@ std::string Preflight::json() const {
                     num(seconds_with_link()) + ", \"link_bytes_per_s\": " + num(link_bytes_per_s_) + ", \"lines_sent\": " +
                     std::to_string(sent_) + ", \"bytes_sent\": " + std::to_string(bytes_) + ", \"need_bytes_per_s_mean\": " + num(need) +
                     ", \"moves\": " + std::to_string(moves_) + ", \"moves_under_min_segment_time\": " + std::to_string(short_moves_) +
-                    ", \"drains\": " + std::to_string(drains_) + ", \"stall_seconds\": " + num(stall_) + ", \"drain_ranges\": [";
+                    ", \"dwells\": " + std::to_string(dwells_) + ", \"dwell_seconds\": " + num(dwell_) +
+                    ", \"heat_waits_not_included\": " + std::to_string(heat_waits_) + ", \"drains\": " + std::to_string(drains_) + ", \"stall_seconds\": " + num(stall_) + ", \"drain_ranges\": [";
     for (std::size_t i = 0; i < ranges_.size(); ++i)
         o += std::string(i ? ", " : "") + "{\"first_line\": " + std::to_string(ranges_[i].first) + ", \"last_line\": " +
              std::to_string(ranges_[i].last) + ", \"stall_seconds\": " + num(ranges_[i].stall) + "}";
@@ -211,7 +264,7 @@ std::string Preflight::summary() const {
     char b[600];
     const double need = done_ > 0 ? double(bytes_) / done_ : 0;
     std::snprintf(b, sizeof b,
-                  "pre-flight: about %.1f min of motion (acceleration %.0f, junction deviation %.3f mm, %d-block planner); "
+                  "pre-flight: about %.1f min of motion and dwells (acceleration %.0f, junction deviation %.3f mm, %d-block planner); "
                   "the file sends %.0f bytes/s on average against the link's %.0f; %llu moves shorter than %.0f ms; "
                   "%s%.1f min with the link.\n",
                   seconds() / 60, m_.planner.acceleration, m_.planner.junction_deviation, m_.planner.blocks, need, link_bytes_per_s_,
@@ -220,7 +273,13 @@ std::string Preflight::summary() const {
                              std::to_string(ranges_.front().first) + "), ").c_str()
                           : "the buffer never drains, ",
                   seconds_with_link() / 60);
-    return b;
+    std::string out = b;
+    if (dwells_ || heat_waits_) {
+        std::snprintf(b, sizeof b, "pre-flight: %llu dwells (G4) add %.1f s, counted above; %llu waits for heating (M109, M190, M191, M116) are not.\n",
+                      static_cast<unsigned long long>(dwells_), dwell_, static_cast<unsigned long long>(heat_waits_));
+        out += b;
+    }
+    return out;
 }
 
 }  // namespace xlate5

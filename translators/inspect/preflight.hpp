@@ -9,6 +9,9 @@
 // that the last can stop), a trapezoid per block. The link sends every line as Marlin's hosts
 // do ("N<n> <line>*<checksum>", 10 bits a byte); the firmware takes a line when its buffer has
 // room, and the buffer drains when the next move has not arrived as the last one ends.
+// Waits (docs/preflight.md): a dwell (G4 P<ms>, S<s>; Klipper reads P only) and M400 first let
+// the planner run out, as the firmware does, then G4 waits its time; waits for heating
+// (M109, M190, M191, M116) cannot be known and are counted apart, not in the time.
 // Memory is bounded: the horizon's blocks, and at most kMaxRanges drain ranges.
 #pragma once
 #include <cstdint>
@@ -25,12 +28,17 @@ namespace xlate5 {
 class Preflight {
 public:
     static constexpr std::size_t kMaxRanges = 100;
-    Preflight(const Machine& machine, double baud);
+    // `waits`: dwells and M400 count (the report); false: the motion alone (the slicer's time
+    // lines, rewritten as before).
+    Preflight(const Machine& machine, double baud, bool waits = true);
 
     void scan(std::string_view output);  // whole lines of written output
     void finish();                        // the end of the file: the planner runs out
 
-    double seconds() const { return done_; }             // planned motion, without link stalls
+    double seconds() const { return done_; }             // planned motion and dwells, without link stalls
+    double dwell_seconds() const { return dwell_; }       // of which the dwells (G4)
+    std::uint64_t dwells() const { return dwells_; }
+    std::uint64_t heat_waits() const { return heat_waits_; }  // M109, M190, M191, M116: not in the time
     double seconds_with_link() const { return clock_; }  // with the link's stalls
     std::string json() const;                            // the report's "preflight" object
     std::string summary() const;                         // one paragraph for a terminal
@@ -55,10 +63,14 @@ private:
     void line(std::string_view l);
     void add_move(const std::vector<double>& from, const std::vector<double>& to, double feed);
     void plan_and_pop();
+    void wait(double seconds);  // the planner runs out, then the firmware waits
     void execute(Block& b, double exit);
 
     const Machine& m_;
     double link_bytes_per_s_;
+    bool waits_;
+    double dwell_ = 0;
+    std::uint64_t dwells_ = 0, heat_waits_ = 0;
     std::vector<double> q_;
     double f_ = 0;
     std::uint64_t lines_ = 0, sent_ = 0, bytes_ = 0, moves_ = 0, short_moves_ = 0;

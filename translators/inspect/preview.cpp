@@ -9,6 +9,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
+#include <set>
 
 namespace xlate5 {
 
@@ -65,6 +67,18 @@ std::string json_text(std::string_view s) {
         } else o += c;
     }
     return o + "\"";
+}
+
+const char* shape_name(PreviewBody::Shape s) {
+    switch (s) {
+        case PreviewBody::Shape::Box: return "box";
+        case PreviewBody::Shape::Cylinder: return "cylinder";
+        case PreviewBody::Shape::Cone: return "cone";
+        case PreviewBody::Shape::Capsule: return "capsule";
+        case PreviewBody::Shape::Sphere: return "sphere";
+        case PreviewBody::Shape::Mesh: return "mesh";
+    }
+    return "";
 }
 
 const char* kind_name(Preview::Kind kind) {
@@ -144,6 +158,11 @@ Volume volume_of(const Machine& m) {
 
 std::vector<PreviewBody> default_bodies(const Machine& m) {
     std::vector<PreviewBody> bodies;
+    const auto add = [&](std::string name, std::string frame, PreviewBody::Shape shape, std::array<double, 3> size, std::array<double, 12> pose) {
+        PreviewBody b;
+        b.name = std::move(name), b.frame = std::move(frame), b.shape = shape, b.size = size, b.pose = pose;
+        bodies.push_back(std::move(b));
+    };
     const Volume v = volume_of(m);
     double bx = v.hi[0] > v.lo[0] ? v.hi[0] - v.lo[0] : 200, by = v.hi[1] > v.lo[1] ? v.hi[1] - v.lo[1] : 200;
     const double cx = v.hi[0] > v.lo[0] ? (v.hi[0] + v.lo[0]) / 2 : 0, cy = v.hi[1] > v.lo[1] ? (v.hi[1] + v.lo[1]) / 2 : 0;
@@ -151,9 +170,9 @@ std::vector<PreviewBody> default_bodies(const Machine& m) {
     for (const auto& e : m.part_chain) table = table || e.kind == ChainElement::Kind::Rotary;
     if (table) {  // the part on a turning table: a disc under the plate, turning with it
         const double r = std::clamp(0.3 * std::min(bx, by), 30.0, 150.0);
-        bodies.push_back({"table", "part", PreviewBody::Shape::Cylinder, {r, r, 6}, pose_along(Eigen::Vector3d::UnitZ(), {0, 0, -3})});
+        add("table", "part", PreviewBody::Shape::Cylinder, {r, r, 6}, pose_along(Eigen::Vector3d::UnitZ(), {0, 0, -3}));
     } else {
-        bodies.push_back({"bed", "part", PreviewBody::Shape::Box, {bx, by, 4}, pose_along(Eigen::Vector3d::UnitZ(), {cx, cy, -2})});
+        add("bed", "part", PreviewBody::Shape::Box, {bx, by, 4}, pose_along(Eigen::Vector3d::UnitZ(), {cx, cy, -2}));
     }
     // Each rotary joint: its axis as a short cylinder through its point, in the frame it turns in.
     const auto axes = [&](const std::vector<ChainElement>& chain, const std::string& side) {
@@ -161,22 +180,123 @@ std::vector<PreviewBody> default_bodies(const Machine& m) {
             const auto& e = chain[i];
             if (e.kind != ChainElement::Kind::Rotary) continue;
             const double r = side == "part" ? 12 : 8, len = side == "part" ? 20 : 40;
-            bodies.push_back({std::string("joint ") + m.joints[std::size_t(e.joint)].output, side + ":" + std::to_string(i),
-                              PreviewBody::Shape::Cylinder, {r, r, len}, pose_along(e.axis, e.point)});
+            add(std::string("joint ") + m.joints[std::size_t(e.joint)].output, side + ":" + std::to_string(i),
+                PreviewBody::Shape::Cylinder, {r, r, len}, pose_along(e.axis, e.point));
         }
     };
     axes(m.part_chain, "part");
     axes(m.tool_chain, "tool");
     // The nozzle (its tip at the tool frame's origin) and a holder above it, along the tool axis.
     const Eigen::Vector3d u = m.tool_axis.normalized();
-    bodies.push_back({"nozzle", "tool", PreviewBody::Shape::Cylinder, {1.5, 1.5, 10}, pose_along(u, 5 * u)});
-    bodies.push_back({"holder", "tool", PreviewBody::Shape::Box, {22, 22, 30}, pose_along(u, 25 * u)});
+    add("nozzle", "tool", PreviewBody::Shape::Cylinder, {1.5, 1.5, 10}, pose_along(u, 5 * u));
+    add("holder", "tool", PreviewBody::Shape::Box, {22, 22, 30}, pose_along(u, 25 * u));
     return bodies;
+}
+
+namespace {
+
+// Vertex clustering (Rossignac and Borrel's): the vertices in one cell of a grid over the mesh's
+// box become their mean, and a triangle whose corners fall in fewer than three cells, or repeats
+// one kept, goes. The grid is made coarser until the triangles fit `cap`: the outline stays, to
+// within a cell, and the page's size is bounded whatever the mesh.
+void thin_mesh(PreviewBody& b, std::size_t cap) {
+    const std::size_t nv = b.vertices.size() / 3;
+    if (b.triangles.size() / 3 <= cap || nv == 0) return;
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+    for (std::size_t v = 0; v < nv; ++v)
+        for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], b.vertices[3 * v + k]), hi[k] = std::max(hi[k], b.vertices[3 * v + k]);
+    const double extent = std::max(1e-9, (hi - lo).maxCoeff());
+    for (double cells = std::ceil(std::sqrt(double(cap))); cells >= 1; cells = std::floor(cells * 0.8)) {
+        const double cell = extent / cells;
+        const auto index = [&](double x, int k) { return std::uint64_t(std::min(cells, std::floor((x - lo[k]) / cell))); };
+        std::map<std::uint64_t, std::uint32_t> id;
+        std::vector<double> sum;
+        std::vector<int> count;
+        std::vector<std::uint32_t> of(nv);
+        const auto side = std::uint64_t(cells) + 1;
+        for (std::size_t v = 0; v < nv; ++v) {
+            const double* x = &b.vertices[3 * v];
+            const std::uint64_t key = (index(x[0], 0) * side + index(x[1], 1)) * side + index(x[2], 2);
+            const auto [it, added] = id.try_emplace(key, std::uint32_t(count.size()));
+            if (added) sum.insert(sum.end(), {0.0, 0.0, 0.0}), count.push_back(0);
+            of[v] = it->second;
+            for (std::size_t k = 0; k < 3; ++k) sum[3 * it->second + k] += x[k];
+            ++count[it->second];
+        }
+        std::set<std::array<std::uint32_t, 3>> seen;
+        std::vector<std::uint32_t> triangles;
+        for (std::size_t t = 0; t + 2 < b.triangles.size(); t += 3) {
+            const std::uint32_t a = of[b.triangles[t]], c = of[b.triangles[t + 1]], d = of[b.triangles[t + 2]];
+            if (a == c || c == d || a == d) continue;
+            std::array<std::uint32_t, 3> key{a, c, d};
+            std::sort(key.begin(), key.end());
+            if (!seen.insert(key).second) continue;
+            triangles.insert(triangles.end(), {a, c, d});
+        }
+        if (triangles.size() / 3 > cap && cells > 1) continue;
+        for (std::size_t i = 0; i < count.size(); ++i)
+            for (std::size_t k = 0; k < 3; ++k) sum[3 * i + k] /= count[i];
+        b.vertices = std::move(sum);
+        b.triangles = std::move(triangles);
+        return;
+    }
+}
+
+std::array<double, 12> pose_of(const Eigen::Isometry3d& m) {
+    std::array<double, 12> p{};
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) p[std::size_t(4 * r + c)] = m(r, c);
+    return p;
+}
+
+}  // namespace
+
+std::vector<PreviewBody> machine_bodies(const Machine& m) {
+    std::vector<PreviewBody> out;
+    if (!m.geometry) return out;
+    std::size_t triangles = 0;
+    for (const Body& b : m.geometry->bodies) triangles += b.shape.kind == BodyShape::Kind::Mesh ? b.shape.triangles.size() : 0;
+    for (const Body& b : m.geometry->bodies) {
+        PreviewBody p;
+        p.name = b.name;
+        const std::string side = b.tool_side ? "tool" : "part";
+        const auto& chain = b.tool_side ? m.tool_chain : m.part_chain;
+        // Body::after indexes the chain's elements; the page's frames count them (0: the base).
+        p.frame = b.after < 0 ? "tool:0" : b.after == int(chain.size()) - 1 ? side : side + ":" + std::to_string(b.after + 1);
+        p.pose = pose_of(b.place);
+        const BodyShape& s = b.shape;
+        switch (s.kind) {
+            case BodyShape::Kind::Box: p.shape = PreviewBody::Shape::Box, p.size = {s.size.x(), s.size.y(), s.size.z()}; break;
+            case BodyShape::Kind::Cylinder: p.shape = PreviewBody::Shape::Cylinder, p.size = {s.radius, s.radius, s.length}; break;
+            case BodyShape::Kind::Cone: p.shape = PreviewBody::Shape::Cone, p.size = {s.radius, s.radius, s.length}; break;
+            case BodyShape::Kind::Capsule: p.shape = PreviewBody::Shape::Capsule, p.size = {s.radius, s.radius, s.length}; break;
+            case BodyShape::Kind::Sphere: p.shape = PreviewBody::Shape::Sphere, p.size = {s.radius, s.radius, s.radius}; break;
+            case BodyShape::Kind::Mesh: {
+                p.shape = PreviewBody::Shape::Mesh;
+                Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+                for (const auto& v : s.vertices) {
+                    lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+                    p.vertices.insert(p.vertices.end(), {v.x(), v.y(), v.z()});
+                }
+                p.size = {hi.x() - lo.x(), hi.y() - lo.y(), hi.z() - lo.z()};
+                for (const auto& t : s.triangles)
+                    p.triangles.insert(p.triangles.end(), {std::uint32_t(t[0]), std::uint32_t(t[1]), std::uint32_t(t[2])});
+                p.source_triangles = s.triangles.size();
+                // Each mesh its share of the cap, by its triangles.
+                thin_mesh(p, std::max<std::size_t>(1, kMaxPreviewTriangles * s.triangles.size() / std::max<std::size_t>(1, triangles)));
+                break;
+            }
+        }
+        out.push_back(std::move(p));
+    }
+    return out;
 }
 
 Preview::Preview(const Kinematics& kinematics, const DeviationReport& events)
     : kin_(kinematics), events_(events), joints_(kinematics.machine().joints.size()), q_now_(kinematics.machine().home_joints()),
-      low_(q_now_), high_(q_now_), q_before_(q_now_) {}
+      low_(q_now_), high_(q_now_), q_before_(q_now_), bodies_(machine_bodies(kinematics.machine())), own_bodies_(!bodies_.empty()) {
+    if (!own_bodies_) bodies_ = default_bodies(kinematics.machine());
+}
 
 void Preview::scan(std::string_view output) {
     while (!output.empty()) {
@@ -352,7 +472,9 @@ const char* kBody =
     "<input type=\"range\" id=\"scrub\" min=\"0\" max=\"0\" value=\"0\" style=\"width:640px\"></div>"
     "<div id=\"linetext\"></div><table id=\"joints-now\"></table></div>\n"
     "<div id=\"side\"><b>Marks</b> (click one to go there)<ul id=\"marks\"></ul><b>Slowed to a joint's max_feed</b><ul id=\"slowed\"></ul>"
-    "<b>Where the serial link lets the planner drain</b> (--baud)<ul id=\"drains\"></ul><b>Machine bodies</b> (default, from the chains)<ul id=\"bodies\"></ul></div></div>\n"
+    "<b>Collisions</b> (--collision warn)<ul id=\"collisions\"></ul>"
+    "<b>Where the serial link lets the planner drain</b> (--baud)<ul id=\"drains\"></ul><b>Machine bodies</b> <span id=\"bodies-source\"></span>"
+    "<ul id=\"bodies\"></ul></div></div>\n"
     "<div id=\"joints\"></div>\n<pre id=\"summary\" style=\"display:none\"></pre>\n";
 
 // The page's script, on three.js and its OrbitControls (inlined above it).
@@ -462,23 +584,51 @@ for (const m of allMarks) {
   const s = new THREE.Mesh(markDot, new THREE.MeshBasicMaterial({color: KIND[m[0]].colour}));
   s.position.set(m[2], m[3], m[4]); part.add(s);
 }
+// Collisions at their contacts, red.
+const hitDot = new THREE.SphereBufferGeometry(size / 200, 8, 6), hitMaterial = new THREE.MeshBasicMaterial({color: 0xff0000});
+for (const c of D.collisions) { const s = new THREE.Mesh(hitDot, hitMaterial); s.position.set(...c.contact); part.add(s); }
 // The bed's build volume (the linear joints' travel) and the axes, in the machine's base frame.
 const lo = D.volume.lo.map((v, k) => D.volume.hi[k] > v ? v : box.min.getComponent(k));
 const hi = D.volume.hi.map((v, k) => v > D.volume.lo[k] ? v : box.max.getComponent(k));
 const vol = new THREE.Box3(new THREE.Vector3(lo[0], lo[1], Math.max(0, lo[2])), new THREE.Vector3(hi[0], hi[1], hi[2]));
 const volume = new THREE.Box3Helper(vol, 0x9e9e9e); scene.add(volume);
 scene.add(new THREE.AxesHelper(0.25 * size));
-// The machine: each body posed by its chain frame.
+// The machine: each body posed by its chain frame. The machine file's own bodies (the collision
+// check's) when it has them, every shape as the check takes it; else a default from the chains.
 const bodies = [];
+document.getElementById('bodies-source').textContent = D.own_bodies ? '(the machine file\u2019s own, as the collision check uses them)'
+                                                                    : '(default, from the chains: the machine file has no [[bodies]])';
+summary.body_source = D.own_bodies ? 'machine' : 'default';
+summary.shapes = {}; summary.triangles = 0;
 for (const b of D.bodies) {
-  const geo = b.shape === 'box' ? new THREE.BoxBufferGeometry(b.size[0], b.size[1], b.size[2])
-                                : new THREE.CylinderBufferGeometry(b.size[0], b.size[1], b.size[2], 24).rotateX(Math.PI / 2);
-  const mesh = new THREE.Mesh(geo, new THREE.MeshLambertMaterial({color: b.name === 'bed' || b.name === 'table' ? 0xb0bec5 : 0x8d6e63,
-                                                                   transparent: true, opacity: b.name === 'bed' || b.name === 'table' ? 0.35 : 0.6}));
-  mesh.matrixAutoUpdate = false; machine.add(mesh);
+  const partSide = b.frame.startsWith('part');
+  const material = new THREE.MeshLambertMaterial({color: partSide ? 0xb0bec5 : 0x8d6e63, transparent: true, opacity: partSide ? 0.35 : 0.6,
+                                                  side: THREE.DoubleSide});
+  const [r, , len] = b.size;
+  let obj;
+  if (b.shape === 'box') obj = new THREE.Mesh(new THREE.BoxBufferGeometry(b.size[0], b.size[1], b.size[2]), material);
+  // three.js builds these along y: turned onto z, as FCL's (a cone's apex at +length/2).
+  else if (b.shape === 'cylinder') obj = new THREE.Mesh(new THREE.CylinderBufferGeometry(r, r, len, 24).rotateX(Math.PI / 2), material);
+  else if (b.shape === 'cone') obj = new THREE.Mesh(new THREE.ConeBufferGeometry(r, len, 24).rotateX(Math.PI / 2), material);
+  else if (b.shape === 'sphere') obj = new THREE.Mesh(new THREE.SphereBufferGeometry(r, 24, 16), material);
+  else if (b.shape === 'capsule') {
+    obj = new THREE.Group();
+    obj.add(new THREE.Mesh(new THREE.CylinderBufferGeometry(r, r, len, 24, 1, true).rotateX(Math.PI / 2), material));
+    for (const z of [-len / 2, len / 2]) { const s = new THREE.Mesh(new THREE.SphereBufferGeometry(r, 24, 12), material); s.position.set(0, 0, z); obj.add(s); }
+  } else {
+    const g = new THREE.BufferGeometry();
+    g.setAttribute('position', new THREE.Float32BufferAttribute(b.vertices, 3));
+    g.setIndex(b.triangles); g.computeVertexNormals();
+    obj = new THREE.Mesh(g, material);
+    summary.triangles += b.triangles.length / 3;
+  }
+  obj.matrixAutoUpdate = false; machine.add(obj);
+  summary.shapes[b.shape] = (summary.shapes[b.shape] || 0) + 1;
   const a = b.pose, pose = new THREE.Matrix4().set(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], 0, 0, 0, 1);
-  bodies.push({b, mesh, pose});
-  const li = document.createElement('li'); li.textContent = b.name + ': ' + b.shape + ' ' + b.size.join(' \u00d7 ') + ' on frame ' + b.frame;
+  bodies.push({b, mesh: obj, pose});
+  const li = document.createElement('li'); li.setAttribute('data-body', b.shape);
+  li.textContent = b.name + ': ' + b.shape + ' ' + b.size.map(v => +v.toFixed(2)).join(' \u00d7 ') +
+                   (b.shape === 'mesh' ? ' (' + b.triangles.length / 3 + ' of ' + b.source_triangles + ' triangles drawn)' : '') + ' on frame ' + b.frame;
   document.getElementById('bodies').appendChild(li);
 }
 summary.bodies = bodies.length;
@@ -511,7 +661,12 @@ function pose(i) {
   const q = D.q[i], F = {part: frames(D.chain.part, q), tool: frames(D.chain.tool, q)};
   part.matrix.copy(frameOf('part', F)); part.matrixWorldNeedsUpdate = true;
   for (const {b, mesh, pose} of bodies) { mesh.matrix.copy(frameOf(b.frame, F)).multiply(pose); mesh.matrixWorldNeedsUpdate = true; }
-  const tip = new THREE.Vector3().applyMatrix4(frameOf('tool', F)).applyMatrix4(new THREE.Matrix4().getInverse(frameOf('part', F)));
+  const toPart = new THREE.Matrix4().getInverse(frameOf('part', F));
+  const tip = new THREE.Vector3().applyMatrix4(frameOf('tool', F)).applyMatrix4(toPart);
+  // Each body as posed: its frame in the base frame and in the part frame (rows of 3 x 4).
+  const rows = m => { const e = m.elements; return [e[0], e[4], e[8], e[12], e[1], e[5], e[9], e[13], e[2], e[6], e[10], e[14]]; };
+  summary.posed = bodies.map(({b, mesh}) => ({name: b.name, frame: b.frame, base: rows(mesh.matrix),
+                                              part: rows(toPart.clone().multiply(mesh.matrix))}));
   printed.geometry.setDrawRange(0, upto.checked ? prUpTo[i] : Infinity);
   travels.geometry.setDrawRange(0, upto.checked ? trUpTo[i] : Infinity);
   document.getElementById('linetext').textContent = 'output line ' + D.line[i] + ' (written move ' + D.move[i] + '): ' + D.text[i];
@@ -561,6 +716,22 @@ function list(id, marks, attribute) {
   }
 }
 list('marks', D.marks, 'data-kind');
+// The collisions, each with the bodies that met, clickable to its written move.
+for (const c of D.collisions) {
+  const li = document.createElement('li'); li.setAttribute('data-collision', c.tool);
+  const b = document.createElement('button'); b.textContent = 'move ' + c.move;
+  b.addEventListener('click', () => jump(c.move));
+  li.appendChild(b);
+  li.appendChild(document.createTextNode(' input line ' + c.line + ': ' + c.tool + ' meets ' + (c.other === null ? 'the printed part (line ' + c.bead_line + ')' : c.other) +
+                                         ' at ' + c.contact.map(v => v.toFixed(2)).join(', ')));
+  document.getElementById('collisions').appendChild(li);
+}
+if (D.counts.collisions > D.collisions.length) {
+  const li = document.createElement('li'); li.textContent = '\u2026 the first ' + D.collisions.length + ' of ' + D.counts.collisions + ' listed';
+  document.getElementById('collisions').appendChild(li);
+}
+summary.listed.collision = D.collisions.length;
+summary.marks.collision = D.counts.collisions;
 list('slowed', D.slowed, 'data-feed');
 for (const [first, last] of D.drains) {  // output line ranges: to the last kept move at or before the first line
   const li = document.createElement('li'), b = document.createElement('button');
@@ -594,12 +765,18 @@ D.joints.forEach((j, k) => {
     const x = 60 + m[1] * 830;
     h.strokeStyle = KIND[m[0]].colour; h.beginPath(); h.moveTo(x, 10); h.lineTo(x, 80); h.stroke();
   }
+  h.strokeStyle = '#f00'; h.lineWidth = 2;
+  for (const c of D.collisions) { const x = 60 + c.at * 830; h.beginPath(); h.moveTo(x, 2); h.lineTo(x, 10); h.stroke(); }  // a tick above: many may crowd
+  h.lineWidth = 1;
   c.addEventListener('click', e => pose(Math.round((e.offsetX - 60) / 830 * (n - 1))));
 });
 pose(0);
 fit();
 const at = hash.get('line');
 if (at !== null) { let i = 0; while (i + 1 < n && D.line[i + 1] <= Number(at)) i++; pose(i); }
+// #collision=K: as a click on the K-th listed collision.
+const hit = hash.get('collision'), hits = document.querySelectorAll('#collisions li[data-collision] button');
+if (hit !== null && hits[Number(hit)]) hits[Number(hit)].click();
 document.title = document.title + ' (drawn)';
 )JS";
 
@@ -677,15 +854,33 @@ std::string Preview::html(const std::string& title) const {
         data += std::string(i ? "," : "") + "[" + std::to_string(drains_[i].first) + "," + std::to_string(drains_[i].second) + "]";
     data += "]";
     data += ", \"chain\": {\"part\": " + chain_json(m.part_chain) + ", \"tool\": " + chain_json(m.tool_chain) + "}";
-    data += ", \"bodies\": [";
-    const auto bodies = default_bodies(m);
-    for (std::size_t i = 0; i < bodies.size(); ++i) {
-        const auto& b = bodies[i];
+    data += ", \"own_bodies\": " + std::string(own_bodies_ ? "true" : "false") + ", \"bodies\": [";
+    for (std::size_t i = 0; i < bodies_.size(); ++i) {
+        const auto& b = bodies_[i];
         data += std::string(i ? "," : "") + "{\"name\": " + json_text(b.name) + ", \"frame\": \"" + b.frame + "\", \"shape\": \"" +
-                (b.shape == PreviewBody::Shape::Box ? "box" : "cylinder") + "\", \"size\": [" + num(b.size[0]) + "," + num(b.size[1]) + "," +
-                num(b.size[2]) + "], \"pose\": [";
+                shape_name(b.shape) + "\", \"size\": [" + num(b.size[0]) + "," + num(b.size[1]) + "," + num(b.size[2]) + "], \"pose\": [";
         for (std::size_t k = 0; k < 12; ++k) data += (k ? "," : "") + num(b.pose[k]);
-        data += "]}";
+        data += "]";
+        if (b.shape == PreviewBody::Shape::Mesh) {
+            data += ", \"source_triangles\": " + std::to_string(b.source_triangles) + ", \"vertices\": [";
+            for (std::size_t k = 0; k < b.vertices.size(); ++k) data += (k ? "," : "") + num(b.vertices[k]);
+            data += "], \"triangles\": [";
+            for (std::size_t k = 0; k < b.triangles.size(); ++k) data += (k ? "," : "") + std::to_string(b.triangles[k]);
+            data += "]";
+        }
+        data += "}";
+    }
+    // The collisions the check found (--collision warn), each on the written move of its piece.
+    data += "], \"collisions\": [";
+    const auto& hits = events_.collision_marks();
+    for (std::size_t i = 0; i < hits.size(); ++i) {
+        const auto& c = hits[i];
+        const std::uint64_t move = std::min<std::uint64_t>(c.move, moves_ > 0 ? moves_ - 1 : 0);
+        const double at = n > 1 ? std::min(1.0, double(move) / double(every_) / double(n - 1)) : 0.0;
+        data += std::string(i ? "," : "") + "{\"move\": " + std::to_string(move) + ", \"at\": " + num(at) + ", \"line\": " +
+                std::to_string(c.line) + ", \"tool\": " + json_text(c.tool) + ", \"other\": " +
+                (c.other.empty() ? std::string("null") : json_text(c.other)) + ", \"bead_line\": " + std::to_string(c.bead_line) +
+                ", \"contact\": [" + num(c.at[0]) + "," + num(c.at[1]) + "," + num(c.at[2]) + "]}";
     }
     const Volume v = volume_of(m);
     data += "], \"volume\": {\"lo\": [" + num(v.lo[0]) + "," + num(v.lo[1]) + "," + num(v.lo[2]) + "], \"hi\": [" + num(v.hi[0]) + "," +
@@ -693,7 +888,8 @@ std::string Preview::html(const std::string& title) const {
     data += ", \"counts\": {\"moves_written\": " + std::to_string(moves_) + ", \"output_moves\": " + std::to_string(events_.output_moves()) +
             ", \"pole\": " + std::to_string(events_.pole_crossings()) + ", \"unwind\": " + std::to_string(events_.unwinds()) +
             ", \"branch\": " + std::to_string(events_.branch_changes()) + ", \"rezero\": " + std::to_string(events_.rezeros()) +
-            ", \"slowed\": " + std::to_string(slowed_) + ", \"slowed_runs\": " + std::to_string(slowed_runs_) + "}";
+            ", \"slowed\": " + std::to_string(slowed_) + ", \"slowed_runs\": " + std::to_string(slowed_runs_) +
+            ", \"collisions\": " + std::to_string(events_.collisions()) + "}";
     data += ", \"three\": \"" + std::string(three_js::kRevision) + "\"}";
     const std::uint64_t total = events_.pole_crossings() + events_.unwinds() + events_.branch_changes() + events_.rezeros();
     const std::uint64_t passed = moves_ >= events_.output_moves() ? moves_ - events_.output_moves() : 0;
@@ -705,7 +901,9 @@ std::string Preview::html(const std::string& title) const {
                     " pole crossings, " + std::to_string(events_.unwinds()) + " unwinds, " + std::to_string(events_.branch_changes()) +
                     " branch changes, " + std::to_string(events_.rezeros()) + " re-zeros marked" +
                     (total > marks.size() ? " (the first " + std::to_string(marks.size()) + " of " + std::to_string(total) + ")" : "") + "; " +
-                    std::to_string(slowed_) + " moves at a joint's max_feed (" + std::to_string(slowed_runs_) + " runs marked).</p>\n" + kBody +
+                    std::to_string(slowed_) + " moves at a joint's max_feed (" + std::to_string(slowed_runs_) + " runs marked)" +
+                    (events_.collisions() > 0 ? "; " + std::to_string(events_.collisions()) + " collisions found (--collision warn)" : "") +
+                    ".</p>\n" + kBody +
                     "<script type=\"application/json\" id=\"data\">" + data + "</script>\n<script>/* three.js r" + three_js::kRevision +
                     " (MIT licence, Debian's libjs-three) */\n" + three_js::kSource + "\n</script>\n<script>\n" + three_js::kOrbitControls +
                     "\n</script>\n<script>" + kScript + "</script>\n</body></html>\n";

@@ -2,9 +2,10 @@
 // `--preview FILE.html`: one self-contained page to look at a translation before printing it: a
 // 3D view (three.js with its OrbitControls, inlined: three_js.hpp) of the tip path coloured by
 // tilt, deviation or feed, travels dashed, the tool axis on demand, the bed and the build volume,
-// and the machine itself posed by forward kinematics at the written line under a scrubber; the
-// report's pole crossings, unwinds, branch changes and re-zeros and the moves a joint's max_feed
-// slows, listed and clickable; every joint over the file against its limits.
+// and the machine itself (its file's collision bodies, else a default from the chains) posed by
+// forward kinematics at the written line under a scrubber; the report's pole crossings, unwinds,
+// branch changes, re-zeros and collisions and the moves a joint's max_feed slows, listed and
+// clickable; every joint over the file against its limits.
 // Stage: an observer beside the pipeline. It reads the written output back (so it shows what the
 // firmware will be told), and joins the report's marks to the written move line each ended on,
 // so the page and the report count the same. May call: translators/kinematics, the machine data,
@@ -30,20 +31,29 @@ namespace xlate5 {
 // A body of the machine drawn in the preview: a shape fixed to one frame of a chain. `frame`:
 // "part" or "tool" (the chain's end: the build plate, the nozzle tip) or "part:K" / "tool:K"
 // (the frame after the chain's first K elements, "tool:0" the machine's base); `pose`: the
-// shape's place in that frame, a 3 x 4 matrix row by row (rotation, then translation); a box's
-// size is its edges along the pose's x y z, a cylinder's (radius, radius, length) along its z.
-// The default set is drawn from the chains (default_bodies); a machine file's own geometry can
-// be fed in the same way.
+// shape's place in that frame, a 3 x 4 matrix row by row (rotation, then translation). Shapes
+// are the collision check's (FCL's, centred on their frame): a box's size is its edges along
+// the pose's x y z; a cylinder's, cone's or capsule's (radius, radius, length) along its z (a
+// cone's apex at +length/2, a capsule's length between its sphere centres); a sphere's
+// (radius, radius, radius); a mesh's vertices and triangles are in `vertices` and `triangles`.
 struct PreviewBody {
     std::string name;
     std::string frame;
-    enum class Shape { Box, Cylinder } shape = Shape::Box;
+    enum class Shape { Box, Cylinder, Cone, Capsule, Sphere, Mesh } shape = Shape::Box;
     std::array<double, 3> size{};
     std::array<double, 12> pose{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    std::vector<double> vertices;            // mesh: x y z per vertex, in the shape's frame
+    std::vector<std::uint32_t> triangles;    // mesh: three vertex indices per triangle
+    std::size_t source_triangles = 0;        // mesh: triangles before thinning
 };
 // A simple machine from the chains alone: the bed (a table disc when the part chain turns),
 // each rotary joint's axis as a cylinder, the nozzle and its holder along the tool axis.
 std::vector<PreviewBody> default_bodies(const Machine& machine);
+// The machine's own collision bodies ([[bodies]], the ones the check uses), each on its chain
+// frame; meshes thinned by vertex clustering to kMaxPreviewTriangles together (docs/limits.md).
+// Empty when the machine has none.
+inline constexpr std::size_t kMaxPreviewTriangles = 20000;
+std::vector<PreviewBody> machine_bodies(const Machine& machine);
 
 class Preview {
 public:
@@ -112,6 +122,8 @@ private:
     std::uint64_t slowed_ = 0, slowed_runs_ = 0;
     bool slowed_last_ = false;
     std::vector<std::pair<std::uint64_t, std::uint64_t>> drains_;
+    std::vector<PreviewBody> bodies_;  // the machine's own, else the default from the chains
+    bool own_bodies_ = false;
 };
 
 }  // namespace xlate5

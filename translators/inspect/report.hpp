@@ -45,6 +45,19 @@ public:
         if (collisions_.size() < kMaxMarks) collisions_.push_back(std::to_string(line) + ": " + message);
     }
     std::uint64_t collisions() const { return collision_count_; }
+    // Where a collision was found, for the preview: at the input line and the written move (from
+    // 0) of its piece, the bodies that meet (`other` empty: the printed part, printed at
+    // `bead_line`) and the contact (part frame, mm). The first kMaxMarks are kept, as the list.
+    struct CollisionMark {
+        std::uint64_t line = 0, move = 0, bead_line = 0;
+        std::string tool, other;
+        std::array<double, 3> at{};
+    };
+    void add_collision(std::uint64_t line, const std::string& message, CollisionMark mark) {
+        if (collision_marks_.size() < kMaxMarks) collision_marks_.push_back(std::move(mark));
+        add_collision(line, message);
+    }
+    const std::vector<CollisionMark>& collision_marks() const { return collision_marks_; }
 
     // Where the counted events happened: each at the input line of its move and at the output's
     // move lines (the emitter's count once the move was written), so a preview of the output
@@ -108,6 +121,7 @@ private:
     bool collision_checked_ = false;
     std::uint64_t collision_count_ = 0;
     std::vector<std::string> collisions_;
+    std::vector<CollisionMark> collision_marks_;
     std::vector<Point> series_;  // at most kMaxPoints, each the worst of `bucket_` moves
     std::uint64_t bucket_ = 1, in_bucket_ = 0;
     static constexpr std::size_t kMaxPoints = 2000;

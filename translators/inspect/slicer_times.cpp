@@ -126,7 +126,8 @@ std::string retimed_line(std::string_view l, double elapsed, double total) {
     return out;
 }
 
-SlicerTimes::SlicerTimes(const Machine& machine, double baud) : preflight_(machine, baud) {
+// The motion alone (no dwells): the time lines are written as before the report counted them.
+SlicerTimes::SlicerTimes(const Machine& machine, double baud) : preflight_(machine, baud, false) {
     // Each time line's elapsed time: the blocks before it, summed as the planner executes them.
     preflight_.executed = [this](std::uint64_t line, double seconds) {
         while (resolved_ < at_.size() && at_[resolved_].line < line) at_[resolved_++].elapsed = elapsed_;

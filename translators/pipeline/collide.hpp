@@ -40,6 +40,7 @@ struct CollisionEvent {
     std::string other;           // a body's name, or "printed part"
     std::uint64_t bead_line = 0; // the printed part: the line that printed the bead met
     Eigen::Vector3d at = Eigen::Vector3d::Zero();  // part frame, mm
+    std::uint64_t moves_written = 0;  // move lines written before the piece (set by the translator: the preview's place)
     // "collision: <tool body> meets <printed part at line N | body> at X Y Z"
     std::string message() const;
 };
