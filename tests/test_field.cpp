@@ -534,7 +534,7 @@ TEST_CASE("retargeting S4's file onto the Core R-Theta itself: the same poses ba
     // the file's own, within the tolerance (--no-segment: one joint move per move, as S4 wrote it).
     // The whole file: from line 4 001 the nozzle stands 0.004 degrees off vertical, where the
     // tool vector's 7 decimals leave C uncertain by a milliradian and Y came out 0.002 mm (the
-    // line was refused); C now comes from the tip there (Kinematics::polar_turn).
+    // line was refused); C now comes from the tip there (PolarTurn::turn).
     if (xlate5::test::corpus_absent()) return;
     xlate5::test::TempDir dir;
     int rc = 0;
@@ -558,7 +558,7 @@ TEST_CASE("retargeting S4's file onto the Core R-Theta itself: the same poses ba
 
 TEST_CASE("core-rtheta: a vertical nozzle takes C from the tip, as S4's cartesian_to_rtheta does") {
     // With the tool axis on C's pole the axis says nothing about C; S4's transform takes
-    // C = atan2(y, x) and X = hypot(x, y) (B = 0). Before Kinematics::polar_turn the solve kept
+    // C = atan2(y, x) and X = hypot(x, y) (B = 0). Before PolarTurn::turn the solve kept
     // the previous C and left the tip off the radial line (Y 10 mm, refused). Axes exactly
     // vertical, and 1e-7 off in a random direction (a 7-decimal vector's rounding).
     const Machine m = machine("core-rtheta");

@@ -406,7 +406,7 @@ TEST_CASE("the machine's reach bounds every lever arm and every shift inside the
             CAPTURE_BINDING(name);
             const Machine m = variant == 1 ? load_machine(path, tilted.at(name)) : load_machine(path);
             const Kinematics k(m);
-            REQUIRE(k.has_reach());
+            REQUIRE(k.path_bound().has_reach());
             std::mt19937 rng(std::hash<std::string>{}(name) & 0xff);
             std::uniform_real_distribution<double> U(0, 1);
             double tightest = 0;  // the largest arm found over its reach
@@ -421,16 +421,16 @@ TEST_CASE("the machine's reach bounds every lever arm and every shift inside the
                 }
                 const auto end = k.path_end(qa.data());
                 for (int a = 0; a < 8; ++a) {
-                    CHECK(end.arm[a] <= k.reach().arm[a] + 1e-9);
-                    if (k.reach().arm[a] > 0) tightest = std::max(tightest, end.arm[a] / k.reach().arm[a]);
+                    CHECK(end.arm[a] <= k.path_bound().reach().arm[a] + 1e-9);
+                    if (k.path_bound().reach().arm[a] > 0) tightest = std::max(tightest, end.arm[a] / k.path_bound().reach().arm[a]);
                 }
-                CHECK(end.lever_arm <= k.reach().lever_arm + 1e-9);
-                CHECK((k.forward(qb).tip - end.pose.tip).norm() <= k.reach_shift(qa.data(), qb.data()) + 1e-9);
+                CHECK(end.lever_arm <= k.path_bound().reach().lever_arm + 1e-9);
+                CHECK((k.forward(qb).tip - end.pose.tip).norm() <= k.path_bound().reach_shift(qa.data(), qb.data()) + 1e-9);
             }
             // A bound that is not far out, where the tip is off the rotary axes at all (addin4's
             // nozzle turns about its own tip).
-            if (k.reach().lever_arm > 1 && tightest > 0) CHECK(tightest > 0.3);
-            MESSAGE(name << ": reach " << k.reach().lever_arm << " mm, largest arm found " << tightest << " of it");
+            if (k.path_bound().reach().lever_arm > 1 && tightest > 0) CHECK(tightest > 0.3);
+            MESSAGE(name << ": reach " << k.path_bound().reach().lever_arm << " mm, largest arm found " << tightest << " of it");
         }
     }
 }
@@ -453,7 +453,7 @@ TEST_CASE("the tool axis's bound holds for turns of any size on every shipped ma
                 qa[j] = -180 + 360 * U(rng);
                 qb[j] = qa[j] + (2 * U(rng) - 1) * scale * 10.0;
             }
-            const double bound = k.axis_path_bound(qa.data(), qb.data());
+            const double bound = k.path_bound().axis_path_bound(qa.data(), qb.data());
             const Eigen::Vector3d ua = k.forward(qa).axis, ub = k.forward(qb).axis;
             std::vector<double> q(qa.size());
             for (int s = 1; s < 400; ++s) {
@@ -500,8 +500,8 @@ TEST_CASE("the joint-path bound's shorter path equals its general one bit for bi
             std::vector<double> qa, qb;
             random_step(m, rng, i % 7 == 0 ? 0.0 : scale, qa, qb);
             const auto a = k.path_end(qa.data());
-            const auto fast = k.joint_path_bound(a, qa.data(), qb.data());
-            const auto general = k.joint_path_bound_general(a, qa.data(), qb.data());
+            const auto fast = k.path_bound().joint_path_bound(a, qa.data(), qb.data());
+            const auto general = k.path_bound().joint_path_bound_general(a, qa.data(), qb.data());
             if (std::memcmp(&fast.tip, &general.tip, sizeof fast.tip) != 0 || std::memcmp(&fast.axis, &general.axis, sizeof fast.axis) != 0) ++differ;
         }
         CHECK(differ == 0);
@@ -524,7 +524,7 @@ TEST_CASE("the joint-path bound holds against dense sampling of the path on ever
             std::vector<double> qa, qb;
             random_step(m, rng, scale, qa, qb);
             const auto a = k.path_end(qa.data());
-            const auto bound = k.joint_path_bound(a, qa.data(), qb.data());
+            const auto bound = k.path_bound().joint_path_bound(a, qa.data(), qb.data());
             const Pose pa = k.forward(qa), pb = k.forward(qb);
             CHECK((a.pose.tip - pa.tip).norm() < 1e-12);
             if (!std::isfinite(bound.tip)) continue;
@@ -554,7 +554,7 @@ TEST_CASE("the joint-path bound holds against dense sampling of the path on ever
     const Machine rw2 = machine("rw2");
     const Kinematics k(rw2);
     std::vector<double> qa = {100, 100, 20, 30, -25}, qb = {100.2, 100.25, 20.05, 30.5, -25.1};
-    const auto bound = k.joint_path_bound(k.path_end(qa.data()), qa.data(), qb.data());
+    const auto bound = k.path_bound().joint_path_bound(k.path_end(qa.data()), qa.data(), qb.data());
     CHECK(bound.tip < 0.005);
     // Tight where the split needs it: a turn of the head's A alone (rw2's 300-degree lines, split
     // into a few degrees each) is bounded by the sagitta of the tip's own circle about A, not by
@@ -563,7 +563,7 @@ TEST_CASE("the joint-path bound holds against dense sampling of the path on ever
     for (const double turn : {1.0, 4.0, 10.0}) {
         CAPTURE(turn);
         std::vector<double> a = {100, 100, 20, 30, 12}, b = {100 + 0.4 * turn, 100 - 0.3 * turn, 20, 30 + turn, 12};
-        const auto tight = k.joint_path_bound(k.path_end(a.data()), a.data(), b.data());
+        const auto tight = k.path_bound().joint_path_bound(k.path_end(a.data()), a.data(), b.data());
         const Pose pa = k.forward(a), pb = k.forward(b);
         double worst = 0;
         std::vector<double> q(a.size());
@@ -675,7 +675,7 @@ TEST_CASE("forward kinematics equals Eigen's products of the chain bit for bit o
                 std::vector<double> solved = q;
                 Eigen::Vector3d solved_axis;
                 // (Not on a polar machine: where the absent joint would leave its slack, as a tip moved
-                // off the radial plane makes it, the solve turns C too: Kinematics::solve_polar.)
+                // off the radial plane makes it, the solve turns C too: PolarTurn::solve.)
                 if (!k.is_polar() && k.solve_position(tip + Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5), solved, &solved_axis).ok() &&
                     !(k.has_two_turns() ? same_bits(solved_axis, p.axis) : same_bits(solved_axis, axis)))
                     ++differ;
@@ -785,7 +785,7 @@ TEST_CASE("the position solve's own end is the FK at its solution, and near_end 
                 std::vector<double> moved = q;
                 for (double& v : moved) v += step * (2 * U(rng) - 1);
                 Kinematics::PathEnd near;
-                if (!k.near_end(end, moved.data(), near)) {
+                if (!k.path_bound().near_end(end, moved.data(), near)) {
                     ++loose;
                     continue;
                 }
@@ -1014,8 +1014,8 @@ TEST_CASE("the orientation solve's shortcut equals its general path bit for bit,
                 continue;  // parallel rotary axes
             }
             const Kinematics& k = *made;
-            if (name == "pentarod" && variant == 0) CHECK(k.has_orientation_shortcut());
-            if (!k.has_orientation_shortcut()) continue;
+            if (name == "pentarod" && variant == 0) CHECK(k.orientation_shortcut().on());
+            if (!k.orientation_shortcut().on()) continue;
             ++with_shortcut;
             std::vector<Eigen::Vector3d> axes;
             for (int i = 0; i < 400; ++i) {
@@ -1044,7 +1044,7 @@ TEST_CASE("the orientation solve's shortcut equals its general path bit for bit,
                 const Kinematics::Solutions general = k.orientation_solutions_general(a);
                 Kinematics::Solutions fast;
                 ++asked;
-                if (k.orientation_shortcut(a, fast)) ++answered;
+                if (k.orientation_shortcut().solve(a, fast)) ++answered;
                 else fast = general;
                 const Kinematics::Solutions used = k.orientation_solutions(a);
                 const Kinematics::Solutions* got[] = {&fast, &used};
@@ -1109,7 +1109,7 @@ TEST_CASE("the position solve at a chosen orientation solution takes its cosines
     for (const auto& [name, m] : cases) {
         CAPTURE_BINDING(name);
         const Kinematics k(m);
-        if (!k.has_two_turns() || !k.has_orientation_shortcut()) continue;
+        if (!k.has_two_turns() || !k.orientation_shortcut().on()) continue;
         ++machines;
         int asked = 0, named = 0, differ = 0;
         for (int i = 0; i < 20000; ++i) {
@@ -1202,7 +1202,7 @@ TEST_CASE("the position solve in scalars equals its Eigen general path bit for b
                 std::vector<double> qa = q, qb = q;
                 Eigen::Vector3d aa(7, 7, 7), ab(7, 7, 7);
                 Kinematics::SolvedEnd ea, eb;
-                // A polar machine's solve may turn C (solve_polar), which the general path does not.
+                // A polar machine's solve may turn C (PolarTurn::solve), which the general path does not.
                 if (k.is_polar()) continue;
                 const IkResult ra = k.solve_position(tip, qa, ask & 1 ? &aa : nullptr, ask & 2 ? &ea : nullptr);
                 const IkResult rb = k.solve_position_general(tip, qb, ask & 1 ? &ab : nullptr, ask & 2 ? &eb : nullptr);

@@ -174,6 +174,209 @@ void AptReader::go_to(const Eigen::Vector3d& tip, const Eigen::Vector3d& axis, s
     s.tip_known = true;
 }
 
+// One record: its major word and the fields after '/', split at commas, with the errors at their
+// columns.
+struct AptReader::Record {
+    const std::string& input_name;
+    std::uint64_t line_no;
+    Field all, major;
+    std::string word;
+    std::vector<Field> args;
+    std::size_t slash;
+    std::uint32_t end_column;  // just past the record, for a missing field
+
+    [[noreturn]] void fail(std::uint32_t column, const std::string& why) const { throw InputError(input_name, line_no, column, why); }
+    double number(const Field& f) const {
+        const auto v = to_number(f.text);
+        if (!v) fail(f.column, std::string("'").append(f.text).append("' is not a number"));
+        if (!std::isfinite(*v) || std::abs(*v) > kMaxNumber) fail(f.column, "number beyond +-1e9");
+        return *v;
+    }
+    std::vector<double> numbers(std::size_t from, std::size_t count) const {
+        std::vector<double> v;
+        for (std::size_t i = from; i < from + count; ++i) v.push_back(number(args[i]));
+        return v;
+    }
+};
+
+void AptReader::goto_record(const Record& r, State& s, FrontLines& out) const {
+    const std::uint64_t line_no = r.line_no;
+    const std::vector<Field>& args = r.args;
+    const Field& major = r.major;
+    auto fail = [&](std::uint32_t column, const std::string& why) { r.fail(column, why); };
+    auto numbers = [&](std::size_t from, std::size_t count) { return r.numbers(from, count); };
+    const std::uint32_t end_column = r.end_column;
+    if (args.size() != 3 && args.size() != 6)
+        fail(args.empty() ? end_column : args.back().column, "GOTO needs x,y,z or x,y,z,i,j,k (" + std::to_string(args.size()) + " values)");
+    const auto v = numbers(0, args.size());
+    const Eigen::Vector3d tip(v[0], v[1], v[2]);
+    Eigen::Vector3d axis = s.axis;
+    if (args.size() == 6) {
+        if (!s.multax) fail(args[3].column, "a tool axis on GOTO after MULTAX/OFF");
+        const Eigen::Vector3d ijk(v[3], v[4], v[5]);
+        if (!(ijk.norm() > 1e-9)) fail(args[3].column, "the tool axis i,j,k has length 0");
+        axis = ijk.normalized();
+    }
+    if (!s.rapid && !s.feed) fail(major.column, "a feed move before any FEDRAT (or RAPID)");
+    if (s.circle) arc_to(r, tip, axis, s, out);
+    else go_to(tip, axis, line_no, s, out);
+    s.rapid = false;
+}
+
+// The arc from the last position to `tip` about the CIRCLE before it, in chords.
+void AptReader::arc_to(const Record& r, const Eigen::Vector3d& tip, const Eigen::Vector3d& axis, State& s, FrontLines& out) const {
+    const std::uint64_t line_no = r.line_no;
+    const Field& major = r.major;
+    auto fail = [&](std::uint32_t column, const std::string& why) { r.fail(column, why); };
+    if (!s.tip_known) fail(major.column, "an arc needs a position before it");
+    const auto c = *s.circle;
+    s.circle.reset();
+    const Eigen::Vector3d n = c.axis;
+    const Eigen::Vector3d a0 = s.tip - c.centre, a1 = tip - c.centre;
+    const Eigen::Vector3d u0 = a0 - a0.dot(n) * n, u1 = a1 - a1.dot(n) * n;
+    const double slack = 1e-3 * std::max(1.0, c.radius);  // CL files print 4 decimals
+    if (std::abs(u0.norm() - c.radius) > slack || std::abs(u1.norm() - c.radius) > slack)
+        fail(major.column, "the arc's start and end are not at the CIRCLE's radius from its centre (line " +
+                               std::to_string(c.line_no) + ")");
+    double sweep = std::atan2(u0.cross(u1).dot(n), u0.dot(u1));  // counterclockwise about n
+    if (sweep < 0) sweep += 2 * kPi;
+    if (sweep < 1e-9) sweep = 2 * kPi;  // back to its start: a full circle
+    sweep += 2 * kPi * (c.turns - 1);    // TIMES,n: n turns when the GOTO is above its start
+    // Chords within the tolerance (sagitta r(1 - cos(step/2))), in the file's unit; before
+    // the unit is known, as if it were inches (the finer).
+    const double tol = o_.chord_tolerance / s.unit.value_or(25.4);
+    const double step = tol >= c.radius ? kPi / 2 : 2 * std::acos(1 - tol / c.radius);
+    const double chords = std::ceil(sweep / std::min(step, kPi / 2));
+    if (chords > 1e6) fail(major.column, "the arc needs more than 1e6 chords at this tolerance");
+    const int count = int(chords);
+    const double h0 = a0.dot(n), h1 = a1.dot(n);
+    const Eigen::Vector3d v0 = u0 / u0.norm(), w0 = n.cross(v0);
+    const Eigen::Vector3d ax0 = s.axis;
+    const double turn = std::acos(std::clamp(ax0.dot(axis), -1.0, 1.0));
+    for (int k = 1; k <= count; ++k) {
+        const double f = double(k) / count, t = sweep * f;
+        Eigen::Vector3d p = c.centre + c.radius * (std::cos(t) * v0 + std::sin(t) * w0) + (h0 + (h1 - h0) * f) * n;
+        if (k == count) p = tip;
+        // The tool axis turns along the great circle from its start to the GOTO's.
+        Eigen::Vector3d ax = axis;
+        if (k < count && turn > 1e-12)
+            ax = (std::sin((1 - f) * turn) * ax0 + std::sin(f * turn) * axis) / std::sin(turn);
+        go_to(p, ax.normalized(), line_no, s, out);
+    }
+}
+
+void AptReader::fedrat(const Record& r, State& s, FrontLines& out) const {
+    const std::vector<Field>& args = r.args;
+    auto fail = [&](std::uint32_t column, const std::string& why) { r.fail(column, why); };
+    auto number = [&](const Field& f) { return r.number(f); };
+    const std::uint32_t end_column = r.end_column;
+    // FEDRAT/f, FEDRAT/IPM,f, FEDRAT/MMPM,f or FEDRAT/f,IPM (NX writes the unit first).
+    std::optional<double> unit_mm;
+    std::optional<Field> value;
+    for (const Field& f : args) {
+        const std::string u = upper(f.text);
+        if (u == "IPM") unit_mm = 25.4;
+        else if (u == "MMPM") unit_mm = 1.0;
+        else if (u == "IPR" || u == "MMPR") fail(f.column, "feed per revolution (" + u + ") has no meaning without a spindle: give IPM or MMPM");
+        else if (value) fail(f.column, "FEDRAT has one feed value");
+        else value = f;
+    }
+    if (!value) fail(end_column, "FEDRAT needs a feed value");
+    const double v = number(*value);
+    if (!(v > 0)) fail(value->column, "the feed must be positive");
+    if (unit_mm && !s.unit) set_unit(*unit_mm, s, out);  // a feed in inches/min: a program in inches
+    const double f = unit_mm ? v * *unit_mm / *s.unit : v;
+    if (!s.feed || *s.feed != f) s.feed_written = false;
+    s.feed = f;
+}
+
+void AptReader::circle(const Record& r, State& s) const {
+    const std::uint64_t line_no = r.line_no;
+    const std::vector<Field>& args = r.args;
+    auto fail = [&](std::uint32_t column, const std::string& why) { r.fail(column, why); };
+    auto number = [&](const Field& f) { return r.number(f); };
+    auto numbers = [&](std::size_t from, std::size_t count) { return r.numbers(from, count); };
+    const std::uint32_t end_column = r.end_column;
+    if (args.size() < 7) fail(args.empty() ? end_column : args.back().column, "CIRCLE needs xc,yc,zc,i,j,k,r");
+    const auto v = numbers(0, 7);
+    const Eigen::Vector3d n(v[3], v[4], v[5]);
+    if (!(n.norm() > 1e-9)) fail(args[3].column, "the CIRCLE's axis i,j,k has length 0");
+    if (!(v[6] > 0)) fail(args[6].column, "the CIRCLE's radius must be positive");
+    // NX CLSF: CIRCLE/x,y,z,i,j,k,r,t,f,d,e[,TIMES,n]: tolerance, its inner share, the tool's
+    // diameter and corner radius (numbers, not used), then the turns of a helix.
+    int turns = 1;
+    for (std::size_t i = 7; i < args.size(); ++i) {
+        if (upper(args[i].text) == "TIMES") {
+            if (i + 2 != args.size()) fail(args[i].column, "TIMES needs one whole number of turns after it, and ends the CIRCLE");
+            const double t = number(args[i + 1]);
+            if (t < 1 || t != std::floor(t) || t > kAptMaxTurns)
+                fail(args[i + 1].column, "TIMES: the helix's turns must be a whole number from 1 to " + std::to_string(kAptMaxTurns));
+            turns = int(t);
+            break;
+        }
+        number(args[i]);
+    }
+    s.circle = State::Circle{Eigen::Vector3d(v[0], v[1], v[2]), n.normalized(), v[6], line_no, turns};
+}
+
+bool AptReader::setting(const Record& r, State& s, FrontLines& out) const {
+    const std::string& word = r.word;
+    const std::vector<Field>& args = r.args;
+    const Field& major = r.major;
+    auto fail = [&](std::uint32_t column, const std::string& why) { r.fail(column, why); };
+    auto number = [&](const Field& f) { return r.number(f); };
+    auto comment = [&] { emit(s, out, r.line_no, "; " + std::string(r.all.text)); };
+    const std::uint32_t end_column = r.end_column;
+    if (word == "UNITS") {
+        if (args.size() != 1) fail(end_column, "UNITS needs INCHES or MM");
+        const std::string u = upper(args[0].text);
+        double mm;
+        if (u == "INCHES" || u == "INCH") mm = 25.4;
+        else if (u == "MM") mm = 1.0;
+        else fail(args[0].column, "UNITS/" + std::string(args[0].text) + ": expected INCHES or MM"), mm = 1;
+        if (s.unit && *s.unit != mm) fail(args[0].column, "the units change in the middle of the file");
+        if (!s.unit) set_unit(mm, s, out);
+        return true;
+    }
+    if (word == "MULTAX") {
+        const std::string u = args.empty() ? "ON" : upper(args[0].text);
+        if (args.size() > 1 || (u != "ON" && u != "OFF")) fail(args.empty() ? end_column : args[0].column, "MULTAX takes ON or OFF");
+        s.multax = u == "ON";
+        if (!s.multax) s.axis = Eigen::Vector3d::UnitZ();
+        return true;
+    }
+    if (word == "LOAD") {
+        if (args.size() < 2 || upper(args[0].text) != "TOOL") fail(args.empty() ? end_column : args[0].column, "LOAD needs TOOL,n");
+        const double n = number(args[1]);
+        if (n < 0 || n != std::floor(n)) fail(args[1].column, "the tool number must be a whole number >= 0");
+        comment();  // a printer has one nozzle: the tool change is noted, not sent
+        return true;
+    }
+    if (word == "TOOL PATH") {
+        if (s.in_path) fail(major.column, "TOOL PATH inside a TOOL PATH (no END-OF-PATH before it)");
+        s.in_path = true;
+        comment();
+        return true;
+    }
+    if (word == "END-OF-PATH") {
+        if (!s.in_path) fail(major.column, "END-OF-PATH without a TOOL PATH");
+        s.in_path = false;
+        s.rapid = false;
+        comment();
+        return true;
+    }
+    if (word == "FINI") {
+        s.finished = true;
+        comment();
+        return true;
+    }
+    if (word == "PAINT" || word == "TLDATA" || word == "MSYS" || word == "PARTNO") {
+        comment();  // display colours, cutter shape, the frame the coordinates are already in
+        return true;
+    }
+    return false;
+}
+
 void AptReader::record(std::string_view line, std::uint64_t line_no, State& s, FrontLines& out) const {
     auto fail = [&](std::uint32_t column, const std::string& why) -> void {
         throw InputError(o_.input_name, line_no, column, why);
@@ -208,177 +411,23 @@ void AptReader::record(std::string_view line, std::uint64_t line_no, State& s, F
             rest.remove_prefix(comma + 1);
         }
     }
-    auto number = [&](const Field& f) {
-        const auto v = to_number(f.text);
-        if (!v) fail(f.column, "'" + std::string(f.text) + "' is not a number");
-        if (!std::isfinite(*v) || std::abs(*v) > kMaxNumber) fail(f.column, "number beyond +-1e9");
-        return *v;
-    };
-    auto numbers = [&](std::size_t from, std::size_t count) {
-        std::vector<double> v;
-        for (std::size_t i = from; i < from + count; ++i) v.push_back(number(args[i]));
-        return v;
-    };
-    auto comment = [&] { emit(s, out, line_no, "; " + std::string(all.text)); };
-    const std::uint32_t end_column = std::uint32_t(all.column + all.text.size());
+    const Record r{o_.input_name, line_no, all, major, word, std::move(args), slash, std::uint32_t(all.column + all.text.size())};
 
     if (s.circle && word != "GOTO" && word != "PAINT")
         fail(major.column, "CIRCLE must be followed by the GOTO that ends its arc, not " + word);
 
-    if (word == "GOTO") {
-        if (args.size() != 3 && args.size() != 6)
-            fail(args.empty() ? end_column : args.back().column, "GOTO needs x,y,z or x,y,z,i,j,k (" + std::to_string(args.size()) + " values)");
-        const auto v = numbers(0, args.size());
-        const Eigen::Vector3d tip(v[0], v[1], v[2]);
-        Eigen::Vector3d axis = s.axis;
-        if (args.size() == 6) {
-            if (!s.multax) fail(args[3].column, "a tool axis on GOTO after MULTAX/OFF");
-            const Eigen::Vector3d ijk(v[3], v[4], v[5]);
-            if (!(ijk.norm() > 1e-9)) fail(args[3].column, "the tool axis i,j,k has length 0");
-            axis = ijk.normalized();
-        }
-        if (!s.rapid && !s.feed) fail(major.column, "a feed move before any FEDRAT (or RAPID)");
-        if (s.circle) {
-            if (!s.tip_known) fail(major.column, "an arc needs a position before it");
-            const auto c = *s.circle;
-            s.circle.reset();
-            const Eigen::Vector3d n = c.axis;
-            const Eigen::Vector3d a0 = s.tip - c.centre, a1 = tip - c.centre;
-            const Eigen::Vector3d u0 = a0 - a0.dot(n) * n, u1 = a1 - a1.dot(n) * n;
-            const double slack = 1e-3 * std::max(1.0, c.radius);  // CL files print 4 decimals
-            if (std::abs(u0.norm() - c.radius) > slack || std::abs(u1.norm() - c.radius) > slack)
-                fail(major.column, "the arc's start and end are not at the CIRCLE's radius from its centre (line " +
-                                       std::to_string(c.line_no) + ")");
-            double sweep = std::atan2(u0.cross(u1).dot(n), u0.dot(u1));  // counterclockwise about n
-            if (sweep < 0) sweep += 2 * kPi;
-            if (sweep < 1e-9) sweep = 2 * kPi;  // back to its start: a full circle
-            sweep += 2 * kPi * (c.turns - 1);    // TIMES,n: n turns when the GOTO is above its start
-            // Chords within the tolerance (sagitta r(1 - cos(step/2))), in the file's unit; before
-            // the unit is known, as if it were inches (the finer).
-            const double tol = o_.chord_tolerance / s.unit.value_or(25.4);
-            const double step = tol >= c.radius ? kPi / 2 : 2 * std::acos(1 - tol / c.radius);
-            const double chords = std::ceil(sweep / std::min(step, kPi / 2));
-            if (chords > 1e6) fail(major.column, "the arc needs more than 1e6 chords at this tolerance");
-            const int count = int(chords);
-            const double h0 = a0.dot(n), h1 = a1.dot(n);
-            const Eigen::Vector3d v0 = u0 / u0.norm(), w0 = n.cross(v0);
-            const Eigen::Vector3d ax0 = s.axis;
-            const double turn = std::acos(std::clamp(ax0.dot(axis), -1.0, 1.0));
-            for (int k = 1; k <= count; ++k) {
-                const double f = double(k) / count, t = sweep * f;
-                Eigen::Vector3d p = c.centre + c.radius * (std::cos(t) * v0 + std::sin(t) * w0) + (h0 + (h1 - h0) * f) * n;
-                if (k == count) p = tip;
-                // The tool axis turns along the great circle from its start to the GOTO's.
-                Eigen::Vector3d ax = axis;
-                if (k < count && turn > 1e-12)
-                    ax = (std::sin((1 - f) * turn) * ax0 + std::sin(f * turn) * axis) / std::sin(turn);
-                go_to(p, ax.normalized(), line_no, s, out);
-            }
-        } else {
-            go_to(tip, axis, line_no, s, out);
-        }
-        s.rapid = false;
-        return;
-    }
+    if (word == "GOTO") return goto_record(r, s, out);
     if (word == "RAPID") {
-        if (!args.empty()) fail(args.front().column, "RAPID takes no values");
+        if (!r.args.empty()) fail(r.args.front().column, "RAPID takes no values");
         s.rapid = true;
         return;
     }
-    if (word == "FEDRAT") {
-        // FEDRAT/f, FEDRAT/IPM,f, FEDRAT/MMPM,f or FEDRAT/f,IPM (NX writes the unit first).
-        std::optional<double> unit_mm;
-        std::optional<Field> value;
-        for (const Field& f : args) {
-            const std::string u = upper(f.text);
-            if (u == "IPM") unit_mm = 25.4;
-            else if (u == "MMPM") unit_mm = 1.0;
-            else if (u == "IPR" || u == "MMPR") fail(f.column, "feed per revolution (" + u + ") has no meaning without a spindle: give IPM or MMPM");
-            else if (value) fail(f.column, "FEDRAT has one feed value");
-            else value = f;
-        }
-        if (!value) fail(end_column, "FEDRAT needs a feed value");
-        const double v = number(*value);
-        if (!(v > 0)) fail(value->column, "the feed must be positive");
-        if (unit_mm && !s.unit) set_unit(*unit_mm, s, out);  // a feed in inches/min: a program in inches
-        const double f = unit_mm ? v * *unit_mm / *s.unit : v;
-        if (!s.feed || *s.feed != f) s.feed_written = false;
-        s.feed = f;
-        return;
-    }
-    if (word == "CIRCLE") {
-        if (args.size() < 7) fail(args.empty() ? end_column : args.back().column, "CIRCLE needs xc,yc,zc,i,j,k,r");
-        const auto v = numbers(0, 7);
-        const Eigen::Vector3d n(v[3], v[4], v[5]);
-        if (!(n.norm() > 1e-9)) fail(args[3].column, "the CIRCLE's axis i,j,k has length 0");
-        if (!(v[6] > 0)) fail(args[6].column, "the CIRCLE's radius must be positive");
-        // NX CLSF: CIRCLE/x,y,z,i,j,k,r,t,f,d,e[,TIMES,n]: tolerance, its inner share, the tool's
-        // diameter and corner radius (numbers, not used), then the turns of a helix.
-        int turns = 1;
-        for (std::size_t i = 7; i < args.size(); ++i) {
-            if (upper(args[i].text) == "TIMES") {
-                if (i + 2 != args.size()) fail(args[i].column, "TIMES needs one whole number of turns after it, and ends the CIRCLE");
-                const double t = number(args[i + 1]);
-                if (t < 1 || t != std::floor(t) || t > kAptMaxTurns)
-                    fail(args[i + 1].column, "TIMES: the helix's turns must be a whole number from 1 to " + std::to_string(kAptMaxTurns));
-                turns = int(t);
-                break;
-            }
-            number(args[i]);
-        }
-        s.circle = State::Circle{Eigen::Vector3d(v[0], v[1], v[2]), n.normalized(), v[6], line_no, turns};
-        return;
-    }
-    if (word == "UNITS") {
-        if (args.size() != 1) fail(end_column, "UNITS needs INCHES or MM");
-        const std::string u = upper(args[0].text);
-        double mm;
-        if (u == "INCHES" || u == "INCH") mm = 25.4;
-        else if (u == "MM") mm = 1.0;
-        else fail(args[0].column, "UNITS/" + std::string(args[0].text) + ": expected INCHES or MM"), mm = 1;
-        if (s.unit && *s.unit != mm) fail(args[0].column, "the units change in the middle of the file");
-        if (!s.unit) set_unit(mm, s, out);
-        return;
-    }
-    if (word == "MULTAX") {
-        const std::string u = args.empty() ? "ON" : upper(args[0].text);
-        if (args.size() > 1 || (u != "ON" && u != "OFF")) fail(args.empty() ? end_column : args[0].column, "MULTAX takes ON or OFF");
-        s.multax = u == "ON";
-        if (!s.multax) s.axis = Eigen::Vector3d::UnitZ();
-        return;
-    }
-    if (word == "LOAD") {
-        if (args.size() < 2 || upper(args[0].text) != "TOOL") fail(args.empty() ? end_column : args[0].column, "LOAD needs TOOL,n");
-        const double n = number(args[1]);
-        if (n < 0 || n != std::floor(n)) fail(args[1].column, "the tool number must be a whole number >= 0");
-        comment();  // a printer has one nozzle: the tool change is noted, not sent
-        return;
-    }
-    if (word == "TOOL PATH") {
-        if (s.in_path) fail(major.column, "TOOL PATH inside a TOOL PATH (no END-OF-PATH before it)");
-        s.in_path = true;
-        comment();
-        return;
-    }
-    if (word == "END-OF-PATH") {
-        if (!s.in_path) fail(major.column, "END-OF-PATH without a TOOL PATH");
-        s.in_path = false;
-        s.rapid = false;
-        comment();
-        return;
-    }
-    if (word == "FINI") {
-        s.finished = true;
-        comment();
-        return;
-    }
-    if (word == "PAINT" || word == "TLDATA" || word == "MSYS" || word == "PARTNO") {
-        comment();  // display colours, cutter shape, the frame the coordinates are already in
-        return;
-    }
+    if (word == "FEDRAT") return fedrat(r, s, out);
+    if (word == "CIRCLE") return circle(r, s);
+    if (setting(r, s, out)) return;
     // NX's listing trailer after the last tool path ("Tool Path Listing has 388 lines.").
     if (!s.in_path && slash == std::string_view::npos && upper(all.text).rfind("TOOL PATH LISTING HAS ", 0) == 0) {
-        comment();
+        emit(s, out, line_no, "; " + std::string(all.text));
         return;
     }
     fail(major.column, "CL record '" + (word.empty() ? std::string(all.text.substr(0, 20)) : word) +

@@ -72,6 +72,15 @@ private:
         std::uint64_t continued_line = 0;
     };
     void record(std::string_view text, std::uint64_t line_no, State& s, FrontLines& out) const;
+    // record's kinds (apt_reader.cpp): a record split into its word and fields, then each kind.
+    struct Record;
+    void goto_record(const Record& r, State& s, FrontLines& out) const;
+    void arc_to(const Record& r, const Eigen::Vector3d& tip, const Eigen::Vector3d& axis, State& s, FrontLines& out) const;
+    void fedrat(const Record& r, State& s, FrontLines& out) const;
+    void circle(const Record& r, State& s) const;
+    // UNITS, MULTAX, LOAD, TOOL PATH, END-OF-PATH, FINI and the records kept as comments; false
+    // when the record is none of them.
+    bool setting(const Record& r, State& s, FrontLines& out) const;
     void set_unit(double mm, State& s, FrontLines& out) const;
     void emit(State& s, FrontLines& out, std::uint64_t line_no, std::string text) const;
     void go_to(const Eigen::Vector3d& tip, const Eigen::Vector3d& axis, std::uint64_t line_no, State& s, FrontLines& out) const;

@@ -97,10 +97,8 @@ namespace {
 // lines. The linear joints moved by `moved` carry the tip `tt` (those of the tool chain) and the
 // axis lines behind them (those ahead of each line in its chain, `shifts`) along their
 // directions; nothing turns. The solve is exact up to rounding (the tip is affine in the linear
-// joints), which the bound's own slack covers as it does the FK's. (A template only because the
-// shifts' type is Kinematics' own.)
-template <class Shifts>
-[[gnu::always_inline]] inline void fill_solved_end(const Shifts& shifts, const std::vector<int>& tool_linear, std::size_t n, const double* moved, V3 tt,
+// joints), which the bound's own slack covers as it does the FK's.
+[[gnu::always_inline]] inline void fill_solved_end(const std::vector<SolvedEndPlan::LineShift>& shifts, const std::vector<int>& tool_linear, std::size_t n, const double* moved, V3 tt,
                      const AxisLine* lines, int count, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,
                      const Eigen::Vector3d& tip, const std::vector<double>& q, Kinematics::SolvedEnd& end) {
     V3 x = tt;
@@ -264,15 +262,77 @@ namespace {
     return true;
 }
 
-}  // namespace
-
-void Kinematics::eval(const std::vector<ChainLink>& chain, const double* q, Eigen::Matrix3d& R_out, Eigen::Vector3d& t_out,
-                      Eigen::Vector3d* linear_dirs) const {
+// Base -> a chain's end (rotation, translation) in Eigen's types; `linear_dirs`, when given,
+// receives each linear joint's direction.
+void eval(const std::vector<ChainLink>& chain, const double* q, Eigen::Matrix3d& R_out, Eigen::Vector3d& t_out,
+          Eigen::Vector3d* linear_dirs) {
     M3 R;
     V3 t;
     walk(chain, q, R, t, linear_dirs);
     R_out << R.xx, R.xy, R.xz, R.yx, R.yy, R.yz, R.zx, R.zy, R.zz;
     t_out = Eigen::Vector3d(t.x, t.y, t.z);
+}
+
+// The position solve's 3x3 Jacobian from the chains' linear directions; false when singular.
+bool linear_jacobian(const std::vector<int>& linear, const Eigen::Matrix3d& Rp, const Eigen::Vector3d* part_dirs,
+                     const Eigen::Vector3d* tool_dirs, Eigen::Matrix3d& J) {
+    if (linear.size() < 3) return false;  // the loader requires three; a machine built by hand may not have them
+    for (int k = 0; k < 3; ++k) {
+        const std::size_t j = std::size_t(linear[std::size_t(k)]);
+        J.col(k) = Rp.transpose() * (tool_dirs[j] - part_dirs[j]);
+    }
+    return std::abs(J.determinant()) > 1e-9;
+}
+
+}  // namespace
+
+// The position solve's constants: its unknowns, the Jacobian when fixed, the scalar solve's plan.
+PositionSolve load_position_solve(const Machine& machine, const std::vector<ChainLink>& part_links,
+                                  const std::vector<ChainLink>& tool_links) {
+    PositionSolve ps;
+    // The position solve's Jacobian (the linear joints' directions seen from the part) depends on
+    // the rotaries only through the rotations ahead of the linear joints. With none there (a part
+    // chain without rotaries, no rotary before a linear joint in the tool chain: rw2's X Y Z
+    // carrying the head) it is the same matrix for every pose: inverted once here, the same
+    // numbers the per-call inverse would give.
+    for (std::size_t j = 0; j < machine.joints.size() && ps.linear.size() < 3; ++j)
+        if (!machine.joints[j].rotary) ps.linear.push_back(int(j));
+    bool varies = ps.linear.size() < 3;
+    for (const auto& e : machine.part_chain) varies = varies || e.kind == ChainElement::Kind::Rotary;
+    bool rotary_seen = false;
+    for (const auto& e : machine.tool_chain) {
+        if (e.kind == ChainElement::Kind::Rotary) rotary_seen = true;
+        else if (e.kind == ChainElement::Kind::Linear && rotary_seen) varies = true;
+    }
+    if (!varies) {
+        const std::vector<double> zero(machine.joints.size(), 0.0);
+        Eigen::Vector3d part_dirs[kMaxJoints], tool_dirs[kMaxJoints];
+        for (std::size_t j = 0; j < machine.joints.size(); ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();
+        Eigen::Matrix3d Rp, Rt, J;
+        Eigen::Vector3d tp, tt;
+        eval(part_links, zero.data(), Rp, tp, part_dirs);
+        eval(tool_links, zero.data(), Rt, tt, tool_dirs);
+        if (linear_jacobian(ps.linear, Rp, part_dirs, tool_dirs, J)) {
+            const Eigen::Matrix3d Ji = J.inverse();
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j) ps.jacobian_inverse[i * 3 + j] = Ji(i, j);
+            ps.constant_jacobian = true;
+        }
+    }
+    // The scalar solve's plan: which chain gives each unknown's direction, and a tool chain of
+    // fresh linear links alone (its rotation the identity throughout: the identity times the tool
+    // axis, as the walk's product makes it, once here).
+    for (std::size_t k = 0; k < ps.linear.size() && k < 3; ++k)
+        for (const auto* chain : {&part_links, &tool_links})
+            for (const ChainLink& l : *chain)
+                if (l.kind == ChainLink::Kind::Linear && l.joint == ps.linear[k]) (chain == &tool_links ? ps.cols[k].tool : ps.cols[k].part) = true;
+    ps.tool_plain = true;
+    for (const ChainLink& l : tool_links) ps.tool_plain = ps.tool_plain && l.kind == ChainLink::Kind::Linear && l.fresh;
+    {
+        const V3 up = M3{1, 0, 0, 0, 1, 0, 0, 0, 1} * v3(machine.tool_axis);
+        ps.tool_up[0] = up.x, ps.tool_up[1] = up.y, ps.tool_up[2] = up.z;
+    }
+    return ps;
 }
 
 Eigen::Vector3d Kinematics::tool_axis(const std::vector<double>& q) const {
@@ -310,9 +370,9 @@ Pose Kinematics::forward(const double* q, double* lever_arm, double* arms) const
 
 IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end,
                                     ChosenSolution chosen) const {
-    if (polar_.on) return solve_polar(tip, q, axis, end, chosen);
+    if (polar_.on()) return polar_.solve(*this, tip, q, axis, end, chosen);
     // With the rotary joints fixed the tip is affine in the linear joints: one 3x3 solve is exact.
-    if (constant_jacobian_) {
+    if (position_.constant_jacobian) {
         if (end) end->valid = false;  // this path walks no axis lines: the motion stage measures the end instead
         // The same products as below in the walk's scalars (forward's tip and axis, Eigen's
         // matrix times a column), without the round trip through Eigen's matrices.
@@ -332,11 +392,11 @@ IkResult Kinematics::solve_position(const Eigen::Vector3d& tip, std::vector<doub
             if (axis) *axis = part_axis(Rp, Rt, machine_.tool_axis);
             current = transposed_times(Rp, tt - tp);
         }
-        const double* Ji = jacobian_inverse_;
+        const double* Ji = position_.jacobian_inverse;
         const V3 dq = M3{Ji[0], Ji[1], Ji[2], Ji[3], Ji[4], Ji[5], Ji[6], Ji[7], Ji[8]} * (v3(tip) - current);
-        q[std::size_t(linear_[0])] += dq.x;
-        q[std::size_t(linear_[1])] += dq.y;
-        q[std::size_t(linear_[2])] += dq.z;
+        q[std::size_t(position_.linear[0])] += dq.x;
+        q[std::size_t(position_.linear[1])] += dq.y;
+        q[std::size_t(position_.linear[2])] += dq.z;
         return {};
     }
     return solve_varying(tip, q, axis, end, chosen);
@@ -359,15 +419,15 @@ IkResult Kinematics::solve_varying(const Eigen::Vector3d& tip, std::vector<doubl
 IkResult Kinematics::solve_scalar(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis, SolvedEnd* end) const {
     if (end) end->valid = false;
     const std::size_t n = machine_.joints.size();  // at most 5 (the loader checks)
-    // Only the entries the walks write are read (see solve_cols_): no zeroing.
+    // Only the entries the walks write are read (see position_.cols): no zeroing.
     Eigen::Vector3d part_dirs[kMaxJoints], tool_dirs[kMaxJoints];
-    const bool want_end = end && solved_ends_;
+    const bool want_end = end && ends_.on;
     AxisLine lines[kMaxJoints];
     int count = 0;
     M3 Rp, Rt;
     V3 tp, tt, up;
     walk(part_links_, q.data(), Rp, tp, part_dirs, want_end ? lines : nullptr, &count);
-    if (tool_plain_) {
+    if (position_.tool_plain) {
         // Fresh linear links only: the walk's own steps for them (R stays the identity, no line),
         // and the identity times the tool axis, made once.
         tt = V3{0, 0, 0};
@@ -376,7 +436,7 @@ IkResult Kinematics::solve_scalar(const Eigen::Vector3d& tip, std::vector<double
             tool_dirs[l.joint] = Eigen::Vector3d(d.x, d.y, d.z);
             tt = tt + d * q[std::size_t(l.joint)];
         }
-        up = V3{tool_up_[0], tool_up_[1], tool_up_[2]};
+        up = V3{position_.tool_up[0], position_.tool_up[1], position_.tool_up[2]};
     } else {
         walk(tool_links_, q.data(), Rt, tt, tool_dirs, want_end ? lines : nullptr, &count);
         up = Rt * v3(machine_.tool_axis);
@@ -388,41 +448,41 @@ IkResult Kinematics::solve_scalar(const Eigen::Vector3d& tip, std::vector<double
     }
     const V3 current = transposed_times(Rp, tt - tp);
     // (linear_jacobian's refusal, after the axis as there)
-    if (linear_.size() < 3) return singular_jacobian();
+    if (position_.linear.size() < 3) return singular_jacobian();
     // J's columns: Rp^T (tool direction - part direction); a direction a chain does not give is
     // zero, and x - 0 is x to the last bit (0 - x is not -x: a zero's sign).
     V3 col[3];
     for (int k = 0; k < 3; ++k) {
-        const std::size_t j = std::size_t(linear_[std::size_t(k)]);
-        V3 d = solve_cols_[k].tool ? v3(tool_dirs[j]) : V3{0, 0, 0};
-        if (solve_cols_[k].part) d = d - v3(part_dirs[j]);
+        const std::size_t j = std::size_t(position_.linear[std::size_t(k)]);
+        V3 d = position_.cols[k].tool ? v3(tool_dirs[j]) : V3{0, 0, 0};
+        if (position_.cols[k].part) d = d - v3(part_dirs[j]);
         col[k] = transposed_times(Rp, d);
     }
     V3 dq;
     if (!jacobian_step(col, tip, current, dq)) return singular_jacobian();
-    q[std::size_t(linear_[0])] += dq.x;
-    q[std::size_t(linear_[1])] += dq.y;
-    q[std::size_t(linear_[2])] += dq.z;
+    q[std::size_t(position_.linear[0])] += dq.x;
+    q[std::size_t(position_.linear[1])] += dq.y;
+    q[std::size_t(position_.linear[2])] += dq.z;
     if (want_end) {
         double moved[kMaxJoints] = {};
-        moved[linear_[0]] = dq.x;
-        moved[linear_[1]] = dq.y;
-        moved[linear_[2]] = dq.z;
-        fill_solved_end(line_shifts_, tool_linear_, n, moved, tt, lines, count, part_dirs, tool_dirs, tip, q, *end);
+        moved[position_.linear[0]] = dq.x;
+        moved[position_.linear[1]] = dq.y;
+        moved[position_.linear[2]] = dq.z;
+        fill_solved_end(ends_.line_shifts, ends_.tool_linear, n, moved, tt, lines, count, part_dirs, tool_dirs, tip, q, *end);
     }
     return {};
 }
 
 IkResult Kinematics::solve_position_general(const Eigen::Vector3d& tip, std::vector<double>& q, Eigen::Vector3d* axis,
                                             SolvedEnd* end) const {
-    if (constant_jacobian_) return solve_position(tip, q, axis, end);
+    if (position_.constant_jacobian) return solve_position(tip, q, axis, end);
     const std::size_t n = machine_.joints.size();  // at most 5 (the loader checks)
     Eigen::Vector3d part_dirs[kMaxJoints], tool_dirs[kMaxJoints];
     for (std::size_t j = 0; j < n; ++j) part_dirs[j].setZero(), tool_dirs[j].setZero();
     Eigen::Matrix3d Rp, Rt;
     Eigen::Vector3d tp, tt;
     // With `end` the walk also records the rotaries' axis lines (the same R and t either way).
-    const bool want_end = end && solved_ends_;
+    const bool want_end = end && ends_.on;
     if (end) end->valid = false;
     AxisLine lines[kMaxJoints];
     int count = 0;
@@ -443,55 +503,45 @@ IkResult Kinematics::solve_position_general(const Eigen::Vector3d& tip, std::vec
     }
     const Eigen::Vector3d current = Rp.transpose() * (tt - tp);
     Eigen::Matrix3d J;
-    if (!linear_jacobian(Rp, part_dirs, tool_dirs, J))
+    if (!linear_jacobian(position_.linear, Rp, part_dirs, tool_dirs, J))
         return singular_jacobian();
     const Eigen::Vector3d dq = J.inverse() * (tip - current);  // closed-form 3x3 inverse
-    for (int i = 0; i < 3; ++i) q[std::size_t(linear_[std::size_t(i)])] += dq[i];
+    for (int i = 0; i < 3; ++i) q[std::size_t(position_.linear[std::size_t(i)])] += dq[i];
     if (want_end) {
         // The lever arms at the solution from the walk's own lines: the linear joints moved by
         // dq carry the tip (those of the tool chain) and the axis lines behind them (those ahead
         // of each line in its chain) along their directions; nothing turns.
         double moved[kMaxJoints] = {};
-        for (int i = 0; i < 3; ++i) moved[linear_[std::size_t(i)]] = dq[i];
-        fill_solved_end(line_shifts_, tool_linear_, n, moved, v3(tt), lines, count, part_dirs, tool_dirs, tip, q, *end);
+        for (int i = 0; i < 3; ++i) moved[position_.linear[std::size_t(i)]] = dq[i];
+        fill_solved_end(ends_.line_shifts, ends_.tool_linear, n, moved, v3(tt), lines, count, part_dirs, tool_dirs, tip, q, *end);
     }
     return {};
-}
-
-bool Kinematics::linear_jacobian(const Eigen::Matrix3d& Rp, const Eigen::Vector3d* part_dirs, const Eigen::Vector3d* tool_dirs,
-                                 Eigen::Matrix3d& J) const {
-    if (linear_.size() < 3) return false;  // the loader requires three; a machine built by hand may not have them
-    for (int k = 0; k < 3; ++k) {
-        const std::size_t j = std::size_t(linear_[std::size_t(k)]);
-        J.col(k) = Rp.transpose() * (tool_dirs[j] - part_dirs[j]);
-    }
-    return std::abs(J.determinant()) > 1e-9;
 }
 
 Kinematics::Solutions Kinematics::orientation_solutions_general(const Eigen::Vector3d& axis) const {
     const double nan = std::numeric_limits<double>::quiet_NaN();
     Solutions out;
     out.axis = axis;
-    const Eigen::Vector3d u = g0_.transpose() * axis.normalized();
-    if (rotary_.empty()) {
-        if ((u - p_).norm() < kReachEps) out.count = 1;
+    const Eigen::Vector3d u = frame_.g0.transpose() * axis.normalized();
+    if (frame_.rotary.empty()) {
+        if ((u - frame_.p).norm() < kReachEps) out.count = 1;
         return out;
     }
-    if (rotary_.size() == 1) {
-        const Eigen::Vector3d& w = w_[0];
-        if (std::abs(w.dot(u) - w.dot(p_)) > kReachEps) return out;
-        const double phi = subproblem1(w, p_, u);
-        out.angle[0][0] = std::isnan(phi) ? nan : sign_[0] * phi / kDeg;
+    if (frame_.rotary.size() == 1) {
+        const Eigen::Vector3d& w = frame_.w[0];
+        if (std::abs(w.dot(u) - w.dot(frame_.p)) > kReachEps) return out;
+        const double phi = subproblem1(w, frame_.p, u);
+        out.angle[0][0] = std::isnan(phi) ? nan : frame_.sign[0] * phi / kDeg;
         out.count = 1;
         return out;
     }
-    const Eigen::Vector3d& w1 = w_[0];
-    const Eigen::Vector3d& w2 = w_[1];
+    const Eigen::Vector3d& w1 = frame_.w[0];
+    const Eigen::Vector3d& w2 = frame_.w[1];
     const double a = w1.dot(w2);
-    const double alpha = (a * w2.dot(p_) - w1.dot(u)) / (a * a - 1.0);
-    const double beta = (a * w1.dot(u) - w2.dot(p_)) / (a * a - 1.0);
+    const double alpha = (a * w2.dot(frame_.p) - w1.dot(u)) / (a * a - 1.0);
+    const double beta = (a * w1.dot(u) - w2.dot(frame_.p)) / (a * a - 1.0);
     const Eigen::Vector3d n = w1.cross(w2);
-    const double gamma2 = (p_.squaredNorm() - alpha * alpha - beta * beta - 2.0 * alpha * beta * a) / n.squaredNorm();
+    const double gamma2 = (frame_.p.squaredNorm() - alpha * alpha - beta * beta - 2.0 * alpha * beta * a) / n.squaredNorm();
     if (gamma2 < -kReachEps * kReachEps) return out;
     const double gamma = std::sqrt(std::max(gamma2, 0.0));
     Subproblem1 first{}, first1{};
@@ -503,7 +553,7 @@ Kinematics::Solutions Kinematics::orientation_solutions_general(const Eigen::Vec
         // does), it is the first's negated, since atan2(-y, x) = -atan2(y, x) exactly (glibc
         // works on |y| and copies y's sign onto the result; test_kinematics holds it on random
         // values). No atan2 then.
-        const Subproblem1 terms2 = subproblem1_terms(w2, p_, c);
+        const Subproblem1 terms2 = subproblem1_terms(w2, frame_.p, c);
         double phi2;
         if (s < 0 && !terms2.free && !first.free && terms2.x == first.x && std::signbit(terms2.x) == std::signbit(first.x) &&
             -terms2.y == first.y && std::signbit(terms2.y) != std::signbit(first.y))
@@ -522,8 +572,8 @@ Kinematics::Solutions Kinematics::orientation_solutions_general(const Eigen::Vec
             phi1 = angle_of(terms1);
         first1 = terms1;
         first_phi1 = phi1;
-        out.angle[out.count][0] = std::isnan(phi1) ? nan : sign_[0] * phi1 / kDeg;
-        out.angle[out.count][1] = std::isnan(phi2) ? nan : sign_[1] * phi2 / kDeg;
+        out.angle[out.count][0] = std::isnan(phi1) ? nan : frame_.sign[0] * phi1 / kDeg;
+        out.angle[out.count][1] = std::isnan(phi2) ? nan : frame_.sign[1] * phi2 / kDeg;
         ++out.count;
         if (gamma == 0.0) break;
     }

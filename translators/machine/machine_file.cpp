@@ -310,19 +310,8 @@ toml::table parse(const std::string& text, const std::string& path) {
     }
 }
 
-Machine build(const toml::table& root, const std::string& path, const std::map<std::string, double>& overrides) {
-    Reader r(path, root);
-    r.only_keys(root, "", {"name", "description", "source", "parameters", "joints", "part_chain", "tool_chain",
-                           "tool", "input", "firmware", "motion", "compensation", "bodies", "collision"});
-    Machine m;
-    m.source_path = path;
-    m.name = r.string(root.get("name"), "name");
-    if (root.contains("description")) m.description = r.string(root.get("description"), "description");
-    if (root.contains("source")) (void)r.string(root.get("source"), "source");
-    load_parameters(r, overrides);
-    m.parameters = r.params;
-    load_joints(r, m);
-
+// The two chains, each joint in one of them; three linear joints, at most two rotary.
+void load_chains(Reader& r, const toml::table& root, Machine& m) {
     std::vector<bool> used(m.joints.size(), false);
     m.part_chain = load_chain(r, m, "part_chain", used);
     m.tool_chain = load_chain(r, m, "tool_chain", used);
@@ -334,7 +323,10 @@ Machine build(const toml::table& root, const std::string& path, const std::map<s
     }
     if (linear != 3) r.fail(root.get("joints"), "joints", "exactly three linear joints are needed, found " + std::to_string(linear));
     if (rotary > 2) r.fail(root.get("joints"), "joints", "at most two rotary joints are supported, found " + std::to_string(rotary));
+}
 
+// [tool] and [input].
+void load_tool_and_input(Reader& r, const toml::table& root, Machine& m) {
     if (const auto* tool = root.get("tool")) {
         const auto* t = tool->as_table();
         if (!t) r.fail(tool, "tool", "expected a table");
@@ -353,6 +345,10 @@ Machine build(const toml::table& root, const std::string& path, const std::map<s
             else r.fail(t->get("mode"), "input.mode", "expected \"G43.4\", \"G43.5\" or \"G49\"");
         }
     }
+}
+
+// [firmware]: the dialect, the decimals, inverse time and the planner's settings.
+void load_firmware(Reader& r, const toml::table& root, Machine& m) {
     if (const auto* fw = root.get("firmware")) {
         const auto* t = fw->as_table();
         if (!t) r.fail(fw, "firmware", "expected a table");
@@ -395,6 +391,10 @@ Machine build(const toml::table& root, const std::string& path, const std::map<s
                 r.fail(it, "firmware.inverse_time", "only RepRapFirmware takes G93 inverse-time feeds");
         }
     }
+}
+
+// [motion]: the split's tolerances and the rotary feed.
+void load_motion(Reader& r, const toml::table& root, Machine& m) {
     if (const auto* mo = root.get("motion")) {
         const auto* t = mo->as_table();
         if (!t) r.fail(mo, "motion", "expected a table");
@@ -408,6 +408,24 @@ Machine build(const toml::table& root, const std::string& path, const std::map<s
         positive("angle_tolerance", m.motion.angle_tolerance);
         positive("rotary_feed", m.motion.rotary_feed);
     }
+}
+
+Machine build(const toml::table& root, const std::string& path, const std::map<std::string, double>& overrides) {
+    Reader r(path, root);
+    r.only_keys(root, "", {"name", "description", "source", "parameters", "joints", "part_chain", "tool_chain",
+                           "tool", "input", "firmware", "motion", "compensation", "bodies", "collision"});
+    Machine m;
+    m.source_path = path;
+    m.name = r.string(root.get("name"), "name");
+    if (root.contains("description")) m.description = r.string(root.get("description"), "description");
+    if (root.contains("source")) (void)r.string(root.get("source"), "source");
+    load_parameters(r, overrides);
+    m.parameters = r.params;
+    load_joints(r, m);
+    load_chains(r, root, m);
+    load_tool_and_input(r, root, m);
+    load_firmware(r, root, m);
+    load_motion(r, root, m);
     if (root.contains("compensation")) {
         m.compensation = load_terms(r, m, std::as_const(root)["compensation"]);
         m.compensation.source = path;

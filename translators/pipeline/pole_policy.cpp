@@ -205,7 +205,7 @@ bool PoleHold::hold(const std::vector<double>& q0, const std::vector<double>& us
     // so cleared has every point inside the margin; one of a single step has no point inside.
     // (A gap below chord_within's chord is inside the limit; a stricter test than the asin's by
     // 1e-12 of it, which at most measures an interval more: the same verdict.)
-    const double bend = 8.0 * kin_.axis_path_bound(q0.data(), q.data()) + arc.angle * arc.angle;
+    const double bend = 8.0 * kin_.path_bound().axis_path_bound(q0.data(), q.data()) + arc.angle * arc.angle;
     const double chord_limit = chord_limit_;  // chord_within(limit - kSlack), per machine
     auto cleared = [&](auto& self, int a, int b, double chord_a, double chord_b) -> bool {
         if (b - a <= 1) return true;

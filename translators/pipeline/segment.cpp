@@ -258,7 +258,7 @@ bool Segmenter::piece_within(const MoveSpec& mv, double sa, double sb, const dou
         if (middle) {
             // The ends' FK: qb's is kept for the next piece, which starts there when this one passes.
             const Kinematics::PathEnd& ea = path_end(qa);
-            const Kinematics::PathBound b = kin_.joint_path_bound(ea, qa, qb);
+            const Kinematics::PathBound b = kin_.path_bound().joint_path_bound(ea, qa, qb);
             if (!std::isfinite(b.tip)) continue;
             // Copies of the start's pose and slacks (the next call may reuse the slot); a bounded
             // end (near_end) is within its slacks of its pose.
@@ -306,7 +306,7 @@ const Kinematics::PathEnd& EndCache::find(const double* q, bool is_end, const Ki
     }
     // The move's printed end (split passes q1_printed_ itself), a rounding of the solve's own
     // end: bounded from it, no FK.
-    if (solved && is_end && kin_.near_end(*solved, q, c.end)) return c.end;
+    if (solved && is_end && kin_.path_bound().near_end(*solved, q, c.end)) return c.end;
     c.end = kin_.path_end(q);
     return c.end;
 }
@@ -316,15 +316,16 @@ bool Segmenter::reach_clears(const MoveSpec& mv, double tol) const {
     // reach (it holds anywhere inside the limits), and the printed ends' distance from the line
     // at most how far rounding moves the tip from the exact ends, which are on it. A pass here
     // is a pass of the bound below and of the samples; a fail decides nothing (they run).
-    if (mv.mode != OrientationMode::Angles || !kin_.has_reach()) return false;
+    const JointPathBound& bound = kin_.path_bound();
+    if (mv.mode != OrientationMode::Angles || !bound.has_reach()) return false;
     constexpr double kSlack = 1e-9;  // as bounded_within's
-    const Kinematics::PathBound b = kin_.joint_path_bound(kin_.reach(), q0_printed_.data(), q1_printed_.data());
+    const Kinematics::PathBound b = bound.joint_path_bound(bound.reach(), q0_printed_.data(), q1_printed_.data());
     if (!(b.tip <= tol - kSlack)) return false;
     // The start's shift is the last move's end's, measured by the split before this one when it
     // got here (split calls this only for a move that starts at the last one's end, joints and
     // tip): the same values, the same sum.
-    const double start = shift_split_ + 1 == splits_ ? end_shift_ : kin_.reach_shift(mv.q0->data(), q0_printed_.data());
-    const double end = kin_.reach_shift(mv.q1->data(), q1_printed_.data());
+    const double start = shift_split_ + 1 == splits_ ? end_shift_ : bound.reach_shift(mv.q0->data(), q0_printed_.data());
+    const double end = bound.reach_shift(mv.q1->data(), q1_printed_.data());
     end_shift_ = end;
     shift_split_ = splits_;
     const double ends = std::max(start, end);
@@ -337,7 +338,7 @@ bool Segmenter::bounded_within(const MoveSpec& mv, double sa, double sb, const d
     // covers rounding in the two computations.
     constexpr double kSlack = 1e-9;
     const Kinematics::PathEnd& ea = path_end(qa);
-    const Kinematics::PathBound b = kin_.joint_path_bound(ea, qa, qb);
+    const Kinematics::PathBound b = kin_.path_bound().joint_path_bound(ea, qa, qb);
     // The path lies within b.tip of the chord between its ends, and that chord within the
     // farther end's distance of the programmed segment. The first part alone often decides (a
     // piece being lengthened to the tolerance): then no FK at qb.
