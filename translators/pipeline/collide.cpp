@@ -187,7 +187,9 @@ struct CollisionStage::Impl {
     }
 
     // How far any point of solid i may move in the part frame over the joint change dq, from
-    // snapshot s on (docs/machines.md, "Bodies": the sweep's bound).
+    // snapshot s on (docs/machines.md, "Bodies": the sweep's bound). Loose (the linear joints'
+    // travel and the rotaries' arms add up although the kinematics makes them cancel at the
+    // tip): it only bounds the arms' growth within a sub-step for rate() below.
     double bound(int i, const Snapshot& s, const double* dq) const {
         if (!solids[std::size_t(i)].moves) return 0;
         const double R = solids[std::size_t(i)].body->radius;
@@ -204,6 +206,39 @@ struct CollisionStage::Impl {
         // The arms grow by at most what every point and axis moves within the step (each at
         // most the bound itself): D <= a + 2 turn D.
         return a / (1 - 2 * turn);
+    }
+
+    // The most any point of solid i moves in the part frame per unit of the sub-step from a to b
+    // (joint change dq over it): a Lipschitz bound, tight where bound() is loose. A point's
+    // path p(u) has |p'(u) - (p(1) - p(0))| <= M / 2 with M >= |p''|; p(1) - p(0) is at most
+    // the body frame's chord plus its turn times the body's radius; and with the joints moving
+    // at constant rates, M <= 4 T^2 r + 3 T L (T: the rotaries' turn, L: the linear joints'
+    // travel, r: the farthest a point or axis gets from a rotary axis). Derivation:
+    // docs/machines.md, "Bodies".
+    double rate(int i, const Snapshot& a, const Snapshot& b, const double* dq) const {
+        if (!solids[std::size_t(i)].moves) return 0;
+        const Body& body = *solids[std::size_t(i)].body;
+        const Iso& pa = a.pose[std::size_t(i)];
+        const Iso& pb = b.pose[std::size_t(i)];
+        // The bounding sphere's centre: the body's chain frame origin.
+        const Eigen::Vector3d o = body.place.inverse().translation();
+        const Eigen::Vector3d oa = pa * o, ob = pb * o;
+        const double turned = Eigen::AngleAxisd(pa.linear().transpose() * pb.linear()).angle();
+        const double chord = (ob - oa).norm() + std::abs(turned) * body.radius;
+        double T = 0, L = 0, r = 0;
+        for (const int j : linear_joints) L += std::abs(dq[j]);
+        for (std::size_t k = 0; k < rotaries.size(); ++k) {
+            const double th = std::abs(dq[rotaries[k].joint]) * kPi / 180.0;
+            if (th == 0) continue;
+            T += th;
+            // Every point of the body lies within its radius of the shape's centre.
+            const Eigen::Vector3d v = a.centre[std::size_t(i)] - a.line_point[k];
+            r = std::max(r, (v - v.dot(a.line_dir[k]) * a.line_dir[k]).norm() + body.radius);
+        }
+        if (T == 0) return chord;
+        r += 2 * bound(i, a, dq);  // how far points and axes get within the step
+        const double M = 4 * T * T * r + 3 * T * L;
+        return chord + 0.5 * M;
     }
 
     void pose_at(const double* q0, const double* q1, double s, Snapshot& out) {
@@ -315,7 +350,7 @@ struct CollisionStage::Impl {
                 fcl::AABBd box = solids[i].object->getAABB();
                 place(int(i), b.pose[i]);
                 box += solids[i].object->getAABB();
-                D[i] = bound(int(i), a, dstep.data());
+                D[i] = rate(int(i), a, b, dstep.data());
                 // Without rotation every solid only translates, along a straight line in the part
                 // frame: the join of its end boxes holds its whole sweep, no growth needed.
                 grow(box, (step_turns ? 0.5 * D[i] : 0.0) + kContact);
