@@ -304,48 +304,6 @@ struct CollisionStage::Impl {
         box.max_ += Eigen::Vector3d::Constant(by);
     }
 
-    struct Nearest {
-        double d = 1e300;
-        const fcl::CollisionObjectd* probe = nullptr;
-        fcl::CollisionObjectd* other = nullptr;
-        std::uint64_t* queries = nullptr;
-    };
-    static bool nearest(fcl::CollisionObjectd* a, fcl::CollisionObjectd* b, void* data, double& dist) {
-        auto* n = static_cast<Nearest*>(data);
-        // Only a bead nearer than the best so far (at first: the most the body can move in the
-        // rest of the step) matters: the boxes' distance rules most out without GJK.
-        if (a->getAABB().distance(b->getAABB()) >= n->d) {
-            dist = n->d;
-            return false;
-        }
-        ++*n->queries;
-        fcl::DistanceRequestd request;
-        request.gjk_solver_type = fcl::GST_INDEP;  // FCL's own GJK: several times faster than libccd's here
-        request.distance_tolerance = kGjkTolerance;
-        fcl::DistanceResultd result;
-        fcl::distance(a, b, request, result);
-        const double md = result.min_distance * (1 - kGjkTolerance);
-        if (md < n->d) n->d = md, n->other = a == n->probe ? b : a;
-        dist = n->d;  // the best so far: the tree skips what lies farther
-        return n->d <= kContact;
-    }
-
-    static bool any_overlap(fcl::CollisionObjectd*, fcl::CollisionObjectd*, void* data) {
-        *static_cast<bool*>(data) = true;
-        return true;  // one is enough
-    }
-    // Whether any bead's box meets `box` (the tree calls back only for overlapping boxes).
-    bool overlaps_part(const fcl::AABBd& box) {
-        const Eigen::Vector3d size = (box.max_ - box.min_).cwiseMax(1e-9);
-        if (!probe_box) probe_box = std::make_shared<fcl::Boxd>(size);
-        probe_box->side = size;
-        probe_box->computeLocalAABB();
-        fcl::CollisionObjectd probe(probe_box, Iso(Eigen::Translation3d(box.center())));
-        probe.computeAABB();
-        bool hit = false;
-        part.collide(&probe, &hit, &any_overlap);
-        return hit;
-    }
     std::shared_ptr<fcl::Boxd> probe_box;
 
     std::vector<std::size_t> candidates;
