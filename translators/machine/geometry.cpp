@@ -301,6 +301,7 @@ void load_geometry(const toml::table& root, const std::string& path, const std::
         b.radius = bounding_radius(s, b.place);
         if (b.tool_side && b.after == int(chain.size()) - 1) {
             const double low = lowest_along(s, b.place, m.tool_axis);
+            b.low = low;
             if (low < geometry->settings.tip_clearance - 1e-9) {
                 std::ostringstream os;
                 os << "reaches " << low << " mm along the tool axis from the tip, below collision.tip_clearance ("

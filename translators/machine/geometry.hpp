@@ -35,6 +35,9 @@ struct Body {
     BodyShape shape;
     double radius = 0;  // of the sphere about the shape frame's origin that holds the shape
     int line = 0;       // in the machine file, for messages
+    // A tool body on the tip's frame: its lowest point along the tool axis from the tip (mm,
+    // at least tip_clearance); what lies wholly below that cannot meet it.
+    double low = -1e300;
 };
 
 struct CollisionSettings {

@@ -81,6 +81,8 @@ struct Snapshot {
     std::vector<Eigen::Vector3d> centre;     // per solid, base frame
     std::vector<Eigen::Vector3d> line_point, line_dir;  // per rotary chain element, base frame
     std::vector<fcl::AABBd> box;             // per solid, part frame
+    Iso tip = Iso::Identity();               // the tip's frame, part frame
+    Eigen::Vector3d tip_base = Eigen::Vector3d::Zero();
 };
 
 void walk(const std::vector<ChainElement>& chain, const double* q, std::vector<Iso>& out) {
@@ -118,6 +120,7 @@ struct CollisionStage::Impl {
     struct Bead {
         std::unique_ptr<fcl::CollisionObjectd> object;
         std::uint64_t line = 0;
+        Eigen::Vector3d centre, half[3];  // the box: centre and half axes, part frame
     };
     std::vector<Bead> beads;
     fcl::DynamicAABBTreeCollisionManagerd part;
@@ -174,6 +177,9 @@ struct CollisionStage::Impl {
             s.centre[i] = base.translation();
             s.pose[i] = to_part * base;
         }
+        const Iso tip_base = tool_frames.empty() ? Iso::Identity() : tool_frames.back();
+        s.tip = to_part * tip_base;
+        s.tip_base = tip_base.translation();
         s.line_point.resize(rotaries.size());
         s.line_dir.resize(rotaries.size());
         for (std::size_t r = 0; r < rotaries.size(); ++r) {
@@ -187,16 +193,21 @@ struct CollisionStage::Impl {
     }
 
     // How far any point of solid i may move in the part frame over the joint change dq, from
-    // snapshot s on (docs/machines.md, "Bodies": the sweep's bound).
+    // snapshot s on (docs/machines.md, "Bodies": the sweep's bound). Loose (the linear joints'
+    // travel and the rotaries' arms add up although the kinematics makes them cancel at the
+    // tip): it only bounds the arms' growth within a sub-step for rate() below.
     double bound(int i, const Snapshot& s, const double* dq) const {
         if (!solids[std::size_t(i)].moves) return 0;
-        const double R = solids[std::size_t(i)].body->radius;
+        return bound_at(s.centre[std::size_t(i)], solids[std::size_t(i)].body->radius, s, dq);
+    }
+    // The same for a sphere of radius R about `centre` (base frame) carried by the tool.
+    double bound_at(const Eigen::Vector3d& centre, double R, const Snapshot& s, const double* dq) const {
         double a = 0, turn = 0;
         for (const int j : linear_joints) a += std::abs(dq[j]);
         for (std::size_t r = 0; r < rotaries.size(); ++r) {
             const double th = std::abs(dq[rotaries[r].joint]) * kPi / 180.0;
             if (th == 0) continue;
-            const Eigen::Vector3d v = s.centre[std::size_t(i)] - s.line_point[r];
+            const Eigen::Vector3d v = centre - s.line_point[r];
             const double arm = (v - v.dot(s.line_dir[r]) * s.line_dir[r]).norm() + R;
             a += th * arm;
             turn += th;
@@ -204,6 +215,59 @@ struct CollisionStage::Impl {
         // The arms grow by at most what every point and axis moves within the step (each at
         // most the bound itself): D <= a + 2 turn D.
         return a / (1 - 2 * turn);
+    }
+
+    // The most any point of solid i moves in the part frame per unit of the sub-step from a to b
+    // (joint change dq over it): a Lipschitz bound, tight where bound() is loose. A point's
+    // path p(u) has |p'(u) - (p(1) - p(0))| <= M / 2 with M >= |p''|; p(1) - p(0) is at most
+    // the body frame's chord plus its turn times the body's radius; and with the joints moving
+    // at constant rates, M <= 4 T^2 r + 3 T L (T: the rotaries' turn, L: the linear joints'
+    // travel, r: the farthest a point or axis gets from a rotary axis). Derivation:
+    // docs/machines.md, "Bodies".
+    double rate(int i, const Snapshot& a, const Snapshot& b, const double* dq) const {
+        if (!solids[std::size_t(i)].moves) return 0;
+        const Body& body = *solids[std::size_t(i)].body;
+        const Iso& pa = a.pose[std::size_t(i)];
+        const Iso& pb = b.pose[std::size_t(i)];
+        // The bounding sphere's centre: the body's chain frame origin.
+        const Eigen::Vector3d o = body.place.inverse().translation();
+        const Eigen::Vector3d oa = pa * o, ob = pb * o;
+        const double turned = Eigen::AngleAxisd(pa.linear().transpose() * pb.linear()).angle();
+        const double chord = (ob - oa).norm() + std::abs(turned) * body.radius;
+        return chord + curve(a.centre[std::size_t(i)], body.radius, a, dq);
+    }
+    // Half the bound on |p''| of rate() for a sphere of radius R about `centre` (base frame).
+    double curve(const Eigen::Vector3d& centre, double R, const Snapshot& a, const double* dq) const {
+        double T = 0, L = 0, r = 0;
+        for (const int j : linear_joints) L += std::abs(dq[j]);
+        for (std::size_t k = 0; k < rotaries.size(); ++k) {
+            const double th = std::abs(dq[rotaries[k].joint]) * kPi / 180.0;
+            if (th == 0) continue;
+            T += th;
+            // Every point of the body lies within its radius of the shape's centre.
+            const Eigen::Vector3d v = centre - a.line_point[k];
+            r = std::max(r, (v - v.dot(a.line_dir[k]) * a.line_dir[k]).norm() + R);
+        }
+        if (T == 0) return 0;
+        r += 2 * bound_at(centre, R, a, dq);  // how far points and axes get within the step
+        return 0.5 * (4 * T * T * r + 3 * T * L);
+    }
+
+    // Whether the box (centre c, half axes h, part frame, fixed there) lies wholly below tool
+    // body t's lowest point along the tool axis over the whole sub-step a -> b: then they
+    // cannot meet. A point x's height over the tip, z = n . (x - tip), changes at most by
+    // T (|x - tip| + Dtip) + Dtip (T: the turn, Dtip: the tip's rate) over the step.
+    bool below(int t, const Eigen::Vector3d& c, const Eigen::Vector3d* h, const Snapshot& a, double T, double Dtip) const {
+        const double low = solids[std::size_t(t)].body->low;
+        if (low < -1e299) return false;
+        const Eigen::Vector3d n = a.tip.linear() * machine.tool_axis;
+        const Eigen::Vector3d tip = a.tip.translation();
+        for (int k = 0; k < 8; ++k) {
+            const Eigen::Vector3d x = c + ((k & 1) ? h[0] : -h[0]) + ((k & 2) ? h[1] : -h[1]) + ((k & 4) ? h[2] : -h[2]);
+            const double z = n.dot(x - tip) + T * ((x - tip).norm() + Dtip) + Dtip;
+            if (z >= low - kContact) return false;
+        }
+        return true;
     }
 
     void pose_at(const double* q0, const double* q1, double s, Snapshot& out) {
@@ -240,49 +304,28 @@ struct CollisionStage::Impl {
         box.max_ += Eigen::Vector3d::Constant(by);
     }
 
-    struct Nearest {
-        double d = 1e300;
-        const fcl::CollisionObjectd* probe = nullptr;
-        fcl::CollisionObjectd* other = nullptr;
-        std::uint64_t* queries = nullptr;
-    };
-    static bool nearest(fcl::CollisionObjectd* a, fcl::CollisionObjectd* b, void* data, double& dist) {
-        auto* n = static_cast<Nearest*>(data);
-        // Only a bead nearer than the best so far (at first: the most the body can move in the
-        // rest of the step) matters: the boxes' distance rules most out without GJK.
-        if (a->getAABB().distance(b->getAABB()) >= n->d) {
-            dist = n->d;
-            return false;
-        }
-        ++*n->queries;
-        fcl::DistanceRequestd request;
-        request.gjk_solver_type = fcl::GST_INDEP;  // FCL's own GJK: several times faster than libccd's here
-        request.distance_tolerance = kGjkTolerance;
-        fcl::DistanceResultd result;
-        fcl::distance(a, b, request, result);
-        const double md = result.min_distance * (1 - kGjkTolerance);
-        if (md < n->d) n->d = md, n->other = a == n->probe ? b : a;
-        dist = n->d;  // the best so far: the tree skips what lies farther
-        return n->d <= kContact;
-    }
+    std::shared_ptr<fcl::Boxd> probe_box;
 
-    static bool any_overlap(fcl::CollisionObjectd*, fcl::CollisionObjectd*, void* data) {
-        *static_cast<bool*>(data) = true;
-        return true;  // one is enough
+    std::vector<std::size_t> candidates;
+    static constexpr std::intptr_t kProbe = -1;
+    static bool collect(fcl::CollisionObjectd* a, fcl::CollisionObjectd* b, void* data) {
+        auto* self = static_cast<Impl*>(data);
+        // One is the probe; the bead carries its index.
+        const auto* bead = reinterpret_cast<std::intptr_t>(a->getUserData()) == kProbe ? b : a;
+        self->candidates.push_back(std::size_t(reinterpret_cast<std::intptr_t>(bead->getUserData())));
+        return false;  // every one
     }
-    // Whether any bead's box meets `box` (the tree calls back only for overlapping boxes).
-    bool overlaps_part(const fcl::AABBd& box) {
+    // The beads whose boxes meet `box`, into `candidates`.
+    void collect_part(const fcl::AABBd& box) {
         const Eigen::Vector3d size = (box.max_ - box.min_).cwiseMax(1e-9);
         if (!probe_box) probe_box = std::make_shared<fcl::Boxd>(size);
         probe_box->side = size;
         probe_box->computeLocalAABB();
         fcl::CollisionObjectd probe(probe_box, Iso(Eigen::Translation3d(box.center())));
         probe.computeAABB();
-        bool hit = false;
-        part.collide(&probe, &hit, &any_overlap);
-        return hit;
+        probe.setUserData(reinterpret_cast<void*>(kProbe));
+        part.collide(&probe, this, &collect);
     }
-    std::shared_ptr<fcl::Boxd> probe_box;
 
     // The first contact over the sweep q0 -> q1, or none.
     std::optional<CollisionEvent> sweep(const double* q0, const double* q1) {
@@ -315,12 +358,16 @@ struct CollisionStage::Impl {
                 fcl::AABBd box = solids[i].object->getAABB();
                 place(int(i), b.pose[i]);
                 box += solids[i].object->getAABB();
-                D[i] = bound(int(i), a, dstep.data());
+                D[i] = rate(int(i), a, b, dstep.data());
                 // Without rotation every solid only translates, along a straight line in the part
                 // frame: the join of its end boxes holds its whole sweep, no growth needed.
                 grow(box, (step_turns ? 0.5 * D[i] : 0.0) + kContact);
                 swept[i] = box;
             }
+            // The turn and the tip's rate over the step, for below().
+            double T = 0;
+            for (const auto& r : rotaries) T += std::abs(dstep[std::size_t(r.joint)]) * kPi / 180.0;
+            const double Dtip = (b.tip.translation() - a.tip.translation()).norm() + curve(a.tip_base, 0, a, dstep.data());
             std::optional<CollisionEvent> first;
             double first_s = 2;
             for (const int t : tools) {
@@ -330,6 +377,12 @@ struct CollisionStage::Impl {
                     for (const int o : *list)
                         if (swept[std::size_t(t)].overlap(swept[std::size_t(o)])) cands.push_back({o, solids[std::size_t(o)].object.get()});
                 for (const auto& [who, obj] : cands) {
+                    if (!solids[std::size_t(who)].moves) {
+                        const fcl::AABBd& box = obj->getAABB();
+                        const Eigen::Vector3d e = 0.5 * (box.max_ - box.min_);
+                        const Eigen::Vector3d half[3] = {Eigen::Vector3d(e.x(), 0, 0), Eigen::Vector3d(0, e.y(), 0), Eigen::Vector3d(0, 0, e.z())};
+                        if (below(t, box.center(), half, a, T, Dtip)) continue;
+                    }
                     const double Do = D[std::size_t(who)];
                     const double rate = (D[std::size_t(t)] + Do) / (sb - sa);
                     double s = sa;
@@ -354,38 +407,34 @@ struct CollisionStage::Impl {
                         s += d / rate;
                     }
                 }
-                // The printed part: the nearest bead by the broad phase's distance query (its
-                // tree prunes every bead farther than the best found), advanced the same way.
-                // The printed part: none of its beads' boxes meets the tool body's swept box
-                // (one walk of the tree, no GJK), nothing to advance against.
-                if (!beads.empty() && overlaps_part(swept[std::size_t(t)])) {
-                    const double rate = D[std::size_t(t)] / (sb - sa);
+                // The printed part: the beads whose boxes meet the tool body's swept box (one
+                // walk of the tree, no GJK), less those wholly below the body's lowest point
+                // over the step (the layers it prints on); each one left advanced against.
+                if (beads.empty()) continue;
+                candidates.clear();
+                collect_part(swept[std::size_t(t)]);
+                const double rate = D[std::size_t(t)] / (sb - sa);
+                for (const std::size_t c : candidates) {
+                    const Bead& bead = beads[c];
+                    if (below(t, bead.centre, bead.half, a, T, Dtip)) continue;
                     double s = sa;
                     for (int it = 0;; ++it) {
-                        if (s != sa) {
-                            pose_at(q0, q1, s, mid);
-                            place(t, mid.pose[std::size_t(t)]);
-                        } else {
-                            place(t, a.pose[std::size_t(t)]);
-                        }
-                        Nearest near;
-                        near.d = rate * (sb - s) + kContact;  // farther than this: clear to the step's end
-                        near.probe = solids[std::size_t(t)].object.get();
-                        near.queries = &queries;
-                        part.distance(solids[std::size_t(t)].object.get(), &near, &nearest);
-                        if (near.d <= kContact || it >= kMaxAdvances) {
-                            if (s < first_s && near.other) {
+                        pose_at(q0, q1, s, mid);
+                        place(t, mid.pose[std::size_t(t)]);
+                        const double d = distance(*solids[std::size_t(t)].object, *bead.object);
+                        if (d <= kContact || it >= kMaxAdvances) {
+                            if (s < first_s) {
                                 first_s = s;
                                 CollisionEvent ev;
                                 ev.tool_body = solids[std::size_t(t)].body->name;
-                                ev.bead_line = beads[std::size_t(reinterpret_cast<std::intptr_t>(near.other->getUserData()))].line;
-                                ev.at = contact_point(*solids[std::size_t(t)].object, *near.other);
+                                ev.bead_line = bead.line;
+                                ev.at = contact_point(*solids[std::size_t(t)].object, *bead.object);
                                 first = ev;
                             }
                             break;
                         }
-                        if (!near.other || rate <= 0 || s + near.d / rate >= sb) break;
-                        s += near.d / rate;
+                        if (rate <= 0 || s + d / rate >= sb) break;
+                        s += d / rate;
                     }
                 }
             }
@@ -432,7 +481,8 @@ struct CollisionStage::Impl {
         object->computeAABB();
         object->setUserData(reinterpret_cast<void*>(std::intptr_t(beads.size())));
         part.registerObject(object.get());
-        beads.push_back({std::move(object), line});
+        beads.push_back({std::move(object), line, pose.translation(),
+                         {0.5 * length * pose.linear().col(0), 0.5 * w * pose.linear().col(1), 0.5 * h * pose.linear().col(2)}});
     }
 
     void truncate(std::size_t count) {
