@@ -51,16 +51,26 @@ bool is_command(std::string_view text, char letter, int number) {
     return i > 1 && v == number && (i == text.size() || text[i] == ' ');
 }
 
-// The number after ` <letter>` in a line's words, if given.
-std::optional<double> word(std::string_view text, char letter) {
-    for (std::size_t i = 1; i + 1 < text.size(); ++i) {
-        if (text[i] != letter || text[i - 1] != ' ') continue;
+// Each word of `text` from `from` on, as f(letter, value): words are split at spaces, and one
+// whose number does not read is skipped.
+template <class F>
+void for_each_word(std::string_view text, std::size_t from, F&& f) {
+    for (std::size_t i = from; i < text.size();) {
+        if (text[i] == ' ') {
+            ++i;
+            continue;
+        }
+        const char letter = text[i];
+        std::size_t end = text.find(' ', i);
+        if (end == std::string_view::npos) end = text.size();
+        std::string_view word = text.substr(i + 1, end - i - 1);
+        i = end;
+        // from_chars: correctly rounded as strtod, a tenth of its cost (strtod was half the scan's).
+        if (!word.empty() && word[0] == '+') word.remove_prefix(1);
         double v = 0;
-        const char* b = text.data() + i + 1;
-        if (*b == '+') ++b;
-        if (std::from_chars(b, text.data() + text.size(), v).ec == std::errc() && std::isfinite(v)) return v;
+        if (std::from_chars(word.data(), word.data() + word.size(), v).ec != std::errc() || !std::isfinite(v)) continue;
+        f(letter, v);
     }
-    return std::nullopt;
 }
 
 }  // namespace
@@ -111,8 +121,11 @@ void Preflight::line(std::string_view l) {
         if (is_command(text, 'G', 4)) {
             // Marlin (and RepRapFirmware): S seconds over P milliseconds; Klipper: P alone.
             const bool seconds_word = m_.dialect.firmware != FirmwareDialect::Klipper;
-            const auto s = seconds_word ? word(text, 'S') : std::nullopt;
-            const auto p = word(text, 'P');
+            std::optional<double> s, p;  // the first of each
+            for_each_word(text, text.find(' '), [&](char letter, double v) {
+                if (letter == 'S' && seconds_word && !s) s = v;
+                if (letter == 'P' && !p) p = v;
+            });
             const double d = std::max(0.0, s ? *s : p ? *p / 1000 : 0.0);
             ++dwells_, dwell_ += d;
             wait(d);
@@ -136,24 +149,11 @@ void Preflight::line(std::string_view l) {
     const bool set = text.substr(0, 4) == "G92 ";
     if (!move && !set) return;
     std::vector<double> to = q_;
-    for (std::size_t i = 3; i < text.size();) {
-        if (text[i] == ' ') {
-            ++i;
-            continue;
-        }
-        const char letter = text[i];
-        std::size_t end = text.find(' ', i);
-        if (end == std::string_view::npos) end = text.size();
-        std::string_view word = text.substr(i + 1, end - i - 1);
-        i = end;
-        // from_chars: correctly rounded as strtod, a tenth of its cost (strtod was half the scan's).
-        if (!word.empty() && word[0] == '+') word.remove_prefix(1);
-        double v = 0;
-        if (std::from_chars(word.data(), word.data() + word.size(), v).ec != std::errc() || !std::isfinite(v)) continue;
+    for_each_word(text, 3, [&](char letter, double v) {
         if (letter == 'F' && move) f_ = v;
         for (std::size_t j = 0; j < to.size(); ++j)
             if (m_.joints[j].output == letter) to[j] = v;
-    }
+    });
     if (move) add_move(q_, to, f_);
     q_ = to;
 }
