@@ -330,6 +330,21 @@ TEST_CASE("lines longer than the firmware's buffer are split, never sent long") 
     for (std::size_t i = 0; i < joined.size(); ++i) REQUIRE(joined[i] == expected[i]);
 }
 
+namespace {
+// What a sender hears when its print is cancelled at a line: never "Error" (OctoPrint would send
+// M112), OctoPrint's cancel, and an echo starting `quoted` that names `cause`.
+void check_cancelled(const std::vector<std::string>& received, const std::string& quoted, const std::string& cause) {
+    bool cancel = false, said = false;
+    for (const auto& r : received) {
+        CHECK_MESSAGE(r.rfind("Error", 0) != 0, "OctoPrint would send M112 on: " << r);
+        cancel = cancel || r == "//action:cancel";
+        said = said || (r.rfind(quoted, 0) == 0 && contains(r, cause));
+    }
+    CHECK(cancel);
+    CHECK_MESSAGE(said, "no echo starting '" << quoted << "' naming '" << cause << "'");
+}
+}  // namespace
+
 TEST_CASE("a refused print line cancels the print with OctoPrint's action command, quoting the line; never Error:") {
     Rig rig("rw2");
     REQUIRE(rig.ready());
@@ -337,14 +352,7 @@ TEST_CASE("a refused print line cancels the print with OctoPrint's action comman
     sender.stream({"G28", "G92 A-168", "G1 A0 B0 F3000", "G1 X10 Y10 Z5", "G1 X10 Q5", "G1 X20"});
     REQUIRE(rig.run_until([&] { return sender.done(); }, 10));
     rig.run_until([&] { return rig.service().idle(); }, 5);
-    bool cancel = false, quoted = false;
-    for (const auto& r : sender.received) {
-        CHECK_MESSAGE(r.rfind("Error", 0) != 0, "OctoPrint would send M112 on: " << r);
-        cancel = cancel || r == "//action:cancel";
-        quoted = quoted || (r.rfind("echo:xlate5: print cancelled at line 5 'G1 X10 Q5': ", 0) == 0 && r.find("Q") != std::string::npos);
-    }
-    CHECK(cancel);
-    CHECK(quoted);
+    check_cancelled(sender.received, "echo:xlate5: print cancelled at line 5 'G1 X10 Q5': ", "Q");
     const auto e = rig.executed_after_hello();
     REQUIRE(!e.empty());
     CHECK(e.back().find("X10") != std::string::npos);  // G1 X20 (line 6) never ran
@@ -378,15 +386,8 @@ TEST_CASE("a collision stops the print before its line reaches the firmware; eve
     sender.stream(lines);
     REQUIRE(rig.run_until([&] { return sender.done(); }, 20));
     rig.run_until([&] { return rig.service().idle(); }, 5);
-    bool cancel = false, quoted = false;
-    for (const auto& r : sender.received) {
-        CHECK_MESSAGE(r.rfind("Error", 0) != 0, "OctoPrint would send M112 on: " << r);
-        cancel = cancel || r == "//action:cancel";
-        quoted = quoted || (r.rfind("echo:xlate5: print cancelled at line " + number + " 'G1 Z6.2': ", 0) == 0 &&
-                            contains(r, "collision: heater block meets printed part at line "));
-    }
-    CHECK(cancel);
-    CHECK(quoted);
+    check_cancelled(sender.received, "echo:xlate5: print cancelled at line " + number + " 'G1 Z6.2': ",
+                    "collision: heater block meets printed part at line ");
     CHECK(rig.service().stopped());
     CHECK(contains(rig.service().stop_reason(), "collision"));
     // The firmware ran the translation of every line before the colliding one, and nothing of it.
