@@ -42,6 +42,11 @@ inline constexpr bool kAddressSanitized = false;
 inline constexpr bool kAddressSanitized = false;
 #endif
 
+// Cases of a long random loop. The sanitizer tree looks for memory errors and undefined
+// behaviour on the code paths the release tree checks numerically with every case, so it runs a
+// tenth of them (at least one): each case costs some ten times as much under the sanitizers.
+inline constexpr int sampled(int cases) { return kAddressSanitized ? std::max(1, cases / 10) : cases; }
+
 // A whole file as text ("" when it cannot be read).
 inline std::string read(const std::filesystem::path& p) {
     std::ifstream in(p, std::ios::binary);
