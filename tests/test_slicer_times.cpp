@@ -154,6 +154,7 @@ TEST_CASE("slicer times: M73's words, Cura's and PrusaSlicer's lines from the el
     CHECK(retimed_line("M73 P3 R40 C7 ; progress", 250, 1000) == "M73 P25 R12 C7 ; progress");
     CHECK(retimed_line("M73 Q3 S40", 999.99, 1000) == "M73 Q99 S0");
     CHECK(retimed_line("M73 P0", 1000, 1000) == "M73 P100");
+    CHECK(retimed_line("M73 P0", 96.252640687, 96.252640687) == "M73 P100");
     CHECK(retimed_line(";TIME:77", 0, 1234.6) == ";TIME:1235");
     CHECK(retimed_line(";TIME_ELAPSED:3.5", 12.25, 100) == ";TIME_ELAPSED:12.250000");
     // No estimate (no motion): the line as written.
@@ -193,6 +194,44 @@ TEST_CASE("slicer times: the scan and the rewrite agree in any pieces, a last li
     CHECK(lines[2] == "G1 X10 F600");
     CHECK(lines[6] == "M73 P100 R0");
     CHECK(lines[1].rfind("M73 P0 R", 0) == 0);
+}
+
+TEST_CASE("slicer times: a dwell's seconds count where it runs, as in the report's seconds") {
+    // The same moves with and without a 90 s dwell between two M73 lines: each line after the
+    // dwell is 90 s further on, each before it 90 s further from the end, and the total is the
+    // pre-flight's seconds (which counts the dwell, as Marlin's G4 S90 waits after the planner
+    // ran out).
+    const Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/rw2.toml");
+    const std::string moves_a = "M73 P0 R9\nG1 X10 F600\nG1 X40 Y30\n", moves_b = "M73 P50 R1\nG1 X20 F1200\nM73 P100 R0\n";
+    auto rewrite = [&](const std::string& text, double& total) {
+        SlicerTimes t(m, 115200);
+        t.scan(text);
+        t.finish();
+        std::string out;
+        t.rewrite(text, out);
+        t.rewrite_end(out);
+        total = t.seconds();
+        return lines_of(out);
+    };
+    double plain = 0, dwelt = 0;
+    const auto a = rewrite(moves_a + "M400\n" + moves_b, plain);  // the planner runs out there too
+    const auto b = rewrite(moves_a + "G4 S90\n" + moves_b, dwelt);
+    REQUIRE(plain > 1);
+    CHECK(dwelt == doctest::Approx(plain + 90).epsilon(1e-12));
+    Preflight report(m, 115200);
+    report.scan(moves_a + "G4 S90\n" + moves_b);
+    report.finish();
+    CHECK(report.seconds() == dwelt);
+    // The elapsed time before the second M73: the first two moves alone (the planner runs out
+    // before the dwell, so they end at rest either way).
+    double first_two = 0;
+    rewrite(moves_a, first_two);
+    REQUIRE(a.size() == 7);
+    REQUIRE(b.size() == 7);
+    CHECK(b[0] == retimed_line("M73 P0 R9", 0, plain + 90));
+    CHECK(b[0] != a[0]);
+    CHECK(b[4] == retimed_line("M73 P50 R1", first_two + 90, plain + 90));
+    CHECK(b[6] == "M73 P100 R0");  // at the end: (100 t) / t is 99.99999999999999 for this t
 }
 
 TEST_CASE("slicer times: a PrusaSlicer file's M73 follow xlate5's estimate of the written joints") {

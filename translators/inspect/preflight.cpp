@@ -36,8 +36,8 @@ double trapezoid(double length, double v0, double v1, double v, double a) {
 
 }  // namespace
 
-Preflight::Preflight(const Machine& machine, double baud, bool waits)
-    : m_(machine), link_bytes_per_s_(baud / 10), waits_(waits), q_(machine.home_joints()) {}
+Preflight::Preflight(const Machine& machine, double baud)
+    : m_(machine), link_bytes_per_s_(baud / 10), q_(machine.home_joints()) {}
 
 namespace {
 
@@ -81,6 +81,7 @@ void Preflight::wait(double seconds) {
     // The wait starts when the last block has ended and the line has arrived.
     clock_ = std::max(clock_, link_) + seconds;
     done_ += seconds;
+    if (executed) executed(lines_, seconds);
 }
 
 void Preflight::scan(std::string_view output) {
@@ -117,7 +118,7 @@ void Preflight::line(std::string_view l) {
     bytes_ += bytes;
     line_seconds_ = double(bytes) / link_bytes_per_s_;
     link_ += line_seconds_;
-    if (waits_ && !text.empty() && (text[0] == 'G' || text[0] == 'M')) {
+    if (!text.empty() && (text[0] == 'G' || text[0] == 'M')) {
         if (is_command(text, 'G', 4)) {
             // Marlin (and RepRapFirmware): S seconds over P milliseconds; Klipper: P alone.
             const bool seconds_word = m_.dialect.firmware != FirmwareDialect::Klipper;

@@ -28,9 +28,7 @@ namespace xlate5 {
 class Preflight {
 public:
     static constexpr std::size_t kMaxRanges = 100;
-    // `waits`: dwells and M400 count (the report); false: the motion alone (the slicer's time
-    // lines, rewritten as before).
-    Preflight(const Machine& machine, double baud, bool waits = true);
+    Preflight(const Machine& machine, double baud);
 
     void scan(std::string_view output);  // whole lines of written output
     void finish();                        // the end of the file: the planner runs out
@@ -49,8 +47,9 @@ public:
     };
     const std::vector<Range>& drains() const { return ranges_; }
 
-    // Told of each block as the planner executes it, in order: the output line of its move and
-    // the seconds it takes (the slicer's time lines are rewritten from these).
+    // Told of each block as the planner executes it, in order, and of each dwell when it runs:
+    // the output line of its move or dwell and the seconds it takes (the slicer's time lines are
+    // rewritten from these).
     std::function<void(std::uint64_t line, double seconds)> executed;
 
 private:
@@ -68,7 +67,6 @@ private:
 
     const Machine& m_;
     double link_bytes_per_s_;
-    bool waits_;
     double dwell_ = 0;
     std::uint64_t dwells_ = 0, heat_waits_ = 0;
     std::vector<double> q_;

@@ -100,7 +100,8 @@ std::string retimed_line(std::string_view l, double elapsed, double total) {
         break;
     }
     // M73: each P Q R S word's number replaced, every other byte kept.
-    const int percent = std::min(100, int(100 * elapsed / total));
+    // At the end exactly 100: (100 t) / t may round to just under 100 (t = 96.252640687 does).
+    const int percent = elapsed >= total ? 100 : std::min(99, int(100 * elapsed / total));
     const long minutes = long((total - elapsed + 0.5) / 60);
     std::string out;
     const std::size_t code_end = std::min(l.find(';'), l.size());
@@ -126,9 +127,8 @@ std::string retimed_line(std::string_view l, double elapsed, double total) {
     return out;
 }
 
-// The motion alone (no dwells): the time lines are written as before the report counted them.
-SlicerTimes::SlicerTimes(const Machine& machine, double baud) : preflight_(machine, baud, false) {
-    // Each time line's elapsed time: the blocks before it, summed as the planner executes them.
+SlicerTimes::SlicerTimes(const Machine& machine, double baud) : preflight_(machine, baud) {
+    // Each time line's elapsed time: the blocks and dwells before it, summed as they run.
     preflight_.executed = [this](std::uint64_t line, double seconds) {
         while (resolved_ < at_.size() && at_[resolved_].line < line) at_[resolved_++].elapsed = elapsed_;
         elapsed_ += seconds;
