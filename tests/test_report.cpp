@@ -462,9 +462,9 @@ TEST_CASE("preflight: a dwell lets the planner run out and waits its time; heati
     Preflight p(m, 115200);
     p.scan(file);
     p.finish();
-    CHECK(p.dwells() == 3);
-    CHECK(p.dwell_seconds() == doctest::Approx(0.5 + 2 + 1).epsilon(1e-12));
-    CHECK(p.heat_waits() == 2);
+    CHECK(p.waits().dwells == 3);
+    CHECK(p.waits().dwell_seconds == doctest::Approx(0.5 + 2 + 1).epsilon(1e-12));
+    CHECK(p.waits().heat_waits == 2);
     CHECK(p.seconds() == doctest::Approx(3 * stop_to_stop + 3.5).epsilon(1e-9));
     CHECK(p.json().find("\"dwells\": 3, \"dwell_seconds\": 3.5, \"heat_waits_not_included\": 2") != std::string::npos);
     CHECK(p.summary().find("3 dwells (G4) add 3.5 s") != std::string::npos);
@@ -494,6 +494,6 @@ TEST_CASE("preflight: a dwell lets the planner run out and waits its time; heati
     Preflight klipper(k, 115200);
     klipper.scan(file);
     klipper.finish();
-    CHECK(klipper.dwell_seconds() == doctest::Approx(0.5 + 0 + 0.25).epsilon(1e-12));
+    CHECK(klipper.waits().dwell_seconds == doctest::Approx(0.5 + 0 + 0.25).epsilon(1e-12));
     CHECK(klipper.seconds() == doctest::Approx(3 * stop_to_stop + 0.75).epsilon(1e-9));
 }

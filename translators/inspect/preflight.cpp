@@ -36,8 +36,7 @@ double trapezoid(double length, double v0, double v1, double v, double a) {
 
 }  // namespace
 
-Preflight::Preflight(const Machine& machine, double baud)
-    : m_(machine), link_bytes_per_s_(baud / 10), q_(machine.home_joints()) {}
+Preflight::Preflight(const Machine& machine, double baud) : m_(machine), link_{baud / 10}, q_(machine.home_joints()) {}
 
 namespace {
 
@@ -75,13 +74,13 @@ void for_each_word(std::string_view text, std::size_t from, F&& f) {
 
 }  // namespace
 
-void Preflight::wait(double seconds) {
-    while (!window_.empty()) plan_and_pop();
+void PlannerModel::wait(double seconds, double link, std::uint64_t line) {
+    finish();
     prev_exit_ = 0;
     // The wait starts when the last block has ended and the line has arrived.
-    clock_ = std::max(clock_, link_) + seconds;
+    clock_ = std::max(clock_, link) + seconds;
     done_ += seconds;
-    if (executed) executed(lines_, seconds);
+    if (executed_) executed_(line, seconds);
 }
 
 void Preflight::scan(std::string_view output) {
@@ -110,14 +109,14 @@ void Preflight::line(std::string_view l) {
     while (!text.empty() && (text.back() == ' ' || text.back() == '\r' || text.back() == '\t')) text.remove_suffix(1);
     while (!text.empty() && text.front() == ' ') text.remove_prefix(1);
     if (text.empty()) return;
-    ++sent_;
-    const std::string framed = "N" + std::to_string(sent_) + " " + std::string(text);
+    ++link_.sent;
+    const std::string framed = "N" + std::to_string(link_.sent) + " " + std::string(text);
     unsigned char sum = 0;
     for (char c : framed) sum ^= static_cast<unsigned char>(c);
     const std::uint64_t bytes = framed.size() + 1 + std::to_string(sum).size() + 1;
-    bytes_ += bytes;
-    line_seconds_ = double(bytes) / link_bytes_per_s_;
-    link_ += line_seconds_;
+    link_.bytes += bytes;
+    link_.line_seconds = double(bytes) / link_.bytes_per_s;
+    link_.at += link_.line_seconds;
     if (!text.empty() && (text[0] == 'G' || text[0] == 'M')) {
         if (is_command(text, 'G', 4)) {
             // Marlin (and RepRapFirmware): S seconds over P milliseconds; Klipper: P alone.
@@ -128,13 +127,13 @@ void Preflight::line(std::string_view l) {
                 if (letter == 'P' && !p) p = v;
             });
             const double d = std::max(0.0, s ? *s : p ? *p / 1000 : 0.0);
-            ++dwells_, dwell_ += d;
-            wait(d);
+            ++waits_.dwells, waits_.dwell_seconds += d;
+            planner_.wait(d, link_.at, lines_);
             return;
         }
-        if (is_command(text, 'M', 400)) return wait(0);
+        if (is_command(text, 'M', 400)) return planner_.wait(0, link_.at, lines_);
         if (is_command(text, 'M', 109) || is_command(text, 'M', 190) || is_command(text, 'M', 191) || is_command(text, 'M', 116)) {
-            ++heat_waits_;
+            ++waits_.heat_waits;
             return;
         }
     }
@@ -163,7 +162,7 @@ void Preflight::add_move(const std::vector<double>& from, const std::vector<doub
     const double length = firmware_length(m_, from, to);
     if (!(length > 0) || !(feed > 0)) return;
     ++moves_;
-    Block b;
+    PlannerModel::Block b;
     b.length = length;
     b.line = lines_;
     // The feed (mm/min of the dialect's length; G93 files: 1/min) capped by each joint's max_feed.
@@ -181,6 +180,11 @@ void Preflight::add_move(const std::vector<double>& from, const std::vector<doub
     for (double& u : b.unit) u /= std::sqrt(norm);
     b.nominal = v;
     if (length / v < m_.planner.min_segment_time) ++short_moves_;
+    planner_.add(std::move(b), link_.line_seconds, link_.at);
+}
+
+void PlannerModel::add(Block b, double line_seconds, double& link) {
+    const double v = b.nominal;
     // Marlin's junction deviation: the speed through the corner from the last block.
     double vj = kMinPlannerSpeed;
     if (!prev_unit_.empty()) {
@@ -201,11 +205,11 @@ void Preflight::add_move(const std::vector<double>& from, const std::vector<doub
     // The line reaches the firmware when the link has sent it and the planner has room: the
     // block `blocks` before it has ended.
     const double room = finished_.size() >= std::size_t(m_.planner.blocks) ? finished_.front() : 0;
-    link_ = std::max(link_, room + line_seconds_);
-    window_.back().bytes_at = link_;
+    link = std::max(link, room + line_seconds);
+    window_.back().bytes_at = link;
 }
 
-void Preflight::plan_and_pop() {
+void PlannerModel::plan_and_pop() {
     // Backward over the horizon: the last block can stop, each entry reachable from the next.
     double exit = 0;
     std::vector<double> entry(window_.size());
@@ -220,16 +224,17 @@ void Preflight::plan_and_pop() {
     window_.pop_front();
 }
 
-void Preflight::execute(Block& b, double exit_limit) {
+void PlannerModel::execute(Block& b, double exit_limit) {
     const double a = m_.planner.acceleration;
     const double v0 = std::min(prev_exit_, b.nominal);
     const double v1 = std::min({exit_limit, b.nominal, std::sqrt(v0 * v0 + 2 * a * b.length)});
     b.time = trapezoid(b.length, v0, v1, b.nominal, a);
     prev_exit_ = v1;
     done_ += b.time;
-    if (executed) executed(b.line, b.time);
-    // The firmware: it starts the block when the last ended and the block has arrived.
-    if (b.bytes_at > clock_ && moves_ > 1 && !finished_.empty()) {
+    if (executed_) executed_(b.line, b.time);
+    // The firmware: it starts the block when the last ended and the block has arrived (the
+    // first block's wait is the link's start, not a drain).
+    if (b.bytes_at > clock_ && !finished_.empty()) {
         const double stall = b.bytes_at - clock_;
         ++drains_, stall_ += stall;
         if (!ranges_.empty() && b.line <= ranges_.back().last + kMergeLines) ranges_.back().last = b.line, ranges_.back().stall += stall;
@@ -240,21 +245,19 @@ void Preflight::execute(Block& b, double exit_limit) {
     if (finished_.size() > std::size_t(m_.planner.blocks)) finished_.pop_front();
 }
 
-void Preflight::finish() {
-    while (!window_.empty()) plan_and_pop();
-}
-
 std::string Preflight::json() const {
-    const double need = done_ > 0 ? double(bytes_) / done_ : 0;
-    std::string o = "{\"seconds\": " + num(seconds()) + ", \"minutes\": " + num(seconds() / 60) + ", \"seconds_with_link\": " +
-                    num(seconds_with_link()) + ", \"link_bytes_per_s\": " + num(link_bytes_per_s_) + ", \"lines_sent\": " +
-                    std::to_string(sent_) + ", \"bytes_sent\": " + std::to_string(bytes_) + ", \"need_bytes_per_s_mean\": " + num(need) +
+    const double done = seconds(), need = done > 0 ? double(link_.bytes) / done : 0;
+    std::string o = "{\"seconds\": " + num(done) + ", \"minutes\": " + num(done / 60) + ", \"seconds_with_link\": " +
+                    num(seconds_with_link()) + ", \"link_bytes_per_s\": " + num(link_.bytes_per_s) + ", \"lines_sent\": " +
+                    std::to_string(link_.sent) + ", \"bytes_sent\": " + std::to_string(link_.bytes) + ", \"need_bytes_per_s_mean\": " + num(need) +
                     ", \"moves\": " + std::to_string(moves_) + ", \"moves_under_min_segment_time\": " + std::to_string(short_moves_) +
-                    ", \"dwells\": " + std::to_string(dwells_) + ", \"dwell_seconds\": " + num(dwell_) +
-                    ", \"heat_waits_not_included\": " + std::to_string(heat_waits_) + ", \"drains\": " + std::to_string(drains_) + ", \"stall_seconds\": " + num(stall_) + ", \"drain_ranges\": [";
-    for (std::size_t i = 0; i < ranges_.size(); ++i)
-        o += std::string(i ? ", " : "") + "{\"first_line\": " + std::to_string(ranges_[i].first) + ", \"last_line\": " +
-             std::to_string(ranges_[i].last) + ", \"stall_seconds\": " + num(ranges_[i].stall) + "}";
+                    ", \"dwells\": " + std::to_string(waits_.dwells) + ", \"dwell_seconds\": " + num(waits_.dwell_seconds) +
+                    ", \"heat_waits_not_included\": " + std::to_string(waits_.heat_waits) + ", \"drains\": " +
+                    std::to_string(planner_.drain_count()) + ", \"stall_seconds\": " + num(planner_.stall_seconds()) + ", \"drain_ranges\": [";
+    const auto& ranges = planner_.drains();
+    for (std::size_t i = 0; i < ranges.size(); ++i)
+        o += std::string(i ? ", " : "") + "{\"first_line\": " + std::to_string(ranges[i].first) + ", \"last_line\": " +
+             std::to_string(ranges[i].last) + ", \"stall_seconds\": " + num(ranges[i].stall) + "}";
     o += "], \"planner\": {\"acceleration\": " + num(m_.planner.acceleration) + ", \"junction_deviation_mm\": " +
          num(m_.planner.junction_deviation) + ", \"min_segment_time_s\": " + num(m_.planner.min_segment_time) + ", \"blocks\": " +
          std::to_string(m_.planner.blocks) + "}}";
@@ -263,21 +266,22 @@ std::string Preflight::json() const {
 
 std::string Preflight::summary() const {
     char b[600];
-    const double need = done_ > 0 ? double(bytes_) / done_ : 0;
+    const double done = seconds(), need = done > 0 ? double(link_.bytes) / done : 0;
+    const std::uint64_t drains = planner_.drain_count();
     std::snprintf(b, sizeof b,
                   "pre-flight: about %.1f min of motion and dwells (acceleration %.0f, junction deviation %.3f mm, %d-block planner); "
                   "the file sends %.0f bytes/s on average against the link's %.0f; %llu moves shorter than %.0f ms; "
                   "%s%.1f min with the link.\n",
-                  seconds() / 60, m_.planner.acceleration, m_.planner.junction_deviation, m_.planner.blocks, need, link_bytes_per_s_,
+                  done / 60, m_.planner.acceleration, m_.planner.junction_deviation, m_.planner.blocks, need, link_.bytes_per_s,
                   static_cast<unsigned long long>(short_moves_), m_.planner.min_segment_time * 1000,
-                  drains_ ? ("the planner's buffer drains " + std::to_string(drains_) + " times (first from line " +
-                             std::to_string(ranges_.front().first) + "), ").c_str()
+                  drains ? ("the planner's buffer drains " + std::to_string(drains) + " times (first from line " +
+                            std::to_string(planner_.drains().front().first) + "), ").c_str()
                           : "the buffer never drains, ",
                   seconds_with_link() / 60);
     std::string out = b;
-    if (dwells_ || heat_waits_) {
+    if (waits_.dwells || waits_.heat_waits) {
         std::snprintf(b, sizeof b, "pre-flight: %llu dwells (G4) add %.1f s, counted above; %llu waits for heating (M109, M190, M191, M116) are not.\n",
-                      static_cast<unsigned long long>(dwells_), dwell_, static_cast<unsigned long long>(heat_waits_));
+                      static_cast<unsigned long long>(waits_.dwells), waits_.dwell_seconds, static_cast<unsigned long long>(waits_.heat_waits));
         out += b;
     }
     return out;
