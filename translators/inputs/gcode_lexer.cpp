@@ -307,6 +307,81 @@ void grow_words(Block& out, Word*& next, Word*& room_end) {
 // Letters with checks of their own after the number: G M T are codes, N a line number.
 constexpr std::uint32_t kCheckedLetters = letter_bit('G') | letter_bit('M') | letter_bit('T') | letter_bit('N');
 
+// After a text-taking M code's number at `i`: the rest of the line is its argument, passed on as
+// it is; only a trailing *checksum still belongs to the transport. Returns where that starts (npos: none).
+std::size_t text_argument_checksum(std::string_view s, std::size_t i) {
+    const std::size_t n = s.size();
+    check_text(s, i);
+    const std::size_t star = s.rfind('*');
+    if (star == std::string_view::npos || star < i) return std::string_view::npos;
+    std::size_t k = star + 1;
+    while (k < n && is_digit(s[k])) ++k;
+    const bool digits = k > star + 1;
+    while (k < n && is_blank(s[k])) ++k;
+    return digits && k == n ? star : std::string_view::npos;
+}
+
+// A checksum at `i` ('*'): digits, then nothing but blanks and comments. `i` moves past them.
+void read_checksum(std::string_view s, std::size_t& i) {
+    const std::size_t n = s.size(), star = i++;
+    const std::size_t digits = i;
+    while (i < n && is_digit(s[i])) ++i;
+    if (i == digits) fail(star, "checksum '*' has no number");
+    while (i < n && is_blank(s[i])) ++i;
+    check_text(s, i);
+    if (i < n && s[i] != ';' && s[i] != '(') fail(i, "text after the checksum");
+}
+
+// The block's body once its words are read: from the first word or an earlier comment to the
+// last word or a later comment, a checksum cut off, trailing blanks too.
+void set_body(std::string_view line, Block& out, std::size_t body_begin, std::size_t body_end, std::size_t checksum_at) {
+    if (out.word_count > 0) {
+        body_begin = std::min<std::size_t>(body_begin, out.word_room[0].column - 1);
+        const std::string_view last = out.word_room[out.word_count - 1].text;
+        body_end = std::max<std::size_t>(body_end, std::size_t(last.data() + last.size() - line.data()));
+    }
+    if (body_begin == std::string_view::npos) {
+        out.body = {};
+        return;
+    }
+    // A checksum ends the body (a host's checksummed line carries no comment worth keeping).
+    if (checksum_at != std::string_view::npos && checksum_at < body_end) body_end = checksum_at;
+    if (body_end <= body_begin) {
+        out.body = {};
+        return;
+    }
+    std::string_view body(line.data() + body_begin, body_end - body_begin);  // (body_end <= n)
+    while (!body.empty() && is_blank(body.back())) body.remove_suffix(1);
+    out.body = body;
+    if (out.word_count == 0 && out.has_comment && !out.percent && declares_compact(body)) out.compact_words = true;
+}
+
+// After a '%' at `i` that starts a line's words: where the rest (blanks, then the end or a
+// comment) begins, or npos when more follows (the '%' is then unexpected).
+std::size_t percent_end(std::string_view s, std::size_t i) {
+    std::size_t j = i + 1;
+    while (j < s.size() && is_blank(s[j])) ++j;
+    if (j != s.size() && s[j] != ';' && s[j] != '(') return std::string_view::npos;
+    check_text(s, j);
+    return j;
+}
+
+// A G M T code or N line number: it has a number, and a code one below kMaxCode.
+void check_code_word(char letter, std::size_t letter_index, bool has_value, double value) {
+    if (!has_value) fail(letter_index, std::string("word ") + letter + " has no number");
+    if (letter != 'N' && !(std::abs(value) < kMaxCode)) fail(letter_index, std::string("word ") + letter + " is a code, and codes are below 100000");
+}
+
+// A character at `i` that starts no word, blank, comment, checksum or '%' line.
+[[noreturn]] void fail_unexpected(std::string_view s, std::size_t i) {
+    const char c = s[i];
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) fail(i, "non-text byte " + byte_name(static_cast<unsigned char>(c)));
+    if (static_cast<unsigned char>(c) >= 0x80) fail(i, "non-ASCII byte " + byte_name(static_cast<unsigned char>(c)) + " outside a comment");
+    if (c == '#' || c == '[' || c == ']' || c == '=' || c == '<' || c == '>')
+        fail(i, std::string("unexpected '") + c + "': parameters and expressions are not supported");
+    fail(i, std::string("unexpected character '") + c + "'");
+}
+
 // The rest of lex_line from `i` (the words before it in the block's room up to `next`, their
 // letters `letters`): any line but one of words read_common_words reads to its end.
 [[gnu::noinline]] void lex_rest(std::string_view line, Block& out, std::size_t i, Word* next, std::uint32_t letters) {
@@ -333,9 +408,7 @@ constexpr std::uint32_t kCheckedLetters = letter_bit('G') | letter_bit('M') | le
             double value;
             if (!read_plain_number(s.data(), i, value)) value = read_other_number(s, i, letter, letter_index, has_value);
             if (kCheckedLetters & letter_bit(letter)) {
-                if (!has_value) fail(letter_index, std::string("word ") + letter + " has no number");
-                if (letter != 'N' && !(std::abs(value) < kMaxCode))
-                    fail(letter_index, std::string("word ") + letter + " is a code, and codes are below 100000");
+                check_code_word(letter, letter_index, has_value, value);
                 if (letter == 'N' && next == out.word_room.data() && !line_number_read) {
                     // A leading line number belongs to the transport, not to the command.
                     line_number_read = true;
@@ -352,95 +425,43 @@ constexpr std::uint32_t kCheckedLetters = letter_bit('G') | letter_bit('M') | le
             *next++ = Word{.value = value, .text = std::string_view(line.data() + number_start, i - number_start),
                            .column = std::uint32_t(letter_index + 1), .letter = letter, .has_value = has_value};
             if (letter == 'M' && takes_text(value)) {
-                // The rest of the line is the argument, passed on as it is; only a trailing
-                // *checksum still belongs to the transport.
                 out.text_argument = true;
                 body_end = n;
-                check_text(s, i);
-                const std::size_t star = s.rfind('*');
-                if (star != std::string_view::npos && star >= i) {
-                    std::size_t k = star + 1;
-                    while (k < n && is_digit(s[k])) ++k;
-                    const bool digits = k > star + 1;
-                    while (k < n && is_blank(s[k])) ++k;
-                    if (digits && k == n) checksum_at = star;
-                }
+                checksum_at = text_argument_checksum(s, i);
                 break;
             }
             if (s[i] == ' ') ++i;  // the common separator, skipped at once
             continue;
         }
-        if (is_blank(c)) {
-            ++i;
-            continue;
-        }
+        if (is_blank(c)) { ++i; continue; }
         if (i >= n) break;  // the NUL after the line
-        if (c == ';') {
+        if (c == ';' || c == '(') {
             out.has_comment = true;
             if (body_begin == std::string_view::npos) body_begin = i;
-            body_end = n;
-            check_text(s, i);
-            break;
-        }
-        if (c == '(') {
-            out.has_comment = true;
-            if (body_begin == std::string_view::npos) body_begin = i;
+            if (c == ';') {
+                body_end = n;
+                check_text(s, i);
+                break;
+            }
             skip_paren_comment(s, i);
             body_end = i;
             continue;
         }
-        if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) fail(i, "non-text byte " + byte_name(static_cast<unsigned char>(c)));
-        if (static_cast<unsigned char>(c) >= 0x80) fail(i, "non-ASCII byte " + byte_name(static_cast<unsigned char>(c)) + " outside a comment");
         if (c == '*') {
-            // Checksum: digits, then nothing but blanks and comments.
-            const std::size_t star = i++;
-            checksum_at = star;
-            const std::size_t digits = i;
-            while (i < n && is_digit(s[i])) ++i;
-            if (i == digits) fail(star, "checksum '*' has no number");
-            while (i < n && is_blank(s[i])) ++i;
-            check_text(s, i);
-            if (i < n && s[i] != ';' && s[i] != '(') fail(i, "text after the checksum");
+            checksum_at = i;
+            read_checksum(s, i);
             continue;
         }
-        if (c == '%' && next == out.word_room.data()) {
-            std::size_t j = i + 1;
-            while (j < n && is_blank(s[j])) ++j;
-            if (j == n || s[j] == ';' || s[j] == '(') {
-                check_text(s, j);
-                out.percent = true;
-                if (body_begin == std::string_view::npos) body_begin = i;
-                body_end = i + 1;
-                i = j;
-                continue;
-            }
-        }
-        if (c == '#' || c == '[' || c == ']' || c == '=' || c == '<' || c == '>')
-            fail(i, std::string("unexpected '") + c + "': parameters and expressions are not supported");
-        fail(i, std::string("unexpected character '") + c + "'");
+        const std::size_t percent = c == '%' && next == out.word_room.data() ? percent_end(s, i) : std::string_view::npos;
+        if (percent == std::string_view::npos) fail_unexpected(s, i);
+        out.percent = true;
+        if (body_begin == std::string_view::npos) body_begin = i;
+        body_end = i + 1;
+        i = percent;
     }
     out.word_count = std::size_t(next - out.word_room.data());
     out.letters = letters;
-    if (out.word_count > 0) {
-        // The body begins at the first word or earlier comment, and ends at the last word or later comment.
-        body_begin = std::min<std::size_t>(body_begin, out.word_room[0].column - 1);
-        const std::string_view last = next[-1].text;
-        body_end = std::max<std::size_t>(body_end, std::size_t(last.data() + last.size() - line.data()));
-    }
-    if (body_begin == std::string_view::npos) {
-        out.body = {};
-        return;
-    }
-    // A checksum ends the body (a host's checksummed line carries no comment worth keeping).
-    if (checksum_at != std::string_view::npos && checksum_at < body_end) body_end = checksum_at;
-    if (body_end <= body_begin) {
-        out.body = {};
-        return;
-    }
-    std::string_view body(line.data() + body_begin, body_end - body_begin);  // (body_end <= n)
-    while (!body.empty() && is_blank(body.back())) body.remove_suffix(1);
-    out.body = body;
-    if (out.word_count == 0 && out.has_comment && !out.percent && declares_compact(body)) out.compact_words = true;
+    set_body(line, out, body_begin, body_end, checksum_at);
 }
 
 }  // namespace
