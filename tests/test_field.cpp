@@ -355,6 +355,57 @@ TEST_CASE("retargeting: NX's CL data for xyzac-trt's trunnion, through tool spac
     CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), "(at tool-space pose 'G0 X0 Y0 Z0 I0 J0 K1"));
 }
 
+TEST_CASE("retargeting the S3-DeformFDM ring onto koc5: its parks above koc5's travel are held at the top, the print is the same") {
+    // The ring's file parks its machine at Z 250 (lines 11, 12, 70467, 70468); koc5's Z ends at 200.
+    // Those travel moves are held where koc5's Z stops (the tip as koc5's own FK puts it there,
+    // at the same X, Y and upright tool); every other pose of the print is visited as before.
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    int rc = 0;
+    const std::filesystem::path ring = xlate5::test::corpus_dir() + "/s3deformfdm/ring_Gcode.txt";
+    const auto ta = run_xlate5("--machine s3deformfdm --extruder-letter A --inverse --preview-form G43.5", ring, dir, rc);
+    REQUIRE(rc == 0);
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine koc5 --from s3deformfdm --extruder-letter A", ring, dir, rc));
+    const std::string err = xlate5::test::read(dir.path / "run.err");
+    INFO(err);
+    REQUIRE(rc == 0);
+    std::vector<std::string> held;
+    for (const auto& line : xlate5::test::lines_of(err)) {
+        const auto at = line.find(": note: a travel move past koc5's travel is held at its limits: Z at 200.000 (asked 250.000)");
+        if (at == std::string::npos) continue;
+        const std::string where = line.substr(0, at);
+        held.push_back(where.substr(where.rfind(':') + 1));
+    }
+    CHECK(held == std::vector<std::string>{"11", "12", "70467", "70468"});
+    const Machine m = machine("koc5");
+    const Kinematics k(m);
+    std::vector<double> top = m.home_joints();
+    for (std::size_t j = 0; j < m.joints.size(); ++j) top[j] = m.joints[j].name == 'Z' ? m.joints[j].max : 0.0;
+    const double top_z = k.forward(top).tip.z();
+    CHECK(top_z < 250);
+    auto start = tool_poses(ta);
+    int parked = 0;
+    for (Pose& p : start)
+        if (p.tip.z() > top_z) {
+            CHECK(p.tip.z() == doctest::Approx(250).epsilon(1e-9));
+            CHECK(p.axis.z() == doctest::Approx(1).epsilon(1e-12));  // upright: Z alone moves the tip along it
+            p.tip.z() = top_z, ++parked;
+        }
+    CHECK(parked >= 2);
+    const auto tb = run_xlate5("--machine koc5 --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    // koc5 starts at home, its Z at the top: the first park is already there and writes nothing.
+    auto end = tool_poses(tb);
+    end.insert(end.begin(), k.forward(m.home_joints()));
+    const std::size_t visited = check_same_path(start, end, 0.01, 0.5);
+    MESSAGE(start.size() << " poses of the ring, " << visited << " on koc5, " << parked << " held at koc5's top");
+    // A printing move there is not held: refused as the part lying outside the travel.
+    const auto printing = dir.write("p.gcode", "G90\nG1 X0 Y0 Z2 B0 C0 F3000\nG1 X1 Z250 A5 F600\n");
+    run_xlate5("--machine koc5 --from s3deformfdm --extruder-letter A", printing, dir, rc);
+    CHECK(rc == 1);
+    CHECK(xlate5::test::read(dir.path / "run.err").find("p.gcode:3:1: joint Z would go to 250.000") != std::string::npos);
+}
+
 TEST_CASE("retargeting: S4's joint-space file for the Core R-Theta, onto pentarod and back to the same path") {
     if (xlate5::test::corpus_absent()) return;
     xlate5::test::TempDir dir;

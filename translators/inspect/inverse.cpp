@@ -179,7 +179,13 @@ void InverseTranslator::move(int gcode, Params words, std::string& out) {
     if (auto r = check_limits(machine_, q_next_); !r.ok()) fail(words.empty() ? 1 : words.front().column, r.message);
     state_.q.swap(q_next_);
     state_.pose = kin_.forward(state_.q);
-    emitter_.move(out, gcode, state_.pose.tip, state_.pose.axis, state_.q, e, f);
+    const bool prints = e && (modes.e_relative ? e->value != 0 : e->value != modes.e_position);
+    if (retarget_) {
+        const Pose placed = retarget_->place(state_.pose, !prints, line_no_);
+        emitter_.move(out, gcode, placed.tip, placed.axis, state_.q, e, f);
+    } else {
+        emitter_.move(out, gcode, state_.pose.tip, state_.pose.axis, state_.q, e, f);
+    }
     if (e) modes.e_position = modes.e_relative ? modes.e_position + e->value : e->value;
 }
 
@@ -233,6 +239,7 @@ void InverseTranslator::home(Params words, std::string& out) {
     for (std::size_t j = 0; j < state_.q.size(); ++j)
         if (which[j]) state_.q[j] = machine_.joints[j].home;
     out += "G28";
+    if (retarget_) retarget_->homed();
     for (const Param& p : words) {
         if (retarget_) break;
         out += ' ';

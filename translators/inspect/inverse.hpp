@@ -18,6 +18,7 @@
 #include "translators/machine/machine.hpp"
 #include "translators/pipeline/modes.hpp"
 #include "translators/inspect/tool_emitter.hpp"
+#include "translators/pipeline/travel_clamp.hpp"
 
 namespace xlate5 {
 
@@ -31,9 +32,10 @@ public:
     // The input is compact from its first line, as if it began with the compact declaration (gcode_lexer.hpp).
     void set_compact_words() { block_.compact_words = true; }
     // The output goes on to another machine's translation (--from): its rotary re-zeros
-    // (G92 C0) change no pose and are left out, and its G28, whatever joints it names, is a
-    // bare G28 (the printer that runs the file homes as it homes).
-    void set_retarget() { retarget_ = true; }
+    // (G92 C0) change no pose and are left out, its G28, whatever joints it names, is a bare G28
+    // (the printer that runs the file homes as it homes), and each move is placed on that
+    // machine by `clamp` (travel moves past its linear travel held at the limits).
+    void set_retarget(TravelClamp& clamp) { retarget_ = &clamp; }
 
     const std::vector<double>& joints() const { return state_.q; }  // nominal: measured errors added back
     const Pose& pose() const { return state_.pose; }
@@ -70,7 +72,7 @@ private:
     LineCommands commands_;
     LinePlan plan_;
     std::string move_letters_, position_letters_;  // see plan_line
-    bool retarget_ = false;
+    TravelClamp* retarget_ = nullptr;
 };
 
 }  // namespace xlate5

@@ -7,6 +7,7 @@
 
 #include "translators/error.hpp"
 #include "translators/inspect/inverse.hpp"
+#include "translators/pipeline/travel_clamp.hpp"
 #include "translators/pipeline/keep_out.hpp"
 #include "translators/pipeline/lookback.hpp"
 #include "translators/pipeline/planner.hpp"
@@ -63,7 +64,8 @@ Translator::Translator(const Kinematics& kinematics, TranslatorOptions options) 
         retarget_ = true;
         input_name_ = options.input_name;
         inverse_ = std::make_unique<InverseTranslator>(*options.from, options.input_name, options.extruder_letter, OrientationMode::Vector);
-        inverse_->set_retarget();
+        clamp_ = std::make_unique<TravelClamp>(kinematics, options.input_name, options.notice);
+        inverse_->set_retarget(*clamp_);
         if (options.compact_words) inverse_->set_compact_words();
         options.start_mode = OrientationMode::Vector;
         options.extruder_letter = 'E';

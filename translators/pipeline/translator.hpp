@@ -49,6 +49,7 @@ struct TranslatorOptions {
 };
 
 class InverseTranslator;
+class TravelClamp;
 
 class Translator {
 public:
@@ -91,8 +92,10 @@ private:
     struct Forward;
     std::unique_ptr<Forward> forward_;
     std::unique_ptr<InverseTranslator> inverse_;
-    // Retargeting: the inverse on the source machine feeds the forward pipeline, through this.
+    // Retargeting: the inverse on the source machine feeds the forward pipeline, through this,
+    // each move placed on this machine by the clamp.
     bool retarget_ = false;
+    std::unique_ptr<TravelClamp> clamp_;
     std::string between_;
     std::string input_name_;
 };

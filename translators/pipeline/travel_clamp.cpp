@@ -1,0 +1,63 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// Retargeting's travel clamp: see travel_clamp.hpp.
+#include "translators/pipeline/travel_clamp.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <utility>
+
+namespace xlate5 {
+
+namespace {
+
+// How far inside a limit a held joint stops: the planner solves the pose again from the tip,
+// and its rounding must not put the joint past the limit (far below any printer's step).
+constexpr double kInside = 1e-6;
+
+std::string mm(double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.3f", v);
+    return b;
+}
+
+}  // namespace
+
+TravelClamp::TravelClamp(const Kinematics& target, std::string input_name, std::function<void(const std::string&)> notice)
+    : target_(target), input_name_(std::move(input_name)), notice_(std::move(notice)), q_(target.machine().home_joints()) {}
+
+Pose TravelClamp::place(const Pose& pose, bool travel, std::uint64_t line) {
+    // The same solve as the planner's end (Kinematics::inverse: the orientation nearest the
+    // joints before, then the position), from the joints this stage placed last.
+    const IkResult r = target_.inverse(pose, q_, solved_);
+    if (r.ok()) {
+        q_.swap(solved_);
+        return pose;
+    }
+    // A rotary past its limit is named first (check_limits), so `linear` says the rotaries are inside.
+    if (!travel || r.status != IkStatus::OutOfLimits || !r.linear) return pose;
+    const Machine& m = target_.machine();
+    std::string held;
+    for (std::size_t j = 0; j < m.joints.size(); ++j) {
+        const Joint& J = m.joints[j];
+        if (J.rotary) continue;
+        const double at = std::clamp(solved_[j], J.min + kInside, J.max - kInside);
+        if (at != solved_[j]) held += std::string(held.empty() ? "" : ", ") + J.name + " at " + mm(at) + " (asked " + mm(solved_[j]) + ")";
+        solved_[j] = at;
+    }
+    Pose placed = pose;
+    placed.tip = target_.forward(solved_).tip;
+    // Only a lift made shorter: the held tip lies back along the tool axis from the asked one (a
+    // park or safe height above the target's travel). A tip held sideways would put the move
+    // somewhere the file never meant (a part placed outside the travel): refused as before.
+    const Eigen::Vector3d back = pose.tip - placed.tip;
+    const double along = back.dot(pose.axis);
+    if (!(along > 0) || (back - along * pose.axis).norm() > 1e-6 * std::max(1.0, along)) return pose;
+    q_.swap(solved_);
+    ++held_;
+    if (notice_ && held_ <= kMaxNotices)
+        notice_(input_name_ + ":" + std::to_string(line) + ": note: a travel move past " + m.name + "'s travel is held at its limits: " +
+                held + (held_ == kMaxNotices ? " (further ones are not listed)" : ""));
+    return placed;
+}
+
+}  // namespace xlate5
