@@ -5,8 +5,9 @@
 # was refused (and why, in short), the tip and tool-axis deviation as written (the report's
 # largest, measured on the joints as printed), the rotary travel against the report's lower
 # bound (planner.cpp: bound_rotary_travel) and the printing moves that turn a rotary more than
-# 90 degrees. Then the S3-DeformFDM ring read back to tool space through its machine and
-# translated again, against the authors' own rotary travel (as tests/test_pole.cpp does).
+# 90 degrees. Then each bundled example on the machine its name starts with, and the
+# S3-DeformFDM ring read back to tool space through its machine and translated again, against
+# the authors' own rotary travel (as tests/test_pole.cpp does).
 #
 #   bench/rotation_table.py [BUILD_DIR=build] [CORPUS_DIR=../shared/corpus] [MACHINE ...]
 #
@@ -39,8 +40,10 @@ def cause(message):
     m = message
     if re.search(r"is not a (joint|tool-space word) |rotary word . under G43.5", m):
         return "n/a: written for other joints (%s)" % re.sub(r"^.*?:\d+:\d+: ", "", m)[:48]
-    if "outside its limits" in m and "travel there" in m:
+    if re.search(r"joint [XYZUVW] would go to .* outside its limits", m):
         return "placement (a linear joint out of travel)"
+    if "out of this machine's reach" in m:
+        return "tool axis out of the machine's reach"
     if "would run past its limit" in m:
         return "rotary limit"
     if "passes a pole" in m:
@@ -92,6 +95,13 @@ with tempfile.TemporaryDirectory() as tmp:
         for m in machines:
             r, err = translate(m, path, tmp, extra)
             print(row(name, m, r, err), flush=True)
+    # The bundled examples, each on the machine its name starts with (they are written for it).
+    examples = os.path.join(root, "examples")
+    for f in sorted(os.listdir(examples)):
+        m = f.split("_")[0]
+        if f.endswith(".gcode") and m in machines:
+            r, err = translate(m, os.path.join(examples, f), tmp)
+            print(row("examples/" + f, m, r, err), flush=True)
     # The ring: the authors' joint-space output for their B-C table, read back to tool space
     # through machines/s3deformfdm.toml (extruder on A), then translated again.
     ring = os.path.join(corpus, "s3deformfdm", "ring_Gcode.txt")
