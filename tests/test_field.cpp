@@ -604,8 +604,13 @@ TEST_CASE("core-rtheta: a planar line passing near C's axis is followed round, C
     std::uniform_real_distribution<double> U(0, 1);
     for (int trial = 0; trial < 40; ++trial) {
         CAPTURE(trial);
-        // A line at distance d (0.2 to 5 mm) from the axis, from one side of it to the other.
-        const double d = 0.2 + 4.8 * U(rng), phi = 2 * xlate5::test::kPi * U(rng), half = 5 + 20 * U(rng);
+        // A line at distance d (0.2 to 5 mm) from the axis, from one side of it to the other; the
+        // first four the sides of a square round the axis (wpi5_side's, 8 mm), each end's angle
+        // exactly 90 degrees from the other's: the two angles that put the end in C's plane are
+        // then equally near the start's, and the hold at the pole once took the far one.
+        const bool square = trial < 4;
+        const double d = square ? 4 : 0.2 + 4.8 * U(rng), half = square ? 4 : 5 + 20 * U(rng);
+        const double phi = square ? trial * xlate5::test::kPi / 2 : 2 * xlate5::test::kPi * U(rng);
         const Eigen::Vector3d n(std::cos(phi), std::sin(phi), 0), t(-std::sin(phi), std::cos(phi), 0);
         const Eigen::Vector3d a = d * n - half * t + Eigen::Vector3d(0, 0, 1), b = d * n + half * t + Eigen::Vector3d(0, 0, 1);
         auto line = [](const char* g, const Eigen::Vector3d& p, const char* extra) {
@@ -644,9 +649,21 @@ TEST_CASE("core-rtheta: a planar line passing near C's axis is followed round, C
         CHECK((k.forward(q).tip - pb).norm() < 0.01);
         CHECK(worst <= m.motion.tolerance + 0.0035);
     }
-    // The corpus's planar files, translated whole.
+    // wpi5's squares round the bed's axis (examples/), then the corpus's planar files, translated
+    // whole: the first two were refused at a corner where the two angles are equally near, the
+    // hold at the pole (pole_policy.hpp) taking C the far way, the last two at a line passing
+    // near the axis.
+    for (const std::string name : {"wpi5_side.gcode", "wpi5_base.gcode"}) {
+        CAPTURE(name);
+        const std::string text = xlate5::test::read(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/../examples/" + name);
+        Translator tr(k, {});
+        std::string out;
+        std::uint64_t n = 0;
+        for (const auto& l : xlate5::test::lines_of(text)) REQUIRE_NOTHROW(tr.feed(l, ++n, out));
+        tr.finish(out);
+    }
     if (xlate5::test::corpus_absent()) return;
-    for (const char* name : {"planar/dino_prusaslicer-2.9.2.gcode", "planar/pi_3mm_deformed_tet_cura-5.8.0.gcode"}) {
+    for (const std::string name : {"planar/dino_prusaslicer-2.9.2.gcode", "planar/pi_3mm_deformed_tet_cura-5.8.0.gcode"}) {
         CAPTURE(name);
         const std::string text = xlate5::test::read(std::filesystem::path(xlate5::test::corpus_dir()) / name);
         Translator tr(k, {});

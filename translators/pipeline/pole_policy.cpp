@@ -32,6 +32,7 @@ PoleHold::PoleHold(const Kinematics& kinematics)
         pole_ = kin_.tool_axis(q);
     }
     checks_ = rot.size() == 2 && kin_.has_flip() && machine_.motion.segment;
+    polar_ = kin_.is_polar();
     if (checks_) c_ = std::size_t(rot[0]), b_ = std::size_t(rot[1]);
 }
 
@@ -82,6 +83,10 @@ bool PoleHold::passage(const std::vector<double>& q0, const std::vector<double>&
     // sign; a zero sum's sign aside, which neither comparison nor acos tells apart).
     const double d = to.axis.dot(pole_);
     const bool near_pole = region_.below(d) || region_.below(-d);
+    // A polar machine (core-rtheta) takes C from the tip at the pole (Kinematics::is_polar): C is
+    // not free there, and a held C would only have the position solve turn it back, half a turn
+    // at a time.
+    if (near_pole && polar_) return false;
     if (start_exact && !near_pole) return false;
     // Only a move turning the tool axis by less than the tolerance may end off its axis: a
     // passage made of such moves cannot cross in any one of them. A longer move ends exactly

@@ -121,6 +121,7 @@ private:
     const Machine& machine_;
     Eigen::Vector3d pole_ = Eigen::Vector3d::UnitZ();
     bool checks_ = false;
+    bool polar_ = false;                   // Kinematics::is_polar
     std::size_t c_ = 0, b_ = 0;            // the rotaries' joints (rotary_joints() order)
     AngleLimit region_, short_turn_;       // the tests of the angles passage compares
     double exact_start_;                   // a start within 1e-6 degrees of its axis: a dot at least this
