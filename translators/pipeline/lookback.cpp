@@ -155,38 +155,46 @@ bool LookBack::unwind_before(std::string_view line, std::uint64_t line_no, LineR
     // others. With each, as it is, then with one more branch choice near a pole taken the other
     // way: which branch a printed loop needs where it passes a bounded turning joint's pole can
     // depend on where it goes long after. At most kMaxReplays translations of the window.
-    int replays = 0;
-    bool missing = false;
-    for (int k = -1; k < candidates_ && !missing && replays < kMaxReplays; ++k) {
-        const bool taken = k < 0;  // first the end taken (-1 its usual one), then the others
-        if (!taken && k == was) continue;
-        const int candidate = taken ? was : k;
-        const PoleChoices base = taken ? flips_ : PoleChoices{};
-        // The end as it is (tried already, for the end taken, by the line's own translation).
-        int choices = last.pole.seen;  // the choices up to where the line failed
-        if (!taken) {
-            ++replays;
-            if (replay(candidate, base, line, line_no, last, missing)) {
-                chosen_ = candidate;
-                flips_ = base;
-                return true;
+    // Then all of that again with a flipped choice allowed a half turn in place where its move
+    // passes nearest the pole (PoleChoices::turns): the last resort, each pass within kMaxReplays.
+    const int first_choices = last.pole.seen;
+    for (const bool turns : {false, true}) {
+        int replays = 0;
+        bool missing = false;
+        last.pole.seen = first_choices;
+        for (int k = -1; k < candidates_ && !missing && replays < kMaxReplays; ++k) {
+            const bool taken = k < 0;  // first the end taken (-1 its usual one), then the others
+            if (!taken && k == was) continue;
+            const int candidate = taken ? was : k;
+            PoleChoices base = taken ? flips_ : PoleChoices{};
+            base.turns = turns;
+            // The end as it is (tried already, for the end taken, by the line's own translation).
+            int choices = last.pole.seen;  // the choices up to where the line failed
+            // (With turns, the end taken with its flips is another translation than the line's own.)
+            if (!taken || (turns && base.n_flips > 0)) {
+                ++replays;
+                if (replay(candidate, base, line, line_no, last, missing)) {
+                    chosen_ = candidate;
+                    flips_ = base;
+                    return true;
+                }
+                if (missing) break;
+                choices = last.pole.seen;
             }
-            if (missing) break;
-            choices = last.pole.seen;
-        }
-        if (base.n_flips >= PoleChoices::kMaxFlips) continue;
-        for (int d = 0; d < choices && replays < kMaxReplays; ++d) {
-            bool taken = false;
-            for (int i = 0; i < base.n_flips; ++i) taken = taken || base.flips[i] == d;
-            if (taken) continue;
-            PoleChoices flips = base;
-            flips.flips[flips.n_flips++] = d;
-            bool none = false;
-            ++replays;
-            if (replay(candidate, flips, line, line_no, last, none)) {
-                chosen_ = candidate;
-                flips_ = flips;
-                return true;
+            if (base.n_flips >= PoleChoices::kMaxFlips) continue;
+            for (int d = 0; d < choices && replays < kMaxReplays; ++d) {
+                bool taken = false;
+                for (int i = 0; i < base.n_flips; ++i) taken = taken || base.flips[i] == d;
+                if (taken) continue;
+                PoleChoices flips = base;
+                flips.flips[flips.n_flips++] = d;
+                bool none = false;
+                ++replays;
+                if (replay(candidate, flips, line, line_no, last, none)) {
+                    chosen_ = candidate;
+                    flips_ = flips;
+                    return true;
+                }
             }
         }
     }

@@ -35,7 +35,8 @@ public:
     // End solutions of a travel move tried in turn (nearest first) before a line is refused.
     static constexpr int kMaxCandidates = 64;
     // With each, the window's branch choices near a pole (PoleChoices) taken the other way one
-    // more at a time: the window is translated again at most this many times before a line is
+    // more at a time: the window is translated again at most this many times, then as many again
+    // with a half turn in place allowed near the pole (PoleChoices::turns), before a line is
     // refused.
     static constexpr int kMaxReplays = 256;
 

@@ -81,6 +81,7 @@ bool MotionStage::leave_pole(const MoveSpec& mv, std::string& out, MoveResult* r
 
 inline IkResult MotionStage::emit_move(const MoveSpec& mv, std::string& out, MoveResult* result) {
     split_for_ = nullptr;
+    if (mv.turn) return turn_in_place(mv, out, result);
     if (mv.mode == OrientationMode::Vector && machine_.motion.segment) {
         if (IkResult r; leave_pole(mv, out, result, r)) return r;
     }
@@ -122,6 +123,27 @@ inline IkResult MotionStage::emit_move(const MoveSpec& mv, std::string& out, Mov
 }
 
 namespace {
+// A move written as two parts, `first` up to s1 and `rest`: E shared by tip length as emit_one
+// shares it among pieces, the first part's at the dialect's decimals, the rest what is left (the
+// parts add up to the input exactly).
+void share_e(const MoveSpec& mv, double s1, int ed, MoveSpec& first, MoveSpec& rest) {
+    if (!mv.e) return;
+    const double escale = std::pow(10.0, ed);
+    const double value = mv.e_relative ? mv.e->value : mv.e->value - mv.e_start;
+    const long long units = std::llround(value * s1 * escale);
+    if (mv.e_relative) {
+        first.e = PassedNumber{double(units) / escale, {}, ed};
+        const double total = value * escale;
+        if (std::abs(total - std::round(total)) < 1e-6)
+            rest.e = PassedNumber{double(std::llround(total) - units) / escale, {}, ed};
+        else
+            rest.e = PassedNumber{value - double(units) / escale, {}};
+    } else {
+        first.e = PassedNumber{double(units) / escale + mv.e_start, {}, ed};
+        rest.e_start = first.e->value;
+    }
+}
+
 // A second part's figures added to the first's (a move written as two).
 void add_result(MoveResult& into, const MoveResult& part) {
     into.pieces += part.pieces;
@@ -163,30 +185,52 @@ IkResult MotionStage::join_from_held(const MoveSpec& mv, std::string& out, MoveR
         first.inverse_time = mv.inverse_time / s1;
         rest.inverse_time = mv.inverse_time / (1 - s1);
     }
-    if (mv.e) {
-        // E shared by tip length as emit_one shares it among pieces: the first part's at the
-        // dialect's decimals, the rest what is left (the parts add up to the input exactly).
-        const int ed = machine_.dialect.extrusion_decimals;
-        const double escale = std::pow(10.0, ed);
-        const double value = mv.e_relative ? mv.e->value : mv.e->value - mv.e_start;
-        const long long units = std::llround(value * s1 * escale);
-        if (mv.e_relative) {
-            first.e = PassedNumber{double(units) / escale, {}, ed};
-            const double total = value * escale;
-            if (std::abs(total - std::round(total)) < 1e-6)
-                rest.e = PassedNumber{double(std::llround(total) - units) / escale, {}, ed};
-            else
-                rest.e = PassedNumber{value - double(units) / escale, {}};
-        } else {
-            first.e = PassedNumber{double(units) / escale + mv.e_start, {}, ed};
-            rest.e_start = first.e->value;
-        }
-    }
+    share_e(mv, s1, machine_.dialect.extrusion_decimals, first, rest);
     MoveResult a, b;
     if (auto r = emit_one(first, out, result ? &a : nullptr); !r.ok()) return r;
     if (auto r = emit_move(rest, out, result ? &b : nullptr); !r.ok()) return r;
     if (result) {
         a.angle_error = std::max(a.angle_error, worst);  // the angle form measures the tip: the axis as checked above
+        add_result(a, b);
+        *result = a;
+    }
+    return {};
+}
+
+IkResult MotionStage::turn_in_place(const MoveSpec& mv, std::string& out, MoveResult* result) {
+    const PoleTurn& turn = *mv.turn;
+    const double s1 = turn.at;
+    const Pose mid{mv.p0.tip + s1 * (mv.p1.tip - mv.p0.tip), kin_.tool_axis(turn.before)};
+    MoveSpec first = mv, in_place = mv, rest = mv;
+    first.turn = in_place.turn = rest.turn = nullptr;
+    first.q1 = &turn.before;
+    first.p1 = mid;
+    first.end = nullptr;
+    in_place.q0 = &turn.before;
+    in_place.p0 = mid;
+    in_place.q1 = &turn.after;
+    in_place.p1 = mid;
+    in_place.p1.axis = kin_.tool_axis(turn.after);
+    in_place.end = nullptr;
+    in_place.e.reset();
+    in_place.f.reset();
+    in_place.inverse_time = 0;
+    rest.q0 = &turn.after;
+    rest.p0 = in_place.p1;
+    if (mv.inverse_time > 0) {
+        first.inverse_time = mv.inverse_time / s1;
+        rest.inverse_time = mv.inverse_time / (1 - s1);
+    }
+    share_e(mv, s1, machine_.dialect.extrusion_decimals, first, rest);
+    // Written into a buffer: a part that cannot be split leaves nothing behind.
+    std::string text;
+    MoveResult a, t, b;
+    if (auto r = emit_one(first, text, result ? &a : nullptr); !r.ok()) return r;
+    if (auto r = emit_one(in_place, text, result ? &t : nullptr); !r.ok()) return r;
+    if (auto r = emit_one(rest, text, result ? &b : nullptr); !r.ok()) return r;
+    out += text;
+    if (result) {
+        add_result(a, t);
         add_result(a, b);
         *result = a;
     }

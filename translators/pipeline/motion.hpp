@@ -77,6 +77,9 @@ private:
     // (pole_policy.hpp: join): the first part, up to the policy's s1, in angle form with E shared
     // by tip length, then the rest as the usual vector move. Not ok when no s1 does that.
     IkResult join_from_held(const MoveSpec& move, std::string& out, MoveResult* result);
+    // A passage with a half turn in place (pole_policy.hpp: turn): to the turn's joints, the turn
+    // (no E, the tip held), then to the end, each part in angle form, E shared by tip length.
+    IkResult turn_in_place(const MoveSpec& move, std::string& out, MoveResult* result);
     // The report's figures of the pieces just written.
     void measure(const MoveSpec& move, MoveResult& result) const;
 

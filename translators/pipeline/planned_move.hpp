@@ -11,6 +11,8 @@
 
 namespace xlate5 {
 
+struct PoleTurn;
+
 struct MoveSpec {
     int gcode = 1;
     OrientationMode mode = OrientationMode::Angles;  // how the move is interpolated in tool space
@@ -35,6 +37,8 @@ struct MoveSpec {
     // The orientation solutions of p1's axis, when the planner solved them (a tool vector's end):
     // the split takes them instead of solving that axis again.
     std::optional<Kinematics::Solutions> end_solutions;
+    // A passage near a pole made with a half turn in place on the way (pole_policy.hpp: turn).
+    const PoleTurn* turn = nullptr;
 };
 
 }  // namespace xlate5

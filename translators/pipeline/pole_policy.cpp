@@ -32,6 +32,7 @@ PoleHold::PoleHold(const Kinematics& kinematics)
         pole_ = kin_.tool_axis(q);
     }
     checks_ = rot.size() == 2 && kin_.has_flip() && machine_.motion.segment;
+    polar_ = kin_.is_polar();
     if (checks_) c_ = std::size_t(rot[0]), b_ = std::size_t(rot[1]);
 }
 
@@ -82,6 +83,10 @@ bool PoleHold::passage(const std::vector<double>& q0, const std::vector<double>&
     // sign; a zero sum's sign aside, which neither comparison nor acos tells apart).
     const double d = to.axis.dot(pole_);
     const bool near_pole = region_.below(d) || region_.below(-d);
+    // A polar machine (core-rtheta) takes C from the tip at the pole (Kinematics::is_polar): C is
+    // not free there, and a held C would only have the position solve turn it back, half a turn
+    // at a time.
+    if (near_pole && polar_) return false;
     if (start_exact && !near_pole) return false;
     // Only a move turning the tool axis by less than the tolerance may end off its axis: a
     // passage made of such moves cannot cross in any one of them. A longer move ends exactly
@@ -97,7 +102,7 @@ bool PoleHold::passage(const std::vector<double>& q0, const std::vector<double>&
 // end is not to be taken (out of reach, past the budget, or the usual end from an exact start).
 bool PoleHold::held_end(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& to,
                         const Kinematics::Solutions* at_end, std::vector<double>& q, Eigen::Vector3d& end_axis,
-                        bool start_exact, PoleChoices& choices) const {
+                        bool start_exact, PoleChoices& choices, bool& flipped) const {
     const std::size_t c = c_, b = b_;
     const double tolerance = machine_.motion.angle_tolerance;
     const double region = kPoleRegion * tolerance, hold = kPoleHold * tolerance;
@@ -137,7 +142,8 @@ bool PoleHold::held_end(const std::vector<double>& q0, const std::vector<double>
         if (std::abs(options[i] - best) > kPoleClearlyLess && std::abs(options[i] - q0[c]) < other_least)
             other_least = std::abs(options[i] - q0[c]), other = options[i];
     // Two options clearly apart: a branch choice, which the look-back may ask to take the other way.
-    if (other_least < 1e300 && choices.next_flipped()) best = other;
+    flipped = other_least < 1e300 && choices.next_flipped();
+    if (flipped) best = other;
     // The tilt: the point of the great circle at that turntable angle nearest the axis
     // (cos B along the pole, sin B along the tilt at 90 degrees), taken nearest B now.
     q[c] = best;
@@ -160,9 +166,19 @@ bool PoleHold::hold(const std::vector<double>& q0, const std::vector<double>& us
     const std::size_t c = c_, b = b_;
     const double tolerance = machine_.motion.angle_tolerance;
     const Eigen::Vector3d start_axis = axis_at(q0);  // as passage found it (a miss computes it again)
+    turn_.valid = false;
     q = usual;  // as solved: the continuous end (exact)
     Eigen::Vector3d end_axis;  // tool_axis(q), when hold_end
-    if (hold_end && !held_end(q0, usual, to, at_end, q, end_axis, start_exact, choices)) return false;
+    bool flipped = false;
+    if (hold_end && !held_end(q0, usual, to, at_end, q, end_axis, start_exact, choices, flipped)) return false;
+    // A flipped choice that one joint-linear turn cannot reach within the tolerance: with the
+    // look-back's leave, a half turn in place where the move passes nearest the pole.
+    const bool may_turn = flipped && choices.turns;
+    auto or_turn = [&] {
+        if (!may_turn || !turn_between(q0, from, to, q, worst)) return false;
+        remember_axis(q, end_axis);
+        return true;
+    };
     // The joint-linear turn from the start against the programmed axis's great circle. The first
     // point past the margin decides (worst is used only when the passage is taken, and then every
     // point was measured).
@@ -191,7 +207,7 @@ bool PoleHold::hold(const std::vector<double>& q0, const std::vector<double>& us
     if (need_worst) {
         for (int i = 0; i <= kPoleSamples; ++i) {
             worst = std::max(worst, deviation(i, nullptr));
-            if (!(worst <= limit)) return false;
+            if (!(worst <= limit)) return or_turn();
         }
         if (hold_end) remember_axis(q, end_axis);
         return true;
@@ -218,10 +234,95 @@ bool PoleHold::hold(const std::vector<double>& q0, const std::vector<double>& us
         return self(self, a, m, chord_a, chord_m) && self(self, m, b, chord_m, chord_b);
     };
     double chord0, chord1;
-    if (!(deviation(0, &chord0) <= limit) || !(deviation(kPoleSamples, &chord1) <= limit)) return false;
-    if (!cleared(cleared, 0, kPoleSamples, chord0, chord1)) return false;
+    if (!(deviation(0, &chord0) <= limit) || !(deviation(kPoleSamples, &chord1) <= limit)) return or_turn();
+    if (!cleared(cleared, 0, kPoleSamples, chord0, chord1)) return or_turn();
     if (hold_end) remember_axis(q, end_axis);
     return true;
+}
+
+// hold's last resort (pole_policy.hpp: turn). Near the pole a turn in place moves the tool axis
+// little: with the tilt t at both ends, the axis stays within about t of where it was (the
+// turning joint's half turn with the tilt through zero passes the pole itself), so it is made
+// where the programmed arc passes nearest the pole. Each part is checked on kPoleSamples points:
+// the first and last against their stretch of the arc, the turn against the arc's point there.
+bool PoleHold::turn_between(const std::vector<double>& q0, const Pose& from, const Pose& to, const std::vector<double>& q,
+                            double& worst) {
+    const std::size_t c = c_, b = b_;
+    const double limit = kPoleMargin * machine_.motion.angle_tolerance;
+    const GreatArc arc(from.axis, to.axis);
+    auto tilt_at = [&](double s) {
+        const Eigen::Vector3d u = arc.at(s);
+        return std::min(angle_between(u, pole_), angle_between(u, -pole_));
+    };
+    // The closest approach, on the samples; kept off the ends so that each part carries some of
+    // the move (and its E), the turn inside the printed move.
+    double at = 0, least = 1e300;
+    for (int i = 0; i <= kPoleSamples; ++i) {
+        const double s = double(i) / kPoleSamples;
+        if (const double t = tilt_at(s); t < least) least = t, at = s;
+    }
+    at = std::clamp(at, 1.0 / 32, 31.0 / 32);
+    if (!(tilt_at(at) < limit)) return false;
+    const Eigen::Vector3d u = arc.at(at);
+    const Eigen::Vector3d tip = from.tip + at * (to.tip - from.tip);
+    const Kinematics::Solutions solutions = kin_.orientation_solutions(u);
+    // Joints at `at` with the turning joint at `a`: the tilt to the great circle's point nearest u
+    // (as held_end), near `b_near`, the tip solved.
+    auto joints_at = [&](double a, double b_near, std::vector<double>& p) {
+        p = q0;
+        p[c] = a;
+        p[b] = 90;
+        const Eigen::Vector3d toward = kin_.tool_axis(p);
+        p[b] = b_near + wrap180(std::atan2(u.dot(toward), u.dot(pole_)) * kDegPerRad - b_near);
+        return kin_.solve_position(tip, p).ok() && check_limits(machine_, p).ok();
+    };
+    // The turning joint before the turn: held where it starts, or on the exact angle there
+    // nearest it; after: where the passage ends, or the exact angle nearest that.
+    auto exact_near = [&](double a, double& out) {
+        double best = 1e300;
+        for (int k = 0; k < solutions.count; ++k) {
+            const double e = solutions.angle[k][0];
+            if (std::isnan(e)) continue;
+            for (const double turn : {0.0, -360.0, 360.0}) {
+                const double v = a + wrap180(e - a) + turn;
+                if (inside_limits(machine_.joints[c], v) && std::abs(v - a) < std::abs(best - a)) best = v;
+            }
+        }
+        out = best;
+        return best < 1e300;
+    };
+    double before[2] = {q0[c], 0}, after[2] = {q[c], 0};
+    const int n_before = 1 + exact_near(q0[c], before[1]), n_after = 1 + exact_near(q[c], after[1]);
+    std::vector<double>& lerp = probe_;
+    lerp.resize(q0.size());
+    auto part = [&](const std::vector<double>& pa, const std::vector<double>& pb, double sa, double sb, double& w) {
+        for (int i = 0; i <= kPoleSamples && w <= limit; ++i) {
+            const double t = double(i) / kPoleSamples;
+            for (std::size_t j = 0; j < pa.size(); ++j) lerp[j] = pa[j] + t * (pb[j] - pa[j]);
+            w = std::max(w, angle_between(kin_.tool_axis(lerp), arc.at(sa + t * (sb - sa))));
+        }
+        return w <= limit;
+    };
+    std::vector<double> qa, qb;
+    for (int i = 0; i < n_before; ++i) {
+        if (!joints_at(before[i], q0[b], qa)) continue;
+        double w_first = 0;
+        if (!part(q0, qa, 0, at, w_first)) continue;
+        for (int k = 0; k < n_after; ++k) {
+            // Onto the other branch: the turning joint clearly apart, the tilt's sign the other.
+            if (std::abs(after[k] - qa[c]) <= kPoleClearlyLess) continue;
+            if (!joints_at(after[k], -qa[b], qb)) continue;
+            double w = w_first;
+            if (!part(qa, qb, at, at, w) || !part(qb, q, at, 1, w)) continue;
+            turn_.valid = true;
+            turn_.at = at;
+            turn_.before = qa;
+            turn_.after = qb;
+            worst = w;
+            return true;
+        }
+    }
+    return false;
 }
 
 bool pole_crossing(const Kinematics& kin, const std::vector<double>& q0, const Eigen::Vector3d& end_tip, const GreatArc& arc,

@@ -8,7 +8,10 @@
 //   the rotaries turning linearly, when that turns them clearly less;
 // - join (the motion stage, pole_join): from a held start that the continuous solution cannot
 //   follow, a first part turns linearly onto it;
-// - re-index (the motion stage, pole_reindex): leaving a pole, a free joint turns first, in place.
+// - re-index (the motion stage, pole_reindex): leaving a pole, a free joint turns first, in place;
+// - turn (the planner, PoleHold, as a last resort): a branch choice the look-back flipped whose
+//   passage cannot be made in one joint-linear turn is made in three: to the move's closest
+//   approach to the pole, a half turn there in place onto the other branch, then on to the end.
 // Every way keeps the tool axis within the angle tolerance of its programmed arc (checked).
 // May call: kinematics, joint_limits.
 #pragma once
@@ -57,12 +60,27 @@ struct PoleChoices {
     int seen = 0;                  // choices made so far (in: before the line; out: after it)
     int flips[kMaxFlips] = {};     // choices to take the other way (indices into seen's count)
     int n_flips = 0;
+    // A flipped choice whose passage one joint-linear turn cannot make may turn the head in place
+    // where the move passes nearest the pole (PoleTurn): the look-back allows it only after every
+    // replay without it has failed, so a half turn inside a printing move is taken only where no
+    // other way it tries keeps the path within the limits.
+    bool turns = false;
     bool next_flipped() {
         const int i = seen++;
         for (int k = 0; k < n_flips; ++k)
             if (flips[k] == i) return true;
         return false;
     }
+};
+
+// A passage made in three joint-linear parts (PoleHold, turn): from the start to the joints
+// `before` at move parameter `at` (the closest approach to the pole of the programmed axis's arc,
+// kept off the move's very ends), there a turn in place to `after` (the tip held, the rotaries
+// onto the other branch), then on to the passage's end.
+struct PoleTurn {
+    bool valid = false;
+    double at = 0;
+    std::vector<double> before, after;
 };
 
 class PoleHold {
@@ -83,6 +101,8 @@ public:
     bool passage(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& from, const Pose& to,
                  const Kinematics::Solutions* at_end, std::vector<double>& q, double& worst, bool need_worst,
                  bool& start_held, PoleChoices& choices);
+    // The last passage's turn in place (valid only when passage made it so).
+    const PoleTurn& turn() const { return turn_; }
     // A move's end as solved, whose axis the next move's start asks for.
     void remember_axis(const std::vector<double>& q, const Eigen::Vector3d& axis);
 
@@ -92,18 +112,22 @@ private:
               bool hold_end, PoleChoices& choices);
     bool held_end(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& to,
                   const Kinematics::Solutions* at_end, std::vector<double>& q, Eigen::Vector3d& end_axis, bool start_exact,
-                  PoleChoices& choices) const;
+                  PoleChoices& choices, bool& flipped) const;
+    bool turn_between(const std::vector<double>& q0, const Pose& from, const Pose& to, const std::vector<double>& q,
+                      double& worst);
     Eigen::Vector3d axis_at(const std::vector<double>& q) const;
 
     const Kinematics& kin_;
     const Machine& machine_;
     Eigen::Vector3d pole_ = Eigen::Vector3d::UnitZ();
     bool checks_ = false;
+    bool polar_ = false;                   // Kinematics::is_polar
     std::size_t c_ = 0, b_ = 0;            // the rotaries' joints (rotary_joints() order)
     AngleLimit region_, short_turn_;       // the tests of the angles passage compares
     double exact_start_;                   // a start within 1e-6 degrees of its axis: a dot at least this
     double chord_limit_;                   // hold's chord within its limit (a constant of the machine)
     std::vector<double> probe_;            // scratch
+    PoleTurn turn_;
     struct KnownAxis {
         bool valid = false;
         std::uint64_t rotary[2] = {};  // the rotaries' bits (a signed zero counts: the sine keeps its sign)

@@ -437,6 +437,32 @@ bool Segmenter::other_branch_passes(const MoveSpec& mv, double sa, double sb, co
     return false;
 }
 
+// A polar machine (Kinematics::is_polar) takes C from the tip where the tool axis is along C: of
+// the two angles that put the tip in its plane (half a turn apart, X of either sign), the one
+// nearest the free joint's hint, which follows the line from the move's start value to its end
+// value. Where the programmed line passes near C's axis the tip's angle swings round faster than
+// that line, and the nearest angle to the hint jumps half a turn: no piece across the jump stays
+// within the tolerance, however short. Then C is taken nearest the piece's start instead (the
+// swing the tip really makes): true, with qb and exact_b_ that end, when its piece passes.
+bool Segmenter::polar_continuous_passes(const MoveSpec& mv, double sa, double sb, const std::vector<double>& qa,
+                                        std::vector<double>& qb, double tol) {
+    bool jumped = false;
+    for (const int j : kin_.rotary_joints()) jumped = jumped || std::abs(exact_b_[std::size_t(j)] - qa[std::size_t(j)]) > 60.0;
+    if (!jumped) return false;
+    std::vector<double>& alt = scratch_b_;
+    alt = qa;
+    ChosenSolution chosen;
+    if (!orient_within_limits(machine_, kin_.rotary_joints(), target_.solutions, qa, qa, alt, &chosen).ok()) return false;
+    if (!place(target_, alt, chosen).ok()) return false;
+    std::vector<double>& alt_exact = alt_exact_;
+    alt_exact = alt;
+    round_printed(machine_, alt);
+    if (!bounded_within(mv, sa, sb, qa.data(), alt.data(), tol) && !piece_within(mv, sa, sb, qa.data(), alt.data(), tol)) return false;
+    qb = alt;
+    exact_b_ = alt_exact;
+    return true;
+}
+
 // The longest piece from sa (joints qa = march_a_, as printed) that passes: halved until one
 // passes, then closed in on the limit between the longest passing and the shortest failing
 // length. Its length in ok_len, its end in scratch_a_ (as printed) and ok_exact_ (as solved).
@@ -475,6 +501,7 @@ IkResult Segmenter::longest_piece(const MoveSpec& mv, double tol, double sa, dou
         bool pass = bounded_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol);
         if (!pass) pass = piece_within(mv, sa, std::min(sb, 1.0), qa.data(), qb.data(), tol, &middle_ratio);
         if (!pass && mv.mode == OrientationMode::Vector) pass = other_branch_passes(mv, sa, std::min(sb, 1.0), qa, qb, tol);
+        if (!pass && mv.mode == OrientationMode::Vector && kin_.is_polar()) pass = polar_continuous_passes(mv, sa, std::min(sb, 1.0), qa, qb, tol);
         if (pass) {
             ok_len = len;
             qok = qb;

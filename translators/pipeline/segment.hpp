@@ -181,6 +181,8 @@ private:
     IkResult longest_piece(const MoveSpec& move, double tol, double sa, double step, double& ok_len);
     bool other_branch_passes(const MoveSpec& move, double sa, double sb, const std::vector<double>& qa, std::vector<double>& qb,
                              double tol);
+    bool polar_continuous_passes(const MoveSpec& move, double sa, double sb, const std::vector<double>& qa, std::vector<double>& qb,
+                                 double tol);
     // An OutOfLimits result when the continuous solution at s (from `previous`) is outside a
     // rotary joint's limits.
     IkResult leaves_limits(const MoveSpec& move, double s, const std::vector<double>& previous) const;
