@@ -15,6 +15,7 @@
 #include <fcl/narrowphase/distance.h>
 
 #include <cmath>
+#include <deque>
 #include <iomanip>
 #include <sstream>
 
@@ -46,6 +47,9 @@ constexpr int kMaxAdvances = 20000;
 // GJK stops once its distance is within this fraction of the truth (it approaches from above):
 // every distance is scaled down by it, so the advance stays conservative.
 constexpr double kGjkTolerance = 1e-2;
+// A span turning less than this (radians, all rotaries together) is tested whole before it is
+// halved: the bounds need under half a radian (bound_at).
+constexpr double kWholeTurn = 0.25;
 
 std::shared_ptr<fcl::CollisionGeometryd> make_geometry(const BodyShape& s) {
     switch (s.kind) {
@@ -69,9 +73,25 @@ std::shared_ptr<fcl::CollisionGeometryd> make_geometry(const BodyShape& s) {
     return nullptr;
 }
 
+// An FCL object whose box is the tight one of its shape: FCL's own, once the object is turned,
+// is the box of the shape's bounding sphere (the nozzle's cone reached 2.4 mm below its tip
+// that way, onto the bed).
+struct Placed : fcl::CollisionObjectd {
+    using fcl::CollisionObjectd::CollisionObjectd;
+    void tight_box() {
+        const fcl::CollisionGeometryd& g = *collisionGeometry();
+        const Eigen::Vector3d e = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_);
+        const Eigen::Vector3d c = t * g.aabb_local.center();
+        // The local box turned: its extent along each axis. A sphere's does not turn.
+        const Eigen::Vector3d E = g.getNodeType() == fcl::GEOM_SPHERE ? e : Eigen::Vector3d(t.linear().cwiseAbs() * e);
+        aabb.min_ = c - E;
+        aabb.max_ = c + E;
+    }
+};
+
 struct Solid {
     const Body* body = nullptr;
-    std::unique_ptr<fcl::CollisionObjectd> object;
+    std::unique_ptr<Placed> object;
     bool moves = true;  // in the part frame (false: on the plate, fixed there)
 };
 
@@ -80,9 +100,11 @@ struct Snapshot {
     std::vector<Iso> pose;                   // per solid, part frame
     std::vector<Eigen::Vector3d> centre;     // per solid, base frame
     std::vector<Eigen::Vector3d> line_point, line_dir;  // per rotary chain element, base frame
-    std::vector<fcl::AABBd> box;             // per solid, part frame
+    std::vector<fcl::AABBd> box;             // per solid, part frame, as placed (with boxes)
     Iso tip = Iso::Identity();               // the tip's frame, part frame
     Eigen::Vector3d tip_base = Eigen::Vector3d::Zero();
+    Eigen::Vector3d axis_base = Eigen::Vector3d::UnitZ();  // the tool axis, base frame
+    std::vector<double> q;                   // the joints it was taken at
 };
 
 void walk(const std::vector<ChainElement>& chain, const double* q, std::vector<Iso>& out) {
@@ -118,9 +140,10 @@ struct CollisionStage::Impl {
     std::vector<RotaryRef> rotaries;  // every rotary chain element
     std::vector<int> linear_joints;
     struct Bead {
-        std::unique_ptr<fcl::CollisionObjectd> object;
+        std::unique_ptr<Placed> object;
         std::uint64_t line = 0;
         Eigen::Vector3d centre, half[3];  // the box: centre and half axes, part frame
+        double reach = 0;                 // its half diagonal
     };
     std::vector<Bead> beads;
     fcl::DynamicAABBTreeCollisionManagerd part;
@@ -132,7 +155,7 @@ struct CollisionStage::Impl {
         for (const Body& b : m.geometry->bodies) {
             Solid s;
             s.body = &b;
-            s.object = std::make_unique<fcl::CollisionObjectd>(make_geometry(b.shape));
+            s.object = std::make_unique<Placed>(make_geometry(b.shape));
             s.moves = !(!b.tool_side && b.after == int(m.part_chain.size()) - 1);
             const int i = int(solids.size());
             if (b.tool_side && b.after >= 0) tools.push_back(i);
@@ -158,11 +181,12 @@ struct CollisionStage::Impl {
     void place(int i, const Iso& pose) {
         auto& o = *solids[std::size_t(i)].object;
         o.setTransform(pose);
-        o.computeAABB();
+        o.tight_box();
     }
 
     // Every solid at joints `qq`: poses (part frame), centres (base frame), rotary axis lines.
-    void snap(const double* qq, Snapshot& s) {
+    void snap(const double* qq, Snapshot& s, bool boxes = false) {
+        s.q.assign(qq, qq + q.size());
         walk(machine.part_chain, qq, part_frames);
         walk(machine.tool_chain, qq, tool_frames);
         const Iso part_end = part_frames.empty() ? Iso::Identity() : part_frames.back();
@@ -180,6 +204,12 @@ struct CollisionStage::Impl {
         const Iso tip_base = tool_frames.empty() ? Iso::Identity() : tool_frames.back();
         s.tip = to_part * tip_base;
         s.tip_base = tip_base.translation();
+        s.axis_base = tip_base.linear() * machine.tool_axis;
+        if (boxes)
+            for (std::size_t i = 0; i < solids.size(); ++i) {
+                if (solids[i].moves) place(int(i), s.pose[i]);
+                s.box[i] = solids[i].object->getAABB();
+            }
         s.line_point.resize(rotaries.size());
         s.line_dir.resize(rotaries.size());
         for (std::size_t r = 0; r < rotaries.size(); ++r) {
@@ -192,15 +222,10 @@ struct CollisionStage::Impl {
         }
     }
 
-    // How far any point of solid i may move in the part frame over the joint change dq, from
-    // snapshot s on (docs/machines.md, "Bodies": the sweep's bound). Loose (the linear joints'
-    // travel and the rotaries' arms add up although the kinematics makes them cancel at the
-    // tip): it only bounds the arms' growth within a sub-step for rate() below.
-    double bound(int i, const Snapshot& s, const double* dq) const {
-        if (!solids[std::size_t(i)].moves) return 0;
-        return bound_at(s.centre[std::size_t(i)], solids[std::size_t(i)].body->radius, s, dq);
-    }
-    // The same for a sphere of radius R about `centre` (base frame) carried by the tool.
+    // How far any point of a sphere of radius R about `centre` (base frame) carried by the tool
+    // may move in the part frame over the joint change dq, from snapshot s on (docs/machines.md,
+    // "Bodies"). Loose (the linear joints' travel and the rotaries' arms add up although the
+    // kinematics makes them cancel at the tip): it only bounds the arms' growth within a step.
     double bound_at(const Eigen::Vector3d& centre, double R, const Snapshot& s, const double* dq) const {
         double a = 0, turn = 0;
         for (const int j : linear_joints) a += std::abs(dq[j]);
@@ -253,26 +278,53 @@ struct CollisionStage::Impl {
         return 0.5 * (4 * T * T * r + 3 * T * L);
     }
 
-    // Whether the box (centre c, half axes h, part frame, fixed there) lies wholly below tool
-    // body t's lowest point along the tool axis over the whole sub-step a -> b: then they
-    // cannot meet. A point x's height over the tip, z = n . (x - tip), changes at most by
-    // T (|x - tip| + Dtip) + Dtip (T: the turn, Dtip: the tip's rate) over the step.
-    bool below(int t, const Eigen::Vector3d& c, const Eigen::Vector3d* h, const Snapshot& a, double T, double Dtip) const {
-        const double low = solids[std::size_t(t)].body->low;
-        if (low < -1e299) return false;
-        const Eigen::Vector3d n = a.tip.linear() * machine.tool_axis;
-        const Eigen::Vector3d tip = a.tip.translation();
-        for (int k = 0; k < 8; ++k) {
-            const Eigen::Vector3d x = c + ((k & 1) ? h[0] : -h[0]) + ((k & 2) ? h[1] : -h[1]) + ((k & 4) ? h[2] : -h[2]);
-            const double z = n.dot(x - tip) + T * ((x - tip).norm() + Dtip) + Dtip;
-            if (z >= low - kContact) return false;
+    // What the tests of one step (sa..sb of the piece) share: the tool axis' and the tip's
+    // motion over it (part frame), for below().
+    struct StepBound {
+        Eigen::Vector3d n, tip;  // the tool axis and the tip at the step's start
+        double Tn = 0;           // how far the tool axis turns over the step, at most (rad)
+        double Dtip = 0;         // the tip's path length, at most
+        double along = 0;        // the tip's motion along n, at most: |n . (tip1 - tip0)| + its bow
+    };
+    StepBound step_bound(const Snapshot& a, const Snapshot& b, const double* dq) const {
+        StepBound sb;
+        sb.n = a.tip.linear() * machine.tool_axis;
+        sb.tip = a.tip.translation();
+        // The tool axis turns at |n'| <= sum_k theta_k |w_k x n|; the angle between w_k and n
+        // changes only by the other rotaries' turns (docs/machines.md, "Bodies").
+        double all = 0;
+        for (const auto& r : rotaries) all += std::abs(dq[std::size_t(r.joint)]) * kPi / 180.0;
+        for (std::size_t k = 0; k < rotaries.size(); ++k) {
+            const double th = std::abs(dq[std::size_t(rotaries[k].joint)]) * kPi / 180.0;
+            if (th == 0) continue;
+            sb.Tn += th * std::min(1.0, a.line_dir[k].cross(a.axis_base).norm() + (all - th));
         }
-        return true;
+        const Eigen::Vector3d chord = b.tip.translation() - a.tip.translation();
+        const double c = curve(a.tip_base, 0, a, dq);  // M / 2 for the tip
+        sb.Dtip = chord.norm() + c;
+        sb.along = std::abs(sb.n.dot(chord)) + 0.25 * c;
+        return sb;
     }
 
-    void pose_at(const double* q0, const double* q1, double s, Snapshot& out) {
+    // Whether the box (centre c, half axes h, half diagonal `reach`; part frame, fixed there)
+    // lies wholly below tool body t's lowest point along the tool axis over the whole step:
+    // then they cannot meet. A point x's height over the tip, z = n . (x - tip), rises over
+    // the step by at most Tn (|x - tip| + 2 Dtip) + along (docs/machines.md, "Bodies").
+    bool below(int t, const Eigen::Vector3d& c, const Eigen::Vector3d* h, double reach, const StepBound& sb) const {
+        const double low = solids[std::size_t(t)].body->low;
+        if (low < -1e299) return false;
+        const Eigen::Vector3d d = c - sb.tip;
+        const double top = sb.n.dot(d) + std::abs(sb.n.dot(h[0])) + std::abs(sb.n.dot(h[1])) + std::abs(sb.n.dot(h[2]));
+        return top + sb.Tn * (d.norm() + reach + 2 * sb.Dtip) + sb.along < low - kContact;
+    }
+
+    void pose_at(const double* q0, const double* q1, double s, Snapshot& out, bool boxes = false) {
+        if (s == 1) {
+            snap(q1, out, boxes);
+            return;
+        }
         for (std::size_t j = 0; j < q.size(); ++j) q[j] = q0[j] + (q1[j] - q0[j]) * s;
-        snap(q.data(), out);
+        snap(q.data(), out, boxes);
     }
 
     // Distance between solids a and b as placed (negative or 0: they touch).
@@ -304,145 +356,168 @@ struct CollisionStage::Impl {
         box.max_ += Eigen::Vector3d::Constant(by);
     }
 
-    std::shared_ptr<fcl::Boxd> probe_box;
-
+    // The beads whose boxes meet `box`: a walk of the printed part's tree (FCL's dynamic AABB
+    // tree), into `candidates`.
     std::vector<std::size_t> candidates;
-    static constexpr std::intptr_t kProbe = -1;
-    static bool collect(fcl::CollisionObjectd* a, fcl::CollisionObjectd* b, void* data) {
-        auto* self = static_cast<Impl*>(data);
-        // One is the probe; the bead carries its index.
-        const auto* bead = reinterpret_cast<std::intptr_t>(a->getUserData()) == kProbe ? b : a;
-        self->candidates.push_back(std::size_t(reinterpret_cast<std::intptr_t>(bead->getUserData())));
-        return false;  // every one
-    }
-    // The beads whose boxes meet `box`, into `candidates`.
+    std::vector<const fcl::detail::NodeBase<fcl::AABBd>*> stack;
     void collect_part(const fcl::AABBd& box) {
-        const Eigen::Vector3d size = (box.max_ - box.min_).cwiseMax(1e-9);
-        if (!probe_box) probe_box = std::make_shared<fcl::Boxd>(size);
-        probe_box->side = size;
-        probe_box->computeLocalAABB();
-        fcl::CollisionObjectd probe(probe_box, Iso(Eigen::Translation3d(box.center())));
-        probe.computeAABB();
-        probe.setUserData(reinterpret_cast<void*>(kProbe));
-        part.collide(&probe, this, &collect);
+        candidates.clear();
+        const auto* root = part.getTree().getRoot();
+        if (!root) return;
+        stack.clear();
+        stack.push_back(root);
+        while (!stack.empty()) {
+            const auto* node = stack.back();
+            stack.pop_back();
+            if (!node->bv.overlap(box)) continue;
+            if (node->isLeaf()) {
+                const auto* object = static_cast<const fcl::CollisionObjectd*>(node->data);
+                candidates.push_back(std::size_t(reinterpret_cast<std::intptr_t>(object->getUserData())));
+            } else {
+                stack.push_back(node->children[1]);
+                stack.push_back(node->children[0]);
+            }
+        }
+    }
+
+    // The outcome of one step's test.
+    enum class Step { Clear, Unsure, Hit };
+    // Conservative advancement of tool t against `other` over sa..sb: the contact, if any.
+    bool advance(int t, const fcl::CollisionObjectd& other, int who, double rate, const double* q0, const double* q1, double sa,
+                 double sb, double& s_hit) {
+        double s = sa;
+        for (int it = 0;; ++it) {
+            pose_at(q0, q1, s, mid);
+            place(t, mid.pose[std::size_t(t)]);
+            if (who >= 0 && solids[std::size_t(who)].moves) place(who, mid.pose[std::size_t(who)]);
+            const double d = distance(*solids[std::size_t(t)].object, other);
+            if (d <= kContact || it >= kMaxAdvances) {
+                s_hit = s;
+                return true;
+            }
+            // The pair cannot meet before s + d / rate: past the step's end, done.
+            if (rate <= 0 || s + d / rate >= sb) return false;
+            s += d / rate;
+        }
+    }
+
+    Snapshot mid;
+    std::vector<fcl::AABBd> swept;
+    std::vector<double> grown, D;
+    std::vector<double> dstep;
+
+    // One step sa..sb of the piece q0 -> q1, its ends' snapshots a and b (with boxes). `leaf`:
+    // the step is small enough for the advancement; otherwise anything the cheap tests cannot
+    // rule out makes it Unsure (the caller halves the step).
+    Step test_step(const double* q0, const double* q1, double sa, double sb, const Snapshot& a, const Snapshot& b, bool leaf,
+                   std::optional<CollisionEvent>& first) {
+        const std::size_t n = q.size();
+        dstep.resize(n);
+        for (std::size_t j = 0; j < n; ++j) dstep[j] = b.q[j] - a.q[j];
+        bool turns = false;
+        for (const auto& r : rotaries) turns = turns || dstep[std::size_t(r.joint)] != 0;
+        // Each moving solid's sweep over the step, boxed: every point stays within M / 8 of the
+        // straight line between its two ends (|p''| <= M), and those lines lie in the join of the
+        // end boxes (docs/machines.md, "Bodies").
+        swept.resize(solids.size());
+        for (std::size_t i = 0; i < solids.size(); ++i) {
+            swept[i] = a.box[i];
+            if (!solids[i].moves) continue;
+            swept[i] += b.box[i];
+            grow(swept[i], (turns ? 0.25 * curve(a.centre[i], solids[i].body->radius, a, dstep.data()) : 0.0) + kContact);
+        }
+        const StepBound bound = step_bound(a, b, dstep.data());
+        D.assign(solids.size(), -1.0);
+        auto rate_of = [&](int i) {
+            if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, a, b, dstep.data());
+            return D[std::size_t(i)];
+        };
+        double first_s = 2;
+        auto hit = [&](int t, int who, const Bead* bead, double s) {
+            if (s >= first_s) return;
+            first_s = s;
+            CollisionEvent ev;
+            ev.tool_body = solids[std::size_t(t)].body->name;
+            const fcl::CollisionObjectd& other = bead ? *bead->object : *solids[std::size_t(who)].object;
+            if (bead) ev.bead_line = bead->line;
+            else ev.other = solids[std::size_t(who)].body->name;
+            pose_at(q0, q1, s, mid);
+            place(t, mid.pose[std::size_t(t)]);
+            if (!bead && solids[std::size_t(who)].moves) place(who, mid.pose[std::size_t(who)]);
+            ev.at = contact_point(*solids[std::size_t(t)].object, other);
+            first = ev;
+        };
+        const auto* root = part.getTree().getRoot();
+        for (const int t : tools) {
+            const fcl::AABBd& box = swept[std::size_t(t)];
+            for (const auto* list : {&fixed_obstacles, &moving_obstacles})
+                for (const int o : *list) {
+                    if (!box.overlap(swept[std::size_t(o)])) continue;
+                    const Solid& obstacle = solids[std::size_t(o)];
+                    if (!obstacle.moves) {
+                        const fcl::AABBd& ob = obstacle.object->getAABB();
+                        const Eigen::Vector3d e = 0.5 * (ob.max_ - ob.min_);
+                        const Eigen::Vector3d half[3] = {Eigen::Vector3d(e.x(), 0, 0), Eigen::Vector3d(0, e.y(), 0), Eigen::Vector3d(0, 0, e.z())};
+                        if (below(t, ob.center(), half, e.norm(), bound)) continue;
+                    }
+                    if (!leaf) return Step::Unsure;
+                    double s = 0;
+                    if (advance(t, *obstacle.object, o, (rate_of(t) + rate_of(o)) / (sb - sa), q0, q1, sa, sb, s)) hit(t, o, nullptr, s);
+                }
+            // The printed part: the beads whose boxes meet the tool body's swept box, less those
+            // wholly below the body's lowest point over the step (the layers it prints on).
+            if (!root || !root->bv.overlap(box)) continue;
+            collect_part(box);
+            for (const std::size_t c : candidates) {
+                const Bead& bead = beads[c];
+                if (below(t, bead.centre, bead.half, bead.reach, bound)) continue;
+                if (!leaf) return Step::Unsure;
+                double s = 0;
+                if (advance(t, *bead.object, -1, rate_of(t) / (sb - sa), q0, q1, sa, sb, s)) hit(t, -1, &bead, s);
+            }
+        }
+        return first ? Step::Hit : Step::Clear;
+    }
+
+    // The middles by depth of the halving, reused (a deque: growing keeps the others in place).
+    std::deque<Snapshot> pool;
+    Snapshot start;      // at the last piece's end: the next piece's start, usually
+    bool start_valid = false;
+
+    // Tests sa..sb (ends a, b), halving it while the cheap tests are unsure; the first contact.
+    bool test_span(const double* q0, const double* q1, double sa, double sb, const Snapshot& a, const Snapshot& b, int depth,
+                   std::optional<CollisionEvent>& first) {
+        double turn = 0;
+        for (const auto& r : rotaries) turn += std::abs(b.q[std::size_t(r.joint)] - a.q[std::size_t(r.joint)]) * kPi / 180.0;
+        const bool leaf = turn <= kSubStepTurn;
+        // The bounds hold for a turn under half a radian (bound_at); test larger spans halved.
+        if (turn < kWholeTurn) {
+            const Step r = test_step(q0, q1, sa, sb, a, b, leaf, first);
+            if (r != Step::Unsure) return r == Step::Hit;
+        }
+        if (std::size_t(depth) >= pool.size()) pool.resize(std::size_t(depth) + 1);
+        const double sm = 0.5 * (sa + sb);
+        Snapshot& m = pool[std::size_t(depth)];  // deeper halvings use deeper ones
+        pose_at(q0, q1, sm, m, true);
+        if (test_span(q0, q1, sa, sm, a, m, depth + 1, first)) return true;
+        return test_span(q0, q1, sm, sb, m, b, depth + 1, first);
     }
 
     // The first contact over the sweep q0 -> q1, or none.
     std::optional<CollisionEvent> sweep(const double* q0, const double* q1) {
         const std::size_t n = q.size();
-        std::vector<double> dq(n);
-        double turn = 0;
-        for (std::size_t j = 0; j < n; ++j) {
-            dq[j] = q1[j] - q0[j];
-            if (machine.joints[j].rotary) turn += std::abs(dq[j]) * kPi / 180.0;
-        }
-        const int steps = std::max(1, int(std::ceil(turn / kSubStepTurn)));
-        Snapshot a, b, mid;
-        snap(q0, a);
-        std::vector<double> dstep(n);
-        for (std::size_t j = 0; j < n; ++j) dstep[j] = dq[j] / steps;
-        const bool step_turns = turn > 0;
-        for (int k = 0; k < steps; ++k) {
-            const double sa = double(k) / steps, sb = double(k + 1) / steps;
-            pose_at(q0, q1, sb, b);
-            // Each moving solid's sweep over the step, boxed: both ends' boxes joined and grown by
-            // half its bound (a point that moves at most D stays within D/2 of one end).
-            std::vector<fcl::AABBd> swept(solids.size());
-            std::vector<double> D(solids.size(), 0.0);
-            for (std::size_t i = 0; i < solids.size(); ++i) {
-                if (!solids[i].moves) {
-                    swept[i] = solids[i].object->getAABB();
-                    continue;
-                }
-                place(int(i), a.pose[i]);
-                fcl::AABBd box = solids[i].object->getAABB();
-                place(int(i), b.pose[i]);
-                box += solids[i].object->getAABB();
-                D[i] = rate(int(i), a, b, dstep.data());
-                // Without rotation every solid only translates, along a straight line in the part
-                // frame: the join of its end boxes holds its whole sweep, no growth needed.
-                grow(box, (step_turns ? 0.5 * D[i] : 0.0) + kContact);
-                swept[i] = box;
-            }
-            // The turn and the tip's rate over the step, for below().
-            double T = 0;
-            for (const auto& r : rotaries) T += std::abs(dstep[std::size_t(r.joint)]) * kPi / 180.0;
-            const double Dtip = (b.tip.translation() - a.tip.translation()).norm() + curve(a.tip_base, 0, a, dstep.data());
-            std::optional<CollisionEvent> first;
-            double first_s = 2;
-            for (const int t : tools) {
-                // Candidates: the bodies whose swept boxes meet the tool body's.
-                std::vector<std::pair<int, const fcl::CollisionObjectd*>> cands;  // (solid, object)
-                for (const auto* list : {&fixed_obstacles, &moving_obstacles})
-                    for (const int o : *list)
-                        if (swept[std::size_t(t)].overlap(swept[std::size_t(o)])) cands.push_back({o, solids[std::size_t(o)].object.get()});
-                for (const auto& [who, obj] : cands) {
-                    if (!solids[std::size_t(who)].moves) {
-                        const fcl::AABBd& box = obj->getAABB();
-                        const Eigen::Vector3d e = 0.5 * (box.max_ - box.min_);
-                        const Eigen::Vector3d half[3] = {Eigen::Vector3d(e.x(), 0, 0), Eigen::Vector3d(0, e.y(), 0), Eigen::Vector3d(0, 0, e.z())};
-                        if (below(t, box.center(), half, a, T, Dtip)) continue;
-                    }
-                    const double Do = D[std::size_t(who)];
-                    const double rate = (D[std::size_t(t)] + Do) / (sb - sa);
-                    double s = sa;
-                    for (int it = 0;; ++it) {
-                        pose_at(q0, q1, s, mid);
-                        place(t, mid.pose[std::size_t(t)]);
-                        if (solids[std::size_t(who)].moves) place(who, mid.pose[std::size_t(who)]);
-                        const double d = distance(*solids[std::size_t(t)].object, *obj);
-                        if (d <= kContact || it >= kMaxAdvances) {
-                            if (s < first_s) {
-                                first_s = s;
-                                CollisionEvent ev;
-                                ev.tool_body = solids[std::size_t(t)].body->name;
-                                ev.other = solids[std::size_t(who)].body->name;
-                                ev.at = contact_point(*solids[std::size_t(t)].object, *obj);
-                                first = ev;
-                            }
-                            break;
-                        }
-                        // The pair cannot meet before s + d / rate: past the step's end, done.
-                        if (rate <= 0 || s + d / rate >= sb) break;
-                        s += d / rate;
-                    }
-                }
-                // The printed part: the beads whose boxes meet the tool body's swept box (one
-                // walk of the tree, no GJK), less those wholly below the body's lowest point
-                // over the step (the layers it prints on); each one left advanced against.
-                if (beads.empty()) continue;
-                candidates.clear();
-                collect_part(swept[std::size_t(t)]);
-                const double rate = D[std::size_t(t)] / (sb - sa);
-                for (const std::size_t c : candidates) {
-                    const Bead& bead = beads[c];
-                    if (below(t, bead.centre, bead.half, a, T, Dtip)) continue;
-                    double s = sa;
-                    for (int it = 0;; ++it) {
-                        pose_at(q0, q1, s, mid);
-                        place(t, mid.pose[std::size_t(t)]);
-                        const double d = distance(*solids[std::size_t(t)].object, *bead.object);
-                        if (d <= kContact || it >= kMaxAdvances) {
-                            if (s < first_s) {
-                                first_s = s;
-                                CollisionEvent ev;
-                                ev.tool_body = solids[std::size_t(t)].body->name;
-                                ev.bead_line = bead.line;
-                                ev.at = contact_point(*solids[std::size_t(t)].object, *bead.object);
-                                first = ev;
-                            }
-                            break;
-                        }
-                        if (rate <= 0 || s + d / rate >= sb) break;
-                        s += d / rate;
-                    }
-                }
-            }
-            if (first) return first;
-            std::swap(a, b);
-        }
+        if (!start_valid || !std::equal(q0, q0 + n, start.q.begin())) snap(q0, start, true);
+        if (end.q.size() != n) end.q.resize(n);
+        snap(q1, end, true);
+        std::optional<CollisionEvent> first;
+        start_valid = false;
+        test_span(q0, q1, 0, 1, start, end, 0, first);
+        if (first) return first;
+        std::swap(start, end);
+        start_valid = true;
         return std::nullopt;
     }
+    Snapshot end;
 
     void add_bead(const double* q0, const double* q1, double e, std::uint64_t line) {
         walk(machine.part_chain, q0, part_frames);
@@ -477,12 +552,13 @@ struct CollisionStage::Impl {
         pose.linear().col(2) = up;
         // The bead lies under the tip's path: its top along it.
         pose.translation() = 0.5 * (p0 + p1) - 0.5 * h * up;
-        auto object = std::make_unique<fcl::CollisionObjectd>(std::make_shared<fcl::Boxd>(length, w, h), pose);
-        object->computeAABB();
+        auto object = std::make_unique<Placed>(std::make_shared<fcl::Boxd>(length, w, h), pose);
+        object->tight_box();
         object->setUserData(reinterpret_cast<void*>(std::intptr_t(beads.size())));
         part.registerObject(object.get());
         beads.push_back({std::move(object), line, pose.translation(),
-                         {0.5 * length * pose.linear().col(0), 0.5 * w * pose.linear().col(1), 0.5 * h * pose.linear().col(2)}});
+                         {0.5 * length * pose.linear().col(0), 0.5 * w * pose.linear().col(1), 0.5 * h * pose.linear().col(2)},
+                         0.5 * std::sqrt(length * length + w * w + h * h)});
     }
 
     void truncate(std::size_t count) {
