@@ -267,8 +267,8 @@ TEST_CASE("rw2: beads are laid once through the look-back's replay and a refused
 
 TEST_CASE("the bundled examples raise no collision on their machines") {
     const fs::path examples = fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path() / "examples";
-    for (const auto& [machine, file] : std::vector<std::pair<std::string, std::string>>{{"rw2", "rw2_flared_wall.gcode"}
-                                                                                          }) {
+    for (const auto& [machine, file] : std::vector<std::pair<std::string, std::string>>{{"rw2", "rw2_flared_wall.gcode"},
+                                                                                          {"pentarod", "pentarod_dome.gcode"}}) {
         CAPTURE_BINDING(file);
         const Machine m = load_with_bodies(machine);
         REQUIRE(m.geometry);
