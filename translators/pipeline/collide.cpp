@@ -3,7 +3,7 @@
 // What it may call: see collide.hpp.
 #include "translators/pipeline/collide.hpp"
 
-#include <fcl/broadphase/broadphase_dynamic_AABB_tree.h>
+#include <fcl/broadphase/detail/hierarchy_tree.h>
 #include <fcl/geometry/bvh/BVH_model.h>
 #include <fcl/geometry/shape/box.h>
 #include <fcl/geometry/shape/capsule.h>
@@ -139,14 +139,30 @@ struct CollisionStage::Impl {
     };
     std::vector<RotaryRef> rotaries;  // every rotary chain element
     std::vector<int> linear_joints;
+    // A bead: a box in the part frame. Its FCL object is made only when the narrow phase needs
+    // it (the tests before rule out nearly all), in `bead_object`.
+    using Node = fcl::detail::NodeBase<fcl::AABBd>;
     struct Bead {
-        std::unique_ptr<Placed> object;
         std::uint64_t line = 0;
+        Iso pose;
+        Eigen::Vector3d size;             // length, width, height
         Eigen::Vector3d centre, half[3];  // the box: centre and half axes, part frame
         double reach = 0;                 // its half diagonal
+        Node* node = nullptr;             // its leaf in `part`
     };
     std::vector<Bead> beads;
-    fcl::DynamicAABBTreeCollisionManagerd part;
+    fcl::detail::HierarchyTree<fcl::AABBd> part;  // FCL's dynamic AABB tree of the beads
+    std::shared_ptr<fcl::Boxd> bead_box = std::make_shared<fcl::Boxd>(1, 1, 1);
+    Placed bead_object{bead_box};
+    const fcl::CollisionObjectd& object_of(const Bead& b) {
+        bead_box->side = b.size;
+        bead_box->computeLocalAABB();
+        bead_object.setTransform(b.pose);
+        return bead_object;
+    }
+    // The tips of the last piece swept (part frame), for its bead.
+    std::vector<double> tips_q0, tips_q1;
+    Eigen::Vector3d tip0_part = Eigen::Vector3d::Zero(), tip1_part = Eigen::Vector3d::Zero(), axis1_part = Eigen::Vector3d::UnitZ();
     std::vector<Iso> part_frames, tool_frames;
     std::vector<double> q;
     std::uint64_t queries = 0;
@@ -359,10 +375,10 @@ struct CollisionStage::Impl {
     // The beads whose boxes meet `box`: a walk of the printed part's tree (FCL's dynamic AABB
     // tree), into `candidates`.
     std::vector<std::size_t> candidates;
-    std::vector<const fcl::detail::NodeBase<fcl::AABBd>*> stack;
+    std::vector<const Node*> stack;
     void collect_part(const fcl::AABBd& box) {
         candidates.clear();
-        const auto* root = part.getTree().getRoot();
+        const Node* root = part.getRoot();
         if (!root) return;
         stack.clear();
         stack.push_back(root);
@@ -371,8 +387,7 @@ struct CollisionStage::Impl {
             stack.pop_back();
             if (!node->bv.overlap(box)) continue;
             if (node->isLeaf()) {
-                const auto* object = static_cast<const fcl::CollisionObjectd*>(node->data);
-                candidates.push_back(std::size_t(reinterpret_cast<std::intptr_t>(object->getUserData())));
+                candidates.push_back(std::size_t(reinterpret_cast<std::intptr_t>(node->data)));
             } else {
                 stack.push_back(node->children[1]);
                 stack.push_back(node->children[0]);
@@ -438,7 +453,7 @@ struct CollisionStage::Impl {
             first_s = s;
             CollisionEvent ev;
             ev.tool_body = solids[std::size_t(t)].body->name;
-            const fcl::CollisionObjectd& other = bead ? *bead->object : *solids[std::size_t(who)].object;
+            const fcl::CollisionObjectd& other = bead ? object_of(*bead) : *solids[std::size_t(who)].object;
             if (bead) ev.bead_line = bead->line;
             else ev.other = solids[std::size_t(who)].body->name;
             pose_at(q0, q1, s, mid);
@@ -447,7 +462,7 @@ struct CollisionStage::Impl {
             ev.at = contact_point(*solids[std::size_t(t)].object, other);
             first = ev;
         };
-        const auto* root = part.getTree().getRoot();
+        const Node* root = part.getRoot();
         for (const int t : tools) {
             const fcl::AABBd& box = swept[std::size_t(t)];
             for (const auto* list : {&fixed_obstacles, &moving_obstacles})
@@ -473,7 +488,7 @@ struct CollisionStage::Impl {
                 if (below(t, bead.centre, bead.half, bead.reach, bound)) continue;
                 if (!leaf) return Step::Unsure;
                 double s = 0;
-                if (advance(t, *bead.object, -1, rate_of(t) / (sb - sa), q0, q1, sa, sb, s)) hit(t, -1, &bead, s);
+                if (advance(t, object_of(bead), -1, rate_of(t) / (sb - sa), q0, q1, sa, sb, s)) hit(t, -1, &bead, s);
             }
         }
         return first ? Step::Hit : Step::Clear;
@@ -513,6 +528,11 @@ struct CollisionStage::Impl {
         start_valid = false;
         test_span(q0, q1, 0, 1, start, end, 0, first);
         if (first) return first;
+        tips_q0 = start.q;
+        tips_q1 = end.q;
+        tip0_part = start.tip.translation();
+        tip1_part = end.tip.translation();
+        axis1_part = end.tip.linear() * machine.tool_axis;
         std::swap(start, end);
         start_valid = true;
         return std::nullopt;
@@ -520,15 +540,17 @@ struct CollisionStage::Impl {
     Snapshot end;
 
     void add_bead(const double* q0, const double* q1, double e, std::uint64_t line) {
-        walk(machine.part_chain, q0, part_frames);
-        walk(machine.tool_chain, q0, tool_frames);
-        const Iso to_part0 = (part_frames.empty() ? Iso::Identity() : part_frames.back()).inverse();
-        const Iso tip0 = to_part0 * (tool_frames.empty() ? Iso::Identity() : tool_frames.back());
-        walk(machine.part_chain, q1, part_frames);
-        walk(machine.tool_chain, q1, tool_frames);
-        const Iso to_part1 = (part_frames.empty() ? Iso::Identity() : part_frames.back()).inverse();
-        const Iso tip1 = to_part1 * (tool_frames.empty() ? Iso::Identity() : tool_frames.back());
-        const Eigen::Vector3d p0 = tip0.translation(), p1 = tip1.translation();
+        const std::size_t n = q.size();
+        // The piece just swept: its tips are known.
+        if (!(tips_q0.size() == n && std::equal(q0, q0 + n, tips_q0.begin()) && std::equal(q1, q1 + n, tips_q1.begin()))) {
+            Snapshot s;
+            snap(q0, s);
+            tip0_part = s.tip.translation();
+            snap(q1, s);
+            tip1_part = s.tip.translation();
+            axis1_part = s.tip.linear() * machine.tool_axis;
+        }
+        const Eigen::Vector3d p0 = tip0_part, p1 = tip1_part;
         const Eigen::Vector3d d = p1 - p0;
         const double length = d.norm();
         if (length < 1e-6) return;  // extrusion in place: no bead to speak of
@@ -539,7 +561,7 @@ struct CollisionStage::Impl {
             w = std::clamp(e * area / (length * h), 0.1, 3 * settings.bead_width);
         }
         const Eigen::Vector3d x = d / length;
-        Eigen::Vector3d up = tip1.linear() * machine.tool_axis;
+        Eigen::Vector3d up = axis1_part;
         // A piece that rises or plunges along the tool axis by more than a layer (a priming move
         // coming down onto the layer) leaves its material where it ends, not along its path.
         if (std::abs(d.dot(up)) > settings.bead_height) return;
@@ -552,18 +574,24 @@ struct CollisionStage::Impl {
         pose.linear().col(2) = up;
         // The bead lies under the tip's path: its top along it.
         pose.translation() = 0.5 * (p0 + p1) - 0.5 * h * up;
-        auto object = std::make_unique<Placed>(std::make_shared<fcl::Boxd>(length, w, h), pose);
-        object->tight_box();
-        object->setUserData(reinterpret_cast<void*>(std::intptr_t(beads.size())));
-        part.registerObject(object.get());
-        beads.push_back({std::move(object), line, pose.translation(),
-                         {0.5 * length * pose.linear().col(0), 0.5 * w * pose.linear().col(1), 0.5 * h * pose.linear().col(2)},
-                         0.5 * std::sqrt(length * length + w * w + h * h)});
+        Bead b;
+        b.line = line;
+        b.pose = pose;
+        b.size = Eigen::Vector3d(length, w, h);
+        b.centre = pose.translation();
+        b.half[0] = 0.5 * length * pose.linear().col(0);
+        b.half[1] = 0.5 * w * pose.linear().col(1);
+        b.half[2] = 0.5 * h * pose.linear().col(2);
+        b.reach = 0.5 * b.size.norm();
+        // Its box: the extent of the turned box along each axis.
+        const Eigen::Vector3d E = b.half[0].cwiseAbs() + b.half[1].cwiseAbs() + b.half[2].cwiseAbs();
+        b.node = part.insert(fcl::AABBd(b.centre - E, b.centre + E), reinterpret_cast<void*>(std::intptr_t(beads.size())));
+        beads.push_back(b);
     }
 
     void truncate(std::size_t count) {
         while (beads.size() > count) {
-            part.unregisterObject(beads.back().object.get());
+            part.remove(beads.back().node);
             beads.pop_back();
         }
     }
@@ -623,7 +651,7 @@ double CollisionStage::clearance(std::span<const double> q) {
         auto& a = *impl_->solids[std::size_t(t)].object;
         for (const auto* list : {&impl_->fixed_obstacles, &impl_->moving_obstacles})
             for (const int o : *list) least = std::min(least, impl_->distance(a, *impl_->solids[std::size_t(o)].object));
-        for (const auto& b : impl_->beads) least = std::min(least, impl_->distance(a, *b.object));
+        for (const auto& b : impl_->beads) least = std::min(least, impl_->distance(a, impl_->object_of(b)));
     }
     return std::max(least, 0.0);
 }
