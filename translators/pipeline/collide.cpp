@@ -188,10 +188,15 @@ struct CollisionStage::Impl {
             if (!m.joints[j].rotary) linear_joints.push_back(int(j));
         q.resize(m.joints.size());
         // The fixed obstacles' poses never change: set once, at home.
-        Snapshot at;
         const auto home = m.home_joints();
-        snap(home.data(), at);
-        for (const int i : fixed_obstacles) place(i, at.pose[std::size_t(i)]);
+        walk(m.part_chain, home.data(), part_frames);
+        walk(m.tool_chain, home.data(), tool_frames);
+        const Iso to_part = (part_frames.empty() ? Iso::Identity() : part_frames.back()).inverse();
+        for (const int i : fixed_obstacles) {
+            const Body& b = *solids[std::size_t(i)].body;
+            const auto& frames = b.tool_side ? tool_frames : part_frames;
+            place(i, to_part * (b.after < 0 ? Iso::Identity() : frames[std::size_t(b.after)]) * b.place);
+        }
     }
 
     void place(int i, const Iso& pose) {
@@ -211,6 +216,11 @@ struct CollisionStage::Impl {
         s.centre.resize(solids.size());
         s.box.resize(solids.size());
         for (std::size_t i = 0; i < solids.size(); ++i) {
+            if (!solids[i].moves) {  // on the plate: where the constructor placed it
+                s.pose[i] = solids[i].object->getTransform();
+                s.centre[i] = s.pose[i].translation();
+                continue;
+            }
             const Body& b = *solids[i].body;
             const auto& frames = b.tool_side ? tool_frames : part_frames;
             const Iso base = (b.after < 0 ? Iso::Identity() : frames[std::size_t(b.after)]) * b.place;
@@ -279,7 +289,7 @@ struct CollisionStage::Impl {
     }
     // Half the bound on |p''| of rate() for a sphere of radius R about `centre` (base frame).
     double curve(const Eigen::Vector3d& centre, double R, const Snapshot& a, const double* dq) const {
-        double T = 0, L = 0, r = 0;
+        double T = 0, L = 0, r = 0, A = 0;
         for (const int j : linear_joints) L += std::abs(dq[j]);
         for (std::size_t k = 0; k < rotaries.size(); ++k) {
             const double th = std::abs(dq[rotaries[k].joint]) * kPi / 180.0;
@@ -287,12 +297,15 @@ struct CollisionStage::Impl {
             T += th;
             // Every point of the body lies within its radius of the shape's centre.
             const Eigen::Vector3d v = centre - a.line_point[k];
-            r = std::max(r, (v - v.dot(a.line_dir[k]) * a.line_dir[k]).norm() + R);
+            const double arm = (v - v.dot(a.line_dir[k]) * a.line_dir[k]).norm() + R;
+            r = std::max(r, arm);
+            A += th * arm;
         }
         if (T == 0) return 0;
-        r += 2 * bound_at(centre, R, a, dq);  // how far points and axes get within the step
+        r += 2 * (L + A) / (1 - 2 * T);  // how far points and axes get within the step (bound_at)
         return 0.5 * (4 * T * T * r + 3 * T * L);
     }
+
 
     // What the tests of one step (sa..sb of the piece) share: the tool axis' and the tip's
     // motion over it (part frame), for below().
