@@ -148,10 +148,20 @@ struct CollisionStage::Impl {
         Eigen::Vector3d size;             // length, width, height
         Eigen::Vector3d centre, half[3];  // the box: centre and half axes, part frame
         double reach = 0;                 // its half diagonal
-        Node* node = nullptr;             // its leaf in `part`
+        fcl::AABBd box;
     };
     std::vector<Bead> beads;
-    fcl::detail::HierarchyTree<fcl::AABBd> part;  // FCL's dynamic AABB tree of the beads
+    // The tree holds the beads in chunks of kChunk in printing order (neighbours, mostly): a
+    // leaf's insertion costs more than the check of a few boxes. The last beads, fewer than
+    // kChunk, are the open chunk, checked one by one.
+    static constexpr std::size_t kChunk = 8;
+    struct Chunk {
+        std::size_t first = 0;
+        Node* node = nullptr;
+    };
+    std::vector<Chunk> chunks;
+    std::size_t open_first = 0;
+    fcl::detail::HierarchyTree<fcl::AABBd> part;  // FCL's dynamic AABB tree of the chunks
     std::shared_ptr<fcl::Boxd> bead_box = std::make_shared<fcl::Boxd>(1, 1, 1);
     Placed bead_object{bead_box};
     const fcl::CollisionObjectd& object_of(const Bead& b) {
@@ -391,6 +401,8 @@ struct CollisionStage::Impl {
     std::vector<const Node*> stack;
     void collect_part(const fcl::AABBd& box) {
         candidates.clear();
+        for (std::size_t i = open_first; i < beads.size(); ++i)
+            if (beads[i].box.overlap(box)) candidates.push_back(i);
         const Node* root = part.getRoot();
         if (!root) return;
         stack.clear();
@@ -400,7 +412,9 @@ struct CollisionStage::Impl {
             stack.pop_back();
             if (!node->bv.overlap(box)) continue;
             if (node->isLeaf()) {
-                candidates.push_back(std::size_t(reinterpret_cast<std::intptr_t>(node->data)));
+                const std::size_t first = chunks[std::size_t(reinterpret_cast<std::intptr_t>(node->data))].first;
+                for (std::size_t i = first; i < first + kChunk; ++i)
+                    if (beads[i].box.overlap(box)) candidates.push_back(i);
             } else {
                 stack.push_back(node->children[1]);
                 stack.push_back(node->children[0]);
@@ -494,7 +508,7 @@ struct CollisionStage::Impl {
                 }
             // The printed part: the beads whose boxes meet the tool body's swept box, less those
             // wholly below the body's lowest point over the step (the layers it prints on).
-            if (!root || !root->bv.overlap(box)) continue;
+            if ((!root || !root->bv.overlap(box)) && open_first == beads.size()) continue;
             collect_part(box);
             for (const std::size_t c : candidates) {
                 const Bead& bead = beads[c];
@@ -598,15 +612,23 @@ struct CollisionStage::Impl {
         b.reach = 0.5 * b.size.norm();
         // Its box: the extent of the turned box along each axis.
         const Eigen::Vector3d E = b.half[0].cwiseAbs() + b.half[1].cwiseAbs() + b.half[2].cwiseAbs();
-        b.node = part.insert(fcl::AABBd(b.centre - E, b.centre + E), reinterpret_cast<void*>(std::intptr_t(beads.size())));
+        b.box = fcl::AABBd(b.centre - E, b.centre + E);
         beads.push_back(b);
+        if (beads.size() - open_first < kChunk) return;
+        fcl::AABBd box = beads[open_first].box;
+        for (std::size_t i = open_first + 1; i < beads.size(); ++i) box += beads[i].box;
+        chunks.push_back({open_first, part.insert(box, reinterpret_cast<void*>(std::intptr_t(chunks.size())))});
+        open_first = beads.size();
     }
 
     void truncate(std::size_t count) {
-        while (beads.size() > count) {
-            part.remove(beads.back().node);
-            beads.pop_back();
+        if (beads.size() <= count) return;
+        while (!chunks.empty() && chunks.back().first + kChunk > count) {
+            part.remove(chunks.back().node);
+            chunks.pop_back();
         }
+        open_first = chunks.empty() ? 0 : chunks.back().first + kChunk;
+        beads.erase(beads.begin() + std::ptrdiff_t(count), beads.end());
     }
 };
 
