@@ -78,20 +78,22 @@ std::shared_ptr<fcl::CollisionGeometryd> make_geometry(const BodyShape& s) {
 // that way, onto the bed).
 struct Placed : fcl::CollisionObjectd {
     using fcl::CollisionObjectd::CollisionObjectd;
-    void tight_box() {
+    void tight_box() { aabb = box_at(t); }
+    // The box the shape would have at `pose`, without placing it there.
+    fcl::AABBd box_at(const Eigen::Isometry3d& pose) const {
         const fcl::CollisionGeometryd& g = *collisionGeometry();
         const Eigen::Vector3d e = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_);
-        const Eigen::Vector3d c = t * g.aabb_local.center();
+        const Eigen::Vector3d c = pose * g.aabb_local.center();
         // The local box turned: its extent along each axis. A sphere's does not turn.
-        const Eigen::Vector3d E = g.getNodeType() == fcl::GEOM_SPHERE ? e : Eigen::Vector3d(t.linear().cwiseAbs() * e);
-        aabb.min_ = c - E;
-        aabb.max_ = c + E;
+        const Eigen::Vector3d E = g.getNodeType() == fcl::GEOM_SPHERE ? e : Eigen::Vector3d(pose.linear().cwiseAbs() * e);
+        return fcl::AABBd(c - E, c + E);
     }
 };
 
 struct Solid {
     const Body* body = nullptr;
     std::unique_ptr<Placed> object;
+    int frame = -1;  // index into the frames bodies ride on (Impl::frame_keys)
     bool moves = true;  // in the part frame (false: on the plate, fixed there)
 };
 
@@ -107,6 +109,12 @@ struct Snapshot {
     std::vector<double> q;                   // the joints it was taken at
 };
 
+// FCL's AABB::overlap, inline (it is not, in the library).
+inline bool overlaps(const fcl::AABBd& a, const fcl::AABBd& b) {
+    return a.min_.x() <= b.max_.x() && b.min_.x() <= a.max_.x() && a.min_.y() <= b.max_.y() && b.min_.y() <= a.max_.y() &&
+           a.min_.z() <= b.max_.z() && b.min_.z() <= a.max_.z();
+}
+
 void walk(const std::vector<ChainElement>& chain, const double* q, std::vector<Iso>& out) {
     out.resize(chain.size());
     Iso T = Iso::Identity();
@@ -116,6 +124,10 @@ void walk(const std::vector<ChainElement>& chain, const double* q, std::vector<I
             case ChainElement::Kind::Fixed: T = T * e.fixed; break;
             case ChainElement::Kind::Linear: T.translate(e.axis * q[e.joint]); break;
             case ChainElement::Kind::Rotary:
+                if (e.point.isZero()) {
+                    T.rotate(Eigen::AngleAxisd(q[e.joint] * kPi / 180.0, e.axis));
+                    break;
+                }
                 T.translate(e.point);
                 T.rotate(Eigen::AngleAxisd(q[e.joint] * kPi / 180.0, e.axis));
                 T.translate(-e.point);
@@ -174,6 +186,10 @@ struct CollisionStage::Impl {
     std::vector<double> tips_q0, tips_q1;
     Eigen::Vector3d tip0_part = Eigen::Vector3d::Zero(), tip1_part = Eigen::Vector3d::Zero(), axis1_part = Eigen::Vector3d::UnitZ();
     std::vector<Iso> part_frames, tool_frames;
+    std::vector<std::pair<bool, int>> frame_keys;  // (tool side, after) of the frames bodies ride on
+    std::vector<Iso> frame_part;                   // those frames in the part frame, per snapshot
+    int tip_frame = -1;                            // the tip's among them, if a body rides on it
+    const Iso identity = Iso::Identity();
     std::vector<double> q;
     std::uint64_t queries = 0;
 
@@ -183,6 +199,11 @@ struct CollisionStage::Impl {
             s.body = &b;
             s.object = std::make_unique<Placed>(make_geometry(b.shape));
             s.moves = !(!b.tool_side && b.after == int(m.part_chain.size()) - 1);
+            const std::pair<bool, int> key(b.tool_side, b.after);
+            const auto at = std::find(frame_keys.begin(), frame_keys.end(), key);
+            s.frame = int(at - frame_keys.begin());
+            if (at == frame_keys.end()) frame_keys.push_back(key);
+            if (b.tool_side && b.after == int(m.tool_chain.size()) - 1 && b.after >= 0) tip_frame = s.frame;
             const int i = int(solids.size());
             if (b.tool_side && b.after >= 0) tools.push_back(i);
             else if (s.moves) moving_obstacles.push_back(i);
@@ -194,6 +215,8 @@ struct CollisionStage::Impl {
             for (std::size_t k = 0; k < chain.size(); ++k)
                 if (chain[k].kind == ChainElement::Kind::Rotary) rotaries.push_back({side == 1, int(k), chain[k].joint});
         }
+        if (rotaries.size() > Turns{}.th.size())
+            throw MachineError("the collision check handles at most " + std::to_string(Turns{}.th.size()) + " rotary chain elements");
         for (std::size_t j = 0; j < m.joints.size(); ++j)
             if (!m.joints[j].rotary) linear_joints.push_back(int(j));
         q.resize(m.joints.size());
@@ -225,6 +248,13 @@ struct CollisionStage::Impl {
         s.pose.resize(solids.size());
         s.centre.resize(solids.size());
         s.box.resize(solids.size());
+        // Each chain frame a body rides on, in the part frame: once, for all its bodies.
+        frame_part.resize(frame_keys.size());
+        for (std::size_t f = 0; f < frame_keys.size(); ++f) {
+            const auto& [tool_side, after] = frame_keys[f];
+            const auto& frames = tool_side ? tool_frames : part_frames;
+            frame_part[f] = after < 0 ? to_part : Iso(to_part * frames[std::size_t(after)]);
+        }
         for (std::size_t i = 0; i < solids.size(); ++i) {
             if (!solids[i].moves) {  // on the plate: where the constructor placed it
                 s.pose[i] = solids[i].object->getTransform();
@@ -233,18 +263,16 @@ struct CollisionStage::Impl {
             }
             const Body& b = *solids[i].body;
             const auto& frames = b.tool_side ? tool_frames : part_frames;
-            const Iso base = (b.after < 0 ? Iso::Identity() : frames[std::size_t(b.after)]) * b.place;
-            s.centre[i] = base.translation();
-            s.pose[i] = to_part * base;
+            s.centre[i] = b.after < 0 ? b.place.translation() : Eigen::Vector3d(frames[std::size_t(b.after)] * b.place.translation());
+            s.pose[i] = frame_part[std::size_t(solids[i].frame)] * b.place;
         }
-        const Iso tip_base = tool_frames.empty() ? Iso::Identity() : tool_frames.back();
-        s.tip = to_part * tip_base;
+        const Iso& tip_base = tool_frames.empty() ? identity : tool_frames.back();
+        s.tip = tip_frame >= 0 ? frame_part[std::size_t(tip_frame)] : Iso(to_part * tip_base);
         s.tip_base = tip_base.translation();
         s.axis_base = tip_base.linear() * machine.tool_axis;
         if (boxes)
             for (std::size_t i = 0; i < solids.size(); ++i) {
-                if (solids[i].moves) place(int(i), s.pose[i]);
-                s.box[i] = solids[i].object->getAABB();
+                s.box[i] = solids[i].moves ? solids[i].object->box_at(s.pose[i]) : solids[i].object->getAABB();
             }
         s.line_point.resize(rotaries.size());
         s.line_dir.resize(rotaries.size());
@@ -252,7 +280,12 @@ struct CollisionStage::Impl {
             const auto& chain = rotaries[r].tool ? machine.tool_chain : machine.part_chain;
             const auto& frames = rotaries[r].tool ? tool_frames : part_frames;
             const ChainElement& e = chain[std::size_t(rotaries[r].element)];
-            const Iso before = rotaries[r].element == 0 ? Iso::Identity() : frames[std::size_t(rotaries[r].element - 1)];
+            if (rotaries[r].element == 0) {
+                s.line_point[r] = e.point;
+                s.line_dir[r] = e.axis;
+                continue;
+            }
+            const Iso& before = frames[std::size_t(rotaries[r].element - 1)];
             s.line_point[r] = before * e.point;
             s.line_dir[r] = before.linear() * e.axis;
         }
@@ -299,22 +332,38 @@ struct CollisionStage::Impl {
     }
     // Half the bound on |p''| of rate() for a sphere of radius R about `centre` (base frame).
     double curve(const Eigen::Vector3d& centre, double R, const Snapshot& a, const double* dq) const {
-        double T = 0, L = 0, r = 0, A = 0;
-        for (const int j : linear_joints) L += std::abs(dq[j]);
+        return curve(centre, R, a, turns_of(dq));
+    }
+    // A step's joint motion as the bow needs it: the linear joints' travel, each rotary's turn.
+    struct Turns {
+        double L = 0, T = 0;
+        std::array<double, 16> th{};
+    };
+    Turns turns_of(const double* dq) const {
+        Turns tt;
+        for (const int j : linear_joints) tt.L += std::abs(dq[j]);
+        for (std::size_t k = 0; k < rotaries.size() && k < tt.th.size(); ++k) {
+            tt.th[k] = std::abs(dq[rotaries[k].joint]) * kPi / 180.0;
+            tt.T += tt.th[k];
+        }
+        return tt;
+    }
+    double curve(const Eigen::Vector3d& centre, double R, const Snapshot& a, const Turns& tt) const {
+        if (tt.T == 0) return 0;
+        double r = 0, A = 0;
         for (std::size_t k = 0; k < rotaries.size(); ++k) {
-            const double th = std::abs(dq[rotaries[k].joint]) * kPi / 180.0;
+            const double th = tt.th[k];
             if (th == 0) continue;
-            T += th;
             // Every point of the body lies within its radius of the shape's centre.
             const Eigen::Vector3d v = centre - a.line_point[k];
             const double arm = (v - v.dot(a.line_dir[k]) * a.line_dir[k]).norm() + R;
             r = std::max(r, arm);
             A += th * arm;
         }
-        if (T == 0) return 0;
-        r += 2 * (L + A) / (1 - 2 * T);  // how far points and axes get within the step (bound_at)
-        return 0.5 * (4 * T * T * r + 3 * T * L);
+        r += 2 * (tt.L + A) / (1 - 2 * tt.T);  // how far points and axes get within the step (bound_at)
+        return 0.5 * (4 * tt.T * tt.T * r + 3 * tt.T * tt.L);
     }
+
 
 
     // What the tests of one step (sa..sb of the piece) share: the tool axis' and the tip's
@@ -325,21 +374,19 @@ struct CollisionStage::Impl {
         double Dtip = 0;         // the tip's path length, at most
         double along = 0;        // the tip's motion along n, at most: |n . (tip1 - tip0)| + its bow
     };
-    StepBound step_bound(const Snapshot& a, const Snapshot& b, const double* dq) const {
+    StepBound step_bound(const Snapshot& a, const Snapshot& b, const Turns& tt) const {
         StepBound sb;
         sb.n = a.tip.linear() * machine.tool_axis;
         sb.tip = a.tip.translation();
         // The tool axis turns at |n'| <= sum_k theta_k |w_k x n|; the angle between w_k and n
         // changes only by the other rotaries' turns (docs/machines.md, "Bodies").
-        double all = 0;
-        for (const auto& r : rotaries) all += std::abs(dq[std::size_t(r.joint)]) * kPi / 180.0;
         for (std::size_t k = 0; k < rotaries.size(); ++k) {
-            const double th = std::abs(dq[std::size_t(rotaries[k].joint)]) * kPi / 180.0;
+            const double th = tt.th[k];
             if (th == 0) continue;
-            sb.Tn += th * std::min(1.0, a.line_dir[k].cross(a.axis_base).norm() + (all - th));
+            sb.Tn += th * std::min(1.0, a.line_dir[k].cross(a.axis_base).norm() + (tt.T - th));
         }
         const Eigen::Vector3d chord = b.tip.translation() - a.tip.translation();
-        const double c = curve(a.tip_base, 0, a, dq);  // M / 2 for the tip
+        const double c = curve(a.tip_base, 0, a, tt);  // M / 2 for the tip
         sb.Dtip = chord.norm() + c;
         sb.along = std::abs(sb.n.dot(chord)) + 0.25 * c;
         return sb;
@@ -402,7 +449,7 @@ struct CollisionStage::Impl {
     void collect_part(const fcl::AABBd& box) {
         candidates.clear();
         for (std::size_t i = open_first; i < beads.size(); ++i)
-            if (beads[i].box.overlap(box)) candidates.push_back(i);
+            if (overlaps(beads[i].box, box)) candidates.push_back(i);
         const Node* root = part.getRoot();
         if (!root) return;
         stack.clear();
@@ -410,11 +457,11 @@ struct CollisionStage::Impl {
         while (!stack.empty()) {
             const auto* node = stack.back();
             stack.pop_back();
-            if (!node->bv.overlap(box)) continue;
+            if (!overlaps(node->bv, box)) continue;
             if (node->isLeaf()) {
                 const std::size_t first = chunks[std::size_t(reinterpret_cast<std::intptr_t>(node->data))].first;
                 for (std::size_t i = first; i < first + kChunk; ++i)
-                    if (beads[i].box.overlap(box)) candidates.push_back(i);
+                    if (overlaps(beads[i].box, box)) candidates.push_back(i);
             } else {
                 stack.push_back(node->children[1]);
                 stack.push_back(node->children[0]);
@@ -456,8 +503,8 @@ struct CollisionStage::Impl {
         const std::size_t n = q.size();
         dstep.resize(n);
         for (std::size_t j = 0; j < n; ++j) dstep[j] = b.q[j] - a.q[j];
-        bool turns = false;
-        for (const auto& r : rotaries) turns = turns || dstep[std::size_t(r.joint)] != 0;
+        const Turns tt = turns_of(dstep.data());
+        const bool turns = tt.T > 0;
         // Each moving solid's sweep over the step, boxed: every point stays within M / 8 of the
         // straight line between its two ends (|p''| <= M), and those lines lie in the join of the
         // end boxes (docs/machines.md, "Bodies").
@@ -466,9 +513,9 @@ struct CollisionStage::Impl {
             swept[i] = a.box[i];
             if (!solids[i].moves) continue;
             swept[i] += b.box[i];
-            grow(swept[i], (turns ? 0.25 * curve(a.centre[i], solids[i].body->radius, a, dstep.data()) : 0.0) + kContact);
+            grow(swept[i], (turns ? 0.25 * curve(a.centre[i], solids[i].body->radius, a, tt) : 0.0) + kContact);
         }
-        const StepBound bound = step_bound(a, b, dstep.data());
+        const StepBound bound = step_bound(a, b, tt);
         D.assign(solids.size(), -1.0);
         auto rate_of = [&](int i) {
             if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, a, b, dstep.data());
@@ -494,7 +541,7 @@ struct CollisionStage::Impl {
             const fcl::AABBd& box = swept[std::size_t(t)];
             for (const auto* list : {&fixed_obstacles, &moving_obstacles})
                 for (const int o : *list) {
-                    if (!box.overlap(swept[std::size_t(o)])) continue;
+                    if (!overlaps(box, swept[std::size_t(o)])) continue;
                     const Solid& obstacle = solids[std::size_t(o)];
                     if (!obstacle.moves) {
                         const fcl::AABBd& ob = obstacle.object->getAABB();
@@ -508,7 +555,7 @@ struct CollisionStage::Impl {
                 }
             // The printed part: the beads whose boxes meet the tool body's swept box, less those
             // wholly below the body's lowest point over the step (the layers it prints on).
-            if ((!root || !root->bv.overlap(box)) && open_first == beads.size()) continue;
+            if ((!root || !overlaps(root->bv, box)) && open_first == beads.size()) continue;
             collect_part(box);
             for (const std::size_t c : candidates) {
                 const Bead& bead = beads[c];
@@ -601,7 +648,7 @@ struct CollisionStage::Impl {
         pose.linear().col(2) = up;
         // The bead lies under the tip's path: its top along it.
         pose.translation() = 0.5 * (p0 + p1) - 0.5 * h * up;
-        Bead b;
+        Bead& b = beads.emplace_back();
         b.line = line;
         b.pose = pose;
         b.size = Eigen::Vector3d(length, w, h);
@@ -613,7 +660,6 @@ struct CollisionStage::Impl {
         // Its box: the extent of the turned box along each axis.
         const Eigen::Vector3d E = b.half[0].cwiseAbs() + b.half[1].cwiseAbs() + b.half[2].cwiseAbs();
         b.box = fcl::AABBd(b.centre - E, b.centre + E);
-        beads.push_back(b);
         if (beads.size() - open_first < kChunk) return;
         fcl::AABBd box = beads[open_first].box;
         for (std::size_t i = open_first + 1; i < beads.size(); ++i) box += beads[i].box;
