@@ -121,7 +121,9 @@ void walk(const std::vector<ChainElement>& chain, const double* q, std::vector<I
     for (std::size_t k = 0; k < chain.size(); ++k) {
         const ChainElement& e = chain[k];
         switch (e.kind) {
-            case ChainElement::Kind::Fixed: T = T * e.fixed; break;
+            case ChainElement::Kind::Fixed:
+                if (!e.fixed.isApprox(Iso::Identity(), 0)) T = T * e.fixed;  // a calibration offset left at 0: nothing
+                break;
             case ChainElement::Kind::Linear: T.translate(e.axis * q[e.joint]); break;
             case ChainElement::Kind::Rotary:
                 if (e.point.isZero()) {
