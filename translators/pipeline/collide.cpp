@@ -26,7 +26,9 @@ namespace xlate5 {
 
 std::string CollisionEvent::message() const {
     std::ostringstream os;
-    os << std::fixed << std::setprecision(3) << "collision: " << tool_body << " meets ";
+    os << std::fixed << std::setprecision(3);
+    if (rerouted) os << "travel re-routed, lifted " << lift << " mm: " << tool_body << " would meet ";
+    else os << "collision: " << tool_body << " meets ";
     if (other.empty()) os << "printed part at line " << bead_line;
     else os << other;
     os << " at X" << at.x() << " Y" << at.y() << " Z" << at.z();
@@ -680,8 +682,16 @@ struct CollisionStage::Impl {
     }
 };
 
-CollisionStage::CollisionStage(const Machine& machine, CollisionPolicy policy, CollideCursor& cursor, const Modes& modes)
-    : impl_(std::make_unique<Impl>(machine)), cursor_(cursor), modes_(modes), policy_(policy) {}
+CollisionStage::CollisionStage(const Kinematics& kinematics, CollisionPolicy policy, CollideCursor& cursor, const Modes& modes,
+                               std::optional<bool> reroute, std::optional<double> lift)
+    : impl_(std::make_unique<Impl>(kinematics.machine())),
+      cursor_(cursor),
+      modes_(modes),
+      policy_(policy),
+      kinematics_(kinematics),
+      // The detour is written uncompensated: a machine with compensation is not re-routed.
+      reroute_(reroute.value_or(kinematics.machine().geometry->settings.reroute) && kinematics.machine().compensation.empty()),
+      lift_(lift.value_or(kinematics.machine().geometry->settings.lift)) {}
 
 CollisionStage::~CollisionStage() = default;
 
@@ -739,17 +749,47 @@ double CollisionStage::clearance(std::span<const double> q) {
     return std::max(least, 0.0);
 }
 
-void CollisionStage::piece(std::span<const double> from, std::span<const double> to, const std::optional<PassedNumber>& e) {
+const std::vector<std::vector<double>>* CollisionStage::piece(std::span<const double> from, std::span<const double> to,
+                                                              const std::optional<PassedNumber>& e) {
     double de = 0;
     if (e) {
         if (modes_.e_relative) de = e->value;
         else de = e->value - cursor_.e, cursor_.e = e->value;
     }
+    const std::vector<std::vector<double>>* detour = nullptr;
     if (auto ev = sweep(from, to)) {
-        if (on_collision) on_collision(*ev);
-        if (policy_ == CollisionPolicy::Refuse) throw LineError(1, ev->message());
+        // A travel goes round instead, when it can.
+        double lift = 0;
+        std::optional<std::vector<std::vector<double>>> round;
+        if (!e && reroute_) round = reroute(from, to, lift);
+        if (round) {
+            detour_ = std::move(*round);
+            detour = &detour_;
+            ev->rerouted = true;
+            ev->lift = lift;
+            if (on_collision) on_collision(*ev);
+        } else {
+            if (on_collision) on_collision(*ev);
+            if (policy_ == CollisionPolicy::Refuse) throw LineError(1, ev->message());
+        }
     }
     if (de > 0) add_bead(from, to, de, cursor_.line);
+    return detour;
+}
+
+std::optional<std::vector<std::vector<double>>> CollisionStage::reroute(std::span<const double> q0, std::span<const double> q1, double& lift) {
+    const std::vector<double> a(q0.begin(), q0.end()), b(q1.begin(), q1.end());
+    const Pose p0 = kinematics_.forward(a), p1 = kinematics_.forward(b);
+    // Lifted along each end's own tool axis (its orientation kept); higher if the first is not enough.
+    for (const double h : {lift_, 2 * lift_, 4 * lift_}) {
+        std::vector<double> up0 = a, up1 = b;
+        if (!kinematics_.solve_position(p0.tip + h * p0.axis, up0).ok() || !kinematics_.solve_position(p1.tip + h * p1.axis, up1).ok())
+            return std::nullopt;  // past a joint's limit: no room to lift
+        if (sweep(a, up0) || sweep(up0, up1) || sweep(up1, b)) continue;
+        lift = h;
+        return std::vector<std::vector<double>>{up0, up1};
+    }
+    return std::nullopt;
 }
 
 }  // namespace xlate5
