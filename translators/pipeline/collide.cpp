@@ -10,6 +10,7 @@
 #include <fcl/geometry/shape/cone.h>
 #include <fcl/geometry/shape/cylinder.h>
 #include <fcl/geometry/shape/sphere.h>
+#include <fcl/math/bv/OBB.h>
 #include <fcl/math/bv/OBBRSS.h>
 #include <fcl/narrowphase/collision.h>
 #include <fcl/narrowphase/distance.h>
@@ -473,6 +474,29 @@ struct CollisionStage::Impl {
         }
     }
 
+    // The bead as FCL's oriented box.
+    static fcl::OBBd bead_obb(const Bead& b) {
+        fcl::OBBd o;
+        o.axis = b.pose.linear();
+        o.To = b.centre;
+        o.extent = 0.5 * b.size;
+        return o;
+    }
+    // Whether tool body t, over the whole step from `step_a` (each of its points moving at most
+    // step_rate, set by test_step), stays apart from the box `other`: its own box (in its
+    // frame) grown by that much holds it all along; FCL's separating-axis test of two boxes.
+    const Snapshot* step_a = nullptr;
+    std::function<double(int)> step_rate;
+    bool apart(int t, const fcl::OBBd& other) {
+        const fcl::CollisionGeometryd& g = *solids[std::size_t(t)].object->collisionGeometry();
+        const Iso& pose = step_a->pose[std::size_t(t)];
+        fcl::OBBd o;
+        o.axis = pose.linear();
+        o.To = pose * g.aabb_local.center();
+        o.extent = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_) + Eigen::Vector3d::Constant(step_rate(t) + kContact);
+        return !o.overlap(other);
+    }
+
     // The outcome of one step's test.
     enum class Step { Clear, Unsure, Hit };
     // Conservative advancement of tool t against `other` over sa..sb: the contact, if any.
@@ -525,6 +549,8 @@ struct CollisionStage::Impl {
             if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, a, b, dstep.data());
             return D[std::size_t(i)];
         };
+        step_a = &a;
+        step_rate = rate_of;
         double first_s = 2;
         auto hit = [&](int t, int who, const Bead* bead, double s) {
             if (s >= first_s) return;
@@ -564,6 +590,7 @@ struct CollisionStage::Impl {
             for (const std::size_t c : candidates) {
                 const Bead& bead = beads[c];
                 if (below(t, bead.centre, bead.half, bead.reach, bound)) continue;
+                if (apart(t, bead_obb(bead))) continue;
                 if (!leaf) return Step::Unsure;
                 double s = 0;
                 if (advance(t, object_of(bead), -1, rate_of(t) / (sb - sa), q0, q1, sa, sb, s)) hit(t, -1, &bead, s);
