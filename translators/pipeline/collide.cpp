@@ -485,8 +485,11 @@ struct CollisionStage::Impl {
     // Whether tool body t, over the whole step from `step_a` (each of its points moving at most
     // step_rate, set by test_step), stays apart from the box `other`: its own box (in its
     // frame) grown by that much holds it all along; FCL's separating-axis test of two boxes.
-    const Snapshot* step_a = nullptr;
-    std::function<double(int)> step_rate;
+    const Snapshot *step_a = nullptr, *step_b = nullptr;
+    double step_rate(int i) {
+        if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, *step_a, *step_b, dstep.data());
+        return D[std::size_t(i)];
+    }
     bool apart(int t, const fcl::OBBd& other) {
         const fcl::CollisionGeometryd& g = *solids[std::size_t(t)].object->collisionGeometry();
         const Iso& pose = step_a->pose[std::size_t(t)];
@@ -545,12 +548,9 @@ struct CollisionStage::Impl {
         }
         const StepBound bound = step_bound(a, b, tt);
         D.assign(solids.size(), -1.0);
-        auto rate_of = [&](int i) {
-            if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, a, b, dstep.data());
-            return D[std::size_t(i)];
-        };
         step_a = &a;
-        step_rate = rate_of;
+        step_b = &b;
+        auto rate_of = [&](int i) { return step_rate(i); };
         double first_s = 2;
         auto hit = [&](int t, int who, const Bead* bead, double s) {
             if (s >= first_s) return;
