@@ -120,6 +120,15 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
                                 "refuse"))
         ->check(CLI::IsMember({"refuse", "warn", "off"}))
         ->option_text("refuse|warn|off");
+    app.add_option("--reroute", o.reroute,
+                   with_default("a travel (no E) whose tool bodies would meet something is lifted along the tool axis, "
+                                "carried across and lowered, instead of refused",
+                                "the machine file's [collision] reroute, else on"))
+        ->check(CLI::IsMember({"on", "off"}))
+        ->option_text("on|off");
+    app.add_option("--lift", o.lift, with_default("the re-routed travel's lift along the tool axis, mm (then twice, four times)",
+                                                  "the machine file's [collision] lift, else 10"))
+        ->check(number_in(0.1, 500, "mm", false));
     app.add_option("--keep-out", o.keep_out, "ITEMS.csv (x, y, height per line): R of a nozzle turning about its own axis (addin4) "
                                             "is set normal to the path, toward the nearest item at or below the current Z");
 }
@@ -201,14 +210,18 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         }
         options.compact_words = o.compact_words;
         options.collision = o.collision == "off" ? CollisionPolicy::Off : o.collision == "warn" ? CollisionPolicy::Warn : CollisionPolicy::Refuse;
+        if (!o.reroute.empty()) options.reroute = o.reroute == "on";
+        if (o.lift > 0) options.lift = o.lift;
         if (machine->geometry && options.collision != CollisionPolicy::Off) {
             if (report) report->set_collision_checked();
             const bool warn = options.collision == CollisionPolicy::Warn;
             const std::string name = options.input_name;
             options.on_collision = [&report, warn, name](const CollisionEvent& ev) {
-                if (report)
-                    report->add_collision(ev.line, ev.message(),
-                                          {ev.line, ev.moves_written, ev.bead_line, ev.tool_body, ev.other, {ev.at.x(), ev.at.y(), ev.at.z()}});
+                if (report) {
+                    DeviationReport::CollisionMark mark{ev.line, ev.moves_written, ev.bead_line, ev.tool_body, ev.other, {ev.at.x(), ev.at.y(), ev.at.z()}};
+                    if (ev.rerouted) report->add_reroute(ev.line, ev.message(), std::move(mark));
+                    else report->add_collision(ev.line, ev.message(), std::move(mark));
+                }
                 if (warn) std::cerr << printable(name) << ":" << ev.line << ": warning: " << printable(ev.message()) << "\n";
             };
         }

@@ -27,6 +27,8 @@ struct TranslateOptions {
     std::string from;
     // The collision check of a machine with [[bodies]]: refuse, warn or off.
     std::string collision = "refuse";
+    std::string reroute;  // "", "on" or "off"
+    double lift = 0;      // 0: the machine file's
 };
 
 // Input made by another command (join): the lines of `fd`, each traced back to the file and

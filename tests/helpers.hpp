@@ -252,8 +252,7 @@ inline std::string cube_stl(int size) {
 
 // A bundled machine with the bodies of tests/bodies/NAME.toml appended: GUESSES from its source
 // document (each file says which), not shipped in machines/ because the check's cost is still
-// far above the translation's (docs/limits.md). pentarod's could not be shipped anyway: the
-// bundled pentarod_dome example prints its dome downward from the plate, through it (Z to -12 mm).
+// far above the translation's (docs/limits.md).
 inline std::string machine_text_with_bodies(const std::string& name) {
     const std::filesystem::path dir(XLATE5_MACHINE_DIR_FOR_TESTS);
     return read_machine_file((dir / (name + ".toml")).string()) + "\n" + read(dir.parent_path() / "tests" / "bodies" / (name + ".toml"));

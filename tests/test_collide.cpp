@@ -164,6 +164,7 @@ TEST_CASE("rw2: the sweep finds a contact between a move's ends where neither en
     const Kinematics k(m);
     TranslatorOptions opt;
     opt.start_mode = OrientationMode::Angles;
+    opt.reroute = false;  // the travel below is refused, not lifted round the wall
     Translator t(k, opt);
     std::string out;
     std::uint64_t n = 0;
@@ -197,6 +198,77 @@ TEST_CASE("rw2: the sweep finds a contact between a move's ends where neither en
     CHECK_NOTHROW(t.feed("G0 Z0.2", ++n, more));
     CHECK_NOTHROW(t.feed("G1 X60 Y110 E1", ++n, more));
     CHECK(stage->beads() > 30);
+}
+
+// The joints of every move line in `text` (G0/G1, modal from `q`), in order.
+std::vector<std::vector<double>> written_moves(const Machine& m, const std::string& text, std::vector<double> q) {
+    std::vector<std::vector<double>> out;
+    for (const auto& l : lines_of(text)) {
+        if (l.rfind("G0 ", 0) != 0 && l.rfind("G1 ", 0) != 0) continue;
+        std::istringstream words(l.substr(3));
+        for (std::string w; words >> w;)
+            for (std::size_t j = 0; j < m.joints.size(); ++j)
+                if (w[0] == m.joints[j].output) q[j] = std::stod(w.substr(1));
+        out.push_back(q);
+    }
+    return out;
+}
+
+TEST_CASE("rw2: a travel through the wall is re-routed: lifted along the tool axis, across, lowered, all clear") {
+    const Machine m = load_with_bodies("rw2");
+    const Kinematics k(m);
+    const double lift = m.geometry->settings.lift;
+    std::vector<CollisionEvent> told;
+    TranslatorOptions opt;
+    opt.start_mode = OrientationMode::Angles;
+    opt.on_collision = [&](const CollisionEvent& e) { told.push_back(e); };
+    Translator t(k, opt);
+    std::string out;
+    std::uint64_t n = 0;
+    // Beside the wall (X 50, up to Z 6): a
+    // travel across it at Z 2.
+    for (const auto& l : lines_of(rw2_wall() + "G1 X40 Y100 Z20 B0\nG1 Z2\n")) t.feed(l, ++n, out);
+    CollisionStage& stage = *t.collision();
+    const std::vector<double> q0 = t.joints();
+    const std::size_t beads = stage.beads();
+    std::string more;
+    REQUIRE_NOTHROW(t.feed("G0 X60 Y100 Z2", ++n, more));
+    REQUIRE(told.size() == 1);
+    CHECK(told[0].rerouted);
+    CHECK(told[0].line == n);
+    CHECK(told[0].lift == lift);
+    CHECK(told[0].message().find("travel re-routed, lifted 10.000 mm: ") == 0);
+    CHECK(stage.beads() == beads);  // a travel lays nothing
+    // The written path, read back: three moves, by forward kinematics of the written joints.
+    const auto moves = written_moves(m, more, q0);
+    REQUIRE(moves.size() == 3);
+    const Pose start = k.forward(q0), up0 = k.forward(moves[0]), up1 = k.forward(moves[1]), end = k.forward(moves[2]);
+    const double digits = 2e-3;  // the written joints' three decimals
+    CHECK((up0.tip - (start.tip + lift * start.axis)).norm() < digits);
+    CHECK((up0.axis - start.axis).norm() < 1e-4);
+    CHECK((end.tip - Eigen::Vector3d(60, 100, 2)).norm() < digits);
+    CHECK((up1.tip - (end.tip + lift * end.axis)).norm() < digits);
+    CHECK((up1.axis - end.axis).norm() < 1e-4);
+    CHECK(up0.tip.z() > 6);  // above the wall
+    // Every leg clear of the wall at every one of 400 samples (the joints move linearly).
+    std::vector<double> prev = q0, q(q0.size());
+    double least = 1e300;
+    for (const auto& to : moves) {
+        for (int s = 0; s <= 400; ++s) {
+            for (std::size_t j = 0; j < q.size(); ++j) q[j] = prev[j] + (to[j] - prev[j]) * s / 400;
+            least = std::min(least, stage.clearance(q));
+        }
+        prev = to;
+    }
+    CHECK(least > 0);
+    // Re-routing off: the same travel is refused.
+    TranslatorOptions off = opt;
+    off.reroute = false;
+    Translator refused(k, off);
+    std::string ignored;
+    n = 0;
+    for (const auto& l : lines_of(rw2_wall() + "G1 X40 Y100 Z20 B0\nG1 Z2\n")) refused.feed(l, ++n, ignored);
+    CHECK_THROWS_WITH_AS(refused.feed("G0 X60 Y100 Z2", ++n, ignored), doctest::Contains("collision: "), InputError);
 }
 
 TEST_CASE("rw2: the sweep never misses what dense sampling finds (property)") {
@@ -267,8 +339,8 @@ TEST_CASE("rw2: beads are laid once through the look-back's replay and a refused
 
 TEST_CASE("the bundled examples raise no collision on their machines") {
     const fs::path examples = fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path() / "examples";
-    for (const auto& [machine, file] : std::vector<std::pair<std::string, std::string>>{{"rw2", "rw2_flared_wall.gcode"}
-                                                                                          }) {
+    for (const auto& [machine, file] : std::vector<std::pair<std::string, std::string>>{{"rw2", "rw2_flared_wall.gcode"},
+                                                                                          {"pentarod", "pentarod_dome.gcode"}}) {
         CAPTURE_BINDING(file);
         const Machine m = load_with_bodies(machine);
         REQUIRE(m.geometry);

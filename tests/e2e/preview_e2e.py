@@ -36,8 +36,10 @@ TEST_MESH_TRIANGLES = 2 * 200 * 99  # a UV sphere of 200 x 100 facets (the poles
 
 # Moves appended to the bundled example (its tool-space dialect): lifted clear, the head tilted
 # 60 degrees over the wall just printed and lowered into it; then tilted 85 degrees over the bed
-# and lowered onto it.
-COLLIDE = {"rw2": "G1 X110 Y100 Z20 A90 B60 F3000\nG1 Z4\nG1 Z20\nG1 X150 Y150 Z20 A0 B0\nG1 B85\nG1 Z3\nG1 Z20\n"}
+# and lowered onto it (collisions: their ends meet what they meet); then, upright, down inside
+# the wall and a travel out through it at Z 3 (re-routed: lifted over the wall).
+COLLIDE = {"rw2": "G1 X110 Y100 Z20 A90 B60 F3000\nG1 Z4\nG1 Z20\nG1 X150 Y150 Z20 A0 B0\nG1 B85\nG1 Z3\nG1 Z20\n"
+                  "G0 X110 Y110 Z20 A0 B0\nG0 Z3\nG0 X150 Y110 Z3\nG0 Z20\n"}
 
 
 def sphere_stl(path, radius, nu=200, nv=100):
@@ -274,6 +276,22 @@ def main():
     if collide:
         check(col["count"] >= 2 and any(c["other"] is None for c in data["collisions"]) and any(c["other"] for c in data["collisions"]),
               f"{name}: the constructed moves meet the printed part and a body")
+    # Re-routed travels: the report's, each a mark clickable to the detour's crossing.
+    rr = rep.get("rerouted", {"count": 0, "list": []})
+    check(s["marks"]["reroute"] == counts["reroutes"] == rr["count"] and s["listed"]["reroute"] == len(data["reroutes"]) ==
+          min(2000, rr["count"]) == dom.count('data-reroute="'), f"{name}: {rr['count']} re-routed travels: page {s['marks']['reroute']}, "
+          f"listed {s['listed']['reroute']}")
+    check([int(x.split(":")[0]) for x in rr["list"]] == [c["line"] for c in data["reroutes"]] and all(
+        f"travel re-routed, lifted " in x and f"{c['tool']} would meet " in x for x, c in zip(rr["list"], data["reroutes"])),
+          f"{name}: each re-routed travel's input line and bodies are the report's")
+    if collide:
+        check(rr["count"] >= 1, f"{name}: the travel out through the wall is re-routed ({rr['count']})")
+        # Its crossing, as written in the file (the mark's written move and the lift before it):
+        # the tip above the wall (6 mm high) at both of its ends, by `xlate5 pose`.
+        written = [at_line[number] for number in sorted(at_line)]
+        for c in data["reroutes"]:
+            tips = [fk(xlate5, machine, joints, written[k])[0] for k in (c["move"] - 1, c["move"]) if 0 <= k < len(written)]
+            check(len(tips) == 2 and all(t[2] > 6 for t in tips), f"{name}: re-routed crossing at move {c['move']} lifted: tips {tips}")
 
     # The scrubber at that line: the joints written there, and the tip forward kinematics gives.
     sc = s["scrubber"]

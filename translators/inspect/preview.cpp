@@ -473,6 +473,7 @@ const char* kBody =
     "<div id=\"linetext\"></div><table id=\"joints-now\"></table></div>\n"
     "<div id=\"side\"><b>Marks</b> (click one to go there)<ul id=\"marks\"></ul><b>Slowed to a joint's max_feed</b><ul id=\"slowed\"></ul>"
     "<b>Collisions</b> (--collision warn)<ul id=\"collisions\"></ul>"
+    "<b>Re-routed travels</b> (lifted over what they would meet)<ul id=\"reroutes\"></ul>"
     "<b>Where the serial link lets the planner drain</b> (--baud)<ul id=\"drains\"></ul><b>Machine bodies</b> <span id=\"bodies-source\"></span>"
     "<ul id=\"bodies\"></ul></div></div>\n"
     "<div id=\"joints\"></div>\n<pre id=\"summary\" style=\"display:none\"></pre>\n";
@@ -732,6 +733,23 @@ if (D.counts.collisions > D.collisions.length) {
 }
 summary.listed.collision = D.collisions.length;
 summary.marks.collision = D.counts.collisions;
+// The re-routed travels, the same way: clickable to the detour's crossing (its written move
+// after the lift).
+for (const c of D.reroutes) {
+  const li = document.createElement('li'); li.setAttribute('data-reroute', c.tool);
+  const b = document.createElement('button'); b.textContent = 'move ' + c.move;
+  b.addEventListener('click', () => jump(c.move));
+  li.appendChild(b);
+  li.appendChild(document.createTextNode(' input line ' + c.line + ': lifted, ' + c.tool + ' would meet ' +
+                                         (c.other === null ? 'the printed part (line ' + c.bead_line + ')' : c.other)));
+  document.getElementById('reroutes').appendChild(li);
+}
+if (D.counts.reroutes > D.reroutes.length) {
+  const li = document.createElement('li'); li.textContent = '\u2026 the first ' + D.reroutes.length + ' of ' + D.counts.reroutes + ' listed';
+  document.getElementById('reroutes').appendChild(li);
+}
+summary.listed.reroute = D.reroutes.length;
+summary.marks.reroute = D.counts.reroutes;
 list('slowed', D.slowed, 'data-feed');
 for (const [first, last] of D.drains) {  // output line ranges: to the last kept move at or before the first line
   const li = document.createElement('li'), b = document.createElement('button');
@@ -882,6 +900,17 @@ std::string Preview::html(const std::string& title) const {
                 (c.other.empty() ? std::string("null") : json_text(c.other)) + ", \"bead_line\": " + std::to_string(c.bead_line) +
                 ", \"contact\": [" + num(c.at[0]) + "," + num(c.at[1]) + "," + num(c.at[2]) + "]}";
     }
+    // The re-routed travels, each on its crossing: the detour's second written move (the lift
+    // first, the descent onto the travel's end after).
+    data += "], \"reroutes\": [";
+    const auto& lifts = events_.reroute_marks();
+    for (std::size_t i = 0; i < lifts.size(); ++i) {
+        const auto& c = lifts[i];
+        const std::uint64_t move = std::min<std::uint64_t>(c.move + 1, moves_ > 0 ? moves_ - 1 : 0);
+        data += std::string(i ? "," : "") + "{\"move\": " + std::to_string(move) + ", \"line\": " + std::to_string(c.line) +
+                ", \"tool\": " + json_text(c.tool) + ", \"other\": " + (c.other.empty() ? std::string("null") : json_text(c.other)) +
+                ", \"bead_line\": " + std::to_string(c.bead_line) + "}";
+    }
     const Volume v = volume_of(m);
     data += "], \"volume\": {\"lo\": [" + num(v.lo[0]) + "," + num(v.lo[1]) + "," + num(v.lo[2]) + "], \"hi\": [" + num(v.hi[0]) + "," +
             num(v.hi[1]) + "," + num(v.hi[2]) + "]}";
@@ -889,7 +918,7 @@ std::string Preview::html(const std::string& title) const {
             ", \"pole\": " + std::to_string(events_.pole_crossings()) + ", \"unwind\": " + std::to_string(events_.unwinds()) +
             ", \"branch\": " + std::to_string(events_.branch_changes()) + ", \"rezero\": " + std::to_string(events_.rezeros()) +
             ", \"slowed\": " + std::to_string(slowed_) + ", \"slowed_runs\": " + std::to_string(slowed_runs_) +
-            ", \"collisions\": " + std::to_string(events_.collisions()) + "}";
+            ", \"collisions\": " + std::to_string(events_.collisions()) + ", \"reroutes\": " + std::to_string(events_.reroutes()) + "}";
     data += ", \"three\": \"" + std::string(three_js::kRevision) + "\"}";
     const std::uint64_t total = events_.pole_crossings() + events_.unwinds() + events_.branch_changes() + events_.rezeros();
     const std::uint64_t passed = moves_ >= events_.output_moves() ? moves_ - events_.output_moves() : 0;

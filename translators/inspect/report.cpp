@@ -193,6 +193,9 @@ std::string DeviationReport::json() const {
         o += "  \"collisions\": {\"count\": " + std::to_string(collision_count_) + ", \"list\": [";
         for (std::size_t i = 0; i < collisions_.size(); ++i) o += std::string(i ? ", " : "") + "\"" + escape(collisions_[i]) + "\"";
         o += "]},\n";
+        o += "  \"rerouted\": {\"count\": " + std::to_string(reroute_count_) + ", \"list\": [";
+        for (std::size_t i = 0; i < reroutes_.size(); ++i) o += std::string(i ? ", " : "") + "\"" + escape(reroutes_[i]) + "\"";
+        o += "]},\n";
     }
     // Extremes over the translated tool-space moves (joint-space G49 moves are passed on as written).
     o += "  \"joint_range\": {";

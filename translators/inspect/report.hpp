@@ -58,6 +58,15 @@ public:
         add_collision(line, message);
     }
     const std::vector<CollisionMark>& collision_marks() const { return collision_marks_; }
+    // A travel the check re-routed round a contact (lifted along the tool axis) instead of
+    // refusing it: counted and listed under "rerouted", marked as a collision is.
+    void add_reroute(std::uint64_t line, const std::string& message, CollisionMark mark) {
+        ++reroute_count_;
+        if (reroutes_.size() < kMaxMarks) reroutes_.push_back(std::to_string(line) + ": " + message);
+        if (reroute_marks_.size() < kMaxMarks) reroute_marks_.push_back(std::move(mark));
+    }
+    std::uint64_t reroutes() const { return reroute_count_; }
+    const std::vector<CollisionMark>& reroute_marks() const { return reroute_marks_; }
 
     // Where the counted events happened: each at the input line of its move and at the output's
     // move lines (the emitter's count once the move was written), so a preview of the output
@@ -122,6 +131,9 @@ private:
     std::uint64_t collision_count_ = 0;
     std::vector<std::string> collisions_;
     std::vector<CollisionMark> collision_marks_;
+    std::uint64_t reroute_count_ = 0;
+    std::vector<std::string> reroutes_;
+    std::vector<CollisionMark> reroute_marks_;
     std::vector<Point> series_;  // at most kMaxPoints, each the worst of `bucket_` moves
     std::uint64_t bucket_ = 1, in_bucket_ = 0;
     static constexpr std::size_t kMaxPoints = 2000;

@@ -189,7 +189,7 @@ void load_geometry(const toml::table& root, const std::string& path, const std::
     if (const auto* node = root.get("collision")) {
         const auto* t = node->as_table();
         if (!t) f.fail(node, "collision", "expected a table");
-        f.only_keys(*t, "collision", {"tip_clearance", "bead_width", "bead_height", "filament_diameter"});
+        f.only_keys(*t, "collision", {"tip_clearance", "bead_width", "bead_height", "filament_diameter", "reroute", "lift"});
         CollisionSettings& s = geometry->settings;
         if (t->contains("tip_clearance")) {
             s.tip_clearance = f.number(t->get("tip_clearance"), "collision.tip_clearance");
@@ -199,6 +199,15 @@ void load_geometry(const toml::table& root, const std::string& path, const std::
         if (t->contains("bead_width")) s.bead_width = f.positive(t->get("bead_width"), "collision.bead_width");
         if (t->contains("bead_height")) s.bead_height = f.positive(t->get("bead_height"), "collision.bead_height");
         if (t->contains("filament_diameter")) s.filament_diameter = f.positive(t->get("filament_diameter"), "collision.filament_diameter");
+        if (const auto* r = t->get("reroute")) {
+            const auto v = r->value<bool>();
+            if (!v) f.fail(r, "collision.reroute", "expected true or false");
+            s.reroute = *v;
+        }
+        if (t->contains("lift")) {
+            s.lift = f.positive(t->get("lift"), "collision.lift");
+            if (s.lift > 500) f.fail(t->get("lift"), "collision.lift", "expected at most 500 mm");
+        }
     }
     const auto* node = root.get("bodies");
     if (!node) {

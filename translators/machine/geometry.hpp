@@ -48,6 +48,10 @@ struct CollisionSettings {
     double bead_width = 0.45;
     double bead_height = 0.2;
     double filament_diameter = 1.75;  // mm: E (mm of filament) -> bead width
+    // A travel (a piece without E) that would collide is re-routed: lifted `lift` mm along the
+    // tool axis (then twice and four times that, if need be), travelled, lowered (docs/machines.md).
+    bool reroute = true;
+    double lift = 10;
 };
 
 struct MachineGeometry {

@@ -3,18 +3,20 @@
 // What it may call: see collide.hpp.
 #include "translators/pipeline/collide.hpp"
 
-#include <fcl/broadphase/broadphase_dynamic_AABB_tree.h>
+#include <fcl/broadphase/detail/hierarchy_tree.h>
 #include <fcl/geometry/bvh/BVH_model.h>
 #include <fcl/geometry/shape/box.h>
 #include <fcl/geometry/shape/capsule.h>
 #include <fcl/geometry/shape/cone.h>
 #include <fcl/geometry/shape/cylinder.h>
 #include <fcl/geometry/shape/sphere.h>
+#include <fcl/math/bv/OBB.h>
 #include <fcl/math/bv/OBBRSS.h>
 #include <fcl/narrowphase/collision.h>
 #include <fcl/narrowphase/distance.h>
 
 #include <cmath>
+#include <deque>
 #include <iomanip>
 #include <sstream>
 
@@ -25,7 +27,9 @@ namespace xlate5 {
 
 std::string CollisionEvent::message() const {
     std::ostringstream os;
-    os << std::fixed << std::setprecision(3) << "collision: " << tool_body << " meets ";
+    os << std::fixed << std::setprecision(3);
+    if (rerouted) os << "travel re-routed, lifted " << lift << " mm: " << tool_body << " would meet ";
+    else os << "collision: " << tool_body << " meets ";
     if (other.empty()) os << "printed part at line " << bead_line;
     else os << other;
     os << " at X" << at.x() << " Y" << at.y() << " Z" << at.z();
@@ -46,6 +50,9 @@ constexpr int kMaxAdvances = 20000;
 // GJK stops once its distance is within this fraction of the truth (it approaches from above):
 // every distance is scaled down by it, so the advance stays conservative.
 constexpr double kGjkTolerance = 1e-2;
+// A span turning less than this (radians, all rotaries together) is tested whole before it is
+// halved: the bounds need under half a radian (bound_at).
+constexpr double kWholeTurn = 0.25;
 
 std::shared_ptr<fcl::CollisionGeometryd> make_geometry(const BodyShape& s) {
     switch (s.kind) {
@@ -69,9 +76,27 @@ std::shared_ptr<fcl::CollisionGeometryd> make_geometry(const BodyShape& s) {
     return nullptr;
 }
 
+// An FCL object whose box is the tight one of its shape: FCL's own, once the object is turned,
+// is the box of the shape's bounding sphere (the nozzle's cone reached 2.4 mm below its tip
+// that way, onto the bed).
+struct Placed : fcl::CollisionObjectd {
+    using fcl::CollisionObjectd::CollisionObjectd;
+    void tight_box() { aabb = box_at(t); }
+    // The box the shape would have at `pose`, without placing it there.
+    fcl::AABBd box_at(const Eigen::Isometry3d& pose) const {
+        const fcl::CollisionGeometryd& g = *collisionGeometry();
+        const Eigen::Vector3d e = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_);
+        const Eigen::Vector3d c = pose * g.aabb_local.center();
+        // The local box turned: its extent along each axis. A sphere's does not turn.
+        const Eigen::Vector3d E = g.getNodeType() == fcl::GEOM_SPHERE ? e : Eigen::Vector3d(pose.linear().cwiseAbs() * e);
+        return fcl::AABBd(c - E, c + E);
+    }
+};
+
 struct Solid {
     const Body* body = nullptr;
-    std::unique_ptr<fcl::CollisionObjectd> object;
+    std::unique_ptr<Placed> object;
+    int frame = -1;  // index into the frames bodies ride on (Impl::frame_keys)
     bool moves = true;  // in the part frame (false: on the plate, fixed there)
 };
 
@@ -80,10 +105,18 @@ struct Snapshot {
     std::vector<Iso> pose;                   // per solid, part frame
     std::vector<Eigen::Vector3d> centre;     // per solid, base frame
     std::vector<Eigen::Vector3d> line_point, line_dir;  // per rotary chain element, base frame
-    std::vector<fcl::AABBd> box;             // per solid, part frame
+    std::vector<fcl::AABBd> box;             // per solid, part frame, as placed (with boxes)
     Iso tip = Iso::Identity();               // the tip's frame, part frame
     Eigen::Vector3d tip_base = Eigen::Vector3d::Zero();
+    Eigen::Vector3d axis_base = Eigen::Vector3d::UnitZ();  // the tool axis, base frame
+    std::vector<double> q;                   // the joints it was taken at
 };
+
+// FCL's AABB::overlap, inline (it is not, in the library).
+inline bool overlaps(const fcl::AABBd& a, const fcl::AABBd& b) {
+    return a.min_.x() <= b.max_.x() && b.min_.x() <= a.max_.x() && a.min_.y() <= b.max_.y() && b.min_.y() <= a.max_.y() &&
+           a.min_.z() <= b.max_.z() && b.min_.z() <= a.max_.z();
+}
 
 void walk(const std::vector<ChainElement>& chain, const double* q, std::vector<Iso>& out) {
     out.resize(chain.size());
@@ -91,9 +124,15 @@ void walk(const std::vector<ChainElement>& chain, const double* q, std::vector<I
     for (std::size_t k = 0; k < chain.size(); ++k) {
         const ChainElement& e = chain[k];
         switch (e.kind) {
-            case ChainElement::Kind::Fixed: T = T * e.fixed; break;
+            case ChainElement::Kind::Fixed:
+                if (!e.fixed.isApprox(Iso::Identity(), 0)) T = T * e.fixed;  // a calibration offset left at 0: nothing
+                break;
             case ChainElement::Kind::Linear: T.translate(e.axis * q[e.joint]); break;
             case ChainElement::Kind::Rotary:
+                if (e.point.isZero()) {
+                    T.rotate(Eigen::AngleAxisd(q[e.joint] * kPi / 180.0, e.axis));
+                    break;
+                }
                 T.translate(e.point);
                 T.rotate(Eigen::AngleAxisd(q[e.joint] * kPi / 180.0, e.axis));
                 T.translate(-e.point);
@@ -117,14 +156,45 @@ struct CollisionStage::Impl {
     };
     std::vector<RotaryRef> rotaries;  // every rotary chain element
     std::vector<int> linear_joints;
+    // A bead: a box in the part frame. Its FCL object is made only when the narrow phase needs
+    // it (the tests before rule out nearly all), in `bead_object`.
+    using Node = fcl::detail::NodeBase<fcl::AABBd>;
     struct Bead {
-        std::unique_ptr<fcl::CollisionObjectd> object;
         std::uint64_t line = 0;
+        Iso pose;
+        Eigen::Vector3d size;             // length, width, height
         Eigen::Vector3d centre, half[3];  // the box: centre and half axes, part frame
+        double reach = 0;                 // its half diagonal
+        fcl::AABBd box;
     };
     std::vector<Bead> beads;
-    fcl::DynamicAABBTreeCollisionManagerd part;
+    // The tree holds the beads in chunks of kChunk in printing order (neighbours, mostly): a
+    // leaf's insertion costs more than the check of a few boxes. The last beads, fewer than
+    // kChunk, are the open chunk, checked one by one.
+    static constexpr std::size_t kChunk = 8;
+    struct Chunk {
+        std::size_t first = 0;
+        Node* node = nullptr;
+    };
+    std::vector<Chunk> chunks;
+    std::size_t open_first = 0;
+    fcl::detail::HierarchyTree<fcl::AABBd> part;  // FCL's dynamic AABB tree of the chunks
+    std::shared_ptr<fcl::Boxd> bead_box = std::make_shared<fcl::Boxd>(1, 1, 1);
+    Placed bead_object{bead_box};
+    const fcl::CollisionObjectd& object_of(const Bead& b) {
+        bead_box->side = b.size;
+        bead_box->computeLocalAABB();
+        bead_object.setTransform(b.pose);
+        return bead_object;
+    }
+    // The tips of the last piece swept (part frame), for its bead.
+    std::vector<double> tips_q0, tips_q1;
+    Eigen::Vector3d tip0_part = Eigen::Vector3d::Zero(), tip1_part = Eigen::Vector3d::Zero(), axis1_part = Eigen::Vector3d::UnitZ();
     std::vector<Iso> part_frames, tool_frames;
+    std::vector<std::pair<bool, int>> frame_keys;  // (tool side, after) of the frames bodies ride on
+    std::vector<Iso> frame_part;                   // those frames in the part frame, per snapshot
+    int tip_frame = -1;                            // the tip's among them, if a body rides on it
+    const Iso identity = Iso::Identity();
     std::vector<double> q;
     std::uint64_t queries = 0;
 
@@ -132,8 +202,13 @@ struct CollisionStage::Impl {
         for (const Body& b : m.geometry->bodies) {
             Solid s;
             s.body = &b;
-            s.object = std::make_unique<fcl::CollisionObjectd>(make_geometry(b.shape));
+            s.object = std::make_unique<Placed>(make_geometry(b.shape));
             s.moves = !(!b.tool_side && b.after == int(m.part_chain.size()) - 1);
+            const std::pair<bool, int> key(b.tool_side, b.after);
+            const auto at = std::find(frame_keys.begin(), frame_keys.end(), key);
+            s.frame = int(at - frame_keys.begin());
+            if (at == frame_keys.end()) frame_keys.push_back(key);
+            if (b.tool_side && b.after == int(m.tool_chain.size()) - 1 && b.after >= 0) tip_frame = s.frame;
             const int i = int(solids.size());
             if (b.tool_side && b.after >= 0) tools.push_back(i);
             else if (s.moves) moving_obstacles.push_back(i);
@@ -145,24 +220,32 @@ struct CollisionStage::Impl {
             for (std::size_t k = 0; k < chain.size(); ++k)
                 if (chain[k].kind == ChainElement::Kind::Rotary) rotaries.push_back({side == 1, int(k), chain[k].joint});
         }
+        if (rotaries.size() > Turns{}.th.size())
+            throw MachineError("the collision check handles at most " + std::to_string(Turns{}.th.size()) + " rotary chain elements");
         for (std::size_t j = 0; j < m.joints.size(); ++j)
             if (!m.joints[j].rotary) linear_joints.push_back(int(j));
         q.resize(m.joints.size());
         // The fixed obstacles' poses never change: set once, at home.
-        Snapshot at;
         const auto home = m.home_joints();
-        snap(home.data(), at);
-        for (const int i : fixed_obstacles) place(i, at.pose[std::size_t(i)]);
+        walk(m.part_chain, home.data(), part_frames);
+        walk(m.tool_chain, home.data(), tool_frames);
+        const Iso to_part = (part_frames.empty() ? Iso::Identity() : part_frames.back()).inverse();
+        for (const int i : fixed_obstacles) {
+            const Body& b = *solids[std::size_t(i)].body;
+            const auto& frames = b.tool_side ? tool_frames : part_frames;
+            place(i, to_part * (b.after < 0 ? Iso::Identity() : frames[std::size_t(b.after)]) * b.place);
+        }
     }
 
     void place(int i, const Iso& pose) {
         auto& o = *solids[std::size_t(i)].object;
         o.setTransform(pose);
-        o.computeAABB();
+        o.tight_box();
     }
 
     // Every solid at joints `qq`: poses (part frame), centres (base frame), rotary axis lines.
-    void snap(const double* qq, Snapshot& s) {
+    void snap(const double* qq, Snapshot& s, bool boxes = false) {
+        s.q.assign(qq, qq + q.size());
         walk(machine.part_chain, qq, part_frames);
         walk(machine.tool_chain, qq, tool_frames);
         const Iso part_end = part_frames.empty() ? Iso::Identity() : part_frames.back();
@@ -170,37 +253,53 @@ struct CollisionStage::Impl {
         s.pose.resize(solids.size());
         s.centre.resize(solids.size());
         s.box.resize(solids.size());
+        // Each chain frame a body rides on, in the part frame: once, for all its bodies.
+        frame_part.resize(frame_keys.size());
+        for (std::size_t f = 0; f < frame_keys.size(); ++f) {
+            const auto& [tool_side, after] = frame_keys[f];
+            const auto& frames = tool_side ? tool_frames : part_frames;
+            frame_part[f] = after < 0 ? to_part : Iso(to_part * frames[std::size_t(after)]);
+        }
         for (std::size_t i = 0; i < solids.size(); ++i) {
+            if (!solids[i].moves) {  // on the plate: where the constructor placed it
+                s.pose[i] = solids[i].object->getTransform();
+                s.centre[i] = s.pose[i].translation();
+                continue;
+            }
             const Body& b = *solids[i].body;
             const auto& frames = b.tool_side ? tool_frames : part_frames;
-            const Iso base = (b.after < 0 ? Iso::Identity() : frames[std::size_t(b.after)]) * b.place;
-            s.centre[i] = base.translation();
-            s.pose[i] = to_part * base;
+            s.centre[i] = b.after < 0 ? b.place.translation() : Eigen::Vector3d(frames[std::size_t(b.after)] * b.place.translation());
+            s.pose[i] = frame_part[std::size_t(solids[i].frame)] * b.place;
         }
-        const Iso tip_base = tool_frames.empty() ? Iso::Identity() : tool_frames.back();
-        s.tip = to_part * tip_base;
+        const Iso& tip_base = tool_frames.empty() ? identity : tool_frames.back();
+        s.tip = tip_frame >= 0 ? frame_part[std::size_t(tip_frame)] : Iso(to_part * tip_base);
         s.tip_base = tip_base.translation();
+        s.axis_base = tip_base.linear() * machine.tool_axis;
+        if (boxes)
+            for (std::size_t i = 0; i < solids.size(); ++i) {
+                s.box[i] = solids[i].moves ? solids[i].object->box_at(s.pose[i]) : solids[i].object->getAABB();
+            }
         s.line_point.resize(rotaries.size());
         s.line_dir.resize(rotaries.size());
         for (std::size_t r = 0; r < rotaries.size(); ++r) {
             const auto& chain = rotaries[r].tool ? machine.tool_chain : machine.part_chain;
             const auto& frames = rotaries[r].tool ? tool_frames : part_frames;
             const ChainElement& e = chain[std::size_t(rotaries[r].element)];
-            const Iso before = rotaries[r].element == 0 ? Iso::Identity() : frames[std::size_t(rotaries[r].element - 1)];
+            if (rotaries[r].element == 0) {
+                s.line_point[r] = e.point;
+                s.line_dir[r] = e.axis;
+                continue;
+            }
+            const Iso& before = frames[std::size_t(rotaries[r].element - 1)];
             s.line_point[r] = before * e.point;
             s.line_dir[r] = before.linear() * e.axis;
         }
     }
 
-    // How far any point of solid i may move in the part frame over the joint change dq, from
-    // snapshot s on (docs/machines.md, "Bodies": the sweep's bound). Loose (the linear joints'
-    // travel and the rotaries' arms add up although the kinematics makes them cancel at the
-    // tip): it only bounds the arms' growth within a sub-step for rate() below.
-    double bound(int i, const Snapshot& s, const double* dq) const {
-        if (!solids[std::size_t(i)].moves) return 0;
-        return bound_at(s.centre[std::size_t(i)], solids[std::size_t(i)].body->radius, s, dq);
-    }
-    // The same for a sphere of radius R about `centre` (base frame) carried by the tool.
+    // How far any point of a sphere of radius R about `centre` (base frame) carried by the tool
+    // may move in the part frame over the joint change dq, from snapshot s on (docs/machines.md,
+    // "Bodies"). Loose (the linear joints' travel and the rotaries' arms add up although the
+    // kinematics makes them cancel at the tip): it only bounds the arms' growth within a step.
     double bound_at(const Eigen::Vector3d& centre, double R, const Snapshot& s, const double* dq) const {
         double a = 0, turn = 0;
         for (const int j : linear_joints) a += std::abs(dq[j]);
@@ -238,41 +337,85 @@ struct CollisionStage::Impl {
     }
     // Half the bound on |p''| of rate() for a sphere of radius R about `centre` (base frame).
     double curve(const Eigen::Vector3d& centre, double R, const Snapshot& a, const double* dq) const {
-        double T = 0, L = 0, r = 0;
-        for (const int j : linear_joints) L += std::abs(dq[j]);
+        return curve(centre, R, a, turns_of(dq));
+    }
+    // A step's joint motion as the bow needs it: the linear joints' travel, each rotary's turn.
+    struct Turns {
+        double L = 0, T = 0;
+        std::array<double, 16> th{};
+    };
+    Turns turns_of(const double* dq) const {
+        Turns tt;
+        for (const int j : linear_joints) tt.L += std::abs(dq[j]);
+        for (std::size_t k = 0; k < rotaries.size() && k < tt.th.size(); ++k) {
+            tt.th[k] = std::abs(dq[rotaries[k].joint]) * kPi / 180.0;
+            tt.T += tt.th[k];
+        }
+        return tt;
+    }
+    double curve(const Eigen::Vector3d& centre, double R, const Snapshot& a, const Turns& tt) const {
+        if (tt.T == 0) return 0;
+        double r = 0, A = 0;
         for (std::size_t k = 0; k < rotaries.size(); ++k) {
-            const double th = std::abs(dq[rotaries[k].joint]) * kPi / 180.0;
+            const double th = tt.th[k];
             if (th == 0) continue;
-            T += th;
             // Every point of the body lies within its radius of the shape's centre.
             const Eigen::Vector3d v = centre - a.line_point[k];
-            r = std::max(r, (v - v.dot(a.line_dir[k]) * a.line_dir[k]).norm() + R);
+            const double arm = (v - v.dot(a.line_dir[k]) * a.line_dir[k]).norm() + R;
+            r = std::max(r, arm);
+            A += th * arm;
         }
-        if (T == 0) return 0;
-        r += 2 * bound_at(centre, R, a, dq);  // how far points and axes get within the step
-        return 0.5 * (4 * T * T * r + 3 * T * L);
+        r += 2 * (tt.L + A) / (1 - 2 * tt.T);  // how far points and axes get within the step (bound_at)
+        return 0.5 * (4 * tt.T * tt.T * r + 3 * tt.T * tt.L);
     }
 
-    // Whether the box (centre c, half axes h, part frame, fixed there) lies wholly below tool
-    // body t's lowest point along the tool axis over the whole sub-step a -> b: then they
-    // cannot meet. A point x's height over the tip, z = n . (x - tip), changes at most by
-    // T (|x - tip| + Dtip) + Dtip (T: the turn, Dtip: the tip's rate) over the step.
-    bool below(int t, const Eigen::Vector3d& c, const Eigen::Vector3d* h, const Snapshot& a, double T, double Dtip) const {
+
+
+    // What the tests of one step (sa..sb of the piece) share: the tool axis' and the tip's
+    // motion over it (part frame), for below().
+    struct StepBound {
+        Eigen::Vector3d n, tip;  // the tool axis and the tip at the step's start
+        double Tn = 0;           // how far the tool axis turns over the step, at most (rad)
+        double Dtip = 0;         // the tip's path length, at most
+        double along = 0;        // the tip's motion along n, at most: |n . (tip1 - tip0)| + its bow
+    };
+    StepBound step_bound(const Snapshot& a, const Snapshot& b, const Turns& tt) const {
+        StepBound sb;
+        sb.n = a.tip.linear() * machine.tool_axis;
+        sb.tip = a.tip.translation();
+        // The tool axis turns at |n'| <= sum_k theta_k |w_k x n|; the angle between w_k and n
+        // changes only by the other rotaries' turns (docs/machines.md, "Bodies").
+        for (std::size_t k = 0; k < rotaries.size(); ++k) {
+            const double th = tt.th[k];
+            if (th == 0) continue;
+            sb.Tn += th * std::min(1.0, a.line_dir[k].cross(a.axis_base).norm() + (tt.T - th));
+        }
+        const Eigen::Vector3d chord = b.tip.translation() - a.tip.translation();
+        const double c = curve(a.tip_base, 0, a, tt);  // M / 2 for the tip
+        sb.Dtip = chord.norm() + c;
+        sb.along = std::abs(sb.n.dot(chord)) + 0.25 * c;
+        return sb;
+    }
+
+    // Whether the box (centre c, half axes h, half diagonal `reach`; part frame, fixed there)
+    // lies wholly below tool body t's lowest point along the tool axis over the whole step:
+    // then they cannot meet. A point x's height over the tip, z = n . (x - tip), rises over
+    // the step by at most Tn (|x - tip| + 2 Dtip) + along (docs/machines.md, "Bodies").
+    bool below(int t, const Eigen::Vector3d& c, const Eigen::Vector3d* h, double reach, const StepBound& sb) const {
         const double low = solids[std::size_t(t)].body->low;
         if (low < -1e299) return false;
-        const Eigen::Vector3d n = a.tip.linear() * machine.tool_axis;
-        const Eigen::Vector3d tip = a.tip.translation();
-        for (int k = 0; k < 8; ++k) {
-            const Eigen::Vector3d x = c + ((k & 1) ? h[0] : -h[0]) + ((k & 2) ? h[1] : -h[1]) + ((k & 4) ? h[2] : -h[2]);
-            const double z = n.dot(x - tip) + T * ((x - tip).norm() + Dtip) + Dtip;
-            if (z >= low - kContact) return false;
-        }
-        return true;
+        const Eigen::Vector3d d = c - sb.tip;
+        const double top = sb.n.dot(d) + std::abs(sb.n.dot(h[0])) + std::abs(sb.n.dot(h[1])) + std::abs(sb.n.dot(h[2]));
+        return top + sb.Tn * (d.norm() + reach + 2 * sb.Dtip) + sb.along < low - kContact;
     }
 
-    void pose_at(const double* q0, const double* q1, double s, Snapshot& out) {
+    void pose_at(const double* q0, const double* q1, double s, Snapshot& out, bool boxes = false) {
+        if (s == 1) {
+            snap(q1, out, boxes);
+            return;
+        }
         for (std::size_t j = 0; j < q.size(); ++j) q[j] = q0[j] + (q1[j] - q0[j]) * s;
-        snap(q.data(), out);
+        snap(q.data(), out, boxes);
     }
 
     // Distance between solids a and b as placed (negative or 0: they touch).
@@ -304,156 +447,215 @@ struct CollisionStage::Impl {
         box.max_ += Eigen::Vector3d::Constant(by);
     }
 
-    std::shared_ptr<fcl::Boxd> probe_box;
-
+    // The beads whose boxes meet `box`: a walk of the printed part's tree (FCL's dynamic AABB
+    // tree), into `candidates`.
     std::vector<std::size_t> candidates;
-    static constexpr std::intptr_t kProbe = -1;
-    static bool collect(fcl::CollisionObjectd* a, fcl::CollisionObjectd* b, void* data) {
-        auto* self = static_cast<Impl*>(data);
-        // One is the probe; the bead carries its index.
-        const auto* bead = reinterpret_cast<std::intptr_t>(a->getUserData()) == kProbe ? b : a;
-        self->candidates.push_back(std::size_t(reinterpret_cast<std::intptr_t>(bead->getUserData())));
-        return false;  // every one
-    }
-    // The beads whose boxes meet `box`, into `candidates`.
+    std::vector<const Node*> stack;
     void collect_part(const fcl::AABBd& box) {
-        const Eigen::Vector3d size = (box.max_ - box.min_).cwiseMax(1e-9);
-        if (!probe_box) probe_box = std::make_shared<fcl::Boxd>(size);
-        probe_box->side = size;
-        probe_box->computeLocalAABB();
-        fcl::CollisionObjectd probe(probe_box, Iso(Eigen::Translation3d(box.center())));
-        probe.computeAABB();
-        probe.setUserData(reinterpret_cast<void*>(kProbe));
-        part.collide(&probe, this, &collect);
+        candidates.clear();
+        for (std::size_t i = open_first; i < beads.size(); ++i)
+            if (overlaps(beads[i].box, box)) candidates.push_back(i);
+        const Node* root = part.getRoot();
+        if (!root) return;
+        stack.clear();
+        stack.push_back(root);
+        while (!stack.empty()) {
+            const auto* node = stack.back();
+            stack.pop_back();
+            if (!overlaps(node->bv, box)) continue;
+            if (node->isLeaf()) {
+                const std::size_t first = chunks[std::size_t(reinterpret_cast<std::intptr_t>(node->data))].first;
+                for (std::size_t i = first; i < first + kChunk; ++i)
+                    if (overlaps(beads[i].box, box)) candidates.push_back(i);
+            } else {
+                stack.push_back(node->children[1]);
+                stack.push_back(node->children[0]);
+            }
+        }
+    }
+
+    // The bead as FCL's oriented box.
+    static fcl::OBBd bead_obb(const Bead& b) {
+        fcl::OBBd o;
+        o.axis = b.pose.linear();
+        o.To = b.centre;
+        o.extent = 0.5 * b.size;
+        return o;
+    }
+    // Whether tool body t, over the whole step from `step_a` (each of its points moving at most
+    // step_rate, set by test_step), stays apart from the box `other`: its own box (in its
+    // frame) grown by that much holds it all along; FCL's separating-axis test of two boxes.
+    const Snapshot *step_a = nullptr, *step_b = nullptr;
+    double step_rate(int i) {
+        if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, *step_a, *step_b, dstep.data());
+        return D[std::size_t(i)];
+    }
+    bool apart(int t, const fcl::OBBd& other) {
+        const fcl::CollisionGeometryd& g = *solids[std::size_t(t)].object->collisionGeometry();
+        const Iso& pose = step_a->pose[std::size_t(t)];
+        fcl::OBBd o;
+        o.axis = pose.linear();
+        o.To = pose * g.aabb_local.center();
+        o.extent = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_) + Eigen::Vector3d::Constant(step_rate(t) + kContact);
+        return !o.overlap(other);
+    }
+
+    // The outcome of one step's test.
+    enum class Step { Clear, Unsure, Hit };
+    // Conservative advancement of tool t against `other` over sa..sb: the contact, if any.
+    bool advance(int t, const fcl::CollisionObjectd& other, int who, double rate, const double* q0, const double* q1, double sa,
+                 double sb, double& s_hit) {
+        double s = sa;
+        for (int it = 0;; ++it) {
+            pose_at(q0, q1, s, mid);
+            place(t, mid.pose[std::size_t(t)]);
+            if (who >= 0 && solids[std::size_t(who)].moves) place(who, mid.pose[std::size_t(who)]);
+            const double d = distance(*solids[std::size_t(t)].object, other);
+            if (d <= kContact || it >= kMaxAdvances) {
+                s_hit = s;
+                return true;
+            }
+            // The pair cannot meet before s + d / rate: past the step's end, done.
+            if (rate <= 0 || s + d / rate >= sb) return false;
+            s += d / rate;
+        }
+    }
+
+    Snapshot mid;
+    std::vector<fcl::AABBd> swept;
+    std::vector<double> grown, D;
+    std::vector<double> dstep;
+
+    // One step sa..sb of the piece q0 -> q1, its ends' snapshots a and b (with boxes). `leaf`:
+    // the step is small enough for the advancement; otherwise anything the cheap tests cannot
+    // rule out makes it Unsure (the caller halves the step).
+    Step test_step(const double* q0, const double* q1, double sa, double sb, const Snapshot& a, const Snapshot& b, bool leaf,
+                   std::optional<CollisionEvent>& first) {
+        const std::size_t n = q.size();
+        dstep.resize(n);
+        for (std::size_t j = 0; j < n; ++j) dstep[j] = b.q[j] - a.q[j];
+        const Turns tt = turns_of(dstep.data());
+        const bool turns = tt.T > 0;
+        // Each moving solid's sweep over the step, boxed: every point stays within M / 8 of the
+        // straight line between its two ends (|p''| <= M), and those lines lie in the join of the
+        // end boxes (docs/machines.md, "Bodies").
+        swept.resize(solids.size());
+        for (std::size_t i = 0; i < solids.size(); ++i) {
+            swept[i] = a.box[i];
+            if (!solids[i].moves) continue;
+            swept[i] += b.box[i];
+            grow(swept[i], (turns ? 0.25 * curve(a.centre[i], solids[i].body->radius, a, tt) : 0.0) + kContact);
+        }
+        const StepBound bound = step_bound(a, b, tt);
+        D.assign(solids.size(), -1.0);
+        step_a = &a;
+        step_b = &b;
+        auto rate_of = [&](int i) { return step_rate(i); };
+        double first_s = 2;
+        auto hit = [&](int t, int who, const Bead* bead, double s) {
+            if (s >= first_s) return;
+            first_s = s;
+            CollisionEvent ev;
+            ev.tool_body = solids[std::size_t(t)].body->name;
+            const fcl::CollisionObjectd& other = bead ? object_of(*bead) : *solids[std::size_t(who)].object;
+            if (bead) ev.bead_line = bead->line;
+            else ev.other = solids[std::size_t(who)].body->name;
+            pose_at(q0, q1, s, mid);
+            place(t, mid.pose[std::size_t(t)]);
+            if (!bead && solids[std::size_t(who)].moves) place(who, mid.pose[std::size_t(who)]);
+            ev.at = contact_point(*solids[std::size_t(t)].object, other);
+            first = ev;
+        };
+        const Node* root = part.getRoot();
+        for (const int t : tools) {
+            const fcl::AABBd& box = swept[std::size_t(t)];
+            for (const auto* list : {&fixed_obstacles, &moving_obstacles})
+                for (const int o : *list) {
+                    if (!overlaps(box, swept[std::size_t(o)])) continue;
+                    const Solid& obstacle = solids[std::size_t(o)];
+                    if (!obstacle.moves) {
+                        const fcl::AABBd& ob = obstacle.object->getAABB();
+                        const Eigen::Vector3d e = 0.5 * (ob.max_ - ob.min_);
+                        const Eigen::Vector3d half[3] = {Eigen::Vector3d(e.x(), 0, 0), Eigen::Vector3d(0, e.y(), 0), Eigen::Vector3d(0, 0, e.z())};
+                        if (below(t, ob.center(), half, e.norm(), bound)) continue;
+                    }
+                    if (!leaf) return Step::Unsure;
+                    double s = 0;
+                    if (advance(t, *obstacle.object, o, (rate_of(t) + rate_of(o)) / (sb - sa), q0, q1, sa, sb, s)) hit(t, o, nullptr, s);
+                }
+            // The printed part: the beads whose boxes meet the tool body's swept box, less those
+            // wholly below the body's lowest point over the step (the layers it prints on).
+            if ((!root || !overlaps(root->bv, box)) && open_first == beads.size()) continue;
+            collect_part(box);
+            for (const std::size_t c : candidates) {
+                const Bead& bead = beads[c];
+                if (below(t, bead.centre, bead.half, bead.reach, bound)) continue;
+                if (apart(t, bead_obb(bead))) continue;
+                if (!leaf) return Step::Unsure;
+                double s = 0;
+                if (advance(t, object_of(bead), -1, rate_of(t) / (sb - sa), q0, q1, sa, sb, s)) hit(t, -1, &bead, s);
+            }
+        }
+        return first ? Step::Hit : Step::Clear;
+    }
+
+    // The middles by depth of the halving, reused (a deque: growing keeps the others in place).
+    std::deque<Snapshot> pool;
+    Snapshot start;      // at the last piece's end: the next piece's start, usually
+    bool start_valid = false;
+
+    // Tests sa..sb (ends a, b), halving it while the cheap tests are unsure; the first contact.
+    bool test_span(const double* q0, const double* q1, double sa, double sb, const Snapshot& a, const Snapshot& b, int depth,
+                   std::optional<CollisionEvent>& first) {
+        double turn = 0;
+        for (const auto& r : rotaries) turn += std::abs(b.q[std::size_t(r.joint)] - a.q[std::size_t(r.joint)]) * kPi / 180.0;
+        const bool leaf = turn <= kSubStepTurn;
+        // The bounds hold for a turn under half a radian (bound_at); test larger spans halved.
+        if (turn < kWholeTurn) {
+            const Step r = test_step(q0, q1, sa, sb, a, b, leaf, first);
+            if (r != Step::Unsure) return r == Step::Hit;
+        }
+        if (std::size_t(depth) >= pool.size()) pool.resize(std::size_t(depth) + 1);
+        const double sm = 0.5 * (sa + sb);
+        Snapshot& m = pool[std::size_t(depth)];  // deeper halvings use deeper ones
+        pose_at(q0, q1, sm, m, true);
+        if (test_span(q0, q1, sa, sm, a, m, depth + 1, first)) return true;
+        return test_span(q0, q1, sm, sb, m, b, depth + 1, first);
     }
 
     // The first contact over the sweep q0 -> q1, or none.
     std::optional<CollisionEvent> sweep(const double* q0, const double* q1) {
         const std::size_t n = q.size();
-        std::vector<double> dq(n);
-        double turn = 0;
-        for (std::size_t j = 0; j < n; ++j) {
-            dq[j] = q1[j] - q0[j];
-            if (machine.joints[j].rotary) turn += std::abs(dq[j]) * kPi / 180.0;
-        }
-        const int steps = std::max(1, int(std::ceil(turn / kSubStepTurn)));
-        Snapshot a, b, mid;
-        snap(q0, a);
-        std::vector<double> dstep(n);
-        for (std::size_t j = 0; j < n; ++j) dstep[j] = dq[j] / steps;
-        const bool step_turns = turn > 0;
-        for (int k = 0; k < steps; ++k) {
-            const double sa = double(k) / steps, sb = double(k + 1) / steps;
-            pose_at(q0, q1, sb, b);
-            // Each moving solid's sweep over the step, boxed: both ends' boxes joined and grown by
-            // half its bound (a point that moves at most D stays within D/2 of one end).
-            std::vector<fcl::AABBd> swept(solids.size());
-            std::vector<double> D(solids.size(), 0.0);
-            for (std::size_t i = 0; i < solids.size(); ++i) {
-                if (!solids[i].moves) {
-                    swept[i] = solids[i].object->getAABB();
-                    continue;
-                }
-                place(int(i), a.pose[i]);
-                fcl::AABBd box = solids[i].object->getAABB();
-                place(int(i), b.pose[i]);
-                box += solids[i].object->getAABB();
-                D[i] = rate(int(i), a, b, dstep.data());
-                // Without rotation every solid only translates, along a straight line in the part
-                // frame: the join of its end boxes holds its whole sweep, no growth needed.
-                grow(box, (step_turns ? 0.5 * D[i] : 0.0) + kContact);
-                swept[i] = box;
-            }
-            // The turn and the tip's rate over the step, for below().
-            double T = 0;
-            for (const auto& r : rotaries) T += std::abs(dstep[std::size_t(r.joint)]) * kPi / 180.0;
-            const double Dtip = (b.tip.translation() - a.tip.translation()).norm() + curve(a.tip_base, 0, a, dstep.data());
-            std::optional<CollisionEvent> first;
-            double first_s = 2;
-            for (const int t : tools) {
-                // Candidates: the bodies whose swept boxes meet the tool body's.
-                std::vector<std::pair<int, const fcl::CollisionObjectd*>> cands;  // (solid, object)
-                for (const auto* list : {&fixed_obstacles, &moving_obstacles})
-                    for (const int o : *list)
-                        if (swept[std::size_t(t)].overlap(swept[std::size_t(o)])) cands.push_back({o, solids[std::size_t(o)].object.get()});
-                for (const auto& [who, obj] : cands) {
-                    if (!solids[std::size_t(who)].moves) {
-                        const fcl::AABBd& box = obj->getAABB();
-                        const Eigen::Vector3d e = 0.5 * (box.max_ - box.min_);
-                        const Eigen::Vector3d half[3] = {Eigen::Vector3d(e.x(), 0, 0), Eigen::Vector3d(0, e.y(), 0), Eigen::Vector3d(0, 0, e.z())};
-                        if (below(t, box.center(), half, a, T, Dtip)) continue;
-                    }
-                    const double Do = D[std::size_t(who)];
-                    const double rate = (D[std::size_t(t)] + Do) / (sb - sa);
-                    double s = sa;
-                    for (int it = 0;; ++it) {
-                        pose_at(q0, q1, s, mid);
-                        place(t, mid.pose[std::size_t(t)]);
-                        if (solids[std::size_t(who)].moves) place(who, mid.pose[std::size_t(who)]);
-                        const double d = distance(*solids[std::size_t(t)].object, *obj);
-                        if (d <= kContact || it >= kMaxAdvances) {
-                            if (s < first_s) {
-                                first_s = s;
-                                CollisionEvent ev;
-                                ev.tool_body = solids[std::size_t(t)].body->name;
-                                ev.other = solids[std::size_t(who)].body->name;
-                                ev.at = contact_point(*solids[std::size_t(t)].object, *obj);
-                                first = ev;
-                            }
-                            break;
-                        }
-                        // The pair cannot meet before s + d / rate: past the step's end, done.
-                        if (rate <= 0 || s + d / rate >= sb) break;
-                        s += d / rate;
-                    }
-                }
-                // The printed part: the beads whose boxes meet the tool body's swept box (one
-                // walk of the tree, no GJK), less those wholly below the body's lowest point
-                // over the step (the layers it prints on); each one left advanced against.
-                if (beads.empty()) continue;
-                candidates.clear();
-                collect_part(swept[std::size_t(t)]);
-                const double rate = D[std::size_t(t)] / (sb - sa);
-                for (const std::size_t c : candidates) {
-                    const Bead& bead = beads[c];
-                    if (below(t, bead.centre, bead.half, a, T, Dtip)) continue;
-                    double s = sa;
-                    for (int it = 0;; ++it) {
-                        pose_at(q0, q1, s, mid);
-                        place(t, mid.pose[std::size_t(t)]);
-                        const double d = distance(*solids[std::size_t(t)].object, *bead.object);
-                        if (d <= kContact || it >= kMaxAdvances) {
-                            if (s < first_s) {
-                                first_s = s;
-                                CollisionEvent ev;
-                                ev.tool_body = solids[std::size_t(t)].body->name;
-                                ev.bead_line = bead.line;
-                                ev.at = contact_point(*solids[std::size_t(t)].object, *bead.object);
-                                first = ev;
-                            }
-                            break;
-                        }
-                        if (rate <= 0 || s + d / rate >= sb) break;
-                        s += d / rate;
-                    }
-                }
-            }
-            if (first) return first;
-            std::swap(a, b);
-        }
+        if (!start_valid || !std::equal(q0, q0 + n, start.q.begin())) snap(q0, start, true);
+        if (end.q.size() != n) end.q.resize(n);
+        snap(q1, end, true);
+        std::optional<CollisionEvent> first;
+        start_valid = false;
+        test_span(q0, q1, 0, 1, start, end, 0, first);
+        if (first) return first;
+        tips_q0 = start.q;
+        tips_q1 = end.q;
+        tip0_part = start.tip.translation();
+        tip1_part = end.tip.translation();
+        axis1_part = end.tip.linear() * machine.tool_axis;
+        std::swap(start, end);
+        start_valid = true;
         return std::nullopt;
     }
+    Snapshot end;
 
     void add_bead(const double* q0, const double* q1, double e, std::uint64_t line) {
-        walk(machine.part_chain, q0, part_frames);
-        walk(machine.tool_chain, q0, tool_frames);
-        const Iso to_part0 = (part_frames.empty() ? Iso::Identity() : part_frames.back()).inverse();
-        const Iso tip0 = to_part0 * (tool_frames.empty() ? Iso::Identity() : tool_frames.back());
-        walk(machine.part_chain, q1, part_frames);
-        walk(machine.tool_chain, q1, tool_frames);
-        const Iso to_part1 = (part_frames.empty() ? Iso::Identity() : part_frames.back()).inverse();
-        const Iso tip1 = to_part1 * (tool_frames.empty() ? Iso::Identity() : tool_frames.back());
-        const Eigen::Vector3d p0 = tip0.translation(), p1 = tip1.translation();
+        const std::size_t n = q.size();
+        // The piece just swept: its tips are known.
+        if (!(tips_q0.size() == n && std::equal(q0, q0 + n, tips_q0.begin()) && std::equal(q1, q1 + n, tips_q1.begin()))) {
+            Snapshot s;
+            snap(q0, s);
+            tip0_part = s.tip.translation();
+            snap(q1, s);
+            tip1_part = s.tip.translation();
+            axis1_part = s.tip.linear() * machine.tool_axis;
+        }
+        const Eigen::Vector3d p0 = tip0_part, p1 = tip1_part;
         const Eigen::Vector3d d = p1 - p0;
         const double length = d.norm();
         if (length < 1e-6) return;  // extrusion in place: no bead to speak of
@@ -464,7 +666,7 @@ struct CollisionStage::Impl {
             w = std::clamp(e * area / (length * h), 0.1, 3 * settings.bead_width);
         }
         const Eigen::Vector3d x = d / length;
-        Eigen::Vector3d up = tip1.linear() * machine.tool_axis;
+        Eigen::Vector3d up = axis1_part;
         // A piece that rises or plunges along the tool axis by more than a layer (a priming move
         // coming down onto the layer) leaves its material where it ends, not along its path.
         if (std::abs(d.dot(up)) > settings.bead_height) return;
@@ -477,24 +679,46 @@ struct CollisionStage::Impl {
         pose.linear().col(2) = up;
         // The bead lies under the tip's path: its top along it.
         pose.translation() = 0.5 * (p0 + p1) - 0.5 * h * up;
-        auto object = std::make_unique<fcl::CollisionObjectd>(std::make_shared<fcl::Boxd>(length, w, h), pose);
-        object->computeAABB();
-        object->setUserData(reinterpret_cast<void*>(std::intptr_t(beads.size())));
-        part.registerObject(object.get());
-        beads.push_back({std::move(object), line, pose.translation(),
-                         {0.5 * length * pose.linear().col(0), 0.5 * w * pose.linear().col(1), 0.5 * h * pose.linear().col(2)}});
+        Bead& b = beads.emplace_back();
+        b.line = line;
+        b.pose = pose;
+        b.size = Eigen::Vector3d(length, w, h);
+        b.centre = pose.translation();
+        b.half[0] = 0.5 * length * pose.linear().col(0);
+        b.half[1] = 0.5 * w * pose.linear().col(1);
+        b.half[2] = 0.5 * h * pose.linear().col(2);
+        b.reach = 0.5 * b.size.norm();
+        // Its box: the extent of the turned box along each axis.
+        const Eigen::Vector3d E = b.half[0].cwiseAbs() + b.half[1].cwiseAbs() + b.half[2].cwiseAbs();
+        b.box = fcl::AABBd(b.centre - E, b.centre + E);
+        if (beads.size() - open_first < kChunk) return;
+        fcl::AABBd box = beads[open_first].box;
+        for (std::size_t i = open_first + 1; i < beads.size(); ++i) box += beads[i].box;
+        chunks.push_back({open_first, part.insert(box, reinterpret_cast<void*>(std::intptr_t(chunks.size())))});
+        open_first = beads.size();
     }
 
     void truncate(std::size_t count) {
-        while (beads.size() > count) {
-            part.unregisterObject(beads.back().object.get());
-            beads.pop_back();
+        if (beads.size() <= count) return;
+        while (!chunks.empty() && chunks.back().first + kChunk > count) {
+            part.remove(chunks.back().node);
+            chunks.pop_back();
         }
+        open_first = chunks.empty() ? 0 : chunks.back().first + kChunk;
+        beads.erase(beads.begin() + std::ptrdiff_t(count), beads.end());
     }
 };
 
-CollisionStage::CollisionStage(const Machine& machine, CollisionPolicy policy, CollideCursor& cursor, const Modes& modes)
-    : impl_(std::make_unique<Impl>(machine)), cursor_(cursor), modes_(modes), policy_(policy) {}
+CollisionStage::CollisionStage(const Kinematics& kinematics, CollisionPolicy policy, CollideCursor& cursor, const Modes& modes,
+                               std::optional<bool> reroute, std::optional<double> lift)
+    : impl_(std::make_unique<Impl>(kinematics.machine())),
+      cursor_(cursor),
+      modes_(modes),
+      policy_(policy),
+      kinematics_(kinematics),
+      // The detour is written uncompensated: a machine with compensation is not re-routed.
+      reroute_(reroute.value_or(kinematics.machine().geometry->settings.reroute) && kinematics.machine().compensation.empty()),
+      lift_(lift.value_or(kinematics.machine().geometry->settings.lift)) {}
 
 CollisionStage::~CollisionStage() = default;
 
@@ -547,22 +771,52 @@ double CollisionStage::clearance(std::span<const double> q) {
         auto& a = *impl_->solids[std::size_t(t)].object;
         for (const auto* list : {&impl_->fixed_obstacles, &impl_->moving_obstacles})
             for (const int o : *list) least = std::min(least, impl_->distance(a, *impl_->solids[std::size_t(o)].object));
-        for (const auto& b : impl_->beads) least = std::min(least, impl_->distance(a, *b.object));
+        for (const auto& b : impl_->beads) least = std::min(least, impl_->distance(a, impl_->object_of(b)));
     }
     return std::max(least, 0.0);
 }
 
-void CollisionStage::piece(std::span<const double> from, std::span<const double> to, const std::optional<PassedNumber>& e) {
+const std::vector<std::vector<double>>* CollisionStage::piece(std::span<const double> from, std::span<const double> to,
+                                                              const std::optional<PassedNumber>& e) {
     double de = 0;
     if (e) {
         if (modes_.e_relative) de = e->value;
         else de = e->value - cursor_.e, cursor_.e = e->value;
     }
+    const std::vector<std::vector<double>>* detour = nullptr;
     if (auto ev = sweep(from, to)) {
-        if (on_collision) on_collision(*ev);
-        if (policy_ == CollisionPolicy::Refuse) throw LineError(1, ev->message());
+        // A travel goes round instead, when it can.
+        double lift = 0;
+        std::optional<std::vector<std::vector<double>>> round;
+        if (!e && reroute_) round = reroute(from, to, lift);
+        if (round) {
+            detour_ = std::move(*round);
+            detour = &detour_;
+            ev->rerouted = true;
+            ev->lift = lift;
+            if (on_collision) on_collision(*ev);
+        } else {
+            if (on_collision) on_collision(*ev);
+            if (policy_ == CollisionPolicy::Refuse) throw LineError(1, ev->message());
+        }
     }
     if (de > 0) add_bead(from, to, de, cursor_.line);
+    return detour;
+}
+
+std::optional<std::vector<std::vector<double>>> CollisionStage::reroute(std::span<const double> q0, std::span<const double> q1, double& lift) {
+    const std::vector<double> a(q0.begin(), q0.end()), b(q1.begin(), q1.end());
+    const Pose p0 = kinematics_.forward(a), p1 = kinematics_.forward(b);
+    // Lifted along each end's own tool axis (its orientation kept); higher if the first is not enough.
+    for (const double h : {lift_, 2 * lift_, 4 * lift_}) {
+        std::vector<double> up0 = a, up1 = b;
+        if (!kinematics_.solve_position(p0.tip + h * p0.axis, up0).ok() || !kinematics_.solve_position(p1.tip + h * p1.axis, up1).ok())
+            return std::nullopt;  // past a joint's limit: no room to lift
+        if (sweep(a, up0) || sweep(up0, up1) || sweep(up1, b)) continue;
+        lift = h;
+        return std::vector<std::vector<double>>{up0, up1};
+    }
+    return std::nullopt;
 }
 
 }  // namespace xlate5

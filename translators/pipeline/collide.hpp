@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
 #include "translators/pipeline/emitter.hpp"
 #include "translators/pipeline/modes.hpp"
@@ -41,7 +42,11 @@ struct CollisionEvent {
     std::uint64_t bead_line = 0; // the printed part: the line that printed the bead met
     Eigen::Vector3d at = Eigen::Vector3d::Zero();  // part frame, mm
     std::uint64_t moves_written = 0;  // move lines written before the piece (set by the translator: the preview's place)
-    // "collision: <tool body> meets <printed part at line N | body> at X Y Z"
+    // A travel re-routed round the contact (lifted `lift` mm along the tool axis), not refused.
+    bool rerouted = false;
+    double lift = 0;
+    // "collision: <tool body> meets <printed part at line N | body> at X Y Z"; re-routed:
+    // "travel re-routed, lifted L mm: <tool body> would meet <...> at X Y Z"
     std::string message() const;
 };
 
@@ -50,13 +55,19 @@ inline constexpr std::size_t kMaxBeads = 2'000'000;
 
 class CollisionStage final : public PieceObserver {
 public:
-    // `machine` must have geometry. `cursor` and `modes` are the live line state's.
-    CollisionStage(const Machine& machine, CollisionPolicy policy, CollideCursor& cursor, const Modes& modes);
+    // The machine (kinematics.machine()) must have geometry. `cursor` and `modes` are the live
+    // line state's. `reroute` and `lift` override the machine file's [collision] settings.
+    CollisionStage(const Kinematics& kinematics, CollisionPolicy policy, CollideCursor& cursor, const Modes& modes,
+                   std::optional<bool> reroute = std::nullopt, std::optional<double> lift = std::nullopt);
     ~CollisionStage();
     CollisionStage(const CollisionStage&) = delete;
     CollisionStage& operator=(const CollisionStage&) = delete;
 
-    void piece(std::span<const double> from, std::span<const double> to, const std::optional<PassedNumber>& e) override;
+    const std::vector<std::vector<double>>* piece(std::span<const double> from, std::span<const double> to,
+                                                  const std::optional<PassedNumber>& e) override;
+    // A detour for the travel q0 -> q1 round what it meets: lifted along the tool axis at q0, across,
+    // lowered onto q1, each leg swept clear; the two lifted ends, or none.
+    std::optional<std::vector<std::vector<double>>> reroute(std::span<const double> q0, std::span<const double> q1, double& lift);
     void e_set(double e) override { cursor_.e = e; }
 
     // The first contact of a tool body over the joint-linear sweep from q0 to q1, if any.
@@ -70,7 +81,7 @@ public:
     void add_bead(std::span<const double> q0, std::span<const double> q1, double e, std::uint64_t line);
     std::size_t beads() const;
 
-    // Told of every collision found (warn and refuse).
+    // Told of every collision found (warn and refuse) and every travel re-routed (`rerouted`).
     std::function<void(const CollisionEvent&)> on_collision;
     std::uint64_t distance_queries() const;  // for the benchmark
 
@@ -80,6 +91,10 @@ private:
     CollideCursor& cursor_;
     const Modes& modes_;
     CollisionPolicy policy_;
+    const Kinematics& kinematics_;
+    bool reroute_;
+    double lift_;
+    std::vector<std::vector<double>> detour_;
 };
 
 }  // namespace xlate5

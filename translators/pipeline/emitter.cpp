@@ -169,7 +169,17 @@ void JointEmitter::invalidate(const std::vector<double>& q) {
 void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, std::span<const double> sent,
                         const std::vector<bool>& commanded, std::optional<PassedNumber> e, std::optional<PassedNumber> f,
                         bool inverse_time) {
-    if (observer_) observer_->piece(std::span<const double>(believed_.data(), q.size()), q, e);
+    if (observer_) {
+        if (const auto* detour = observer_->piece(std::span<const double>(believed_.data(), q.size()), q, e)) {
+            // Checked already: written without the observer, at the piece's feed, uncompensated
+            // (the check re-routes only machines without compensation).
+            PieceObserver* const watching = observer_;
+            observer_ = nullptr;
+            const std::vector<bool> none(q.size(), false);
+            for (const auto& w : *detour) move(out, 0, w, w, none, std::nullopt, f, inverse_time);
+            observer_ = watching;
+        }
+    }
     if (inverse_time != inverse_time_) {
         out += inverse_time ? "G93\n" : "G94\n";
         inverse_time_ = inverse_time;

@@ -39,7 +39,10 @@ void finish_move(std::string& out, std::size_t start, std::size_t empty, const s
 // of every G92 E (the extruder's position, for absolute E).
 class PieceObserver {
 public:
-    virtual void piece(std::span<const double> from, std::span<const double> to, const std::optional<PassedNumber>& e) = 0;
+    // Told of a piece before it is written. Returns joint vectors to travel through first (a
+    // detour: the collision check's re-routed travel, written as G0 lines), or null.
+    virtual const std::vector<std::vector<double>>* piece(std::span<const double> from, std::span<const double> to,
+                                                          const std::optional<PassedNumber>& e) = 0;
     virtual void e_set(double e) = 0;
 
 protected:

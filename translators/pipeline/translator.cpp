@@ -28,7 +28,7 @@ struct Translator::Forward {
         }
         // The collision check watches every piece the emitter writes (collide.hpp).
         if (kin.machine().geometry && o.collision != CollisionPolicy::Off) {
-            collide = std::make_unique<CollisionStage>(kin.machine(), o.collision, state.line.collide, state.line.modal.modes);
+            collide = std::make_unique<CollisionStage>(kin, o.collision, state.line.collide, state.line.modal.modes, o.reroute, o.lift);
             // Told with the emitter's count, so the preview marks the written move it belongs to.
             if (o.on_collision)
                 collide->on_collision = [emitter = &state.emitter, told = o.on_collision](const CollisionEvent& ev) {

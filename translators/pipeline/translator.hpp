@@ -46,6 +46,10 @@ struct TranslatorOptions {
     // refuses its line (Refuse), is told and written (Warn), or is not checked (Off).
     CollisionPolicy collision = CollisionPolicy::Refuse;
     std::function<void(const CollisionEvent&)> on_collision;  // told of every collision found
+    // Override the machine file's [collision] reroute and lift (a travel that would collide is
+    // lifted round it instead of refused).
+    std::optional<bool> reroute;
+    std::optional<double> lift;
 };
 
 class InverseTranslator;
