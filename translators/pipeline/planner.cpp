@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <vector>
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
@@ -385,43 +386,69 @@ void Planner::send_joints(const std::vector<bool>& which, const std::optional<Pa
     emitter_.set_position(out, q, sent.sent, which, e);
 }
 
-void Planner::joint_move(const JointMove& mv, std::string& out) {
-    if (auto r = check_limits(machine_, *mv.q); !r.ok()) throw LineError(mv.column, r.message);
-    state_.q.assign(mv.q->begin(), mv.q->end());
+void Planner::joint_move(const cmd::JointMove& mv, std::string& out) {
+    std::vector<double>& q = q_next_;
+    copy_joints(q, state_.q);
+    which_.assign(q.size(), false);
+    for (cmd::JointBits b = mv.given; b != 0; b &= b - 1) {
+        const std::size_t j = std::size_t(std::countr_zero(b));
+        q[j] = mv.relative ? state_.q[j] + mv.q[j] : mv.q[j];
+        which_[j] = true;
+    }
+    if (auto r = check_limits(machine_, q); !r.ok()) throw LineError(mv.column, r.message);
+    state_.q.assign(q.begin(), q.end());
     state_.pose = kin_.forward(state_.q);
     state_.tip_known = state_.tip_known || mv.any_linear;
     const auto sent = compensation_.apply(state_.q);
     if (!sent.ok()) throw LineError(1, sent.why());
     // Under G93 every move keeps its F.
-    emitter_.move(out, mv.gcode, state_.q, sent.sent, *mv.commanded, mv.e, mv.f, mv.inverse_time);
+    emitter_.move(out, mv.gcode, state_.q, sent.sent, which_, mv.e, mv.f, mv.inverse_time);
+    extruded(mv.e, mv.e_relative);
 }
 
-void Planner::set_joints(const std::vector<bool>& which, const std::vector<double>& values, bool pose_from_joints) {
-    bool any = false;
-    for (std::size_t j = 0; j < which.size(); ++j) {
-        if (!which[j]) continue;
-        state_.q[j] = values[j];
-        any = true;
+void Planner::set_position(const cmd::SetPosition& set, std::string& out) {
+    which_.assign(state_.q.size(), false);
+    for (cmd::JointBits b = set.which; b != 0; b &= b - 1) {
+        const std::size_t j = std::size_t(std::countr_zero(b));
+        state_.q[j] = set.q[j];
+        which_[j] = true;
     }
     // The program and the firmware now agree on the joints named.
-    forget_rezeros(which);
-    if (any) plain_image();
+    forget_rezeros(which_);
+    if (set.which) plain_image();
     // The machine did not move: its true pose follows from the joints it now says it is at.
-    if (pose_from_joints) state_.pose = kin_.forward(state_.q);
+    if (set.pose_from_joints) state_.pose = kin_.forward(state_.q);
+    // G92 X Y Z: the program frame moves so that the tip is there; the program has placed it.
+    for (std::size_t i = 0; i < 3; ++i) {
+        if (!(set.xyz_given & (1u << i))) continue;
+        state_.offset[Eigen::Index(i)] = state_.pose.tip[Eigen::Index(i)] - set.xyz[i];
+        state_.tip_known = true;
+    }
+    if (set.e) state_.e = set.e->value;
+    send_joints(which_, set.e, state_.q, out);
 }
 
-void Planner::send_position(const std::vector<bool>& which, const std::optional<PassedNumber>& e, std::string& out) {
-    send_joints(which, e, state_.q, out);
-}
-
-void Planner::home(const std::vector<bool>& which) {
-    for (std::size_t j = 0; j < state_.q.size(); ++j)
-        if (which[j]) state_.q[j] = machine_.joints[j].home;
-    forget_rezeros(which);
+void Planner::home(const cmd::Home& home) {
+    which_.assign(state_.q.size(), false);
+    for (std::size_t j = 0; j < state_.q.size(); ++j) {
+        which_[j] = (home.which & (1u << j)) != 0;
+        if (which_[j]) state_.q[j] = machine_.joints[j].home;
+    }
+    forget_rezeros(which_);
     plain_image();
     state_.tip_known = false;
     state_.pose = kin_.forward(state_.q);
+    state_.offset.setZero();
     emitter_.invalidate(state_.q);
+}
+
+void Planner::moved_to(const cmd::MovedTo& to) {
+    copy_joints(q_next_, state_.q);
+    for (cmd::JointBits b = to.given; b != 0; b &= b - 1) {
+        const std::size_t j = std::size_t(std::countr_zero(b));
+        q_next_[j] = to.q[j];
+    }
+    moved_to(q_next_);
 }
 
 void Planner::moved_to(const std::vector<double>& q) {

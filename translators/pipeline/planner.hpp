@@ -16,6 +16,7 @@
 
 #include <Eigen/Core>
 
+#include "translators/pipeline/commands.hpp"
 #include "translators/pipeline/compensation.hpp"
 #include "translators/pipeline/emitter.hpp"
 #include "translators/pipeline/joint_limits.hpp"
@@ -87,6 +88,9 @@ struct JointValues : std::vector<double> {
 struct PlannerState {
     JointValues q;           // joint values the firmware will be at
     Pose pose;               // tip and tool axis in the part frame
+    // The program frame's origin in the part frame (G92 X Y Z under tool-centre-point control).
+    Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+    double e = 0;            // the extruder's absolute position (for sharing an absolute E among pieces)
     bool tip_known = false;  // has the program placed the tip since start or G28?
     AngleImage image;        // G43.4: programmed angles -> joints
     // Per rotary (rotary_joints() order): the whole turns re-zeros took off the joint since the
@@ -133,17 +137,6 @@ struct ToolMove {
     bool inverse_time = false;
 };
 
-// A joint-space move (G49): every word is a joint value.
-struct JointMove {
-    int gcode = 1;
-    std::uint32_t column = 1;                // of the first word, for errors
-    const std::vector<double>* q = nullptr;  // the target joints
-    const std::vector<bool>* commanded = nullptr;
-    bool any_linear = false;
-    std::optional<PassedNumber> e, f;
-    bool inverse_time = false;
-};
-
 class Planner {
 public:
     // `log` (may be null) receives every measured tool-space move for the report.
@@ -151,24 +144,25 @@ public:
 
     // Throws LineError(column, cause); `run` says whether the move travelled or hit a limit.
     void tool_move(const ToolMove& move, LineRun& run, std::string& out);
-    void joint_move(const JointMove& move, std::string& out);
-
-    // G92 on joints: the firmware is told it is at `values` for the joints in `which`; the pose
-    // follows from the joints when `pose_from_joints`. Then send_position writes the G92.
-    void set_joints(const std::vector<bool>& which, const std::vector<double>& values, bool pose_from_joints);
-    void send_position(const std::vector<bool>& which, const std::optional<PassedNumber>& e, std::string& out);
-    // G28 for the joints in `which`: they are at their home values.
-    void home(const std::vector<bool>& which);
-    // A move passed on as written (joint-space arcs): the joints end at `q`.
+    // A tool move's E, as a whole (its pieces apart): the extruder's position after it.
+    void extruded(const std::optional<PassedNumber>& e, bool relative) {
+        if (e) state_.e = relative ? state_.e + e->value : e->value;
+    }
+    void joint_move(const cmd::JointMove& move, std::string& out);
+    // G92: the joints named (the pose follows from them when the command says so), the program
+    // frame, E; the firmware is told of the joints and E.
+    void set_position(const cmd::SetPosition& set, std::string& out);
+    // G28 for the joints named: they are at their home values, the program frame is the part's.
+    void home(const cmd::Home& home);
+    // A move passed on as written (joint-space arcs), or the firmware's report: the joints end at `q`.
+    void moved_to(const cmd::MovedTo& to);
     void moved_to(const std::vector<double>& q);
     // The firmware's position is no longer exactly known (a code that moves it, a failed line).
     void position_unknown();
     // A G93/G94 passed on to the firmware as written.
     void feed_mode_sent(bool inverse_time);
     // A mode switch: the programmed angles mean the joints as they are (but for re-zeros).
-    void reset_angle_image() { plain_image(); }
-    // G92 X Y Z under tool-centre-point control: the program has placed the tip.
-    void tip_placed() { state_.tip_known = true; }
+    void new_mode() { plain_image(); }
 
     // The programmed angles (G43.4) of the current joints: per joint, rotaries through the image.
     // Inline, the joints copied through copy_joints.
