@@ -21,32 +21,48 @@ std::string plane_orientation_error(const WorkPlane& plane) {
 
 using Effect = cmd::Passthrough::Effect;
 
-}  // namespace
+[[noreturn]] void fail(std::uint32_t column, const std::string& message) { throw LineError(column, message); }
 
-Interpreter::Interpreter(const Machine& machine, ModalState& state, std::string input_name, char extruder_letter)
-    : machine_(machine), state_(state), input_name_(std::move(input_name)), extruder_letter_(extruder_letter) {
-    move_letters_ = "XYZIJKEF";
-    for (const Joint& j : machine_.joints) {
-        move_letters_ += j.name;
-        position_letters_ += j.name;
-    }
-    position_letters_ += "XYZ";
-    for (char letter = 'A'; letter <= 'Z'; ++letter) {
-        const int j = machine_.joint_index(letter);
-        joint_of_letter_[std::size_t(letter - 'A')] = j;
-        // (None for a letter tool_move reads otherwise, as its switch does: X Y Z I J K E F.)
-        const bool own = std::string_view("XYZIJKEF").find(letter) != std::string_view::npos;
-        rotary_of_letter_[std::size_t(letter - 'A')] = !own && j >= 0 && machine_.joints[std::size_t(j)].rotary ? j : -1;
-    }
-    // (A command's numbers are fixed arrays of kMaxJoints; the loader allows five joints.)
-    if (machine_.joints.size() > kMaxJoints)
-        throw MachineError(machine_.source_path + ": more joints than the interpreter holds (" + std::to_string(kMaxJoints) + ")");
-    for (std::size_t j = 0; j < machine_.joints.size(); ++j) (machine_.joints[j].rotary ? rotary_joints_ : linear_joints_) |= 1u << j;
+[[noreturn]] void no_number(const Param& p) { fail(p.column, std::string("word ") + p.letter + " has no number"); }
+
+// The value, or an error if it is a flag. Inline: several words a line.
+inline double number(const Param& p) {
+    if (!p.has_value) no_number(p);
+    return p.value;
 }
 
-void Interpreter::fail(std::uint32_t column, const std::string& message) const { throw LineError(column, message); }
+// E or F, in mm.
+PassedNumber passed(const Param& p, bool inches) {
+    const double v = number(p);
+    if (inches) return {v * 25.4, {}};
+    return {v, p.text};
+}
 
-void Interpreter::no_number(const Param& p) const { fail(p.column, std::string("word ") + p.letter + " has no number"); }
+}  // namespace
+
+JointLetters::JointLetters(const Machine& machine) {
+    for (char letter = 'A'; letter <= 'Z'; ++letter) {
+        const int j = machine.joint_index(letter);
+        joint[std::size_t(letter - 'A')] = j;
+        // (None for a letter a tool move reads otherwise, as its switch does: X Y Z I J K E F.)
+        const bool own = std::string_view("XYZIJKEF").find(letter) != std::string_view::npos;
+        rotary[std::size_t(letter - 'A')] = !own && j >= 0 && machine.joints[std::size_t(j)].rotary ? j : -1;
+    }
+    // (A command's numbers are fixed arrays of kMaxJoints; the loader allows five joints.)
+    if (machine.joints.size() > kMaxJoints)
+        throw MachineError(machine.source_path + ": more joints than the interpreter holds (" + std::to_string(kMaxJoints) + ")");
+    for (std::size_t j = 0; j < machine.joints.size(); ++j) (machine.joints[j].rotary ? rotary_joints : linear_joints) |= 1u << j;
+}
+
+Interpreter::Interpreter(const Machine& machine, ModalState& state, std::string input_name, char extruder_letter)
+    : machine_(machine), state_(state), input_name_(std::move(input_name)), extruder_letter_(extruder_letter), letters_(machine) {
+    steps_.move_letters = "XYZIJKEF";
+    for (const Joint& j : machine_.joints) {
+        steps_.move_letters += j.name;
+        steps_.position_letters += j.name;
+    }
+    steps_.position_letters += "XYZ";
+}
 
 PassedNumber Interpreter::passed_e(const Param& p, bool inches) {
     if (!inches) return {number(p), p.text};
@@ -64,25 +80,17 @@ PassedNumber Interpreter::passed_e(const Param& p, bool inches) {
     return {written, {}, ed};
 }
 
-PassedNumber Interpreter::passed(const Param& p, bool inches) const {
-    const double v = number(p);
-    if (inches) return {v * 25.4, {}};
-    return {v, p.text};
-}
-
 bool is_axis_letter(const Machine& machine, char c) {
     return c == 'X' || c == 'Y' || c == 'Z' || c == 'I' || c == 'J' || c == 'K' || machine.joint_index(c) >= 0;
 }
 
-bool Interpreter::is_axis_letter(char c) const { return xlate5::is_axis_letter(machine_, c); }
-
 inline void Interpreter::read(std::string_view line, std::uint64_t line_no) {
     line_ = line;
     try {
-        lex_line(line, block_);
-        if (block_.empty()) return;
-        read_commands(block_, extruder_letter_, commands_);
-        plan_line(commands_, state_.modes.motion, move_letters_, position_letters_, plan_);
+        lex_line(line, steps_.block);
+        if (steps_.block.empty()) return;
+        read_commands(steps_.block, extruder_letter_, steps_.commands);
+        plan_line(steps_.commands, state_.modes.motion, steps_.move_letters, steps_.position_letters, steps_.plan);
     } catch (const LineError& e) {
         throw InputError(input_name_, line_no, e.column(), e.what());
     }
@@ -92,13 +100,13 @@ void Interpreter::interpret(std::string_view line, std::uint64_t line_no, cmd::C
     read(line, line_no);
     out.clear();
     list_ = &out;
-    if (block_.empty()) {
-        append_wordless(out.text, line_, block_);
+    if (steps_.block.empty()) {
+        append_wordless(out.text, line_, steps_.block);
         passed_text(0);
         return;
     }
-    for (std::size_t i = 0; i < plan_.count; ++i) {
-        const LineStep& step = plan_.steps[i];
+    for (std::size_t i = 0; i < steps_.plan.count; ++i) {
+        const LineStep& step = steps_.plan.steps[i];
         const CommandWord& c = step.command;
         ModalState& m = state_;
         if (c.letter == 'G' && (c.code10 == 10 || c.code10 == 0) && m.mode != OrientationMode::Joints) {
@@ -108,7 +116,7 @@ void Interpreter::interpret(std::string_view line, std::uint64_t line_no, cmd::C
         } else if (c.modal_only()) {
             apply_modal(c.code10, step.words);
         } else {
-            run_command(c, block_.body, step.verbatim, step.words, line_no);
+            run_command(c, steps_.block.body, step.verbatim, step.words, line_no);
         }
     }
 }
@@ -215,7 +223,7 @@ void Interpreter::run_command(const CommandWord& c, std::string_view body, bool 
 void Interpreter::other_g(const CommandWord& c, std::string_view body, bool alone, Params words) {
     Effect effect = Effect::None;
     for (const auto& p : words) {
-        if (!is_axis_letter(p.letter)) continue;
+        if (!is_axis_letter(machine_, p.letter)) continue;
         if (state_.mode != OrientationMode::Joints) {
             std::string code;
             append_code(code, 'G', c.code10);
@@ -242,7 +250,7 @@ void Interpreter::joint_arc(int code10, std::string_view body, bool alone, Param
     if (!modes.absolute || modes.inches) fail(column, "joint-space arcs are passed on only in G90 and G21 (millimetres)");
     cmd::MovedTo& to = add<cmd::MovedTo>();
     for (const auto& p : words) {
-        const int j = joint_of(p.letter);
+        const int j = letters_.joint_of(p.letter);
         if (j < 0) continue;
         to.q[std::size_t(j)] = number(p);
         to.given |= 1u << j;
@@ -281,7 +289,7 @@ void Interpreter::joint_arc(int code10, std::string_view body, bool alone, Param
                 if (!(mv.f->value > 0)) fail(p.column, "feed rate F must be positive");
                 break;
             default: {
-                const int j = rotary_of(p.letter);
+                const int j = letters_.rotary_of(p.letter);
                 if (j < 0 || !angles_allowed) {
                     // The checks in their order (angles_allowed: neither of the last two fails).
                     if (j < 0)
@@ -323,8 +331,8 @@ void Interpreter::tool_move(int gcode, std::uint32_t column, Params words) {
         mv.mode = OrientationMode::Vector;
     }
     cmd::JointBits commanded = mv.angles_given;
-    if (mv.any_xyz()) commanded |= linear_joints_;
-    if (any_ijk) commanded |= rotary_joints_;
+    if (mv.any_xyz()) commanded |= letters_.linear_joints;
+    if (any_ijk) commanded |= letters_.rotary_joints;
     if (mv.f && !m.modes.inverse_time) m.modes.feed = mv.f->value;
     // G93 gives feed moves their duration; a rapid has none (RS274/NGC), so G0 needs no F.
     if (m.modes.inverse_time && !mv.f && gcode != 0 && (mv.any_xyz() || mv.any_rotary() || any_ijk))
@@ -369,7 +377,7 @@ bool Interpreter::read_arc_words(Params words, cmd::Arc& a, std::optional<Param>
             case 'E': e = p; break;
             case 'F': f = p; break;
             default: {
-                const int j = joint_of(p.letter);
+                const int j = letters_.joint_of(p.letter);
                 if (j < 0 || !machine_.joints[std::size_t(j)].rotary || m.mode != OrientationMode::Angles)
                     fail(p.column, std::string("word ") + p.letter + " is not understood on an arc here");
                 a.angles[std::size_t(j)] = number(p);
@@ -430,7 +438,7 @@ void Interpreter::joint_move(int gcode, Params words) {
             case 'I': case 'J': case 'K':
                 fail(p.column, "I J K are tool-vector words (G43.5); under G49 the words are joint values");
             default: {
-                const int j = joint_of(p.letter);
+                const int j = letters_.joint_of(p.letter);
                 if (j < 0) fail(p.column, std::string("word ") + p.letter + " is not a joint of machine " + machine_.name);
                 const bool rotary = machine_.joints[std::size_t(j)].rotary;
                 mv.q[std::size_t(j)] = number(p) * (rotary ? 1.0 : unit);
@@ -473,7 +481,7 @@ void Interpreter::set_position(Params words, std::string_view body) {
             set.xyz_given |= std::uint8_t(1u << i);
             continue;
         }
-        const int j = joint_of(p.letter);
+        const int j = letters_.joint_of(p.letter);
         if (j < 0 || (tcp && !machine_.joints[std::size_t(j)].rotary))
             fail(p.column, std::string("G92 word ") + p.letter + " is not a joint of machine " + machine_.name);
         const bool rotary = machine_.joints[std::size_t(j)].rotary;
@@ -487,9 +495,9 @@ void Interpreter::set_position(Params words, std::string_view body) {
 
 void Interpreter::home(Params words) {
     cmd::Home& h = add<cmd::Home>();
-    if (words.empty()) h.which = linear_joints_ | rotary_joints_;
+    if (words.empty()) h.which = letters_.linear_joints | letters_.rotary_joints;
     for (const Param& p : words) {
-        const int j = joint_of(p.letter);
+        const int j = letters_.joint_of(p.letter);
         if (j < 0) fail(p.column, std::string("G28 word ") + p.letter + " is not a joint of machine " + machine_.name);
         h.which |= 1u << j;
     }
@@ -498,7 +506,7 @@ void Interpreter::home(Params words) {
     text += "G28";
     for (const Param& p : words) {
         text += ' ';
-        text += machine_.joints[std::size_t(joint_of(p.letter))].output;
+        text += machine_.joints[std::size_t(letters_.joint_of(p.letter))].output;
     }
     text += '\n';
     passed_text(begin);
@@ -530,7 +538,7 @@ void Interpreter::work_plane_command(const CommandWord& c, Params words, std::ui
     mv.reads_angles = true;
     mv.any_ijk = true;
     mv.axis = plane.normal();
-    mv.commanded = rotary_joints_;
+    mv.commanded = letters_.rotary_joints;
     mv.e_relative = m.modes.e_relative;
     mv.feed = m.modes.feed;
     mv.inverse_time = false;

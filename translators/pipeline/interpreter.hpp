@@ -35,6 +35,34 @@ struct ModalState {
 // the machine's joints. The service reads G28's words with it too (homes_all).
 bool is_axis_letter(const Machine& machine, char letter);
 
+// A line read into its steps (line_commands.hpp), and the letters reading it needs.
+struct LineSteps {
+    Block block;
+    LineCommands commands;
+    LinePlan plan;
+    std::string move_letters, position_letters;  // see plan_line
+};
+
+// The joints a machine's letters name, as tables made once (not a search of the joints per
+// word), and its joints as bits.
+struct JointLetters {
+    explicit JointLetters(const Machine& machine);
+    // The joint a word's letter names, -1 for none. (A word's letter is upper case A to Z, and no
+    // joint is named otherwise.)
+    int joint_of(char letter) const {
+        const auto k = std::size_t(letter - 'A');
+        return k < joint.size() ? joint[k] : -1;
+    }
+    // The rotary joint a word's letter names, -1 for none (a linear joint's letter, none, or a
+    // letter a tool move reads as something else: X Y Z I J K E F).
+    int rotary_of(char letter) const {
+        const auto k = std::size_t(letter - 'A');
+        return k < rotary.size() ? rotary[k] : -1;
+    }
+    std::array<int, 26> joint, rotary;
+    cmd::JointBits linear_joints = 0, rotary_joints = 0;  // one bit a joint
+};
+
 class Interpreter {
 public:
     Interpreter(const Machine& machine, ModalState& state, std::string input_name, char extruder_letter);
@@ -45,34 +73,13 @@ public:
     // interpreted (the modal state is then the caller's to restore).
     void interpret(std::string_view line, std::uint64_t line_no, cmd::CommandList& out);
     // The input is compact from its first line, as if it began with the compact declaration (gcode_lexer.hpp).
-    void set_compact_words() { block_.compact_words = true; }
+    void set_compact_words() { steps_.block.compact_words = true; }
     // The line read last takes its text whole (a display or file command: fit_marlin_lines).
-    bool text_argument() const { return block_.text_argument; }
+    bool text_argument() const { return steps_.block.text_argument; }
 
 private:
     void read(std::string_view line, std::uint64_t line_no);  // the words and steps: throws InputError
-    [[noreturn]] void fail(std::uint32_t column, const std::string& message) const;
-    // The value, or an error if it is a flag. Inline: several words a line.
-    double number(const Param& p) const {
-        if (!p.has_value) no_number(p);
-        return p.value;
-    }
-    [[noreturn]] void no_number(const Param& p) const;
-    PassedNumber passed(const Param& p, bool inches) const;  // E or F, in mm
     PassedNumber passed_e(const Param& p, bool inches);      // E, in mm (inches: rounded, the rest carried)
-    bool is_axis_letter(char c) const;
-    // The rotary joint a word's letter names, -1 for none (a linear joint's letter, none, or a
-    // letter tool_move reads as something else: X Y Z I J K E F).
-    int rotary_of(char letter) const {
-        const auto k = std::size_t(letter - 'A');
-        return k < rotary_of_letter_.size() ? rotary_of_letter_[k] : -1;
-    }
-    // The joint a word's letter names, -1 for none: from a table made once, not a search of the
-    // joints per word. (A word's letter is upper case A to Z, and no joint is named otherwise.)
-    int joint_of(char letter) const {
-        const auto k = std::size_t(letter - 'A');
-        return k < joint_of_letter_.size() ? joint_of_letter_[k] : -1;
-    }
     // Text passed on: what `list_` holds from `begin` on, with its effect on the firmware.
     void passed_text(std::size_t begin, cmd::Passthrough::Effect effect = cmd::Passthrough::Effect::None);
     void apply_modal(int code10, Params words);
@@ -101,15 +108,10 @@ private:
     ModalState& state_;
     std::string input_name_;
     char extruder_letter_;
-    std::string_view line_;    // the line read last
+    std::string_view line_;             // the line read last
     cmd::CommandList* list_ = nullptr;  // where interpret() puts the line's commands
-    Block block_;
-    LineCommands commands_;
-    LinePlan plan_;
-    std::string move_letters_, position_letters_;  // see plan_line
-    std::array<int, 26> joint_of_letter_;           // see joint_of
-    std::array<int, 26> rotary_of_letter_;          // see rotary_of
-    cmd::JointBits linear_joints_ = 0, rotary_joints_ = 0;  // one bit a joint, from the machine
+    LineSteps steps_;
+    JointLetters letters_;
 };
 
 }  // namespace xlate5

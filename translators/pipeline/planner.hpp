@@ -97,7 +97,7 @@ struct PlannerState {
     // program last set it (G92, G28), in degrees. The program's angles go on without them.
     double rezeroed[2] = {0, 0};
     // With a report: the least rotary travel to each solution of the last move's end axis, by
-    // dynamic programming over the moves so far (Planner::bound_rotary_travel). Here so that a
+    // dynamic programming over the moves so far (bound_rotary_travel, planner.cpp). Here so that a
     // look-back replay takes it back with the rest.
     struct RotaryBound {
         int n = 0;  // solutions held (0: not started)
@@ -137,6 +137,24 @@ struct ToolMove {
     bool inverse_time = false;
 };
 
+// Programmed angles <-> joints through an AngleImage, per rotary (`rot`: the kinematics'
+// rotary_joints(), in that order).
+struct AngleMap {
+    const std::vector<int>& rot;
+    void map(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const;
+    void unmap(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
+    // The image with no other turn or branch chosen: identity, but for the turns re-zeros took off.
+    void plain(PlannerState& s) const;
+    void forget_rezeros(PlannerState& s, const std::vector<bool>& which) const;  // joints the program has just set
+};
+
+// Another end a travel move may take (end_candidates, planner.cpp): its joints and, under G43.4, the
+// image of the programmed angles that gives them.
+struct EndCandidate {
+    std::vector<double> q;
+    AngleImage image;
+};
+
 class Planner {
 public:
     // `log` (may be null) receives every measured tool-space move for the report.
@@ -159,10 +177,8 @@ public:
     void moved_to(const std::vector<double>& q);
     // The firmware's position is no longer exactly known (a code that moves it, a failed line).
     void position_unknown();
-    // A G93/G94 passed on to the firmware as written.
-    void feed_mode_sent(bool inverse_time);
     // A mode switch: the programmed angles mean the joints as they are (but for re-zeros).
-    void new_mode() { plain_image(); }
+    void new_mode() { angle_map_.plain(state_); }
 
     // The programmed angles (G43.4) of the current joints: per joint, rotaries through the image.
     // Inline, the joints copied through copy_joints.
@@ -170,34 +186,18 @@ public:
         const std::vector<double>& q = state_.q;
         copy_joints(a, q);
         // The plain image gives the joints themselves ((q - 0) * 1 is q, bit for bit).
-        if (!(state_.image == AngleImage{})) unmap_angles(state_.image, q, a);
+        if (!(state_.image == AngleImage{})) angle_map_.unmap(state_.image, q, a);
     }
 
 private:
     // tool_move's steps (planner.cpp).
     IkResult solve_end(const ToolMove& mv, Pose& next);
     bool other_end(const ToolMove& mv, const Pose& next, bool travel, IkResult& r, LineRun& run, SolutionChange& change);
-    MoveSpec planned(const ToolMove& mv, const Pose& next) const;
     int rezero(std::string& out);
     void send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
                      std::string& out);
-    // The image with no other turn or branch chosen: identity, but for the turns re-zeros took off.
-    void plain_image();
-    void forget_rezeros(const std::vector<bool>& which);  // joints the program has just set
-    void map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const;
-    void unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
-    void end_candidates(OrientationMode mode, const Pose& end, const std::vector<double>& programmed,
-                        const std::vector<double>& usual);
-    // The report's lower bound on rotary travel, advanced by a move ending on `axis`.
-    void bound_rotary_travel(const Eigen::Vector3d& axis);
-
-    struct Candidate {
-        std::vector<double> q;
-        AngleImage image;
-    };
 
     const Kinematics& kin_;
-    const Machine& machine_;
     LimitBox limits_;  // the end of every move is checked against it
     PlannerState& state_;
     JointEmitter& emitter_;
@@ -207,13 +207,14 @@ private:
     MoveResult move_result_;
     std::vector<double> q_next_;    // scratch: the move being solved
     std::vector<bool> which_;       // scratch: joints a re-zero tells the firmware about
-    std::vector<Candidate> candidates_;
+    std::vector<EndCandidate> candidates_;
     std::vector<double> pole_q_;  // scratch: a passage's end
     PoleHold pole_hold_;
     Kinematics::Solutions end_solutions_;  // of the move's end axis (G43.5 with I J K)
     // The end's position solve with its pose and lever arms (when the solve gives them): the
     // motion stage bounds the printed end from it instead of an FK.
     Kinematics::SolvedEnd end_solved_;
+    AngleMap angle_map_;
 };
 
 }  // namespace xlate5

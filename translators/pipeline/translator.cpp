@@ -109,7 +109,7 @@ void Translator::Forward::run_command(const cmd::Command& c, LineRun& run, std::
     if (const auto* p = std::get_if<cmd::Passthrough>(&c)) {
         using Effect = cmd::Passthrough::Effect;
         if (p->effect == Effect::PositionUnknown) planner.position_unknown();  // the firmware moves where xlate5 cannot follow
-        if (p->effect == Effect::FeedPerMinute || p->effect == Effect::InverseTime) planner.feed_mode_sent(p->effect == Effect::InverseTime);
+        if (p->effect == Effect::FeedPerMinute || p->effect == Effect::InverseTime) state.emitter.feed_mode_sent(p->effect == Effect::InverseTime);
         return state.emitter.pass(out, commands.text_of(*p));
     }
     if (const auto* a = std::get_if<cmd::Arc>(&c)) return arc(*a, run, out);
