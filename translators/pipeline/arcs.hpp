@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// G2/G3 -> chords: a pure function of the arc's geometry, called by the interpreter, which then
+// G2/G3 -> chords: a pure function of the arc's geometry, called by the resolver, which then
 // sends each chord through the planner like any move. May call: nothing but Eigen.
 #pragma once
 #include <Eigen/Core>

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <string>
 
 #include "translators/error.hpp"
 #include "translators/machine/firmware_config.hpp"
@@ -345,6 +346,44 @@ void JointEmitter::set_position(std::string& out, std::span<const double> q, std
     if (out.size() == empty) out.resize(start);
     else out += '\n';
     out += steppers;
+}
+
+}  // namespace xlate5
+
+namespace xlate5 {
+
+void fit_marlin_lines(std::string& out, std::size_t start, std::string_view input, bool text_argument,
+                      const std::function<void(std::string_view)>& shortened) {
+    std::size_t at = start;
+    while (at < out.size()) {
+        std::size_t nl = out.find('\n', at);
+        if (nl == std::string::npos) nl = out.size();
+        const std::string_view l(out.data() + at, nl - at);
+        const bool display = l.rfind("M117", 0) == 0 || l.rfind("M118", 0) == 0;
+        // What Marlin stores: up to a ';' comment (the text of a display or file command is
+        // taken whole: xlate5 passes it on as written, ';' and all).
+        std::size_t stored = l.size();
+        const bool text = display || text_argument;
+        if (!text)
+            if (const auto semi = l.find(';'); semi != std::string_view::npos) stored = semi;
+        if (stored > kMarlinLineChars && !(l.size() > 0 && l.front() == ';')) {
+            if (!display) {
+                // The column of the input where the 96th character of the written line is, when
+                // the line was written as read; else the line's start.
+                const auto in_at = input.find(l.substr(0, kMarlinLineChars + 1));
+                const std::uint32_t column = in_at == std::string_view::npos ? 1 : std::uint32_t(in_at + kMarlinLineChars + 1);
+                throw LineError(column, "this line would be written with " + std::to_string(stored) + " characters: Marlin reads at most " +
+                                            std::to_string(kMarlinLineChars) + " and runs the rest as a line of its own; shorten it");
+            }
+            // A display text loses its tail; nothing is run from it.
+            std::size_t keep = kMarlinLineChars;
+            while (keep > 4 && l[keep - 1] == ' ') --keep;
+            out.erase(at + keep, nl - (at + keep));
+            nl = at + keep;
+            if (shortened) shortened(l.substr(0, 4));
+        }
+        at = nl + 1;
+    }
 }
 
 }  // namespace xlate5

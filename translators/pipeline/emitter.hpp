@@ -5,6 +5,7 @@
 // change. May call: number formatting, firmware_config (Klipper's axis registration).
 #pragma once
 #include <array>
+#include <functional>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -33,6 +34,17 @@ double printed_value(const Machine& m, std::size_t j, double v);
 // (`out` still `empty` long: nothing changed) is taken back.
 void finish_move(std::string& out, std::size_t start, std::size_t empty, const std::optional<PassedNumber>& e,
                  const std::optional<PassedNumber>& f);
+
+// MAX_CMD_SIZE - 1: the characters Marlin reads of a line (PROTOCOL.md rule 4).
+inline constexpr std::size_t kMarlinLineChars = 95;
+
+// Marlin reads a line up to 95 characters and the rest as a new line (PROTOCOL.md rule 4): every
+// line of `out` from `start` on is checked. Display text (M117, M118) is shortened, and
+// `shortened` told the command (its first four characters); anything else is refused with
+// LineError at the column of `input` (the line read) where the 96th character is, when the line
+// was written as read. `text_argument`: the input's command takes its text whole, ';' and all.
+void fit_marlin_lines(std::string& out, std::size_t start, std::string_view input, bool text_argument,
+                      const std::function<void(std::string_view)>& shortened);
 
 // Told of every move piece before it is written (the collision stage, collide.hpp), from the
 // joints the firmware is believed at to `to`; it may throw LineError to refuse the piece. And
@@ -106,6 +118,9 @@ public:
     // Every piece is shown to `observer` first (null: none). Not copied by operator=: the
     // look-back's snapshots restore what was written, never who watches.
     void set_observer(PieceObserver* observer) { observer_ = observer; }
+
+    // Text passed on to the firmware as it is (a Passthrough command's).
+    void pass(std::string& out, std::string_view text) const { out += text; }
 
     // Appends one joint word (" A12.5") as the emitter would print it.
     void append_joint(std::string& out, std::size_t joint, double value) const;

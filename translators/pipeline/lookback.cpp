@@ -7,8 +7,8 @@
 
 namespace xlate5 {
 
-LookBack::LookBack(Interpreter& interpreter, ForwardState& state, MoveLog* log)
-    : interpreter_(interpreter), state_(state), log_(log), before_line_(state), checkpoint_(state) {
+LookBack::LookBack(LineStages& stages, ForwardState& state, MoveLog* log)
+    : stages_(stages), state_(state), log_(log), before_line_(state), checkpoint_(state) {
     // Moves are held, with look-back or not, at least for their line: a refused line's are dropped with its output.
     if (log_) log_->hold(true);
 }
@@ -35,7 +35,7 @@ void LookBack::feed_alone(std::string_view line, std::uint64_t line_no, std::str
     run.line_no = line_no;
     const std::size_t moves_start = held_moves();
     try {
-        interpreter_.feed_line(line, run, out);
+        stages_.feed_line(line, run, out);
     } catch (const InputError& e) {
         if (log_) log_->drop_held_from(moves_start);
         if (!run.hit_limit) throw;
@@ -73,7 +73,7 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
     run.pole.seen = have_checkpoint_ ? choices_ : 0;
     const int seen_before = run.pole.seen;
     try {
-        interpreter_.feed_line(line, run, to, &before_line_.line);  // one copy of the state per line, not two
+        stages_.feed_line(line, run, to, &before_line_.line);  // one copy of the state per line, not two
     } catch (const InputError& e) {
         if (!run.hit_limit) {
             // A refused line (the service goes on after one typed in a terminal) leaves nothing
@@ -225,7 +225,7 @@ bool LookBack::replay(int candidate, const PoleChoices& flips, std::string_view 
             if (first) run.end_candidate = candidate;  // the checkpoint's travel move ends on this solution
             first = false;
             try {
-                interpreter_.feed_line(std::string_view(window_text_).substr(at, nl - at), run, held_);
+                stages_.feed_line(std::string_view(window_text_).substr(at, nl - at), run, held_);
             } catch (const InputError&) {
                 missing = run.candidate_missing;
                 throw;
@@ -236,7 +236,7 @@ bool LookBack::replay(int candidate, const PoleChoices& flips, std::string_view 
         last = LineRun{};
         last.line_no = line_no;
         last.pole = pole;
-        interpreter_.feed_line(line, last, held_);
+        stages_.feed_line(line, last, held_);
     } catch (const InputError&) {
         return false;
     }

@@ -4,18 +4,27 @@
 // bounded rotary past its limit, that travel move can be translated again ending on another
 // solution of its pose (the other branch or another turn) and the printed path stays continuous.
 // Its checkpoint is one snapshot of everything a line can change, copied whole.
-// May call: the interpreter (to translate a line, or a window of them again) and the move log.
+// May call: the forward stages (to translate a line, or a window of them again) and the move log.
 #pragma once
 #include <cstdint>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "translators/pipeline/collide.hpp"
 #include "translators/pipeline/emitter.hpp"
 #include "translators/pipeline/interpreter.hpp"
+#include "translators/pipeline/planner.hpp"
 #include "translators/inspect/report.hpp"
 
 namespace xlate5 {
+
+// The state a line can change above the emitter: rolled back as one when a line fails.
+struct LineState {
+    ModalState modal;
+    PlannerState planner;
+    CollideCursor collide;  // the collision stage's place in the printed part: rolled back with the line
+};
 
 // Everything a line of the forward direction can change: the interpreter's and the planner's
 // state and what the emitter remembers of the firmware.
@@ -23,6 +32,21 @@ struct ForwardState {
     explicit ForwardState(const Machine& machine) : emitter(machine) {}
     LineState line;
     JointEmitter emitter;
+};
+
+// The forward stages as the look-back runs them, one input line at a time (translator.cpp wires
+// them).
+class LineStages {
+public:
+    // Translates one line (without '\n'), appending its output to `out`. Throws InputError naming
+    // the file, line (run.line_no) and column; the state is then as before the line and the
+    // firmware's position is taken as unknown. `before`, when given, is the caller's own copy of
+    // the state as it is now (the look-back takes one of every line): the line is undone from it
+    // instead of from a second copy.
+    virtual void feed_line(std::string_view line, LineRun& run, std::string& out, const LineState* before = nullptr) = 0;
+
+protected:
+    ~LineStages() = default;
 };
 
 class LookBack {
@@ -41,7 +65,7 @@ public:
     static constexpr int kMaxReplays = 256;
 
     // `log` may be null (no report).
-    LookBack(Interpreter& interpreter, ForwardState& state, MoveLog* log);
+    LookBack(LineStages& stages, ForwardState& state, MoveLog* log);
 
     // 0 (the default): every line's output is appended at once, and only the travel move that
     // itself runs into a limit unwinds. With look-back on, call finish() after the last line.
@@ -62,7 +86,7 @@ private:
     void release(std::size_t bytes, std::size_t moves, std::string& out);
     std::size_t held_moves() const { return log_ ? log_->held_count() : 0; }
 
-    Interpreter& interpreter_;
+    LineStages& stages_;
     ForwardState& state_;
     MoveLog* log_;
     std::size_t lines_ = 0;

@@ -13,7 +13,7 @@ struct Modes {
     int plane = 17;           // G17 XY, G18 ZX, G19 YZ: the plane of arcs
     bool inverse_time = false;  // G93: F is 1/duration in minutes, per move
     double feed = 0;          // programmed feed (G94), mm/min; 0 until the first F
-    double e_position = 0;    // absolute E (for sharing an absolute E among pieces)
+    double e_position = 0;    // absolute E (the inverse pipeline's; the forward planner keeps its own)
     double e_inch_carry = 0;  // relative E read in inches: what rounding to the dialect's decimals left over
     double unit() const { return inches ? 25.4 : 1.0; }
 };

@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <vector>
 
 #include "translators/constants.hpp"
 #include "translators/error.hpp"
@@ -26,7 +27,6 @@ double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { retur
 
 Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter& emitter, MoveLog* log)
     : kin_(kinematics),
-      machine_(kinematics.machine()),
       limits_(kinematics.machine()),
       state_(state),
       emitter_(emitter),
@@ -34,45 +34,46 @@ Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter
       compensation_(kinematics.machine().compensation),
       motion_(kinematics, emitter),
       q_next_(state.q),
-      pole_hold_(kinematics) {}
+      pole_hold_(kinematics),
+      angle_map_{kinematics.rotary_joints()} {}
 
-void Planner::plain_image() {
-    state_.image = {};
-    for (std::size_t k = 0; k < kin_.rotary_joints().size(); ++k) state_.image.shift[k] = -state_.rezeroed[k];
+void AngleMap::plain(PlannerState& s) const {
+    s.image = {};
+    for (std::size_t k = 0; k < rot.size(); ++k) s.image.shift[k] = -s.rezeroed[k];
 }
 
-void Planner::forget_rezeros(const std::vector<bool>& which) {
-    const auto& rot = kin_.rotary_joints();
+void AngleMap::forget_rezeros(PlannerState& s, const std::vector<bool>& which) const {
     for (std::size_t k = 0; k < rot.size(); ++k)
-        if (which[std::size_t(rot[k])]) state_.rezeroed[k] = 0;
+        if (which[std::size_t(rot[k])]) s.rezeroed[k] = 0;
 }
 
-void Planner::map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const {
-    const auto& rot = kin_.rotary_joints();
+void AngleMap::map(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const {
     for (std::size_t k = 0; k < rot.size(); ++k) {
         const std::size_t j = std::size_t(rot[k]);
         q[j] = image.sign[k] * a[j] + image.shift[k];
     }
 }
 
-void Planner::unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const {
-    const auto& rot = kin_.rotary_joints();
+void AngleMap::unmap(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const {
     for (std::size_t k = 0; k < rot.size(); ++k) {
         const std::size_t j = std::size_t(rot[k]);
         a[j] = (q[j] - image.shift[k]) * image.sign[k];
     }
 }
 
+namespace {
+
 // Where else a travel move to `end` may stop: every solution of that pose inside the limits
 // other than `usual` (the continuous one), nearest the current joints first. Under G43.4 each is
 // an image of the programmed angles (another turn, or the flipped branch), so the moves after it
 // keep their programmed interpolation.
-void Planner::end_candidates(OrientationMode mode, const Pose& end, const std::vector<double>& programmed,
-                             const std::vector<double>& usual) {
-    candidates_.clear();
-    const auto& rot = kin_.rotary_joints();
+void end_candidates(const Kinematics& kin, const AngleMap& angles, const PlannerState& state, OrientationMode mode, const Pose& end,
+                    const std::vector<double>& programmed, const std::vector<double>& usual, std::vector<EndCandidate>& candidates) {
+    const Machine& machine = kin.machine();
+    candidates.clear();
+    const auto& rot = kin.rotary_joints();
     if (rot.empty()) return;
-    const std::vector<double>& q_now = state_.q;
+    const std::vector<double>& q_now = state.q;
     auto same = [&](const std::vector<double>& a, const std::vector<double>& b) {
         for (const int j : rot)
             if (std::abs(a[std::size_t(j)] - b[std::size_t(j)]) > kSameAngle) return false;
@@ -80,15 +81,15 @@ void Planner::end_candidates(OrientationMode mode, const Pose& end, const std::v
     };
     std::vector<double> q;
     auto consider = [&](const AngleImage& image) {
-        if (!kin_.solve_position(end.tip, q).ok() || !check_limits(machine_, q).ok() || same(q, usual)) return;
-        for (const Candidate& c : candidates_)
+        if (!kin.solve_position(end.tip, q).ok() || !check_limits(machine, q).ok() || same(q, usual)) return;
+        for (const EndCandidate& c : candidates)
             if (same(c.q, q)) return;
-        candidates_.push_back({q, image});
+        candidates.push_back({q, image});
     };
     const int turns1 = rot.size() > 1 ? 2 : 0;
     if (mode == OrientationMode::Angles) {
         for (const bool flip : {false, true}) {
-            if (flip && !kin_.has_flip()) continue;
+            if (flip && !kin.has_flip()) continue;
             AngleImage base;
             base.sign[1] = flip ? -1 : 1;
             base.shift[0] = flip ? 180 : 0;
@@ -104,12 +105,12 @@ void Planner::end_candidates(OrientationMode mode, const Pose& end, const std::v
                     image.shift[0] += 360.0 * (centre[0] + t0);
                     if (rot.size() > 1) image.shift[1] += 360.0 * (centre[1] + t1);
                     q = usual;
-                    map_angles(image, programmed, q);
+                    angles.map(image, programmed, q);
                     consider(image);
                 }
         }
     } else {
-        const auto solutions = kin_.orientation_solutions(end.axis);
+        const auto solutions = kin.orientation_solutions(end.axis);
         for (int b = 0; b < solutions.count; ++b)
             for (int t0 = -2; t0 <= 2; ++t0)
                 for (int t1 = -turns1; t1 <= turns1; ++t1) {
@@ -120,30 +121,105 @@ void Planner::end_candidates(OrientationMode mode, const Pose& end, const std::v
                         if (std::isnan(sol)) continue;  // free at a pole: it stays
                         q[j] = q_now[j] + wrap180(sol - q_now[j]) + 360.0 * (k == 0 ? t0 : t1);
                     }
-                    consider(state_.image);
+                    consider(state.image);
                 }
     }
-    auto distance = [&](const Candidate& c) {
+    auto distance = [&](const EndCandidate& c) {
         double d = 0;
         for (const int j : rot) d += (c.q[std::size_t(j)] - q_now[std::size_t(j)]) * (c.q[std::size_t(j)] - q_now[std::size_t(j)]);
         return d;
     };
-    std::stable_sort(candidates_.begin(), candidates_.end(), [&](const Candidate& a, const Candidate& b) { return distance(a) < distance(b); });
+    std::stable_sort(candidates.begin(), candidates.end(), [&](const EndCandidate& a, const EndCandidate& b) { return distance(a) < distance(b); });
 }
+
+// The planned move handed to the motion stage, from the current joints and pose (`s`) to q1,
+// next; `end` is the position solve's end, `solutions` the end axis's (when the move gives I J K).
+inline MoveSpec planned(const ToolMove& mv, const PlannerState& s, const Pose& next, const std::vector<double>& q1,
+                        const Kinematics::SolvedEnd& end, const Kinematics::Solutions& solutions) {
+    MoveSpec spec;
+    spec.gcode = mv.gcode;
+    // Before the program has placed the tip, the move is a joint move (one piece, F as written).
+    spec.mode = (!mv.any_xyz && !s.tip_known) ? OrientationMode::Joints : mv.mode;
+    spec.q0 = &s.q;
+    spec.p0 = s.pose;
+    spec.q1 = &q1;
+    spec.p1 = next;
+    spec.end = &end;  // the stage uses it only while its joints are still q1's
+    if (mv.any_ijk) spec.end_solutions = solutions;  // the motion stage asks for them again
+    spec.commanded = mv.commanded;
+    spec.e = mv.e;
+    spec.e_relative = mv.e_relative;
+    spec.e_start = mv.e_position;
+    spec.feed = mv.feed;
+    spec.f = mv.f;
+    spec.inverse_time = mv.inverse_time && mv.f ? mv.f->value : 0.0;
+    return spec;
+}
+
+// Advanced by a move ending on `axis` (pole: the pole's axis): false when the bound does not
+// apply (not two rotaries with the flip) or the axis has no solution inside the limits.
+bool bound_rotary_travel(const Kinematics& kin, const Eigen::Vector3d& pole, PlannerState& state, const Eigen::Vector3d& axis,
+                         double& bound) {
+    const Machine& machine = kin.machine();
+    const auto& rot = kin.rotary_joints();
+    if (rot.size() != 2 || !kin.has_flip()) return false;
+    PlannerState::RotaryBound& d = state.bound;
+    const std::size_t c = std::size_t(rot[0]), b = std::size_t(rot[1]);
+    const Joint& Jc = machine.joints[c];
+    const Joint& Jb = machine.joints[b];
+    if (d.n == 0) {  // from where the machine is
+        d.n = 1;
+        d.best[0] = 0;
+        d.c[0] = state.q[c];
+        d.b[0] = state.q[b];
+        d.slack_c = d.slack_b = 0;
+    }
+    const double tol = machine.motion.angle_tolerance, hold = kPoleHold * tol;
+    const double tilt = std::min(angle_between(axis, pole), angle_between(axis, -pole));
+    const double st = std::sin(tilt / kDegPerRad), sh = std::sin(hold / kDegPerRad);
+    const bool region = tilt < kPoleRegion * tol;
+    const double slack_c = !region ? 0.0 : st > sh ? std::asin(sh / st) * kDegPerRad : 180.0, slack_b = region ? hold : 0.0;
+    const Kinematics::Solutions solutions = kin.orientation_solutions(axis);
+    PlannerState::RotaryBound next;
+    for (int k = 0; k < solutions.count && next.n < 2; ++k) {
+        const double nc = solutions.angle[k][0], nb = solutions.angle[k][1];
+        if (!inside_limits(Jb, nb) || (!std::isnan(nc) && Jc.bounded() && !inside_limits(Jc, nc))) continue;
+        double least = 1e300;
+        for (int i = 0; i < d.n; ++i) {
+            double dc = 0;
+            if (!std::isnan(nc) && !std::isnan(d.c[i])) dc = Jc.bounded() ? std::abs(nc - d.c[i]) : std::abs(wrap180(nc - d.c[i]));
+            const double cost = std::max(0.0, dc - slack_c - d.slack_c) + std::max(0.0, std::abs(nb - d.b[i]) - slack_b - d.slack_b);
+            least = std::min(least, d.best[i] + cost);
+        }
+        next.best[next.n] = least;
+        next.c[next.n] = nc;
+        next.b[next.n] = nb;
+        ++next.n;
+    }
+    if (next.n == 0) return false;  // no solution inside the limits: the move is refused anyway
+    next.slack_c = slack_c;
+    next.slack_b = slack_b;
+    d = next;
+    bound = std::min(d.best[0], d.n > 1 ? d.best[1] : 1e300);
+    return true;
+}
+
+}  // namespace
+
 
 // The usual end of a tool-space move: its joints in q_next_ (the continuous solution), its pose
 // in `next`; not ok when it cannot be reached or lies outside the limits.
 inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
     PlannerState& s = state_;
     copy_joints(q_next_, s.q);
-    if (mv.any_rotary) map_angles(s.image, *mv.angles, q_next_);
+    if (mv.any_rotary) angle_map_.map(s.image, *mv.angles, q_next_);
     end_solved_.valid = false;
     ChosenSolution chosen;  // the solution the rotaries take (a tool vector's): the solve reuses its terms
     // Returned in place (prvalues): no result moved in, nor its message.
     IkResult r = [&] {
         if (!mv.any_ijk) return IkResult{};
         end_solutions_ = kin_.orientation_solutions(mv.axis);
-        return orient_within_limits(machine_, kin_.rotary_joints(), end_solutions_, s.q, s.q, q_next_, &chosen);
+        return orient_within_limits(kin_.machine(), kin_.rotary_joints(), end_solutions_, s.q, s.q, q_next_, &chosen);
     }();
     next = s.pose;
     if (r.ok()) {
@@ -169,7 +245,7 @@ inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
             if (mv.any_ijk) next.axis = mv.axis;
         }
     }
-    if (r.ok() && !limits_.contains(q_next_)) r = check_limits(machine_, q_next_);
+    if (r.ok() && !limits_.contains(q_next_)) r = check_limits(kin_.machine(), q_next_);
     return r;
 }
 
@@ -181,7 +257,7 @@ inline bool Planner::other_end(const ToolMove& mv, const Pose& next, bool travel
     const int forced = travel ? run.end_candidate : -1;
     if (travel) run.end_candidate = -1;
     if (!travel || !(forced >= 0 || (!r.ok() && r.status == IkStatus::OutOfLimits))) return false;
-    end_candidates(mv.mode, next, *mv.angles, q_next_);
+    end_candidates(kin_, angle_map_, state_, mv.mode, next, *mv.angles, q_next_, candidates_);
     const std::size_t k = forced >= 0 ? std::size_t(forced) : 0;
     if (k >= candidates_.size()) {
         if (forced < 0) return false;
@@ -192,7 +268,7 @@ inline bool Planner::other_end(const ToolMove& mv, const Pose& next, bool travel
     // else the other orientation branch.
     change = SolutionChange::Turns;
     for (std::size_t j = 0; j < q_next_.size(); ++j) {
-        if (!machine_.joints[j].rotary) continue;
+        if (!kin_.machine().joints[j].rotary) continue;
         const double d = candidates_[k].q[j] - q_next_[j];
         if (!(std::abs(d - 360.0 * std::round(d / 360.0)) < 1e-6)) change = SolutionChange::Branch;
     }
@@ -200,29 +276,6 @@ inline bool Planner::other_end(const ToolMove& mv, const Pose& next, bool travel
     if (mv.mode == OrientationMode::Angles) state_.image = candidates_[k].image;
     r = {};
     return true;
-}
-
-// The planned move handed to the motion stage, from the current joints and pose to q_next_, next.
-inline MoveSpec Planner::planned(const ToolMove& mv, const Pose& next) const {
-    const PlannerState& s = state_;
-    MoveSpec spec;
-    spec.gcode = mv.gcode;
-    // Before the program has placed the tip, the move is a joint move (one piece, F as written).
-    spec.mode = (!mv.any_xyz && !s.tip_known) ? OrientationMode::Joints : mv.mode;
-    spec.q0 = &s.q;
-    spec.p0 = s.pose;
-    spec.q1 = &q_next_;
-    spec.p1 = next;
-    spec.end = &end_solved_;  // the stage uses it only while its joints are still q_next_'s
-    if (mv.any_ijk) spec.end_solutions = end_solutions_;  // the motion stage asks for them again
-    spec.commanded = mv.commanded;
-    spec.e = mv.e;
-    spec.e_relative = mv.e_relative;
-    spec.e_start = mv.e_position;
-    spec.feed = mv.feed;
-    spec.f = mv.f;
-    spec.inverse_time = mv.inverse_time && mv.f ? mv.f->value : 0.0;
-    return spec;
 }
 
 // An unbounded rotary that has wound far from zero is re-zeroed at the end of a travel move (no
@@ -236,7 +289,7 @@ int Planner::rezero(std::string& out) {
     const auto& rot = kin_.rotary_joints();
     for (std::size_t k = 0; k < rot.size(); ++k) {
         const std::size_t j = std::size_t(rot[k]);
-        const Joint& J = machine_.joints[j];
+        const Joint& J = kin_.machine().joints[j];
         if (J.rezero_beyond <= 0 || std::abs(q_next_[j]) <= J.rezero_beyond) continue;
         const double turns = std::round(q_next_[j] / 360.0);
         which_.assign(q_next_.size(), false);
@@ -275,7 +328,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
         passage = true;
         q_next_ = pole_q_;
     }
-    MoveSpec spec = planned(mv, next);
+    MoveSpec spec = planned(mv, state_, next, q_next_, end_solved_, end_solutions_);
     // An unwinding travel move turns the rotaries linearly from their start to the chosen end
     // (angle form) while the split holds the tip on the straight travel line, rather than
     // reorienting in place at one end: the tip never leaves the path the slicer planned for it
@@ -303,7 +356,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     }
     if (measured) {
         measured->prints = prints;
-        bound_rotary_travel(next.axis);
+        if (double bound = 0; bound_rotary_travel(kin_, pole_hold_.pole(), state_, next.axis, bound)) log_->set_rotary_bound(bound);
         measured->change = change;
         measured->moves_written = emitter_.moves_written();
         if (passage) {
@@ -336,49 +389,6 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
 // less both ends' slacks, over every choice of solution per move (two per axis: a dynamic
 // programme over the moves) is at most any plan's travel. An unbounded turning joint is taken
 // on its nearest turn.
-void Planner::bound_rotary_travel(const Eigen::Vector3d& axis) {
-    const auto& rot = kin_.rotary_joints();
-    if (rot.size() != 2 || !kin_.has_flip()) return;
-    PlannerState::RotaryBound& d = state_.bound;
-    const std::size_t c = std::size_t(rot[0]), b = std::size_t(rot[1]);
-    const Joint& Jc = machine_.joints[c];
-    const Joint& Jb = machine_.joints[b];
-    if (d.n == 0) {  // from where the machine is
-        d.n = 1;
-        d.best[0] = 0;
-        d.c[0] = state_.q[c];
-        d.b[0] = state_.q[b];
-        d.slack_c = d.slack_b = 0;
-    }
-    const double tol = machine_.motion.angle_tolerance, hold = kPoleHold * tol;
-    const double tilt = std::min(angle_between(axis, pole_hold_.pole()), angle_between(axis, -pole_hold_.pole()));
-    const double st = std::sin(tilt / kDegPerRad), sh = std::sin(hold / kDegPerRad);
-    const bool region = tilt < kPoleRegion * tol;
-    const double slack_c = !region ? 0.0 : st > sh ? std::asin(sh / st) * kDegPerRad : 180.0, slack_b = region ? hold : 0.0;
-    const Kinematics::Solutions solutions = kin_.orientation_solutions(axis);
-    PlannerState::RotaryBound next;
-    for (int k = 0; k < solutions.count && next.n < 2; ++k) {
-        const double nc = solutions.angle[k][0], nb = solutions.angle[k][1];
-        if (!inside_limits(Jb, nb) || (!std::isnan(nc) && Jc.bounded() && !inside_limits(Jc, nc))) continue;
-        double least = 1e300;
-        for (int i = 0; i < d.n; ++i) {
-            double dc = 0;
-            if (!std::isnan(nc) && !std::isnan(d.c[i])) dc = Jc.bounded() ? std::abs(nc - d.c[i]) : std::abs(wrap180(nc - d.c[i]));
-            const double cost = std::max(0.0, dc - slack_c - d.slack_c) + std::max(0.0, std::abs(nb - d.b[i]) - slack_b - d.slack_b);
-            least = std::min(least, d.best[i] + cost);
-        }
-        next.best[next.n] = least;
-        next.c[next.n] = nc;
-        next.b[next.n] = nb;
-        ++next.n;
-    }
-    if (next.n == 0) return;  // no solution inside the limits: the move is refused anyway
-    next.slack_c = slack_c;
-    next.slack_b = slack_b;
-    d = next;
-    log_->set_rotary_bound(std::min(d.best[0], d.n > 1 ? d.best[1] : 1e300));
-}
-
 void Planner::send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
                           std::string& out) {
     const auto sent = compensation_.apply(q);
@@ -386,43 +396,69 @@ void Planner::send_joints(const std::vector<bool>& which, const std::optional<Pa
     emitter_.set_position(out, q, sent.sent, which, e);
 }
 
-void Planner::joint_move(const JointMove& mv, std::string& out) {
-    if (auto r = check_limits(machine_, *mv.q); !r.ok()) throw LineError(mv.column, r.message);
-    state_.q.assign(mv.q->begin(), mv.q->end());
+void Planner::joint_move(const cmd::JointMove& mv, std::string& out) {
+    std::vector<double>& q = q_next_;
+    copy_joints(q, state_.q);
+    which_.assign(q.size(), false);
+    for (cmd::JointBits b = mv.given; b != 0; b &= b - 1) {
+        const std::size_t j = std::size_t(std::countr_zero(b));
+        q[j] = mv.relative ? state_.q[j] + mv.q[j] : mv.q[j];
+        which_[j] = true;
+    }
+    if (auto r = check_limits(kin_.machine(), q); !r.ok()) throw LineError(mv.column, r.message);
+    state_.q.assign(q.begin(), q.end());
     state_.pose = kin_.forward(state_.q);
     state_.tip_known = state_.tip_known || mv.any_linear;
     const auto sent = compensation_.apply(state_.q);
     if (!sent.ok()) throw LineError(1, sent.why());
     // Under G93 every move keeps its F.
-    emitter_.move(out, mv.gcode, state_.q, sent.sent, *mv.commanded, mv.e, mv.f, mv.inverse_time);
+    emitter_.move(out, mv.gcode, state_.q, sent.sent, which_, mv.e, mv.f, mv.inverse_time);
+    extruded(mv.e, mv.e_relative);
 }
 
-void Planner::set_joints(const std::vector<bool>& which, const std::vector<double>& values, bool pose_from_joints) {
-    bool any = false;
-    for (std::size_t j = 0; j < which.size(); ++j) {
-        if (!which[j]) continue;
-        state_.q[j] = values[j];
-        any = true;
+void Planner::set_position(const cmd::SetPosition& set, std::string& out) {
+    which_.assign(state_.q.size(), false);
+    for (cmd::JointBits b = set.which; b != 0; b &= b - 1) {
+        const std::size_t j = std::size_t(std::countr_zero(b));
+        state_.q[j] = set.q[j];
+        which_[j] = true;
     }
     // The program and the firmware now agree on the joints named.
-    forget_rezeros(which);
-    if (any) plain_image();
+    angle_map_.forget_rezeros(state_, which_);
+    if (set.which) angle_map_.plain(state_);
     // The machine did not move: its true pose follows from the joints it now says it is at.
-    if (pose_from_joints) state_.pose = kin_.forward(state_.q);
+    if (set.pose_from_joints) state_.pose = kin_.forward(state_.q);
+    // G92 X Y Z: the program frame moves so that the tip is there; the program has placed it.
+    for (std::size_t i = 0; i < 3; ++i) {
+        if (!(set.xyz_given & (1u << i))) continue;
+        state_.offset[Eigen::Index(i)] = state_.pose.tip[Eigen::Index(i)] - set.xyz[i];
+        state_.tip_known = true;
+    }
+    if (set.e) state_.e = set.e->value;
+    send_joints(which_, set.e, state_.q, out);
 }
 
-void Planner::send_position(const std::vector<bool>& which, const std::optional<PassedNumber>& e, std::string& out) {
-    send_joints(which, e, state_.q, out);
-}
-
-void Planner::home(const std::vector<bool>& which) {
-    for (std::size_t j = 0; j < state_.q.size(); ++j)
-        if (which[j]) state_.q[j] = machine_.joints[j].home;
-    forget_rezeros(which);
-    plain_image();
+void Planner::home(const cmd::Home& home) {
+    which_.assign(state_.q.size(), false);
+    for (std::size_t j = 0; j < state_.q.size(); ++j) {
+        which_[j] = (home.which & (1u << j)) != 0;
+        if (which_[j]) state_.q[j] = kin_.machine().joints[j].home;
+    }
+    angle_map_.forget_rezeros(state_, which_);
+    angle_map_.plain(state_);
     state_.tip_known = false;
     state_.pose = kin_.forward(state_.q);
+    state_.offset.setZero();
     emitter_.invalidate(state_.q);
+}
+
+void Planner::moved_to(const cmd::MovedTo& to) {
+    copy_joints(q_next_, state_.q);
+    for (cmd::JointBits b = to.given; b != 0; b &= b - 1) {
+        const std::size_t j = std::size_t(std::countr_zero(b));
+        q_next_[j] = to.q[j];
+    }
+    moved_to(q_next_);
 }
 
 void Planner::moved_to(const std::vector<double>& q) {
@@ -433,6 +469,5 @@ void Planner::moved_to(const std::vector<double>& q) {
 
 void Planner::position_unknown() { emitter_.invalidate(state_.q); }
 
-void Planner::feed_mode_sent(bool inverse_time) { emitter_.feed_mode_sent(inverse_time); }
 
 }  // namespace xlate5

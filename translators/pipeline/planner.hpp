@@ -16,6 +16,7 @@
 
 #include <Eigen/Core>
 
+#include "translators/pipeline/commands.hpp"
 #include "translators/pipeline/compensation.hpp"
 #include "translators/pipeline/emitter.hpp"
 #include "translators/pipeline/joint_limits.hpp"
@@ -87,13 +88,16 @@ struct JointValues : std::vector<double> {
 struct PlannerState {
     JointValues q;           // joint values the firmware will be at
     Pose pose;               // tip and tool axis in the part frame
+    // The program frame's origin in the part frame (G92 X Y Z under tool-centre-point control).
+    Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+    double e = 0;            // the extruder's absolute position (for sharing an absolute E among pieces)
     bool tip_known = false;  // has the program placed the tip since start or G28?
     AngleImage image;        // G43.4: programmed angles -> joints
     // Per rotary (rotary_joints() order): the whole turns re-zeros took off the joint since the
     // program last set it (G92, G28), in degrees. The program's angles go on without them.
     double rezeroed[2] = {0, 0};
     // With a report: the least rotary travel to each solution of the last move's end axis, by
-    // dynamic programming over the moves so far (Planner::bound_rotary_travel). Here so that a
+    // dynamic programming over the moves so far (bound_rotary_travel, planner.cpp). Here so that a
     // look-back replay takes it back with the rest.
     struct RotaryBound {
         int n = 0;  // solutions held (0: not started)
@@ -133,15 +137,22 @@ struct ToolMove {
     bool inverse_time = false;
 };
 
-// A joint-space move (G49): every word is a joint value.
-struct JointMove {
-    int gcode = 1;
-    std::uint32_t column = 1;                // of the first word, for errors
-    const std::vector<double>* q = nullptr;  // the target joints
-    const std::vector<bool>* commanded = nullptr;
-    bool any_linear = false;
-    std::optional<PassedNumber> e, f;
-    bool inverse_time = false;
+// Programmed angles <-> joints through an AngleImage, per rotary (`rot`: the kinematics'
+// rotary_joints(), in that order).
+struct AngleMap {
+    const std::vector<int>& rot;
+    void map(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const;
+    void unmap(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
+    // The image with no other turn or branch chosen: identity, but for the turns re-zeros took off.
+    void plain(PlannerState& s) const;
+    void forget_rezeros(PlannerState& s, const std::vector<bool>& which) const;  // joints the program has just set
+};
+
+// Another end a travel move may take (end_candidates, planner.cpp): its joints and, under G43.4, the
+// image of the programmed angles that gives them.
+struct EndCandidate {
+    std::vector<double> q;
+    AngleImage image;
 };
 
 class Planner {
@@ -151,24 +162,23 @@ public:
 
     // Throws LineError(column, cause); `run` says whether the move travelled or hit a limit.
     void tool_move(const ToolMove& move, LineRun& run, std::string& out);
-    void joint_move(const JointMove& move, std::string& out);
-
-    // G92 on joints: the firmware is told it is at `values` for the joints in `which`; the pose
-    // follows from the joints when `pose_from_joints`. Then send_position writes the G92.
-    void set_joints(const std::vector<bool>& which, const std::vector<double>& values, bool pose_from_joints);
-    void send_position(const std::vector<bool>& which, const std::optional<PassedNumber>& e, std::string& out);
-    // G28 for the joints in `which`: they are at their home values.
-    void home(const std::vector<bool>& which);
-    // A move passed on as written (joint-space arcs): the joints end at `q`.
+    // A tool move's E, as a whole (its pieces apart): the extruder's position after it.
+    void extruded(const std::optional<PassedNumber>& e, bool relative) {
+        if (e) state_.e = relative ? state_.e + e->value : e->value;
+    }
+    void joint_move(const cmd::JointMove& move, std::string& out);
+    // G92: the joints named (the pose follows from them when the command says so), the program
+    // frame, E; the firmware is told of the joints and E.
+    void set_position(const cmd::SetPosition& set, std::string& out);
+    // G28 for the joints named: they are at their home values, the program frame is the part's.
+    void home(const cmd::Home& home);
+    // A move passed on as written (joint-space arcs), or the firmware's report: the joints end at `q`.
+    void moved_to(const cmd::MovedTo& to);
     void moved_to(const std::vector<double>& q);
     // The firmware's position is no longer exactly known (a code that moves it, a failed line).
     void position_unknown();
-    // A G93/G94 passed on to the firmware as written.
-    void feed_mode_sent(bool inverse_time);
     // A mode switch: the programmed angles mean the joints as they are (but for re-zeros).
-    void reset_angle_image() { plain_image(); }
-    // G92 X Y Z under tool-centre-point control: the program has placed the tip.
-    void tip_placed() { state_.tip_known = true; }
+    void new_mode() { angle_map_.plain(state_); }
 
     // The programmed angles (G43.4) of the current joints: per joint, rotaries through the image.
     // Inline, the joints copied through copy_joints.
@@ -176,34 +186,18 @@ public:
         const std::vector<double>& q = state_.q;
         copy_joints(a, q);
         // The plain image gives the joints themselves ((q - 0) * 1 is q, bit for bit).
-        if (!(state_.image == AngleImage{})) unmap_angles(state_.image, q, a);
+        if (!(state_.image == AngleImage{})) angle_map_.unmap(state_.image, q, a);
     }
 
 private:
     // tool_move's steps (planner.cpp).
     IkResult solve_end(const ToolMove& mv, Pose& next);
     bool other_end(const ToolMove& mv, const Pose& next, bool travel, IkResult& r, LineRun& run, SolutionChange& change);
-    MoveSpec planned(const ToolMove& mv, const Pose& next) const;
     int rezero(std::string& out);
     void send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
                      std::string& out);
-    // The image with no other turn or branch chosen: identity, but for the turns re-zeros took off.
-    void plain_image();
-    void forget_rezeros(const std::vector<bool>& which);  // joints the program has just set
-    void map_angles(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const;
-    void unmap_angles(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
-    void end_candidates(OrientationMode mode, const Pose& end, const std::vector<double>& programmed,
-                        const std::vector<double>& usual);
-    // The report's lower bound on rotary travel, advanced by a move ending on `axis`.
-    void bound_rotary_travel(const Eigen::Vector3d& axis);
-
-    struct Candidate {
-        std::vector<double> q;
-        AngleImage image;
-    };
 
     const Kinematics& kin_;
-    const Machine& machine_;
     LimitBox limits_;  // the end of every move is checked against it
     PlannerState& state_;
     JointEmitter& emitter_;
@@ -213,13 +207,14 @@ private:
     MoveResult move_result_;
     std::vector<double> q_next_;    // scratch: the move being solved
     std::vector<bool> which_;       // scratch: joints a re-zero tells the firmware about
-    std::vector<Candidate> candidates_;
+    std::vector<EndCandidate> candidates_;
     std::vector<double> pole_q_;  // scratch: a passage's end
     PoleHold pole_hold_;
     Kinematics::Solutions end_solutions_;  // of the move's end axis (G43.5 with I J K)
     // The end's position solve with its pose and lever arms (when the solve gives them): the
     // motion stage bounds the printed end from it instead of an FK.
     Kinematics::SolvedEnd end_solved_;
+    AngleMap angle_map_;
 };
 
 }  // namespace xlate5

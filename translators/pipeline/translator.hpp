@@ -3,7 +3,7 @@
 // Forward (tool space -> joints): interpreter -> planner -> motion -> compensation -> emitter,
 // under the look-back. Inverse (options.inverse: joints -> tool space): its own pipeline in
 // inverse.cpp. It wires the stages together and holds no logic of its own.
-// May call: the look-back, the keep-out stage, the interpreter's and planner's state (for the accessors), inverse.
+// May call: every forward stage (it hands each one's output to the next), their state (for the accessors), inverse.
 #pragma once
 #include <functional>
 #include <cstdint>
@@ -13,6 +13,7 @@
 #include <string_view>
 #include <vector>
 
+#include "translators/pipeline/collide.hpp"
 #include "translators/pipeline/interpreter.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
