@@ -717,37 +717,29 @@ function list(id, marks, attribute) {
   }
 }
 list('marks', D.marks, 'data-kind');
-// The collisions, each with the bodies that met, clickable to its written move.
-for (const c of D.collisions) {
-  const li = document.createElement('li'); li.setAttribute('data-collision', c.tool);
-  const b = document.createElement('button'); b.textContent = 'move ' + c.move;
-  b.addEventListener('click', () => jump(c.move));
-  li.appendChild(b);
-  li.appendChild(document.createTextNode(' input line ' + c.line + ': ' + c.tool + ' meets ' + (c.other === null ? 'the printed part (line ' + c.bead_line + ')' : c.other) +
-                                         ' at ' + c.contact.map(v => v.toFixed(2)).join(', ')));
-  document.getElementById('collisions').appendChild(li);
+// The collisions, each with the bodies that met, clickable to its written move; the re-routed
+// travels the same way, clickable to the detour's crossing (its written move after the lift).
+// Each list says when it holds only the first of its count.
+function bodyList(id, items, attribute, count, text) {
+  for (const c of items) {
+    const li = document.createElement('li'); li.setAttribute(attribute, c.tool);
+    const b = document.createElement('button'); b.textContent = 'move ' + c.move;
+    b.addEventListener('click', () => jump(c.move));
+    li.appendChild(b);
+    li.appendChild(document.createTextNode(' input line ' + c.line + ': ' + text(c)));
+    document.getElementById(id).appendChild(li);
+  }
+  if (count > items.length) {
+    const li = document.createElement('li'); li.textContent = '\u2026 the first ' + items.length + ' of ' + count + ' listed';
+    document.getElementById(id).appendChild(li);
+  }
 }
-if (D.counts.collisions > D.collisions.length) {
-  const li = document.createElement('li'); li.textContent = '\u2026 the first ' + D.collisions.length + ' of ' + D.counts.collisions + ' listed';
-  document.getElementById('collisions').appendChild(li);
-}
+const metWhat = c => c.other === null ? 'the printed part (line ' + c.bead_line + ')' : c.other;
+bodyList('collisions', D.collisions, 'data-collision', D.counts.collisions,
+         c => c.tool + ' meets ' + metWhat(c) + ' at ' + c.contact.map(v => v.toFixed(2)).join(', '));
 summary.listed.collision = D.collisions.length;
 summary.marks.collision = D.counts.collisions;
-// The re-routed travels, the same way: clickable to the detour's crossing (its written move
-// after the lift).
-for (const c of D.reroutes) {
-  const li = document.createElement('li'); li.setAttribute('data-reroute', c.tool);
-  const b = document.createElement('button'); b.textContent = 'move ' + c.move;
-  b.addEventListener('click', () => jump(c.move));
-  li.appendChild(b);
-  li.appendChild(document.createTextNode(' input line ' + c.line + ': lifted, ' + c.tool + ' would meet ' +
-                                         (c.other === null ? 'the printed part (line ' + c.bead_line + ')' : c.other)));
-  document.getElementById('reroutes').appendChild(li);
-}
-if (D.counts.reroutes > D.reroutes.length) {
-  const li = document.createElement('li'); li.textContent = '\u2026 the first ' + D.reroutes.length + ' of ' + D.counts.reroutes + ' listed';
-  document.getElementById('reroutes').appendChild(li);
-}
+bodyList('reroutes', D.reroutes, 'data-reroute', D.counts.reroutes, c => 'lifted, ' + c.tool + ' would meet ' + metWhat(c));
 summary.listed.reroute = D.reroutes.length;
 summary.marks.reroute = D.counts.reroutes;
 list('slowed', D.slowed, 'data-feed');
