@@ -179,13 +179,8 @@ void InverseTranslator::move(int gcode, Params words, std::string& out) {
     if (auto r = check_limits(machine_, q_next_); !r.ok()) fail(words.empty() ? 1 : words.front().column, r.message);
     state_.q.swap(q_next_);
     state_.pose = kin_.forward(state_.q);
-    const bool prints = e && (modes.e_relative ? e->value != 0 : e->value != modes.e_position);
-    if (retarget_) {
-        const Pose placed = retarget_->place(state_.pose, !prints, line_no_);
-        emitter_.move(out, gcode, placed.tip, placed.axis, state_.q, e, f);
-    } else {
-        emitter_.move(out, gcode, state_.pose.tip, state_.pose.axis, state_.q, e, f);
-    }
+    const Pose placed = retarget_ ? retarget_->place(state_.pose, !extrudes(e, modes.e_relative, modes.e_position), line_no_) : state_.pose;
+    emitter_.move(out, gcode, placed.tip, placed.axis, state_.q, e, f);
     if (e) modes.e_position = modes.e_relative ? modes.e_position + e->value : e->value;
 }
 

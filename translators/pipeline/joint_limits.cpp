@@ -12,13 +12,13 @@
 
 namespace xlate5 {
 
-namespace {
-
-std::string fmt(double v) {
+std::string joint_value_text(double v) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%.3f", v);
     return buf;
 }
+
+namespace {
 
 // inside_limits, for the functions below to inline.
 inline bool inside(const Joint& J, double v) { return v >= J.min - kLimitSlack && v <= J.max + kLimitSlack; }
@@ -126,8 +126,8 @@ IkResult choose(const Machine& machine, const std::vector<int>& rotary, const Or
     }
     if (!found) {
         const Joint& J = machine.joints[std::size_t(failed_joint)];
-        return {IkStatus::OutOfLimits, std::string("joint ") + J.name + " would need " + fmt(wrap180(failed_angle)) +
-                                           " degrees, outside its limits " + fmt(J.min) + " .. " + fmt(J.max)};
+        return {IkStatus::OutOfLimits, std::string("joint ") + J.name + " would need " + joint_value_text(wrap180(failed_angle)) +
+                                           " degrees, outside its limits " + joint_value_text(J.min) + " .. " + joint_value_text(J.max)};
     }
     for (std::size_t k = 0; k < n; ++k) q[std::size_t(rotary[k])] = best[k];
     branch = best_branch;
@@ -162,7 +162,7 @@ IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
             if (J.rotary != (pass == 0)) continue;
             if (!inside_limits(J, q[j]))
                 return {IkStatus::OutOfLimits,
-                        std::string("joint ") + J.name + " would go to " + fmt(q[j]) + ", outside its limits " + fmt(J.min) + " .. " + fmt(J.max),
+                        std::string("joint ") + J.name + " would go to " + joint_value_text(q[j]) + ", outside its limits " + joint_value_text(J.min) + " .. " + joint_value_text(J.max),
                         !J.rotary};
         }
     }

@@ -5,6 +5,7 @@
 // it is handed the solutions and may call nothing but the machine data.
 #pragma once
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "translators/kinematics/kinematics_types.hpp"
@@ -43,6 +44,8 @@ private:
 
 // Checks every joint of q against its limits.
 IkResult check_limits(const Machine& machine, const std::vector<double>& q);
+// A joint value as the limit messages write it (mm or degrees, 3 decimals).
+std::string joint_value_text(double v);
 
 // The rotaries of q for one of `solutions` (Kinematics::orientation_solutions; `rotary` is
 // Kinematics::rotary_joints()): of the solutions and their 360-degree turns, the one inside the

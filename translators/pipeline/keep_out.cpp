@@ -267,7 +267,7 @@ void KeepOutStage::tool_move(const ToolMove& mv, LineRun& run, std::string& out)
     planner_.programmed_angles(current_);
     const double r_now = current_[std::size_t(r_)];
     const double shift = state_.q[std::size_t(r_)] - r_now;  // programmed R -> joint (one rotary: no flip)
-    const bool prints = mv.e && (mv.e_relative ? mv.e->value != 0 : mv.e->value != mv.e_position);
+    const bool prints = extrudes(mv.e, mv.e_relative, mv.e_position);
     if (!prints) {
         // A travel move: R at its end, reached along the move; the planner and the look-back may
         // end it on another turn inside the limits (unwinding).

@@ -308,7 +308,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     Pose next;
     IkResult r = solve_end(mv, next);
     const bool tool_space = mv.any_xyz || s.tip_known;
-    const bool prints = mv.e && (mv.e_relative ? mv.e->value != 0 : mv.e->value != mv.e_position);
+    const bool prints = extrudes(mv.e, mv.e_relative, mv.e_position);
     const bool travel = tool_space && !prints && (mv.any_xyz || mv.any_rotary || mv.any_ijk);
     run.travels = run.travels || travel;
     SolutionChange change = SolutionChange::None;

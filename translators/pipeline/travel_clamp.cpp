@@ -3,8 +3,9 @@
 #include "translators/pipeline/travel_clamp.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <utility>
+
+#include "translators/pipeline/joint_limits.hpp"
 
 namespace xlate5 {
 
@@ -13,12 +14,6 @@ namespace {
 // How far inside a limit a held joint stops: the planner solves the pose again from the tip,
 // and its rounding must not put the joint past the limit (far below any printer's step).
 constexpr double kInside = 1e-6;
-
-std::string mm(double v) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%.3f", v);
-    return b;
-}
 
 }  // namespace
 
@@ -41,7 +36,7 @@ Pose TravelClamp::place(const Pose& pose, bool travel, std::uint64_t line) {
         const Joint& J = m.joints[j];
         if (J.rotary) continue;
         const double at = std::clamp(solved_[j], J.min + kInside, J.max - kInside);
-        if (at != solved_[j]) held += std::string(held.empty() ? "" : ", ") + J.name + " at " + mm(at) + " (asked " + mm(solved_[j]) + ")";
+        if (at != solved_[j]) held += std::string(held.empty() ? "" : ", ") + J.name + " at " + joint_value_text(at) + " (asked " + joint_value_text(solved_[j]) + ")";
         solved_[j] = at;
     }
     Pose placed = pose;
