@@ -33,7 +33,7 @@ class PlannerModel {
 public:
     static constexpr std::size_t kMaxRanges = 100;
     struct Block {
-        double length = 0, nominal = 0, entry_max = 0, entry = 0, time = 0;
+        double length = 0, nominal = 0, entry_max = 0, time = 0;
         std::vector<double> unit;
         std::uint64_t line = 0;
         double bytes_at = 0;  // link time at which it arrived
