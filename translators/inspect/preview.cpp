@@ -386,7 +386,7 @@ void Preview::check_feed() {
         ++slowed_;
         if (!slowed_last_) {  // a run of such moves is one mark, at its first move
             ++slowed_runs_;
-            if (slowed_marks_.size() < DeviationReport::kMaxMarks) {
+            if (slowed_marks_.size() < kMaxReportMarks) {
                 const Eigen::Vector3d tip = kin_.forward(q_now_).tip;
                 slowed_marks_.push_back({Kind::Slowed, moves_, {tip.x(), tip.y(), tip.z()}});
             }
@@ -882,7 +882,7 @@ std::string Preview::html(const std::string& title) const {
     }
     // The collisions the check found (--collision warn), each on the written move of its piece.
     data += "], \"collisions\": [";
-    const auto& hits = events_.collision_marks();
+    const auto& hits = events_.collisions.collisions().marks;
     for (std::size_t i = 0; i < hits.size(); ++i) {
         const auto& c = hits[i];
         const std::uint64_t move = std::min<std::uint64_t>(c.move, moves_ > 0 ? moves_ - 1 : 0);
@@ -895,7 +895,7 @@ std::string Preview::html(const std::string& title) const {
     // The re-routed travels, each on its crossing: the detour's second written move (the lift
     // first, the descent onto the travel's end after).
     data += "], \"reroutes\": [";
-    const auto& lifts = events_.reroute_marks();
+    const auto& lifts = events_.collisions.reroutes().marks;
     for (std::size_t i = 0; i < lifts.size(); ++i) {
         const auto& c = lifts[i];
         const std::uint64_t move = std::min<std::uint64_t>(c.move + 1, moves_ > 0 ? moves_ - 1 : 0);
@@ -906,24 +906,24 @@ std::string Preview::html(const std::string& title) const {
     const Volume v = volume_of(m);
     data += "], \"volume\": {\"lo\": [" + num(v.lo[0]) + "," + num(v.lo[1]) + "," + num(v.lo[2]) + "], \"hi\": [" + num(v.hi[0]) + "," +
             num(v.hi[1]) + "," + num(v.hi[2]) + "]}";
-    data += ", \"counts\": {\"moves_written\": " + std::to_string(moves_) + ", \"output_moves\": " + std::to_string(events_.output_moves()) +
-            ", \"pole\": " + std::to_string(events_.pole_crossings()) + ", \"unwind\": " + std::to_string(events_.unwinds()) +
-            ", \"branch\": " + std::to_string(events_.branch_changes()) + ", \"rezero\": " + std::to_string(events_.rezeros()) +
+    data += ", \"counts\": {\"moves_written\": " + std::to_string(moves_) + ", \"output_moves\": " + std::to_string(events_.stats.pieces) +
+            ", \"pole\": " + std::to_string(events_.events.pole_crossings()) + ", \"unwind\": " + std::to_string(events_.events.unwinds()) +
+            ", \"branch\": " + std::to_string(events_.events.branch_changes()) + ", \"rezero\": " + std::to_string(events_.events.rezeros()) +
             ", \"slowed\": " + std::to_string(slowed_) + ", \"slowed_runs\": " + std::to_string(slowed_runs_) +
-            ", \"collisions\": " + std::to_string(events_.collisions()) + ", \"reroutes\": " + std::to_string(events_.reroutes()) + "}";
+            ", \"collisions\": " + std::to_string(events_.collisions.collisions().count) + ", \"reroutes\": " + std::to_string(events_.collisions.reroutes().count) + "}";
     data += ", \"three\": \"" + std::string(three_js::kRevision) + "\"}";
-    const std::uint64_t total = events_.pole_crossings() + events_.unwinds() + events_.branch_changes() + events_.rezeros();
-    const std::uint64_t passed = moves_ >= events_.output_moves() ? moves_ - events_.output_moves() : 0;
+    const std::uint64_t total = events_.events.pole_crossings() + events_.events.unwinds() + events_.events.branch_changes() + events_.events.rezeros();
+    const std::uint64_t passed = moves_ >= events_.stats.pieces ? moves_ - events_.stats.pieces : 0;
     std::string o = "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>xlate5 preview: " + html_text(title) + "</title>\n<style>" +
                     kStyle + "</style></head>\n<body>\n<h3>" + html_text(title) + "</h3>\n<p id=\"counts\">" + std::to_string(moves_) +
-                    " moves written, " + std::to_string(n) + " shown (" + std::to_string(events_.output_moves()) +
+                    " moves written, " + std::to_string(n) + " shown (" + std::to_string(events_.stats.pieces) +
                     " translated moves, as the report's output_moves; " + std::to_string(passed) +
-                    " passed on as written: joint moves before the tip is placed). " + std::to_string(events_.pole_crossings()) +
-                    " pole crossings, " + std::to_string(events_.unwinds()) + " unwinds, " + std::to_string(events_.branch_changes()) +
-                    " branch changes, " + std::to_string(events_.rezeros()) + " re-zeros marked" +
+                    " passed on as written: joint moves before the tip is placed). " + std::to_string(events_.events.pole_crossings()) +
+                    " pole crossings, " + std::to_string(events_.events.unwinds()) + " unwinds, " + std::to_string(events_.events.branch_changes()) +
+                    " branch changes, " + std::to_string(events_.events.rezeros()) + " re-zeros marked" +
                     (total > marks.size() ? " (the first " + std::to_string(marks.size()) + " of " + std::to_string(total) + ")" : "") + "; " +
                     std::to_string(slowed_) + " moves at a joint's max_feed (" + std::to_string(slowed_runs_) + " runs marked)" +
-                    (events_.collisions() > 0 ? "; " + std::to_string(events_.collisions()) + " collisions found (--collision warn)" : "") +
+                    (events_.collisions.collisions().count > 0 ? "; " + std::to_string(events_.collisions.collisions().count) + " collisions found (--collision warn)" : "") +
                     ".</p>\n" + kBody +
                     "<script type=\"application/json\" id=\"data\">" + data + "</script>\n<script>/* three.js r" + three_js::kRevision +
                     " (MIT licence, Debian's libjs-three) */\n" + three_js::kSource + "\n</script>\n<script>\n" + three_js::kOrbitControls +
