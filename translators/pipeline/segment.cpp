@@ -13,7 +13,6 @@ namespace xlate5 {
 
 namespace {
 
-constexpr int kCheckSamples = Segmenter::kCheckSamples;
 // The error between two of those samples can exceed both by a little (the tests measure it
 // against 400-point sampling: under 1%); a piece passes only with this much room left.
 constexpr double kSampleMargin = 0.97;
