@@ -213,14 +213,14 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
         if (!o.reroute.empty()) options.reroute = o.reroute == "on";
         if (o.lift > 0) options.lift = o.lift;
         if (machine->geometry && options.collision != CollisionPolicy::Off) {
-            if (report) report->set_collision_checked();
+            if (report) report->collisions.set_checked();
             const bool warn = options.collision == CollisionPolicy::Warn;
             const std::string name = options.input_name;
             options.on_collision = [&report, warn, name](const CollisionEvent& ev) {
                 if (report) {
                     DeviationReport::CollisionMark mark{ev.line, ev.moves_written, ev.bead_line, ev.tool_body, ev.other, {ev.at.x(), ev.at.y(), ev.at.z()}};
-                    if (ev.rerouted) report->add_reroute(ev.line, ev.message(), std::move(mark));
-                    else report->add_collision(ev.line, ev.message(), std::move(mark));
+                    if (ev.rerouted) report->collisions.add_reroute(ev.line, ev.message(), std::move(mark));
+                    else report->collisions.add_collision(ev.line, ev.message(), std::move(mark));
                 }
                 if (warn) std::cerr << printable(name) << ":" << ev.line << ": warning: " << printable(ev.message()) << "\n";
             };

@@ -13,7 +13,7 @@ InverseTranslator::InverseTranslator(const Kinematics& kinematics, std::string i
                                      OrientationMode preview_form)
     : kin_(kinematics),
       machine_(kinematics.machine()),
-      input_name_(std::move(input_name)),
+      words_(kinematics.machine(), std::move(input_name)),
       extruder_letter_(extruder_letter),
       emitter_(kinematics.machine(), preview_form),
       sent_q_(machine_.home_joints()),
@@ -29,29 +29,29 @@ InverseTranslator::InverseTranslator(const Kinematics& kinematics, std::string i
     position_letters_ += "XYZ";
 }
 
-int InverseTranslator::joint_of(char letter) const {
+int JointWords::joint_of(char letter) const {
     for (std::size_t j = 0; j < machine_.joints.size(); ++j)
         if (machine_.joints[j].output == letter) return int(j);
     return -1;
 }
 
-void InverseTranslator::fail(std::uint32_t column, const std::string& message) const {
+void JointWords::fail(std::uint32_t column, const std::string& message) const {
     throw InputError(input_name_, line_no_, column, message);
 }
 
-double InverseTranslator::number(const Param& p) const {
+double JointWords::number(const Param& p) const {
     if (!p.has_value) fail(p.column, std::string("word ") + p.letter + " has no number");
     return p.value;
 }
 
-PassedNumber InverseTranslator::passed(const Param& p) const {
+PassedNumber JointWords::passed(const Param& p, bool inches) const {
     const double v = number(p);
-    if (state_.modes.inches) return {v * 25.4, {}};
+    if (inches) return {v * 25.4, {}};
     return {v, p.text};
 }
 
 void InverseTranslator::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
-    line_no_ = line_no;
+    words_.at_line(line_no);
     try {
         lex_line(line, block_);
         if (block_.empty()) {
@@ -61,7 +61,7 @@ void InverseTranslator::feed(std::string_view line, std::uint64_t line_no, std::
         read_commands(block_, extruder_letter_, commands_);
         plan_line(commands_, state_.modes.motion, move_letters_, position_letters_, plan_);
     } catch (const LineError& e) {
-        throw InputError(input_name_, line_no, e.column(), e.what());
+        throw InputError(words_.input_name(), line_no, e.column(), e.what());
     }
     const std::size_t out_start = out.size();
     saved_ = state_;
@@ -74,7 +74,7 @@ void InverseTranslator::feed(std::string_view line, std::uint64_t line_no, std::
     } catch (const LineError& e) {  // a value that cannot be written, from the tool emitter
         out.resize(out_start);
         state_ = saved_;
-        throw InputError(input_name_, line_no, e.column(), e.what());
+        throw InputError(words_.input_name(), line_no, e.column(), e.what());
     } catch (...) {
         out.resize(out_start);
         state_ = saved_;
@@ -156,18 +156,18 @@ void InverseTranslator::move(int gcode, Params words, std::string& out) {
     q_next_ = sent_q_;
     for (const Param& p : words) {
         switch (p.letter) {
-            case 'E': e = passed(p); break;
+            case 'E': e = words_.passed(p, state_.modes.inches); break;
             case 'F':
-                f = passed(p);
+                f = words_.passed(p, state_.modes.inches);
                 if (!(f->value > 0)) fail(p.column, "feed rate F must be positive");
                 break;
             case 'I': case 'J': case 'K':
                 fail(p.column, "I J K are tool-vector words (G43.5); under G49 the words are joint values");
             default: {
-                const int j = joint_of(p.letter);
+                const int j = words_.joint_of(p.letter);
                 if (j < 0) fail(p.column, std::string("word ") + p.letter + " is not a joint of machine " + machine_.name);
                 const bool rotary = machine_.joints[std::size_t(j)].rotary;
-                const double v = number(p) * (rotary ? 1.0 : unit);
+                const double v = words_.number(p) * (rotary ? 1.0 : unit);
                 q_next_[std::size_t(j)] = modes.absolute ? v : state_.q[std::size_t(j)] + v;
                 break;
             }
@@ -179,7 +179,7 @@ void InverseTranslator::move(int gcode, Params words, std::string& out) {
     if (auto r = check_limits(machine_, q_next_); !r.ok()) fail(words.empty() ? 1 : words.front().column, r.message);
     state_.q.swap(q_next_);
     state_.pose = kin_.forward(state_.q);
-    const Pose placed = retarget_ ? retarget_->place(state_.pose, !extrudes(e, modes.e_relative, modes.e_position), line_no_) : state_.pose;
+    const Pose placed = retarget_ ? retarget_->place(state_.pose, !extrudes(e, modes.e_relative, modes.e_position), words_.line()) : state_.pose;
     emitter_.move(out, gcode, placed.tip, placed.axis, state_.q, e, f);
     if (e) modes.e_position = modes.e_relative ? modes.e_position + e->value : e->value;
 }
@@ -194,14 +194,14 @@ void InverseTranslator::set_position(Params words, std::string_view body, std::s
     std::string line = "G92";
     for (const Param& p : words) {
         if (p.letter == 'E') {
-            e = passed(p);
+            e = words_.passed(p, state_.modes.inches);
             state_.modes.e_position = e->value;
             continue;
         }
-        const int j = joint_of(p.letter);
+        const int j = words_.joint_of(p.letter);
         if (j < 0) fail(p.column, std::string("G92 word ") + p.letter + " is not a joint of machine " + machine_.name);
         const bool rotary = machine_.joints[std::size_t(j)].rotary;
-        state_.q[std::size_t(j)] = number(p) * (rotary ? 1.0 : unit);
+        state_.q[std::size_t(j)] = words_.number(p) * (rotary ? 1.0 : unit);
         sent_q_[std::size_t(j)] = state_.q[std::size_t(j)];
     }
     state_.pose = kin_.forward(state_.q);
@@ -210,7 +210,7 @@ void InverseTranslator::set_position(Params words, std::string_view body, std::s
         const Joint& J = machine_.joints[j];
         if (!J.rotary || retarget_) continue;
         bool named = false;
-        for (const Param& p : words) named = named || (p.letter != 'E' && joint_of(p.letter) == int(j));
+        for (const Param& p : words) named = named || (p.letter != 'E' && words_.joint_of(p.letter) == int(j));
         if (!named) continue;
         line += ' ';
         line += J.name;
@@ -227,7 +227,7 @@ void InverseTranslator::set_position(Params words, std::string_view body, std::s
 void InverseTranslator::home(Params words, std::string& out) {
     std::vector<bool> which(state_.q.size(), words.empty());
     for (const Param& p : words) {
-        const int j = joint_of(p.letter);
+        const int j = words_.joint_of(p.letter);
         if (j < 0) fail(p.column, std::string("G28 word ") + p.letter + " is not a joint of machine " + machine_.name);
         which[std::size_t(j)] = true;
     }
@@ -238,7 +238,7 @@ void InverseTranslator::home(Params words, std::string& out) {
     for (const Param& p : words) {
         if (retarget_) break;
         out += ' ';
-        out += machine_.joints[std::size_t(joint_of(p.letter))].name;
+        out += machine_.joints[std::size_t(words_.joint_of(p.letter))].name;
     }
     out += '\n';
     sent_q_ = state_.q;

@@ -22,6 +22,26 @@
 
 namespace xlate5 {
 
+// The words of a joint-space line read as the firmware reads them (its joint letters, the
+// numbers), and the place an error names (file, line, column): the inverse's reading, apart
+// from what it does with the words.
+class JointWords {
+public:
+    JointWords(const Machine& machine, std::string input_name) : machine_(machine), input_name_(std::move(input_name)) {}
+    void at_line(std::uint64_t line_no) { line_no_ = line_no; }
+    std::uint64_t line() const { return line_no_; }
+    const std::string& input_name() const { return input_name_; }
+    [[noreturn]] void fail(std::uint32_t column, const std::string& message) const;
+    double number(const Param& p) const;
+    PassedNumber passed(const Param& p, bool inches) const;
+    int joint_of(char letter) const;  // the joint the firmware knows by this letter, or -1
+
+private:
+    const Machine& machine_;
+    std::string input_name_;
+    std::uint64_t line_no_ = 0;
+};
+
 class InverseTranslator {
 public:
     InverseTranslator(const Kinematics& kinematics, std::string input_name, char extruder_letter, OrientationMode preview_form);
@@ -49,10 +69,7 @@ private:
         Pose pose;
         Modes modes;
     };
-    [[noreturn]] void fail(std::uint32_t column, const std::string& message) const;
-    double number(const Param& p) const;
-    PassedNumber passed(const Param& p) const;
-    int joint_of(char letter) const;  // the joint the firmware knows by this letter, or -1
+    [[noreturn]] void fail(std::uint32_t column, const std::string& message) const { words_.fail(column, message); }
     void apply_modal(int code10, std::uint32_t column, Params words, std::string& out);
     void run_command(const CommandWord& c, std::string_view body, bool alone, Params words, std::string& out);
     void move(int gcode, Params words, std::string& out);
@@ -61,9 +78,8 @@ private:
 
     const Kinematics& kin_;
     const Machine& machine_;
-    std::string input_name_;
+    JointWords words_;
     char extruder_letter_;
-    std::uint64_t line_no_ = 0;
     ToolEmitter emitter_;
     State state_, saved_;
     std::vector<double> sent_q_;  // the joints as the firmware was told them (compensated)

@@ -14,7 +14,7 @@
 // between the tips at its two ends, sampled; a thinned-out point keeps the worst of the moves it
 // stands for. A move whose tip swings off that line by more than the tolerance keeps
 // its sampled tips, so the swing is drawn as the firmware moves it.
-// Memory is bounded whatever the file size: at most kMaxPoints moves are kept, evenly spaced
+// Memory is bounded whatever the file size: at most KeptMoves::kMaxPoints moves are kept, evenly spaced
 // (when full, every other one is dropped and the spacing doubles); docs/limits.md.
 #pragma once
 #include <array>
@@ -55,12 +55,67 @@ std::vector<PreviewBody> default_bodies(const Machine& machine);
 inline constexpr std::size_t kMaxPreviewTriangles = 20000;
 std::vector<PreviewBody> machine_bodies(const Machine& machine);
 
-class Preview {
-public:
+// The build volume in the part frame from the linear joints whose chain axis is a coordinate
+// axis (a joint's travel moves the tip along it, or the plate against it): their limits.
+// Coordinates without such a joint get no extent (lo 0, hi -1: the page takes the path's).
+struct BuildVolume {
+    double lo[3] = {0, 0, 0}, hi[3] = {-1, -1, -1};
+};
+BuildVolume build_volume(const Machine& machine);
+
+// A marked written move: one of the report's events at the written move it ended on, or the
+// first of a run of moves at a joint's max_feed.
+struct PreviewMark {
+    enum class Kind { PoleCrossing, Unwind, BranchChange, Rezero, Slowed };
+    static Kind of(DeviationReport::MarkKind kind);
+    Kind kind;
+    std::uint64_t move;  // written move number, from 0
+    double tip[3];
+};
+
+// The written moves the preview keeps, row by row: at most kMaxPoints, evenly spaced (when
+// full, every other one is dropped and the spacing `every` doubles).
+struct KeptMoves {
     static constexpr std::size_t kMaxPoints = 4000;
     static constexpr std::size_t kLineText = 80;  // characters of a kept line's text shown
+    std::size_t joints = 0;
+    std::vector<double> q;        // joints, row by row
+    std::vector<char> prints;     // 1 when the move extrudes (it has an E word)
+    std::vector<double> feed;     // the feed written (modal)
+    std::vector<std::uint64_t> move_no, line_no;  // written move number (from 0), output line (from 1)
+    std::vector<std::string> text;  // the line's text (at most kLineText characters)
+    std::vector<std::vector<double>> swing;  // sampled tips of a move that leaves its chord (else empty)
+    std::vector<double> dev;      // worst tip deviation (mm) of the moves each stands for
+    std::uint64_t every = 1;
+    std::size_t size() const { return q.size() / joints; }
+    // Full: every other kept move dropped (its deviation kept by the one after it; the last
+    // one's, when dropped, added to `dev_since`, the next one's).
+    void halve(double& dev_since);
+};
+
+// What the preview collected from the written output, for the page.
+struct PreviewData {
+    KeptMoves kept;
+    std::vector<double> low, high;  // every move's joints, not only the kept ones
+    std::uint64_t moves = 0;        // written move lines
+    std::vector<PreviewMark> marks;  // the report's events joined to their written moves
+    std::uint64_t slowed = 0, slowed_runs = 0;  // moves at a joint's max_feed, and runs of them
+    std::vector<PreviewMark> slowed_marks;      // each run's first move
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> drains;
+};
+
+// The page (preview_page.cpp): the collected data, every mark to draw (the joined ones and
+// those not joined yet, on the last move) and the machine, its bodies and the report.
+std::string preview_page(const Kinematics& kinematics, const DeviationReport& report, const PreviewData& data,
+                         const std::vector<PreviewMark>& marks, const std::string& title);
+
+// The collection: reads the written output back, keeps what the page draws.
+class Preview {
+public:
     // A joint is at its max_feed when the written feed moves it at this share of it or more.
     static constexpr double kAtMaxFeed = 0.995;
+    using Kind = PreviewMark::Kind;
+    using Mark = PreviewMark;
 
     // `events`: the translation's report, whose marks arrive before the output lines they belong to.
     Preview(const Kinematics& kinematics, const DeviationReport& events);
@@ -69,25 +124,13 @@ public:
     void scan(std::string_view output);
     // The pre-flight's line ranges where the serial link lets the planner drain (first, last output
     // line), listed on the page.
-    void set_drains(std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges) { drains_ = std::move(ranges); }
+    void set_drains(std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges) { data_.drains = std::move(ranges); }
     // The page: `title` names the input file and machine.
     std::string html(const std::string& title) const;
     // What the written output holds that the report's own counts do not: JSON members, one a line
     // (DeviationReport::set_written).
     std::string report_json() const;
-
-    std::size_t points() const { return q_.size() / joints_; }
-    std::uint64_t move_lines() const { return moves_; }
-    std::uint64_t slowed_moves() const { return slowed_; }
-
-    enum class Kind { PoleCrossing, Unwind, BranchChange, Rezero, Slowed };
-    struct Mark {
-        Kind kind;
-        std::uint64_t move;  // written move number, from 0
-        double tip[3];
-    };
-    // The report's events at the written moves they ended on, then the slowed runs.
-    const std::vector<Mark>& marks() const { return marks_; }
+    const PreviewData& data() const { return data_; }
 
 private:
     void line(std::string_view l);
@@ -101,29 +144,17 @@ private:
     std::size_t joined_ = 0;       // the report's marks placed so far
     std::size_t joints_;
     std::vector<double> q_now_;
-    std::vector<double> q_;        // kept moves: joints, row by row
-    std::vector<char> prints_;     // kept moves: 1 when the move extrudes (it has an E word)
-    std::vector<double> feed_;     // kept moves: the feed written (modal)
-    std::vector<std::uint64_t> move_no_, line_no_;  // kept moves: written move number (from 0), output line (from 1)
-    std::vector<std::string> text_;  // kept moves: the line's text (at most kLineText characters)
-    std::vector<std::vector<double>> swing_;  // kept moves: sampled tips of a move that leaves its chord (else empty)
+    std::vector<double> q_before_; // joints before the move being read
     bool printing_ = false;        // the line being read extrudes
     double f_ = 0;                 // modal feed as written
-    std::vector<double> low_, high_;  // every move's joints, not only the kept ones
-    std::uint64_t moves_ = 0, every_ = 1, lines_ = 0;
+    std::uint64_t lines_ = 0;
     std::string pending_;          // a line cut by the block boundary
     std::string_view current_;     // the line being read
-    std::vector<double> dev_;      // kept moves: worst tip deviation (mm) of the moves each stands for
     double dev_since_ = 0;         // worst deviation of the moves since the last kept one
     std::vector<double> swing_now_, swing_since_;  // sampled tips of the move read, of the worst since the last kept
     double swing_dev_ = 0;
-    std::vector<double> q_before_; // joints before the move being read
-    std::vector<Mark> marks_, slowed_marks_;
-    std::uint64_t slowed_ = 0, slowed_runs_ = 0;
     bool slowed_last_ = false;
-    std::vector<std::pair<std::uint64_t, std::uint64_t>> drains_;
-    std::vector<PreviewBody> bodies_;  // the machine's own, else the default from the chains
-    bool own_bodies_ = false;
+    PreviewData data_;
 };
 
 }  // namespace xlate5

@@ -27,7 +27,7 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
       emitter_(emitter) {}
 
 IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* result, std::vector<double>* ended) {
-    if (mv.end_solutions) segment_.remember_solutions(*mv.end_solutions);
+    if (mv.end_solutions) segment_.points().remember_solutions(*mv.end_solutions);
     IkResult r = emit_move(mv, out, result);
     if (r.ok() && ended && mv.mode == OrientationMode::Vector)
         if (const std::vector<double>* moved = segment_.final_joints_moved()) *ended = *moved;
@@ -42,8 +42,8 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
 bool MotionStage::leave_pole(const MoveSpec& mv, std::string& out, MoveResult* result, IkResult& r) {
     std::vector<double>& q_eps = probe_q_;
     // The probe's IK only where it matters: at a pole, on a move that turns.
-    const double probe = pole_leaving_probe(segment_.solutions_of(mv.p0.axis), kin_.rotary_joints().size(), mv.p0.axis, mv.p1.axis);
-    if (!(probe > 0 && segment_.solve_at(mv, probe, *mv.q0, q_eps).ok())) return false;
+    const double probe = pole_leaving_probe(segment_.points().solutions_of(mv.p0.axis), kin_.rotary_joints().size(), mv.p0.axis, mv.p1.axis);
+    if (!(probe > 0 && segment_.points().solve_at(mv, probe, *mv.q0, q_eps).ok())) return false;
     std::vector<double> turned;
     if (r = pole_reindex(kin_, *mv.q0, q_eps, mv.p0.tip, turned); !r.ok()) return true;
     if (turned.empty()) return false;
@@ -167,10 +167,10 @@ void add_result(MoveResult& into, const MoveResult& part) {
 
 IkResult MotionStage::join_from_held(const MoveSpec& mv, std::string& out, MoveResult* result) {
     double worst = 0;
-    const double s1 = pole_join(kin_, *mv.q0, mv.p0.tip, mv.p1.tip, segment_.arc_of(mv), cross_scratch_, join_q_, worst);
+    const double s1 = pole_join(kin_, *mv.q0, mv.p0.tip, mv.p1.tip, segment_.points().arc_of(mv), cross_scratch_, join_q_, worst);
     if (s1 == 0) return {IkStatus::Singular, "no join"};
     const std::vector<double>& q1 = join_q_;
-    const Pose mid = segment_.pose_at(mv, s1);
+    const Pose mid = segment_.points().pose_at(mv, s1);
     const std::vector<double> joined = q1;  // a copy: the parts' splits may reuse join_q_
     MoveSpec first = mv, rest = mv;
     first.mode = OrientationMode::Angles;
@@ -250,7 +250,7 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
         split_for_ = &mv;
         return false;
     }
-    const bool across = pole_crossing(kin_, *mv.q0, mv.p1.tip, segment_.arc_of(mv), segment_.solutions_of(mv.p1.axis), split_ok, measured,
+    const bool across = pole_crossing(kin_, *mv.q0, mv.p1.tip, segment_.points().arc_of(mv), segment_.points().solutions_of(mv.p1.axis), split_ok, measured,
                                       cross_scratch_, end, cross_angle_);
     if (split_ok && !across) split_for_ = &mv;
     return across;
@@ -316,18 +316,18 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         if (auto r = segment_.split(mv); !r.ok()) return r;
     split_for_ = nullptr;
     const std::size_t n = joints_;
-    const int pieces = int(segment_.pieces());
-    const std::vector<double>& params = segment_.split_params();
+    const int pieces = int(segment_.pieces().count());
+    const std::vector<double>& params = segment_.pieces().params();
     const MoveFeed feed = move_feed(mv, machine_);
     EShare e_share(mv, machine_.dialect.extrusion_decimals);
     piece_time_.resize(std::size_t(pieces));  // each piece's set below
     // Each piece's ends are read where the split left them (no copies), from where the firmware starts.
-    std::span<const double> qprev(segment_.start_printed());
+    std::span<const double> qprev(segment_.pieces().start_printed());
     double prev_share = 0;
     for (int k = 0; k < pieces; ++k) {
         // The tip moves uniformly in s along the straight programmed line: s is the piece's share.
         const double share = params[std::size_t(k)];
-        const std::span<const double> qk(segment_.piece_printed(std::size_t(k)), n);
+        const std::span<const double> qk(segment_.pieces().printed(std::size_t(k)), n);
         const std::optional<PassedNumber> e = e_share.piece(share, k + 1 == pieces, pieces);
         std::optional<PassedNumber> f;
         if (mv.mode == OrientationMode::Joints) {
@@ -342,7 +342,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         // corrected and nothing upstream sees anything but nominal joints.
         // Compensated from the joints as solved: the emitter rounds once (without compensation
         // that gives exactly the rounded joints checked above).
-        const double* exact = segment_.piece_exact(std::size_t(k), mv);
+        const double* exact = segment_.pieces().exact(std::size_t(k), mv);
         const auto sent = compensation_.apply(std::span<const double>(exact, n));
         if (!sent.ok()) throw LineError(1, sent.why());
         emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, feed.inverse_time_out);
@@ -357,9 +357,9 @@ void MotionStage::measure(const MoveSpec& mv, MoveResult& result) const {
     // The report: deviation of each piece (denser than the split's own check), the tip's real
     // speed along the firmware's path against the programmed feed, and joint travel.
     const std::size_t n = joints_;
-    const int pieces = int(segment_.pieces());
-    const std::vector<double>& params = segment_.split_params();
-    const std::vector<double>& q0 = segment_.start_printed();
+    const int pieces = int(segment_.pieces().count());
+    const std::vector<double>& params = segment_.pieces().params();
+    const std::vector<double>& q0 = segment_.pieces().start_printed();
     const double length = (mv.p1.tip - mv.p0.tip).norm();
     result.pieces = pieces;
     result.travel.assign(n, 0.0);
@@ -370,8 +370,8 @@ void MotionStage::measure(const MoveSpec& mv, MoveResult& result) const {
     const double* qa = q0.data();
     std::vector<double> qq(n);
     for (int k = 0; k < pieces; ++k) {
-        const double* qb = segment_.piece_printed(std::size_t(k));
-        segment_.piece_error(mv, sa, params[std::size_t(k)], qa, qb, 2 * Segmenter::kCheckSamples, ptip, pang);
+        const double* qb = segment_.pieces().printed(std::size_t(k));
+        segment_.check().piece_error(mv, sa, params[std::size_t(k)], qa, qb, 2 * Segmenter::kCheckSamples, ptip, pang);
         tip = std::max(tip, ptip);
         ang = std::max(ang, pang);
         for (std::size_t j = 0; j < n; ++j) {

@@ -59,12 +59,12 @@ public:
     // between move parameters sa and sb: largest of `samples` interior points (tests use many).
     void piece_error(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, int samples,
                      double& tip, double& angle) const {
-        segment_.piece_error(move, sa, sb, qa, qb, samples, tip, angle);
+        segment_.check().piece_error(move, sa, sb, qa, qb, samples, tip, angle);
     }
 
     // The split of the last move: parameter s at each piece's end and its joints.
-    const std::vector<double>& split_params() const { return segment_.split_params(); }
-    const std::vector<double>& split_joints() const { return segment_.split_joints(); }  // pieces x joints
+    const std::vector<double>& split_params() const { return segment_.pieces().params(); }
+    const std::vector<double>& split_joints() const { return segment_.pieces().joints(); }  // pieces x joints
 
 private:
     IkResult emit_move(const MoveSpec& move, std::string& out, MoveResult* result);
