@@ -466,7 +466,7 @@ struct CollisionStage::Impl {
     // is the same for every body), or its oriented box stays apart from the body's (apart()).
     std::vector<std::vector<std::size_t>> candidates;
     std::vector<const Node*> stack;
-    // `mask`: the tools (bit k: tools[k]) the beads' chunk did not rule out.
+    // `mask`: the tools (bit k: tools[k]; from the 33rd on, all) the beads' chunk did not rule out.
     void sift(std::size_t first, std::size_t last, const StepBound& bound, unsigned mask) {
         for (std::size_t i = first; i < last; ++i) {
             const Bead& b = beads[i];
@@ -474,7 +474,7 @@ struct CollisionStage::Impl {
             bool risen = false;
             for (std::size_t k = 0; k < tools.size(); ++k) {
                 const int t = tools[k];
-                if (!(mask >> k & 1u) || !overlaps(b.box, swept[std::size_t(t)])) continue;
+                if ((k < 32 && !(mask >> k & 1u)) || !overlaps(b.box, swept[std::size_t(t)])) continue;
                 if (!risen) r = rise(b.centre, b.half, b.reach, bound), risen = true;
                 if (under(t, r) || apart(t, bead_obb(b))) continue;
                 candidates[k].push_back(i);
@@ -509,7 +509,8 @@ struct CollisionStage::Impl {
             unsigned mask = 0;
             for (std::size_t k = 0; k < tools.size(); ++k) {
                 const int t = tools[k];
-                if (overlaps(node->bv, swept[std::size_t(t)]) && !under(t, r) && !apart(t, ch.obb)) mask |= 1u << k;
+                // Past 32 bodies the mask cannot tell: their beads are all sifted.
+                if (k >= 32 || (overlaps(node->bv, swept[std::size_t(t)]) && !under(t, r) && !apart(t, ch.obb))) mask |= 1u << (k % 32);
             }
             if (mask) sift(ch.first, ch.first + kChunk, bound, mask);
         }
