@@ -2,10 +2,12 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 # The collision check's cost (issue 38: at most as much again as translation): each bundled
 # example with bodies, translated with --collision off and --collision warn, the machine being
-# machines/NAME.toml with tests/bodies/NAME.toml appended (no bundled machine has bodies yet).
-# Prints the best of 3 wall times and instructions per line (callgrind, as instructions.sh:
-# (count for the first LINES lines - count for the first 5) / (LINES - 5)), and the number of
-# collisions warn reports on the whole file (false alarms: the examples print as written).
+# machines/NAME.toml with tests/bodies/NAME.toml appended (no bundled machine has bodies yet:
+# bench/README.md says why).
+# Prints the best of 3 wall times of the whole file, instructions per line (callgrind, as
+# instructions.sh: (count for the first LINES lines - count for the first 5) / (LINES - 5)), the
+# same over the whole file, each with the ratio warn / off, and the number of collisions warn
+# reports on the whole file (false alarms: the examples print as written).
 #
 #   bench/collision.sh [BUILD_DIR=build] [LINES=300]
 set -euo pipefail
@@ -25,17 +27,21 @@ best_time() {  # best_time MACHINE FILE MODE: least of 3 wall times, s
         /usr/bin/time -f %e "$x" -m "$1" -i "$2" -o /dev/null --collision "$3" 2>&1 >/dev/null | tail -1
     done | sort -n | head -1
 }
-printf '%-26s %9s %9s %12s %12s %10s\n' file "off s" "warn s" "off ins/ln" "warn ins/ln" collisions
+printf '%-18s %6s %6s %10s %10s %6s %10s %10s %6s %10s\n' file "off s" "warn s" "off ins/ln" "warn ins/ln" ratio \
+    "whole off" "whole warn" ratio collisions
 for pair in rw2:rw2_flared_wall pentarod:pentarod_dome; do
     m=${pair%%:*} f=$here/examples/${pair#*:}.gcode
     cat "$here/machines/$m.toml" "$here/tests/bodies/$m.toml" >"$dir/$m.toml"
     head -"$lines" "$f" >"$dir/part.gcode"
     head -5 "$f" >"$dir/head.gcode"
-    per() {  # per MODE: instructions a line over lines 6..LINES
-        awk -v w="$(collected "$dir/$m.toml" "$dir/part.gcode" "$1")" -v h="$(collected "$dir/$m.toml" "$dir/head.gcode" "$1")" \
-            -v n="$lines" 'BEGIN { printf "%.0f", (w - h) / (n - 5) }'
+    per() {  # per FILE LINES MODE: instructions a line over lines 6..LINES
+        awk -v w="$(collected "$dir/$m.toml" "$1" "$3")" -v h="$(collected "$dir/$m.toml" "$dir/head.gcode" "$3")" \
+            -v n="$2" 'BEGIN { printf "%.0f", (w - h) / (n - 5) }'
     }
+    n=$(wc -l <"$f")
+    po=$(per "$dir/part.gcode" "$lines" off) pw=$(per "$dir/part.gcode" "$lines" warn)
+    wo=$(per "$f" "$n" off) ww=$(per "$f" "$n" warn)
     found=$("$x" -m "$dir/$m.toml" -i "$f" -o /dev/null --collision warn 2>&1 | grep -c "warning: collision" || true)
-    printf '%-26s %9s %9s %12s %12s %10s\n' "${pair#*:}" "$(best_time "$dir/$m.toml" "$f" off)" \
-        "$(best_time "$dir/$m.toml" "$f" warn)" "$(per off)" "$(per warn)" "$found"
+    printf '%-18s %6s %6s %10s %10s %6.2f %10s %10s %6.2f %10s\n' "${pair#*:}" "$(best_time "$dir/$m.toml" "$f" off)" \
+        "$(best_time "$dir/$m.toml" "$f" warn)" "$po" "$pw" "$(echo "$pw / $po" | bc -l)" "$wo" "$ww" "$(echo "$ww / $wo" | bc -l)" "$found"
 done

@@ -175,6 +175,11 @@ struct CollisionStage::Impl {
     struct Chunk {
         std::size_t first = 0;
         Node* node = nullptr;
+        // Its beads' oriented box, on the first bead's axes: tighter than the tree's
+        // axis-aligned one across a tilted layer (the below-the-tool test at the chunk).
+        Eigen::Vector3d centre, half[3];
+        double reach = 0;
+        fcl::OBBd obb;
     };
     std::vector<Chunk> chunks;
     std::size_t open_first = 0;
@@ -402,11 +407,18 @@ struct CollisionStage::Impl {
     // then they cannot meet. A point x's height over the tip, z = n . (x - tip), rises over
     // the step by at most Tn (|x - tip| + 2 Dtip) + along (docs/machines.md, "Bodies").
     bool below(int t, const Eigen::Vector3d& c, const Eigen::Vector3d* h, double reach, const StepBound& sb) const {
-        const double low = solids[std::size_t(t)].body->low;
-        if (low < -1e299) return false;
+        return under(t, rise(c, h, reach, sb));
+    }
+    // The highest the box reaches along the tool axis over the tip, over the step: what below()
+    // compares with each body's lowest point (the same for every tool body: computed once).
+    static double rise(const Eigen::Vector3d& c, const Eigen::Vector3d* h, double reach, const StepBound& sb) {
         const Eigen::Vector3d d = c - sb.tip;
         const double top = sb.n.dot(d) + std::abs(sb.n.dot(h[0])) + std::abs(sb.n.dot(h[1])) + std::abs(sb.n.dot(h[2]));
-        return top + sb.Tn * (d.norm() + reach + 2 * sb.Dtip) + sb.along < low - kContact;
+        return top + sb.Tn * (d.norm() + reach + 2 * sb.Dtip) + sb.along;
+    }
+    bool under(int t, double rise) const {
+        const double low = solids[std::size_t(t)].body->low;
+        return low > -1e299 && rise < low - kContact;
     }
 
     void pose_at(const double* q0, const double* q1, double s, Snapshot& out, bool boxes = false) {
@@ -447,14 +459,32 @@ struct CollisionStage::Impl {
         box.max_ += Eigen::Vector3d::Constant(by);
     }
 
-    // The beads whose boxes meet `box`: a walk of the printed part's tree (FCL's dynamic AABB
-    // tree), into `candidates`.
-    std::vector<std::size_t> candidates;
+    // The beads each tool body may meet over the step: one walk of the printed part's tree
+    // (FCL's dynamic AABB tree) with the tool bodies' swept boxes together, into
+    // `candidates[k]` for tools[k]. A chunk, then a bead, drops out for a body when its box
+    // misses the body's swept box, lies wholly below the body over the step (below(): its rise
+    // is the same for every body), or its oriented box stays apart from the body's (apart()).
+    std::vector<std::vector<std::size_t>> candidates;
     std::vector<const Node*> stack;
-    void collect_part(const fcl::AABBd& box) {
-        candidates.clear();
-        for (std::size_t i = open_first; i < beads.size(); ++i)
-            if (overlaps(beads[i].box, box)) candidates.push_back(i);
+    // `mask`: the tools (bit k: tools[k]; from the 33rd on, all) the beads' chunk did not rule out.
+    void sift(std::size_t first, std::size_t last, const StepBound& bound, unsigned mask) {
+        for (std::size_t i = first; i < last; ++i) {
+            const Bead& b = beads[i];
+            double r = 0;
+            bool risen = false;
+            for (std::size_t k = 0; k < tools.size(); ++k) {
+                const int t = tools[k];
+                if ((k < 32 && !(mask >> k & 1u)) || !overlaps(b.box, swept[std::size_t(t)])) continue;
+                if (!risen) r = rise(b.centre, b.half, b.reach, bound), risen = true;
+                if (under(t, r) || apart(t, bead_obb(b))) continue;
+                candidates[k].push_back(i);
+            }
+        }
+    }
+    void collect_part(const StepBound& bound) {
+        candidates.resize(tools.size());
+        for (auto& c : candidates) c.clear();
+        sift(open_first, beads.size(), bound, ~0u);
         const Node* root = part.getRoot();
         if (!root) return;
         stack.clear();
@@ -462,15 +492,27 @@ struct CollisionStage::Impl {
         while (!stack.empty()) {
             const auto* node = stack.back();
             stack.pop_back();
-            if (!overlaps(node->bv, box)) continue;
-            if (node->isLeaf()) {
-                const std::size_t first = chunks[std::size_t(reinterpret_cast<std::intptr_t>(node->data))].first;
-                for (std::size_t i = first; i < first + kChunk; ++i)
-                    if (overlaps(beads[i].box, box)) candidates.push_back(i);
-            } else {
+            bool meets = false;
+            for (const int t : tools)
+                if (overlaps(node->bv, swept[std::size_t(t)])) {
+                    meets = true;
+                    break;
+                }
+            if (!meets) continue;
+            if (!node->isLeaf()) {
                 stack.push_back(node->children[1]);
                 stack.push_back(node->children[0]);
+                continue;
             }
+            const Chunk& ch = chunks[std::size_t(reinterpret_cast<std::intptr_t>(node->data))];
+            const double r = rise(ch.centre, ch.half, ch.reach, bound);
+            unsigned mask = 0;
+            for (std::size_t k = 0; k < tools.size(); ++k) {
+                const int t = tools[k];
+                // Past 32 bodies the mask cannot tell: their beads are all sifted.
+                if (k >= 32 || (overlaps(node->bv, swept[std::size_t(t)]) && !under(t, r) && !apart(t, ch.obb))) mask |= 1u << (k % 32);
+            }
+            if (mask) sift(ch.first, ch.first + kChunk, bound, mask);
         }
     }
 
@@ -493,11 +535,18 @@ struct CollisionStage::Impl {
     bool apart(int t, const fcl::OBBd& other) {
         const fcl::CollisionGeometryd& g = *solids[std::size_t(t)].object->collisionGeometry();
         const Iso& pose = step_a->pose[std::size_t(t)];
-        fcl::OBBd o;
-        o.axis = pose.linear();
-        o.To = pose * g.aabb_local.center();
-        o.extent = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_) + Eigen::Vector3d::Constant(step_rate(t) + kContact);
-        return !o.overlap(other);
+        const Eigen::Vector3d centre = pose * (0.5 * (g.aabb_local.min_ + g.aabb_local.max_));
+        const Eigen::Vector3d extent = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_) + Eigen::Vector3d::Constant(step_rate(t) + kContact);
+        // The separating-axis test on the two boxes' own six face normals (of the fifteen: fewer
+        // axes find fewer gaps, never a false one). R: the other's axes in the body's frame.
+        const Eigen::Matrix3d R = pose.linear().transpose() * other.axis;
+        const Eigen::Vector3d d = pose.linear().transpose() * (other.To - centre);
+        const Eigen::Matrix3d A = R.cwiseAbs();
+        for (int i = 0; i < 3; ++i)
+            if (std::abs(d[i]) > extent[i] + A.row(i).dot(other.extent)) return true;
+        for (int j = 0; j < 3; ++j)
+            if (std::abs(R.col(j).dot(d)) > other.extent[j] + A.col(j).dot(extent)) return true;
+        return false;
     }
 
     // The outcome of one step's test.
@@ -567,7 +616,8 @@ struct CollisionStage::Impl {
             first = ev;
         };
         const Node* root = part.getRoot();
-        for (const int t : tools) {
+        bool collected = false;
+        for (const int& t : tools) {
             const fcl::AABBd& box = swept[std::size_t(t)];
             for (const auto* list : {&fixed_obstacles, &moving_obstacles})
                 for (const int o : *list) {
@@ -586,11 +636,9 @@ struct CollisionStage::Impl {
             // The printed part: the beads whose boxes meet the tool body's swept box, less those
             // wholly below the body's lowest point over the step (the layers it prints on).
             if ((!root || !overlaps(root->bv, box)) && open_first == beads.size()) continue;
-            collect_part(box);
-            for (const std::size_t c : candidates) {
+            if (!collected) collect_part(bound), collected = true;
+            for (const std::size_t c : candidates[std::size_t(&t - tools.data())]) {
                 const Bead& bead = beads[c];
-                if (below(t, bead.centre, bead.half, bead.reach, bound)) continue;
-                if (apart(t, bead_obb(bead))) continue;
                 if (!leaf) return Step::Unsure;
                 double s = 0;
                 if (advance(t, object_of(bead), -1, rate_of(t) / (sb - sa), q0, q1, sa, sb, s)) hit(t, -1, &bead, s);
@@ -694,8 +742,31 @@ struct CollisionStage::Impl {
         if (beads.size() - open_first < kChunk) return;
         fcl::AABBd box = beads[open_first].box;
         for (std::size_t i = open_first + 1; i < beads.size(); ++i) box += beads[i].box;
-        chunks.push_back({open_first, part.insert(box, reinterpret_cast<void*>(std::intptr_t(chunks.size())))});
+        Chunk& ch = chunks.emplace_back();
+        ch.first = open_first;
+        ch.node = part.insert(box, reinterpret_cast<void*>(std::intptr_t(chunks.size() - 1)));
+        const Eigen::Matrix3d axes = beads[open_first].pose.linear();
+        Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+        for (std::size_t i = open_first; i < beads.size(); ++i) {
+            const Bead& bd = beads[i];
+            const Eigen::Vector3d c = axes.transpose() * bd.centre;
+            Eigen::Vector3d ext = Eigen::Vector3d::Zero();
+            for (const auto& h : bd.half) ext += (axes.transpose() * h).cwiseAbs();
+            lo = lo.cwiseMin(c - ext);
+            hi = hi.cwiseMax(c + ext);
+        }
+        const Eigen::Vector3d ext = 0.5 * (hi - lo);
+        ch.centre = axes * (0.5 * (hi + lo));
+        for (int k = 0; k < 3; ++k) ch.half[k] = ext[k] * axes.col(k);
+        ch.reach = ext.norm();
+        ch.obb.axis = axes;
+        ch.obb.To = ch.centre;
+        ch.obb.extent = ext;
         open_first = beads.size();
+        // Inserted in printing order, the tree's boxes come to overlap much (a layer's chunks
+        // under one node with the last layer's): rebuilt by FCL's top-down split each time the
+        // part doubles (a rebuild costs about a hundred walks).
+        if (const std::size_t n = chunks.size(); n >= 64 && (n & (n - 1)) == 0) part.balanceTopdown();
     }
 
     void truncate(std::size_t count) {
