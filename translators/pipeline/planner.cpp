@@ -211,7 +211,7 @@ bool bound_rotary_travel(const Kinematics& kin, const Eigen::Vector3d& pole, Pla
 // in `next`; not ok when it cannot be reached or lies outside the limits.
 inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
     PlannerState& s = state_;
-    copy_joints(q_next_, s.q);
+    q_next_ = s.q;
     if (mv.any_rotary) angle_map_.map(s.image, *mv.angles, q_next_);
     end_solved_.valid = false;
     ChosenSolution chosen;  // the solution the rotaries take (a tool vector's): the solve reuses its terms
@@ -398,7 +398,7 @@ void Planner::send_joints(const std::vector<bool>& which, const std::optional<Pa
 
 void Planner::joint_move(const cmd::JointMove& mv, std::string& out) {
     std::vector<double>& q = q_next_;
-    copy_joints(q, state_.q);
+    q = state_.q;
     which_.assign(q.size(), false);
     for (cmd::JointBits b = mv.given; b != 0; b &= b - 1) {
         const std::size_t j = std::size_t(std::countr_zero(b));
@@ -453,7 +453,7 @@ void Planner::home(const cmd::Home& home) {
 }
 
 void Planner::moved_to(const cmd::MovedTo& to) {
-    copy_joints(q_next_, state_.q);
+    q_next_ = state_.q;
     for (cmd::JointBits b = to.given; b != 0; b &= b - 1) {
         const std::size_t j = std::size_t(std::countr_zero(b));
         q_next_[j] = to.q[j];
