@@ -113,6 +113,10 @@ public:
 private:
     int decimals(std::size_t joint) const { return decimals_[joint]; }
     void format(std::string& text, std::size_t joint, double value) const;
+    // move's parts (emitter.cpp).
+    void write_detour(std::string& out, const std::vector<std::vector<double>>& detour, std::size_t n,
+                      const std::optional<PassedNumber>& f, bool inverse_time);
+    char* put_f(std::string& out, char* line, char* p, const PassedNumber& f);
 
     // Fixed arrays, not vectors: a copy of the emitter (the look-back's, at a window's start) is
     // one block of memory.

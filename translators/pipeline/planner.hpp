@@ -140,7 +140,8 @@ public:
     // the rotaries' are read (AngleMap), so only they are written.
     void programmed_angles(std::vector<double>& a) const {
         if (a.size() != state_.q.size()) a.resize(state_.q.size());
-        angle_map_.unmap(state_.image, state_.q, a);
+        if (!(state_.image == AngleImage{})) return angle_map_.unmap(state_.image, state_.q, a);
+        for (const int j : angle_map_.rot) a[std::size_t(j)] = state_.q[std::size_t(j)];
     }
 
 private:
@@ -148,8 +149,6 @@ private:
     IkResult solve_end(const ToolMove& mv, Pose& next);
     bool other_end(const ToolMove& mv, const Pose& next, bool travel, IkResult& r, LineRun& run, SolutionChange& change);
     int rezero(std::string& out);
-    void send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
-                     std::string& out);
 
     const Kinematics& kin_;
     LimitBox limits_;  // the end of every move is checked against it
