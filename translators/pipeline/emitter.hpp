@@ -118,8 +118,8 @@ private:
                       const std::optional<PassedNumber>& f, bool inverse_time);
     char* put_f(std::string& out, char* line, char* p, const PassedNumber& f);
 
-    // Fixed arrays, not vectors: a copy of the emitter (the look-back's, at a window's start) is
-    // one block of memory.
+    // Fixed arrays, not vectors: a copy of the emitter (the look-back's, before a line that may
+    // travel) is one block of memory.
     const Machine* machine_;  // a pointer, so a copy of the emitter is its whole state
     std::size_t joints_ = 0;
     // Per joint, from the machine: the start of its word (" " and its output letter, stored at

@@ -5,9 +5,11 @@
 // solution of its pose (the other branch or another turn) and the printed path stays continuous.
 // It holds the window's lines as interpreted commands (commands.hpp: values) and one copy of the
 // stages' state, taken before the window's first line: a replay runs the commands again from that
-// copy through the planner onward; the interpreter is not run again. No line is copied whole: a
-// line that fails is undone from that copy and a quiet replay of the lines before it (rare: only
-// a refused line pays), and only a line that may travel copies the stages' state first.
+// copy through the planner onward; the interpreter is not run again. No line copies the whole
+// state: the modal state is kept by assignment (a few bytes), and only a line that may travel
+// (the next window's first) copies the stages' state before it runs. A refused line is undone
+// from that copy, or else from the window's copy and a quiet replay of the lines since: only a
+// refused line pays. Outside a window the lines since the copy are kept the same way, a few.
 // May call: the forward stages (to interpret a line, run its commands, or the window's again) and
 // the move log.
 #pragma once

@@ -39,7 +39,7 @@ struct AngleImage {
 };
 
 // What the planner keeps between moves: where the machine is. A plain value: the look-back
-// copies it at a window's start (lookback.hpp).
+// copies it before a line that may travel (lookback.hpp).
 struct PlannerState {
     std::vector<double> q;   // joint values the firmware will be at
     Pose pose;               // tip and tool axis in the part frame
