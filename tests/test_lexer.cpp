@@ -6,10 +6,12 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <limits>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "translators/error.hpp"
 #include "translators/inputs/gcode_lexer.hpp"
@@ -598,4 +600,54 @@ TEST_CASE("lexer: the words of the bulk of a program read as the general reading
     CHECK(lines > 10000);
     CHECK(errors > 1000);
     CHECK(fast_words > 50000);
+}
+
+TEST_CASE("lexer: a line read in place (a NUL after it) reads as its copy reads") {
+    // The look-back keeps each line's text (a std::string, a NUL after it) and the lexer reads it
+    // there instead of copying it: random lines of words, comments, text arguments, checksums,
+    // '\r' ends and NULs inside, read both ways: the same block, or the same error.
+    std::mt19937_64 rng(34);
+    const std::vector<std::string> parts = {"G1", " X1.5", "Y-2", " E0.05", " F1200", "A", " B30.25", "M117 hello", " ; note",
+                                            "(c)", "*12", "N5 ", "\r", std::string(1, '\0'), " ", "x.5", "T0", "%", "E", "1e3"};
+    int read = 0, errors = 0;
+    for (int n = 0; n < 20000; ++n) {
+        std::string line;
+        for (int k = 1 + int(rng() % 6); k > 0; --k) line += parts[rng() % parts.size()];
+        CAPTURE(line);
+        Block copied, in_place;
+        std::string copied_error, in_place_error;
+        try {
+            lex_line(line, copied);
+        } catch (const LineError& e) {
+            copied_error = std::to_string(e.column()) + e.what();
+        }
+        try {
+            lex_line(line, in_place, true);
+        } catch (const LineError& e) {
+            in_place_error = std::to_string(e.column()) + e.what();
+        }
+        REQUIRE(copied_error == in_place_error);
+        if (!copied_error.empty()) {
+            ++errors;
+            continue;
+        }
+        ++read;
+        CHECK(copied.body == in_place.body);
+        CHECK(copied.letters == in_place.letters);
+        CHECK(copied.has_comment == in_place.has_comment);
+        CHECK(copied.percent == in_place.percent);
+        CHECK(copied.text_argument == in_place.text_argument);
+        REQUIRE(copied.words().size() == in_place.words().size());
+        for (std::size_t k = 0; k < copied.words().size(); ++k) {
+            const Word& x = copied.words()[k];
+            const Word& y = in_place.words()[k];
+            CHECK(x.letter == y.letter);
+            CHECK(x.has_value == y.has_value);
+            CHECK(x.text == y.text);
+            CHECK(x.column == y.column);
+            if (x.has_value) CHECK(std::memcmp(&x.value, &y.value, sizeof x.value) == 0);
+        }
+    }
+    CHECK(read > 2000);
+    CHECK(errors > 2000);
 }

@@ -405,6 +405,74 @@ TEST_CASE("a refused line's moves leave the report as its output leaves the file
     }
 }
 
+TEST_CASE("a refused printing line is undone by replaying the lines before it: output and report as without it") {
+    // A printing line that fails keeps no copy of the state (only a line that may travel does):
+    // the look-back takes the state back to its window's start and runs the window's commands
+    // again, quietly. Refused lines before the window (no travel yet), inside it before and after
+    // the replay that turns the loop's travel move the other way, and at the end: the output and
+    // the report are those of the program without them, with the look-back or not.
+    Machine m = load_machine(std::string(XLATE5_MACHINE_DIR_FOR_TESTS) + "/rw2.toml");
+    const Kinematics k(m);
+    auto tip = [](double a, double z) {
+        return "X" + std::to_string(110 + 20 * std::cos(-a * M_PI / 180)) + " Y" + std::to_string(110 + 20 * std::sin(-a * M_PI / 180)) +
+               " Z" + std::to_string(z) + " A" + std::to_string(a) + " B30";
+    };
+    // Printing moves past A's limit (+-168) from wherever the tip is, and one whose mode (G91)
+    // the interpreter has changed before the move fails.
+    const std::vector<std::string> refused = {"G1 A600 E0.05", "G91 G1 A700 E0.05", "G1 A-600 E0.05"};
+    for (const std::size_t lookback : {std::size_t(0), Translator::kDefaultLookback}) {
+        CAPTURE(lookback);
+        // Without the look-back the loop stops short of A's limit.
+        std::vector<std::string> program = {"M83", "G1 " + tip(0, 5) + " E0.05 F1200", "", "G1 " + tip(5, 5) + " E0.05", "",
+                                            "G0 " + tip(5, 5.3)};
+        double z = 5.3;
+        for (double a = 10; a <= (lookback ? 300 : 160); a += 10) {
+            if (a == 150) program.push_back("G0 " + tip(a - 10, z += 0.3));  // the window the replay turns
+            program.push_back("G1 " + tip(a, z) + " E0.05");
+            if (a == 100 || a == 160 || a == 200 || a == 300) program.push_back("");
+        }
+        auto run = [&](bool with_refused, std::string& out, std::vector<double>& joints) {
+            DeviationReport report("t.gcode", "rw2", m.motion.tolerance, m.motion.angle_tolerance);
+            TranslatorOptions o;
+            o.report = &report;
+            o.start_mode = OrientationMode::Angles;
+            Translator t(k, o);
+            t.set_lookback(lookback);
+            std::uint64_t n = 0;
+            int threw = 0, blanks = 0;
+            for (const auto& line : program) {
+                ++n;
+                if (!line.empty()) {
+                    t.feed(line, n, out);
+                } else if (with_refused) {
+                    try {
+                        t.feed(refused[std::size_t(blanks) % refused.size()], n, out);
+                    } catch (const InputError& e) {
+                        ++threw;
+                        CAPTURE(e.message());
+                        CHECK(contains(e.message(), "joint A"));
+                    }
+                }
+                blanks += line.empty();
+            }
+            t.finish(out);
+            joints = t.joints();
+            CHECK(threw == (with_refused ? blanks : 0));
+            CHECK(t.modes().absolute);
+            return report.json() + report.svg() + std::to_string(report.marks().size());
+        };
+        std::string out_with, out_without;
+        std::vector<double> joints_with, joints_without;
+        const std::string with = run(true, out_with, joints_with), without = run(false, out_without, joints_without);
+        CHECK(with == without);
+        CHECK(joints_with == joints_without);
+        // Without the look-back what the firmware was told of a refused line is not known: the
+        // next line is written with every joint.
+        if (lookback > 0) CHECK(out_with == out_without);
+        else CHECK(out_with.size() > out_without.size());
+    }
+}
+
 TEST_CASE("the plot's title escapes the file name by XML's rules: an '&' or a crafted name stays text") {
     // The SVG is XML: '&' must be '&amp;', '<' must be '&lt;'. A name that closes the <text>
     // and opens an element of its own must come out as text, not as an element.

@@ -1294,3 +1294,43 @@ TEST_CASE("a feed under 0.05 mm/min is never written F0 (Marlin ignores F0 and k
     CHECK(feeds[3] == doctest::Approx(0.1));                  // 0.05 at one decimal, as before
     CHECK(feeds[4] == 1e-9);                                  // the least nine decimals write
 }
+
+TEST_CASE("a refused line is undone by a quiet replay: collisions already told are not told again") {
+    // rw2 with its test bodies, --collision warn: the head tilted onto a wall printed earlier
+    // collides (tests/test_collide.cpp). A printing line refused after it (past X's travel) is
+    // undone by running the lines since the stages' copy again, quietly: the collisions told,
+    // the output and the beads are those of the program without it, with the look-back or not.
+    const Machine m = load_with_bodies("rw2");
+    const Kinematics k(m);
+    const std::string program = rw2_wall() + "G1 X38 Y100 Z20 B60\nG1 Z6.2\nG1 X38 Y110 E0.5\n";
+    for (const std::size_t lookback : {std::size_t(0), Translator::kDefaultLookback}) {
+        CAPTURE(lookback);
+        auto run = [&](bool refused, std::string& out, std::size_t& beads) {
+            std::vector<std::string> told;
+            TranslatorOptions o;
+            o.collision = CollisionPolicy::Warn;
+            o.on_collision = [&told](const CollisionEvent& e) { told.push_back(e.message() + " #" + std::to_string(e.moves_written)); };
+            Translator t(k, o);
+            t.set_lookback(lookback);
+            std::uint64_t n = 0;
+            for (const auto& line : lines_of(program)) t.feed(line, ++n, out);
+            if (refused) {
+                CHECK_THROWS_AS(t.feed("G1 X38 Y111 E0.5 X-1000", ++n, out), InputError);  // two X: the interpreter's
+                CHECK_THROWS_AS(t.feed("G1 X1000 Y111 E0.5", ++n, out), InputError);      // past X's travel: the planner's
+            }
+            t.feed("G1 X38 Y112 E0.5", ++n, out);
+            t.finish(out);
+            beads = t.collision()->beads();
+            return told;
+        };
+        std::string out_with, out_without;
+        std::size_t beads_with = 0, beads_without = 0;
+        const auto with = run(true, out_with, beads_with), without = run(false, out_without, beads_without);
+        CHECK(!without.empty());
+        CHECK(with == without);
+        CHECK(beads_with == beads_without);
+        // Without the look-back the firmware's position after a refused line is not known: the
+        // next line names every joint.
+        if (lookback > 0) CHECK(out_with == out_without);
+    }
+}

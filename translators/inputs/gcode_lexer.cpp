@@ -383,10 +383,11 @@ void check_code_word(char letter, std::size_t letter_index, bool has_value, doub
 }
 
 // The rest of lex_line from `i` (the words before it in the block's room up to `next`, their
-// letters `letters`): any line but one of words read_common_words reads to its end.
-[[gnu::noinline]] void lex_rest(std::string_view line, Block& out, std::size_t i, Word* next, std::uint32_t letters) {
+// letters `letters`): any line but one of words read_common_words reads to its end. `scan` is the
+// line with a NUL after it (Block::text's copy, or the line itself).
+[[gnu::noinline]] void lex_rest(std::string_view line, const char* scan, Block& out, std::size_t i, Word* next, std::uint32_t letters) {
     const std::size_t n = line.size();
-    const std::string_view s(out.text.data(), n);
+    const std::string_view s(scan, n);
     Word* room_end = out.word_room.data() + out.word_room.size();
     std::size_t body_begin = std::string_view::npos;  // of a comment or '%' before the first word
     std::size_t body_end = 0;                         // of a comment or '%' after the last word
@@ -466,23 +467,29 @@ void check_code_word(char letter, std::size_t letter_index, bool has_value, doub
 
 }  // namespace
 
-void lex_line(std::string_view line, Block& out) {
+void lex_line(std::string_view line, Block& out, bool nul_after) {
     out.word_count = 0;
     out.has_comment = false;
     out.percent = false;
     out.text_argument = false;
     // Non-text bytes are caught where each part of the line is read (one pass over the line).
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (!line.empty() && line.back() == '\r') {
+        line.remove_suffix(1);
+        nul_after = false;  // a '\r' follows it now
+    }
 
-    // The line is read from a copy with a NUL after it (Block::text): the scans of digits and
-    // blanks stop there, with no test of the line's end at every character. A NUL inside the line
-    // stops them too, and is then refused as a non-text byte where the line's end is tested.
-    // Words and body point into `line` itself, which outlives the copy's next use.
+    // The line is read from a copy with a NUL after it (Block::text), or in place when one
+    // follows it already: the scans of digits and blanks stop there, with no test of the line's
+    // end at every character. A NUL inside the line stops them too, and is then refused as a
+    // non-text byte where the line's end is tested. Words and body point into `line` itself,
+    // which outlives the copy's next use.
     const std::size_t n = line.size();
-    if (out.text.size() < n + 1) out.text.resize(n + 1);
-    if (n > 0) std::memcpy(out.text.data(), line.data(), n);
-    out.text[n] = '\0';
-    const std::string_view s(out.text.data(), n);
+    if (!nul_after) {
+        if (out.text.size() < n + 1) out.text.resize(n + 1);
+        if (n > 0) std::memcpy(out.text.data(), line.data(), n);
+        out.text[n] = '\0';
+    }
+    const std::string_view s(nul_after ? line.data() : out.text.data(), n);
 
     // Room for every word of a line of up to 4096 characters (two at least each, "X1"), so that
     // read_common_words needs no test of the room (longer lines grow it word by word).
@@ -503,7 +510,7 @@ void lex_line(std::string_view line, Block& out) {
             return;
         }
     }
-    lex_rest(line, out, i, next, letters);
+    lex_rest(line, s.data(), out, i, next, letters);
 }
 
 }  // namespace xlate5

@@ -61,7 +61,8 @@ inline constexpr double kMaxCode = 100000;
 inline constexpr std::string_view kCompactDeclaration = "xlate5: compact-words";
 
 // Lexes `line` (no trailing '\n'; a trailing '\r' is accepted) into `out`, reusing its storage.
-// Throws LineError(column, message) for input it cannot accept.
-void lex_line(std::string_view line, Block& out);
+// Throws LineError(column, message) for input it cannot accept. `nul_after`: a NUL follows the
+// line (a std::string's text), so it is read in place, without Block::text's copy.
+void lex_line(std::string_view line, Block& out, bool nul_after = false);
 
 }  // namespace xlate5

@@ -25,7 +25,7 @@
 
 namespace xlate5 {
 
-// Part of the line's state (LineState): how many beads the printed part holds, the extruder's
+// Part of the stages' state (StageState, lookback.hpp): how many beads the printed part holds, the extruder's
 // absolute position as last written, and the input line being translated.
 struct CollideCursor {
     std::uint64_t beads = 0;

@@ -111,7 +111,7 @@ inline char* write_units3(char* p, long long units) {
 // The word append_word would write, into a buffer at p (room: 2 + max(kPassedChars,
 // kUnitsChars)): a passed text up to kPassedChars, or a computed value on to_units' path (what
 // append_fixed writes). Null, with nothing written, for any other: append_word's to write.
-char* put_passed_word(char* p, char letter, const PassedNumber& n) {
+[[gnu::always_inline]] inline char* put_passed_word(char* p, char letter, const PassedNumber& n) {
     long long units = 0;
     const bool text = !n.text.empty() && n.text.size() <= kPassedChars;
     if (!text && !(n.text.empty() && n.decimals >= 0 && to_units(n.value, n.decimals, units))) return nullptr;
@@ -167,19 +167,98 @@ void JointEmitter::invalidate(const std::vector<double>& q) {
     std::copy(q.begin(), q.begin() + std::ptrdiff_t(std::min(q.size(), joints_)), believed_.begin());
 }
 
+// A move's line is built in a buffer of this many characters: the command, every joint word, E
+// and F, the line end.
+constexpr std::size_t kLineChars = 2 + kMaxJoints * (2 + kUnitsChars) + 2 * (2 + std::max(kPassedChars, kUnitsChars)) + 1;
+
+namespace {
+// E or F passed on, into the line buffer at p; a word off the fast path flushes the buffer
+// (`line` to p) to `out` and is appended by the general code. Returns where the line goes on.
+[[gnu::always_inline]] inline char* put_passed(std::string& out, char* line, char* p, char letter, const PassedNumber& n) {
+    if (char* q = put_passed_word(p, letter, n)) return q;
+    out.append(line, p);
+    append_word(out, letter, n);
+    return line;
+}
+
+// The line buffer (`line` to p, its line end written) to `out`. A line of up to kBlock
+// characters (most) goes as a block of that fixed size, copied without a library call, and
+// `out` is cut back to the line's end (erase to the end is inline).
+[[gnu::always_inline]] inline void append_line(std::string& out, const char* line, const char* p) {
+    constexpr std::size_t kBlock = 64;
+    static_assert(kLineChars >= kBlock, "the block is read from the line buffer");
+    if (const std::size_t n = std::size_t(p - line); n <= kBlock) {
+        const std::size_t size = out.size();
+        out.append(line, kBlock);
+        out.erase(size + n);
+    } else {
+        out.append(line, p);
+    }
+}
+}  // namespace
+
+// A detour the observer asked for, before the piece: checked already, so written without the
+// observer, at the piece's feed, uncompensated (the check re-routes only machines without
+// compensation).
+[[gnu::noinline]] void JointEmitter::write_detour(std::string& out, const std::vector<std::vector<double>>& detour, std::size_t n,
+                                                  const std::optional<PassedNumber>& f, bool inverse_time) {
+    PieceObserver* const watching = observer_;
+    observer_ = nullptr;
+    const std::vector<bool> none(n, false);
+    for (const auto& w : detour) move(out, 0, w, w, none, std::nullopt, f, inverse_time);
+    observer_ = watching;
+}
+
+// F is modal in the firmware: written when its text changes (under G93 every move carries its
+// own), and remembered when it fits kFText. Into the line buffer at p (`line` its start, flushed
+// to `out` for a word off the fast path); returns where the line goes on.
+[[gnu::always_inline]] inline char* JointEmitter::put_f(std::string& out, char* line, char* p, const PassedNumber& f) {
+    // A computed F (the motion stage's, most moves): its digits go straight into the line
+    // after the room for " F" and are compared there with the last; taken back (p stays)
+    // when the same. What append_fixed would write, as the path below writes it: the usual
+    // one decimal below a million by one test (|value * 10| < 9999999.5: to_units' units
+    // below 10000000, write_units' one-decimal inline case), any other by to_units.
+    static_assert(kUnitsChars <= kFText, "a computed F is always remembered");
+    char* const digits = p + 2;
+    char* end = nullptr;
+    if (f.text.empty() && f.decimals >= 0) {
+        const double scaled = f.value * 1e1;
+        long long units = 0;
+        if (f.decimals == 1 && std::abs(scaled) < 9999999.5) end = write_units1_small(digits, round_half_away(scaled));
+        else if (to_units(f.value, f.decimals, units)) end = write_units(digits, units, f.decimals);
+    }
+    if (end) {
+        const std::size_t n = std::size_t(end - digits);
+        if (!inverse_time_ && n == last_f_size_ && same_short(digits, last_f_.data(), n)) return p;
+        if (!inverse_time_) {
+            // A fixed size (the line has room for kUnitsChars after `digits`): no memcpy
+            // call; only the first n bytes are ever read back.
+            std::memcpy(last_f_.data(), digits, kUnitsChars);
+            last_f_size_ = n;
+        }
+        p[0] = ' ';
+        p[1] = 'F';
+        return end;
+    }
+    // Passed text, or a value off the fast path: the text as it will be written.
+    const bool remembered = !f.text.empty() && f.text.size() <= kFText;
+    if (!remembered) {  // too long to remember, or computed: written, nothing remembered
+        last_f_size_ = 0;
+    } else if (!inverse_time_ && f.text == std::string_view(last_f_.data(), last_f_size_)) {
+        return p;
+    } else if (!inverse_time_) {
+        std::memcpy(last_f_.data(), f.text.data(), f.text.size());
+        last_f_size_ = f.text.size();
+    }
+    return put_passed(out, line, p, 'F', f);
+}
+
 void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, std::span<const double> sent,
                         const std::vector<bool>& commanded, std::optional<PassedNumber> e, std::optional<PassedNumber> f,
                         bool inverse_time) {
     if (observer_) {
-        if (const auto* detour = observer_->piece(std::span<const double>(believed_.data(), q.size()), q, e)) {
-            // Checked already: written without the observer, at the piece's feed, uncompensated
-            // (the check re-routes only machines without compensation).
-            PieceObserver* const watching = observer_;
-            observer_ = nullptr;
-            const std::vector<bool> none(q.size(), false);
-            for (const auto& w : *detour) move(out, 0, w, w, none, std::nullopt, f, inverse_time);
-            observer_ = watching;
-        }
+        if (const auto* detour = observer_->piece(std::span<const double>(believed_.data(), q.size()), q, e))
+            write_detour(out, *detour, q.size(), f, inverse_time);
     }
     if (inverse_time != inverse_time_) {
         out += inverse_time ? "G93\n" : "G94\n";
@@ -189,8 +268,6 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
     // The whole line goes into a buffer first and to the output in one piece. A word off the
     // fast path (a joint beyond to_units' range, a long or unusual E or F) flushes the buffer
     // and is appended by the general code, so `out` grows in the same order either way.
-    // Room: the command, every joint word, E and F, the line end.
-    constexpr std::size_t kLineChars = 2 + kMaxJoints * (2 + kUnitsChars) + 2 * (2 + std::max(kPassedChars, kUnitsChars)) + 1;
     char line[kLineChars];
     char* p = line;
     const std::size_t start = out.size();
@@ -230,76 +307,12 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         }
     }
     // E and F end the line, as finish_move ends it elsewhere.
-    auto passed_word = [&](char letter, const std::optional<PassedNumber>& n) {
-        if (!n) return;
-        if (char* q = put_passed_word(p, letter, *n)) {
-            p = q;
-        } else {
-            out.append(line, p);
-            p = line;
-            append_word(out, letter, *n);
-        }
-    };
-    passed_word('E', e);
-    if (f) {
-        // F is modal in the firmware: written when its text changes (under G93 every move carries
-        // its own), and remembered when it fits kFText.
-        // A computed F (the motion stage's, most moves): its digits go straight into the line
-        // after the room for " F" and are compared there with the last; taken back (p stays)
-        // when the same. What append_fixed would write, as the path below writes it: the usual
-        // one decimal below a million by one test (|value * 10| < 9999999.5: to_units' units
-        // below 10000000, write_units' one-decimal inline case), any other by to_units.
-        static_assert(kUnitsChars <= kFText, "a computed F is always remembered");
-        char* const digits = p + 2;
-        char* end = nullptr;
-        if (f->text.empty() && f->decimals >= 0) {
-            const double scaled = f->value * 1e1;
-            long long units = 0;
-            if (f->decimals == 1 && std::abs(scaled) < 9999999.5) end = write_units1_small(digits, round_half_away(scaled));
-            else if (to_units(f->value, f->decimals, units)) end = write_units(digits, units, f->decimals);
-        }
-        if (end) {
-            const std::size_t n = std::size_t(end - digits);
-            const bool same = !inverse_time_ && n == last_f_size_ && same_short(digits, last_f_.data(), n);
-            if (!same) {
-                if (!inverse_time_) {
-                    // A fixed size (the line has room for kUnitsChars after `digits`): no memcpy
-                    // call; only the first n bytes are ever read back.
-                    std::memcpy(last_f_.data(), digits, kUnitsChars);
-                    last_f_size_ = n;
-                }
-                p[0] = ' ';
-                p[1] = 'F';
-                p = end;
-            }
-        } else {
-            // Passed text, or a value off the fast path: the text as it will be written.
-            const bool remembered = !f->text.empty() && f->text.size() <= kFText;
-            if (!remembered) {  // too long to remember, or computed: written, nothing remembered
-                last_f_size_ = 0;
-            } else if (!inverse_time_ && f->text == std::string_view(last_f_.data(), last_f_size_)) {
-                f.reset();
-            } else if (!inverse_time_) {
-                std::memcpy(last_f_.data(), f->text.data(), f->text.size());
-                last_f_size_ = f->text.size();
-            }
-            passed_word('F', f);
-        }
-    }
+    if (e) p = put_passed(out, line, p, 'E', *e);
+    if (f) p = put_f(out, line, p, *f);
     // Nothing changed (no word after the command, none flushed to `out` either): no line.
     if (p == line + 2 && out.size() == start) return;
     *p++ = '\n';
-    // A line of up to kBlock characters (most) goes to `out` as a block of that fixed size, copied
-    // without a library call, and `out` is cut back to the line's end (erase to the end is inline).
-    constexpr std::size_t kBlock = 64;
-    static_assert(kLineChars >= kBlock, "the block is read from the line buffer");
-    if (const std::size_t n = std::size_t(p - line); n <= kBlock) {
-        const std::size_t size = out.size();
-        out.append(line, kBlock);
-        out.erase(size + n);
-    } else {
-        out.append(line, p);
-    }
+    append_line(out, line, p);
     ++moves_written_;
 }
 

@@ -69,30 +69,6 @@ protected:
 class JointEmitter {
 public:
     explicit JointEmitter(const Machine& machine);
-    JointEmitter(const JointEmitter&) = default;
-    // The look-back copies the emitter with every line, always from one of the same machine: the
-    // machine's letters and decimals are copied only when the machine differs, what the firmware
-    // was told always. Inline, so the copy is a few stores where it is made.
-    JointEmitter& operator=(const JointEmitter& o) {
-        if (machine_ != o.machine_) {
-            machine_ = o.machine_;
-            joints_ = o.joints_;
-            word_ = o.word_;
-            decimals_ = o.decimals_;
-            absent_ = o.absent_;
-            small_below_ = o.small_below_;
-            wide_below_ = o.wide_below_;
-        }
-        last_ = o.last_;
-        known_ = o.known_;
-        believed_ = o.believed_;
-        last_f_ = o.last_f_;
-        last_f_size_ = o.last_f_size_;
-        inverse_time_ = o.inverse_time_;
-        moves_written_ = o.moves_written_;
-        return *this;
-    }
-
     // "G0"/"G1" with every joint whose printed value changed, then E and F when given. A joint
     // whose firmware position is not known is written when the input commands it (`commanded`)
     // or its value changes. Writes nothing when nothing would change.
@@ -120,8 +96,8 @@ public:
         last_f_size_ = 0;
     }
 
-    // Every piece is shown to `observer` first (null: none). Not copied by operator=: the
-    // look-back's snapshots restore what was written, never who watches.
+    // Every piece is shown to `observer` first (null: none). A copy of the emitter keeps the
+    // same observer.
     void set_observer(PieceObserver* observer) { observer_ = observer; }
 
     // Text passed on to the firmware as it is (a Passthrough command's).
@@ -137,10 +113,14 @@ public:
 private:
     int decimals(std::size_t joint) const { return decimals_[joint]; }
     void format(std::string& text, std::size_t joint, double value) const;
+    // move's parts (emitter.cpp).
+    void write_detour(std::string& out, const std::vector<std::vector<double>>& detour, std::size_t n,
+                      const std::optional<PassedNumber>& f, bool inverse_time);
+    char* put_f(std::string& out, char* line, char* p, const PassedNumber& f);
 
-    // Fixed arrays, not vectors: the look-back copies the emitter with every line, and a copy of
-    // these is one block of memory. Every member is copied by operator= (above): keep it so. A machine has at most 5 joints (the loader checks).
-    const Machine* machine_;  // a pointer, so a copy of the emitter is its whole state (the translator's snapshots)
+    // Fixed arrays, not vectors: a copy of the emitter (the look-back's, before a line that may
+    // travel) is one block of memory.
+    const Machine* machine_;  // a pointer, so a copy of the emitter is its whole state
     std::size_t joints_ = 0;
     // Per joint, from the machine: the start of its word (" " and its output letter, stored at
     // once) and its printed decimals (read on every move).

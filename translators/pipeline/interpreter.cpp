@@ -84,10 +84,10 @@ bool is_axis_letter(const Machine& machine, char c) {
     return c == 'X' || c == 'Y' || c == 'Z' || c == 'I' || c == 'J' || c == 'K' || machine.joint_index(c) >= 0;
 }
 
-inline void Interpreter::read(std::string_view line, std::uint64_t line_no) {
+inline void Interpreter::read(std::string_view line, std::uint64_t line_no, bool nul_after) {
     line_ = line;
     try {
-        lex_line(line, steps_.block);
+        lex_line(line, steps_.block, nul_after);
         if (steps_.block.empty()) return;
         read_commands(steps_.block, extruder_letter_, steps_.commands);
         plan_line(steps_.commands, state_.modes.motion, steps_.move_letters, steps_.position_letters, steps_.plan);
@@ -96,8 +96,8 @@ inline void Interpreter::read(std::string_view line, std::uint64_t line_no) {
     }
 }
 
-void Interpreter::interpret(std::string_view line, std::uint64_t line_no, cmd::CommandList& out) {
-    read(line, line_no);
+void Interpreter::interpret(std::string_view line, std::uint64_t line_no, cmd::CommandList& out, bool nul_after) {
+    read(line, line_no, nul_after);
     out.clear();
     list_ = &out;
     if (steps_.block.empty()) {

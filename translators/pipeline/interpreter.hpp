@@ -70,15 +70,16 @@ public:
     // One line (without '\n') as commands into `out` (cleared first), in order of execution; the
     // modal state changed by it. Throws InputError naming the file, line and column when the
     // line cannot be read (nothing has changed then), LineError(column, cause) when it cannot be
-    // interpreted (the modal state is then the caller's to restore).
-    void interpret(std::string_view line, std::uint64_t line_no, cmd::CommandList& out);
+    // interpreted (the modal state is then the caller's to restore). `nul_after`: a NUL follows
+    // the line (lex_line reads it in place).
+    void interpret(std::string_view line, std::uint64_t line_no, cmd::CommandList& out, bool nul_after = false);
     // The input is compact from its first line, as if it began with the compact declaration (gcode_lexer.hpp).
     void set_compact_words() { steps_.block.compact_words = true; }
     // The line read last takes its text whole (a display or file command: fit_marlin_lines).
     bool text_argument() const { return steps_.block.text_argument; }
 
 private:
-    void read(std::string_view line, std::uint64_t line_no);  // the words and steps: throws InputError
+    void read(std::string_view line, std::uint64_t line_no, bool nul_after);  // the words and steps: throws InputError
     PassedNumber passed_e(const Param& p, bool inches);      // E, in mm (inches: rounded, the rest carried)
     // Text passed on: what `list_` holds from `begin` on, with its effect on the firmware.
     void passed_text(std::size_t begin, cmd::Passthrough::Effect effect = cmd::Passthrough::Effect::None);

@@ -18,7 +18,7 @@
 //    straight line an item lies on does not change along it.
 // Travel moves get R the same way at their end (no split, no turn in place). Moves without an
 // X/Y change keep R. Stateless between moves (everything it needs is in the planner's state), so
-// the look-back's snapshots and replays need nothing from it.
+// the look-back's copies of the state and its replays need nothing from it.
 // May call: the planner; kinematics (the machine's check).
 #pragma once
 #include <cstdint>

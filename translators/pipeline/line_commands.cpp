@@ -312,6 +312,85 @@ void add_modal_motion(LinePlan& out, int motion, Params words) {
     add_step(out, {'G', motion * 10, words.front().column}, words, false);
 }
 
+// A word a move takes: its letters, and R and P on an arc.
+bool is_move_word(char c, std::string_view move_letters, bool arc) {
+    return has_letter(move_letters, c) || (arc && (c == 'R' || c == 'P'));
+}
+
+// One command takes all the words (or none does: the modal motion). A code that takes no words
+// leaves them to the other, on a line of its own.
+void plan_one_owner(const LineCommands& line, int motion, std::string_view position_letters, LinePlan& out) {
+    const Params words = line.params;
+    std::size_t owners = 0, wordless = 0;
+    for (std::size_t i = 0; i < line.count; ++i)
+        if (!line.commands[i].modal_only() && takes_no_words(line.commands[i])) ++wordless;
+    const bool others_take = wordless > 0 && line.count > wordless;  // another command is there to take them
+    const CommandWord* first_owner = nullptr;
+    for (std::size_t i = 0; i < line.count; ++i) {
+        const CommandWord& c = line.commands[i];
+        if (c.modal_only() || (others_take && takes_no_words(c))) continue;
+        if (!first_owner) first_owner = &c;
+        if (++owners == 2 && !words.empty()) {
+            std::string a, b;
+            append_code(a, first_owner->letter, first_owner->code10);
+            append_code(b, c.letter, c.code10);
+            throw LineError(words.front().column, "word " + std::string(1, words.front().letter) + " could belong to " + a + " or to " + b +
+                                                      " (both take words): put each on a line of its own with its words");
+        }
+        if (c.letter == 'M' && !leaves_axis_words(c) && !axis_letters_are_settings(c))
+            for (const auto& p : words)
+                if (has_letter(position_letters, p.letter)) {
+                    std::string code;
+                    append_code(code, c.letter, c.code10);
+                    throw LineError(p.column, "word " + std::string(1, p.letter) + " on a line with " + code +
+                                                  ", a code not known to take axis words: a move goes on a line of its own");
+                }
+    }
+    for (std::size_t i = 0; i < line.count; ++i)
+        add_step(out, line.commands[i], line.commands[i].modal_only() || (others_take && takes_no_words(line.commands[i])) ? Params{} : words,
+                 line.alone());
+    if (!line.has_owner && !words.empty()) add_modal_motion(out, motion, words);
+}
+
+// The move (the line's motion command `motion_cmd`, or -1: the modal `motion`) takes its words;
+// S goes to M3/M4 (else to the line's one M code, else on its own line); the other words go to
+// the line's one M code (`m_codes` of them on the line).
+void plan_split(const LineCommands& line, int motion, int motion_cmd, int m_codes, std::string_view move_letters, bool arc,
+                LinePlan& out) {
+    int speed_taker = -1, word_taker = -1;
+    for (std::size_t i = 0; i < line.count; ++i) {
+        const CommandWord& c = line.commands[i];
+        if (c.letter != 'M') continue;
+        if (speed_taker < 0 && (c.code10 == 30 || c.code10 == 40)) speed_taker = int(i);
+        if (m_codes == 1) word_taker = int(i);
+        out.code_words[i].clear();
+    }
+    if (speed_taker < 0) speed_taker = word_taker;
+    for (const auto& p : line.params) {
+        if (is_move_word(p.letter, move_letters, arc)) {
+            out.move_words.push_back(p);
+        } else if (p.letter == 'S' && speed_taker >= 0) {
+            out.code_words[speed_taker].push_back(p);
+        } else if (p.letter == 'S' && m_codes == 0) {
+            out.speed.push_back(p);
+        } else if (word_taker >= 0) {
+            out.code_words[word_taker].push_back(p);
+        } else if (m_codes == 0) {
+            out.move_words.push_back(p);  // the move names the word it cannot take
+        } else {
+            throw LineError(p.column, "word " + std::string(1, p.letter) + " on a line with several M codes: put the code it belongs to on a line of its own");
+        }
+    }
+    for (std::size_t i = 0; i < line.count; ++i) {
+        const CommandWord& c = line.commands[i];
+        if (c.modal_only()) add_step(out, c, {}, false);
+        else if (c.letter == 'G') add_step(out, c, out.move_words, false);
+        else add_step(out, c, c.letter == 'M' ? Params(out.code_words[i]) : Params{}, false);
+    }
+    if (!out.speed.empty()) add_step(out, {'S', 0, out.speed.front().column}, out.speed, false);
+    if (motion_cmd < 0 && !out.move_words.empty()) add_modal_motion(out, motion, out.move_words);
+}
+
 // Any line but the bulk of a program (plan_line).
 [[gnu::noinline]] void plan_other_line(const LineCommands& line, int motion, std::string_view move_letters, std::string_view position_letters,
                      LinePlan& out) {
@@ -344,81 +423,12 @@ void add_modal_motion(LinePlan& out, int motion, Params words) {
     }
     const int arc_motion = motion_cmd >= 0 ? line.commands[motion_cmd].code10 / 10 : motion;
     const bool arc = arc_motion == 2 || arc_motion == 3;
-    auto is_move_word = [&](char c) { return has_letter(move_letters, c) || (arc && (c == 'R' || c == 'P')); };
     // A motion command moves whatever its words; the letters are looked up only without one.
     bool moves = motion_cmd >= 0;
-    for (std::size_t k = 0; !moves && k < words.size(); ++k) moves = is_move_word(words[k].letter);
+    for (std::size_t k = 0; !moves && k < words.size(); ++k) moves = is_move_word(words[k].letter, move_letters, arc);
     const bool split = all_leave && !other_owner && ((codes >= 1 && moves) || codes >= 2 || (codes == 0 && any_speed && moves));
-
-    if (!split) {
-        // One command takes all the words (or none does: the modal motion). A code that takes no
-        // words leaves them to the other, on a line of its own.
-        std::size_t owners = 0, wordless = 0;
-        for (std::size_t i = 0; i < line.count; ++i)
-            if (!line.commands[i].modal_only() && takes_no_words(line.commands[i])) ++wordless;
-        const bool others_take = wordless > 0 && line.count > wordless;  // another command is there to take them
-        const CommandWord* first_owner = nullptr;
-        for (std::size_t i = 0; i < line.count; ++i) {
-            const CommandWord& c = line.commands[i];
-            if (c.modal_only() || (others_take && takes_no_words(c))) continue;
-            if (!first_owner) first_owner = &c;
-            if (++owners == 2 && !words.empty()) {
-                std::string a, b;
-                append_code(a, first_owner->letter, first_owner->code10);
-                append_code(b, c.letter, c.code10);
-                throw LineError(words.front().column, "word " + std::string(1, words.front().letter) + " could belong to " + a + " or to " + b +
-                                                          " (both take words): put each on a line of its own with its words");
-            }
-            if (c.letter == 'M' && !leaves_axis_words(c) && !axis_letters_are_settings(c))
-                for (const auto& p : words)
-                    if (has_letter(position_letters, p.letter)) {
-                        std::string code;
-                        append_code(code, c.letter, c.code10);
-                        throw LineError(p.column, "word " + std::string(1, p.letter) + " on a line with " + code +
-                                                      ", a code not known to take axis words: a move goes on a line of its own");
-                    }
-        }
-        for (std::size_t i = 0; i < line.count; ++i)
-            add_step(out, line.commands[i], line.commands[i].modal_only() || (others_take && takes_no_words(line.commands[i])) ? Params{} : words,
-                     line.alone());
-        if (!line.has_owner && !words.empty()) add_modal_motion(out, motion, words);
-        return;
-    }
-
-    // The move takes its words; S goes to M3/M4 (else to the line's one M code, else on its own
-    // line); the other words go to the line's one M code.
-    int speed_taker = -1, word_taker = -1;
-    for (std::size_t i = 0; i < line.count; ++i) {
-        const CommandWord& c = line.commands[i];
-        if (c.letter != 'M') continue;
-        if (speed_taker < 0 && (c.code10 == 30 || c.code10 == 40)) speed_taker = int(i);
-        if (m_codes == 1) word_taker = int(i);
-        out.code_words[i].clear();
-    }
-    if (speed_taker < 0) speed_taker = word_taker;
-    for (const auto& p : words) {
-        if (is_move_word(p.letter)) {
-            out.move_words.push_back(p);
-        } else if (p.letter == 'S' && speed_taker >= 0) {
-            out.code_words[speed_taker].push_back(p);
-        } else if (p.letter == 'S' && m_codes == 0) {
-            out.speed.push_back(p);
-        } else if (word_taker >= 0) {
-            out.code_words[word_taker].push_back(p);
-        } else if (m_codes == 0) {
-            out.move_words.push_back(p);  // the move names the word it cannot take
-        } else {
-            throw LineError(p.column, "word " + std::string(1, p.letter) + " on a line with several M codes: put the code it belongs to on a line of its own");
-        }
-    }
-    for (std::size_t i = 0; i < line.count; ++i) {
-        const CommandWord& c = line.commands[i];
-        if (c.modal_only()) add_step(out, c, {}, false);
-        else if (c.letter == 'G') add_step(out, c, out.move_words, false);
-        else add_step(out, c, c.letter == 'M' ? Params(out.code_words[i]) : Params{}, false);
-    }
-    if (!out.speed.empty()) add_step(out, {'S', 0, out.speed.front().column}, out.speed, false);
-    if (motion_cmd < 0 && !out.move_words.empty()) add_modal_motion(out, motion, out.move_words);
+    if (split) plan_split(line, motion, motion_cmd, m_codes, move_letters, arc, out);
+    else plan_one_owner(line, motion, position_letters, out);
 }
 
 }  // namespace

@@ -3,14 +3,23 @@
 // What it may call: see lookback.hpp.
 #include "translators/pipeline/lookback.hpp"
 
+#include <stdexcept>
+#include <utility>
+
 #include "translators/error.hpp"
 
 namespace xlate5 {
 
 LookBack::LookBack(LineStages& stages, ForwardState& state, MoveLog* log)
-    : stages_(stages), state_(state), log_(log), before_line_(state), checkpoint_(state) {
+    : stages_(stages), state_(state), log_(log), win_(state.stages), before_(state.stages) {
     // Moves are held, with look-back or not, at least for their line: a refused line's are dropped with its output.
     if (log_) log_->hold(true);
+}
+
+void LookBack::restart() {
+    win_.from = state_.stages;
+    win_.size = 0;
+    win_.bytes = 0;
 }
 
 namespace {
@@ -30,14 +39,20 @@ void LookBack::set_lines(std::size_t lines, int candidates) {
 
 // Without look-back: the line's output goes out at once; only a travel move that itself runs
 // into a limit unwinds (the planner tries its other ends).
-void LookBack::feed_alone(std::string_view line, std::uint64_t line_no, std::string& out) {
+void LookBack::feed_alone(HeldLine& current, std::uint64_t line_no, std::string& out) {
     LineRun run;
     run.line_no = line_no;
     const std::size_t moves_start = held_moves();
     try {
-        stages_.feed_line(line, run, out);
+        stages_.run(current, run, out);
     } catch (const InputError& e) {
         if (log_) log_->drop_held_from(moves_start);
+        // The line's state is undone, but the emitter keeps what it took the firmware to be told,
+        // the position then unknown (the firmware may have run part of the line).
+        const JointEmitter told = state_.stages.emitter;
+        undo_line(false);
+        state_.stages.emitter = told;
+        stages_.position_unknown();
         if (!run.hit_limit) throw;
         throw InputError(e.file(), e.line(), e.column(),
                          e.message() + (run.linear_limit ? linear_limit_advice()
@@ -45,13 +60,14 @@ void LookBack::feed_alone(std::string_view line, std::uint64_t line_no, std::str
                                                            "within the limits"));
     }
     if (log_) log_->release(held_moves());
+    if (++win_.size >= kMaxUndoLines) restart();
 }
 
 // What a line refused on a joint limit is told to do, after the limit's own message.
 std::string LookBack::refusal_advice(bool linear, bool had_checkpoint) const {
     if (linear) return linear_limit_advice();
     if (had_checkpoint)
-        return "; turning it back on the travel move at line " + std::to_string(checkpoint_line_) +
+        return "; turning it back on the travel move at line " + std::to_string(win_.checkpoint_line) +
                " does not keep the printing from there to here within the limits: add a travel move (G0, or G1 "
                "without E) nearer this line, where the joint can turn back, or plan the path within the limits";
     return "; there is no travel move (G0, or G1 without E) within the " + std::to_string(lines_) +
@@ -60,39 +76,43 @@ std::string LookBack::refusal_advice(bool linear, bool had_checkpoint) const {
 }
 
 void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& out) {
-    if (lines_ == 0) return feed_alone(line, line_no, out);
+    HeldLine& current = next_line();
     LineRun run;
     run.line_no = line_no;
-    before_line_ = state_;
+    modal_ = state_.modal;  // the interpreter's undo: a few bytes (the plane by its stamp)
+    bool copied = false;
+    try {
+        copied = stages_.interpret(line, run, current);
+    } catch (const InputError&) {
+        state_.modal = modal_;
+        throw;
+    }
+    if (lines_ == 0) return feed_alone(current, line_no, out);
+    // A line that may travel may start the next window: the stages' state before it is kept.
+    if (copied) before_ = state_.stages;
     // With no window open nothing is held (held_ is empty): the line's output goes straight to
     // `out`, where only a travel move's has to be taken back into held_ (below). One copy of the
     // output fewer on most lines.
-    const bool direct = !have_checkpoint_;
+    const bool direct = !win_.checkpoint;
     std::string& to = direct ? out : held_;
     const std::size_t held_start = to.size(), moves_start = held_moves();
-    run.pole.seen = have_checkpoint_ ? choices_ : 0;
+    run.pole.seen = win_.checkpoint ? win_.choices : 0;
     const int seen_before = run.pole.seen;
     try {
-        stages_.feed_line(line, run, to, &before_line_.line);  // one copy of the state per line, not two
+        stages_.run(current, run, to);
     } catch (const InputError& e) {
-        if (!run.hit_limit) {
-            // A refused line (the service goes on after one typed in a terminal) leaves nothing
-            // behind: its output was only held, so what the emitter remembers of the firmware is
-            // restored too, the report forgets its moves (an arc's chords before the one refused),
-            // and later lines print as if it never came.
-            state_ = before_line_;
+        // A refused line (the service goes on after one typed in a terminal) leaves nothing
+        // behind: its output was only held, so what the emitter remembers of the firmware is
+        // restored too, the report forgets its moves (an arc's chords before the one refused),
+        // and later lines print as if it never came. One on a limit is refused only when the
+        // window cannot be translated again to fit it (without a window unwind_before refuses at
+        // once, so `to` is still the one written to).
+        const bool limit = run.hit_limit, had_checkpoint = win_.checkpoint, linear = run.linear_limit;
+        if (!limit || !unwind_before(current, line_no, run)) {
             to.resize(held_start);
             if (log_) log_->drop_held_from(moves_start);
-            throw;
-        }
-        const bool had_checkpoint = have_checkpoint_;
-        const bool linear = run.linear_limit;
-        // Without a window there is nothing to unwind (unwind_before refuses at once), so `to` is
-        // still the one written to.
-        if (!unwind_before(line, line_no, run)) {
-            state_ = before_line_;  // as for any refused line (above)
-            to.resize(held_start);
-            if (log_) log_->drop_held_from(moves_start);
+            undo_line(copied);
+            if (!limit) throw;
             throw InputError(e.file(), e.line(), e.column(), e.message() + refusal_advice(linear, had_checkpoint));
         }
     }
@@ -103,54 +123,88 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
     }
     if (run.travels) {
         // A travel move: the next checkpoint. What came before it is final.
+        if (!copied) throw std::logic_error("the look-back kept no state before a travel move");
         release(direct ? 0 : held_start, moves_start, out);
-        checkpoint_ = before_line_;
-        have_checkpoint_ = true;
-        checkpoint_line_ = line_no;
-        chosen_ = -1;
-        flips_ = PoleChoices{};
-        choices_ = run.pole.seen - seen_before;  // the travel line's own choices start the window's count
-        window_text_.clear();
-        window_lines_.clear();
-    } else if (have_checkpoint_) {
-        choices_ = run.pole.seen;
+        start_window(line_no, run.pole.seen - seen_before);  // the travel line's own choices start the window's count
+    } else {
+        if (win_.checkpoint) win_.choices = run.pole.seen;
+        ++win_.size;
+        win_.bytes += current.text.size() + 1;
     }
-    if (!have_checkpoint_ && held_.empty()) {
-        // No window open (most lines): nothing is held, and the window's lists are empty since it
-        // last closed; only the report's moves of this line are final.
+    if (!win_.checkpoint && held_.empty()) {
+        // No window open (most lines without travel moves): nothing is held; only the report's
+        // moves of this line are final. The lines kept to undo a refused one stay few.
         if (log_) log_->release(held_moves());
+        if (win_.size >= kMaxUndoLines) restart();
         return;
     }
-    if (have_checkpoint_) {
-        window_text_.append(line);
-        window_text_ += '\n';
-        window_lines_.push_back(line_no);
-    }
     // Memory stays bounded: past the window (in lines or in bytes) the held lines are final.
-    if (!have_checkpoint_ || window_lines_.size() > lines_ || window_text_.size() > kMaxWindowBytes ||
-        held_.size() > kMaxHeldBytes) {
+    if (!win_.checkpoint || win_.size > lines_ || win_.bytes > kMaxWindowBytes || held_.size() > kMaxHeldBytes) {
         release(held_.size(), held_moves(), out);
-        have_checkpoint_ = false;
-        window_text_.clear();
-        window_lines_.clear();
+        win_.checkpoint = false;
+        restart();
     }
+}
+
+// The current line (a travel move's) starts the window, from the state before it (kept: a line
+// that travels is one that may), `choices` its branch choices near a pole.
+void LookBack::start_window(std::uint64_t line_no, int choices) {
+    std::swap(win_.from, before_);
+    win_.checkpoint = true;
+    win_.checkpoint_line = line_no;
+    win_.chosen = -1;
+    win_.flips = PoleChoices{};
+    win_.choices = choices;
+    std::swap(win_.lines[0], win_.lines[win_.size]);
+    win_.size = 1;
+    win_.bytes = win_.lines[0]->text.size() + 1;
 }
 
 void LookBack::finish(std::string& out) {
     release(held_.size(), held_moves(), out);
-    have_checkpoint_ = false;
-    window_text_.clear();
-    window_lines_.clear();
+    win_.checkpoint = false;
+    restart();
+}
+
+// A refused line leaves the state as before it: the modal state from its copy, the
+// stages' from the copy taken before the line when it may travel, else from the window's start
+// and a quiet replay of the lines since (their output, moves and collisions already told).
+void LookBack::undo_line(bool copied) {
+    state_.modal = modal_;
+    if (copied) {
+        state_.stages = before_;
+        return;
+    }
+    state_.stages = win_.from;
+    if (win_.size == 0) return;
+    const MoveLog::Held kept = log_ ? log_->held() : MoveLog::Held{};
+    struct Quiet {
+        LineStages& stages;
+        explicit Quiet(LineStages& s) : stages(s) { stages.set_quiet(true); }
+        ~Quiet() { stages.set_quiet(false); }
+    } quiet(stages_);
+    PoleChoices pole = win_.checkpoint ? win_.flips : PoleChoices{};
+    pole.seen = 0;
+    for (std::size_t i = 0; i < win_.size; ++i) {
+        LineRun run;
+        run.line_no = win_.lines[i]->line_no;
+        run.pole = pole;
+        if (i == 0 && win_.checkpoint) run.end_candidate = win_.chosen;
+        scratch_.clear();
+        stages_.run(*win_.lines[i], run, scratch_);  // as when it was first run: it cannot fail
+        pole.seen = run.pole.seen;
+    }
+    if (log_) log_->set_held(kept);
 }
 
 // The line at line_no runs a joint past its limit: translate the window again from the
 // checkpoint, its travel move ending on each other solution of its pose in turn (nearest
 // first), until the window and this line fit. On failure everything is as before.
-bool LookBack::unwind_before(std::string_view line, std::uint64_t line_no, LineRun& last) {
-    if (!have_checkpoint_ || window_lines_.empty()) return false;
+bool LookBack::unwind_before(HeldLine& current, std::uint64_t line_no, LineRun& last) {
+    if (!win_.checkpoint || win_.size == 0) return false;
     const std::string held_saved = held_;
     const MoveLog::Held log_saved = log_ ? log_->held() : MoveLog::Held{};
-    const int was = chosen_;
+    const int was = win_.chosen;
     // The travel move's ends in turn, the one it took first (its choices so far kept), then the
     // others. With each, as it is, then with one more branch choice near a pole taken the other
     // way: which branch a printed loop needs where it passes a bounded turning joint's pole can
@@ -166,16 +220,16 @@ bool LookBack::unwind_before(std::string_view line, std::uint64_t line_no, LineR
             const bool taken = k < 0;  // first the end taken (-1 its usual one), then the others
             if (!taken && k == was) continue;
             const int candidate = taken ? was : k;
-            PoleChoices base = taken ? flips_ : PoleChoices{};
+            PoleChoices base = taken ? win_.flips : PoleChoices{};
             base.turns = turns;
             // The end as it is (tried already, for the end taken, by the line's own translation).
             int choices = last.pole.seen;  // the choices up to where the line failed
             // (With turns, the end taken with its flips is another translation than the line's own.)
             if (!taken || (turns && base.n_flips > 0)) {
                 ++replays;
-                if (replay(candidate, base, line, line_no, last, missing)) {
-                    chosen_ = candidate;
-                    flips_ = base;
+                if (replay(candidate, base, current, line_no, last, missing)) {
+                    win_.chosen = candidate;
+                    win_.flips = base;
                     return true;
                 }
                 if (missing) break;
@@ -190,53 +244,48 @@ bool LookBack::unwind_before(std::string_view line, std::uint64_t line_no, LineR
                 flips.flips[flips.n_flips++] = d;
                 bool none = false;
                 ++replays;
-                if (replay(candidate, flips, line, line_no, last, none)) {
-                    chosen_ = candidate;
-                    flips_ = flips;
+                if (replay(candidate, flips, current, line_no, last, none)) {
+                    win_.chosen = candidate;
+                    win_.flips = flips;
                     return true;
                 }
             }
         }
     }
-    state_ = before_line_;
+    // The stages' state is the caller's to restore (undo_line).
     held_ = held_saved;
     if (log_) log_->set_held(log_saved);
     return false;
 }
 
-// The window translated again from the checkpoint, its travel move ending on solution
+// The window's commands run again from the checkpoint, its travel move ending on solution
 // `candidate` (-1: its usual end) and the branch choices in `flips` taken the other way, then the
-// line: true when all of it fits. `missing`: there is no solution `candidate`.
-bool LookBack::replay(int candidate, const PoleChoices& flips, std::string_view line, std::uint64_t line_no, LineRun& last,
+// line's: true when all of it fits. `missing`: there is no solution `candidate`.
+bool LookBack::replay(int candidate, const PoleChoices& flips, HeldLine& current, std::uint64_t line_no, LineRun& last,
                       bool& missing) {
-    state_ = checkpoint_;
+    state_.stages = win_.from;
     held_.clear();
     if (log_) log_->drop_held();
     PoleChoices pole = flips;
     pole.seen = 0;
     try {
-        std::size_t at = 0;
-        bool first = true;
-        for (const std::uint64_t no : window_lines_) {
-            const std::size_t nl = window_text_.find('\n', at);
+        for (std::size_t i = 0; i < win_.size; ++i) {
             LineRun run;
-            run.line_no = no;
+            run.line_no = win_.lines[i]->line_no;
             run.pole = pole;
-            if (first) run.end_candidate = candidate;  // the checkpoint's travel move ends on this solution
-            first = false;
+            if (i == 0) run.end_candidate = candidate;  // the checkpoint's travel move ends on this solution
             try {
-                stages_.feed_line(std::string_view(window_text_).substr(at, nl - at), run, held_);
+                stages_.run(*win_.lines[i], run, held_);
             } catch (const InputError&) {
                 missing = run.candidate_missing;
                 throw;
             }
             pole.seen = run.pole.seen;
-            at = nl + 1;
         }
         last = LineRun{};
         last.line_no = line_no;
         last.pole = pole;
-        stages_.feed_line(line, last, held_);
+        stages_.run(current, last, held_);
     } catch (const InputError&) {
         return false;
     }

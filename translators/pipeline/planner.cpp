@@ -156,6 +156,15 @@ inline MoveSpec planned(const ToolMove& mv, const PlannerState& s, const Pose& n
     return spec;
 }
 
+// A lower bound on the rotary travel of any plan whose moves end on their programmed axes, but
+// within the pole region, where an end may be held off it by up to kPoleHold of the tolerance
+// (as this planner's are): the report's, with the travel's ratio to it. There the tilt joint
+// ends within that of one of the axis's exact solutions and the turning one within
+// asin(sin hold / sin tilt) of it (any angle at a tilt below the hold); the joints travel at
+// least the distance between consecutive ends. The least sum of those distances, each taken
+// less both ends' slacks, over every choice of solution per move (two per axis: a dynamic
+// programme over the moves) is at most any plan's travel. An unbounded turning joint is taken
+// on its nearest turn.
 // Advanced by a move ending on `axis` (pole: the pole's axis): false when the bound does not
 // apply (not two rotaries with the flip) or the axis has no solution inside the limits.
 bool bound_rotary_travel(const Kinematics& kin, const Eigen::Vector3d& pole, PlannerState& state, const Eigen::Vector3d& axis,
@@ -204,6 +213,14 @@ bool bound_rotary_travel(const Kinematics& kin, const Eigen::Vector3d& pole, Pla
     return true;
 }
 
+// G92 for the joints in `which` at `q` (compensated), and E when given.
+void send_joints(CompensationStage& compensation, JointEmitter& emitter, const std::vector<bool>& which,
+                 const std::optional<PassedNumber>& e, const std::vector<double>& q, std::string& out) {
+    const auto sent = compensation.apply(q);
+    if (!sent.ok()) throw LineError(1, sent.why());
+    emitter.set_position(out, q, sent.sent, which, e);
+}
+
 }  // namespace
 
 
@@ -211,7 +228,7 @@ bool bound_rotary_travel(const Kinematics& kin, const Eigen::Vector3d& pole, Pla
 // in `next`; not ok when it cannot be reached or lies outside the limits.
 inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
     PlannerState& s = state_;
-    copy_joints(q_next_, s.q);
+    q_next_ = s.q;
     if (mv.any_rotary) angle_map_.map(s.image, *mv.angles, q_next_);
     end_solved_.valid = false;
     ChosenSolution chosen;  // the solution the rotaries take (a tool vector's): the solve reuses its terms
@@ -297,7 +314,7 @@ int Planner::rezero(std::string& out) {
         q_next_[j] -= 360.0 * turns;
         s.image.shift[k] -= 360.0 * turns;
         s.rezeroed[k] += 360.0 * turns;
-        send_joints(which_, std::nullopt, q_next_, out);
+        send_joints(compensation_, emitter_, which_, std::nullopt, q_next_, out);
         ++rezeros;
     }
     return rezeros;
@@ -380,25 +397,9 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     s.tip_known = s.tip_known || mv.any_xyz;
 }
 
-// A lower bound on the rotary travel of any plan whose moves end on their programmed axes, but
-// within the pole region, where an end may be held off it by up to kPoleHold of the tolerance
-// (as this planner's are): the report's, with the travel's ratio to it. There the tilt joint
-// ends within that of one of the axis's exact solutions and the turning one within
-// asin(sin hold / sin tilt) of it (any angle at a tilt below the hold); the joints travel at
-// least the distance between consecutive ends. The least sum of those distances, each taken
-// less both ends' slacks, over every choice of solution per move (two per axis: a dynamic
-// programme over the moves) is at most any plan's travel. An unbounded turning joint is taken
-// on its nearest turn.
-void Planner::send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
-                          std::string& out) {
-    const auto sent = compensation_.apply(q);
-    if (!sent.ok()) throw LineError(1, sent.why());
-    emitter_.set_position(out, q, sent.sent, which, e);
-}
-
 void Planner::joint_move(const cmd::JointMove& mv, std::string& out) {
     std::vector<double>& q = q_next_;
-    copy_joints(q, state_.q);
+    q = state_.q;
     which_.assign(q.size(), false);
     for (cmd::JointBits b = mv.given; b != 0; b &= b - 1) {
         const std::size_t j = std::size_t(std::countr_zero(b));
@@ -435,7 +436,7 @@ void Planner::set_position(const cmd::SetPosition& set, std::string& out) {
         state_.tip_known = true;
     }
     if (set.e) state_.e = set.e->value;
-    send_joints(which_, set.e, state_.q, out);
+    send_joints(compensation_, emitter_, which_, set.e, state_.q, out);
 }
 
 void Planner::home(const cmd::Home& home) {
@@ -453,7 +454,7 @@ void Planner::home(const cmd::Home& home) {
 }
 
 void Planner::moved_to(const cmd::MovedTo& to) {
-    copy_joints(q_next_, state_.q);
+    q_next_ = state_.q;
     for (cmd::JointBits b = to.given; b != 0; b &= b - 1) {
         const std::size_t j = std::size_t(std::countr_zero(b));
         q_next_[j] = to.q[j];

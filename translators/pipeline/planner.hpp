@@ -38,55 +38,10 @@ struct AngleImage {
     bool operator==(const AngleImage&) const = default;
 };
 
-// to = from, for joint vectors: when the sizes agree (always, after the first move), value by
-// value without a loop (a machine has at most kMaxJoints joints): a loop or
-// vector assignment costs about twice as much for five doubles (versioning, or a call of memmove).
-inline void copy_joints(std::vector<double>& to, const std::vector<double>& from) {
-    const std::size_t n = from.size();
-    static_assert(kMaxJoints == 8, "the switch below copies up to 8 joints");
-    if (to.size() != n || n > kMaxJoints) {
-        to = from;
-        return;
-    }
-    double* d = to.data();
-    const double* s = from.data();
-    switch (n) {
-        case 8: d[7] = s[7]; [[fallthrough]];
-        case 7: d[6] = s[6]; [[fallthrough]];
-        case 6: d[5] = s[5]; [[fallthrough]];
-        case 5: d[4] = s[4]; [[fallthrough]];
-        case 4: d[3] = s[3]; [[fallthrough]];
-        case 3: d[2] = s[2]; [[fallthrough]];
-        case 2: d[1] = s[1]; [[fallthrough]];
-        case 1: d[0] = s[0]; [[fallthrough]];
-        default: break;
-    }
-}
-
-// Joint values whose copy assignment reuses the buffer value by value (copy_joints): the
-// look-back copies the planner's state with every line, and a vector's own assignment calls
-// memmove for five doubles. Otherwise a vector.
-struct JointValues : std::vector<double> {
-    using std::vector<double>::vector;
-    JointValues() = default;
-    JointValues(const std::vector<double>& v) : std::vector<double>(v) {}
-    JointValues(const JointValues&) = default;
-    JointValues(JointValues&&) = default;
-    JointValues& operator=(JointValues&&) = default;
-    JointValues& operator=(const JointValues& o) {
-        copy_joints(*this, o);
-        return *this;
-    }
-    JointValues& operator=(const std::vector<double>& o) {
-        copy_joints(*this, o);
-        return *this;
-    }
-};
-
-// What the planner keeps between moves: where the machine is. (Copied by its members' own
-// copies: a member added later is copied too.)
+// What the planner keeps between moves: where the machine is. A plain value: the look-back
+// copies it before a line that may travel (lookback.hpp).
 struct PlannerState {
-    JointValues q;           // joint values the firmware will be at
+    std::vector<double> q;   // joint values the firmware will be at
     Pose pose;               // tip and tool axis in the part frame
     // The program frame's origin in the part frame (G92 X Y Z under tool-centre-point control).
     Eigen::Vector3d offset = Eigen::Vector3d::Zero();
@@ -180,13 +135,13 @@ public:
     // A mode switch: the programmed angles mean the joints as they are (but for re-zeros).
     void new_mode() { angle_map_.plain(state_); }
 
-    // The programmed angles (G43.4) of the current joints: per joint, rotaries through the image.
-    // Inline, the joints copied through copy_joints.
+    // The programmed angles (G43.4) of the current joints, per joint: the rotaries' through the
+    // image (the plain image gives the joints themselves: (q - 0) * 1 is q, bit for bit). Only
+    // the rotaries' are read (AngleMap), so only they are written.
     void programmed_angles(std::vector<double>& a) const {
-        const std::vector<double>& q = state_.q;
-        copy_joints(a, q);
-        // The plain image gives the joints themselves ((q - 0) * 1 is q, bit for bit).
-        if (!(state_.image == AngleImage{})) angle_map_.unmap(state_.image, q, a);
+        if (a.size() != state_.q.size()) a.resize(state_.q.size());
+        if (!(state_.image == AngleImage{})) return angle_map_.unmap(state_.image, state_.q, a);
+        for (const int j : angle_map_.rot) a[std::size_t(j)] = state_.q[std::size_t(j)];
     }
 
 private:
@@ -194,8 +149,6 @@ private:
     IkResult solve_end(const ToolMove& mv, Pose& next);
     bool other_end(const ToolMove& mv, const Pose& next, bool travel, IkResult& r, LineRun& run, SolutionChange& change);
     int rezero(std::string& out);
-    void send_joints(const std::vector<bool>& which, const std::optional<PassedNumber>& e, const std::vector<double>& q,
-                     std::string& out);
 
     const Kinematics& kin_;
     LimitBox limits_;  // the end of every move is checked against it

@@ -22,46 +22,51 @@ namespace xlate5 {
 struct Translator::Forward final : LineStages {
     Forward(const Kinematics& kin, const TranslatorOptions& o)
         : state(start(kin, o)),
-          saved(state.line),
           log(o.report ? std::make_optional<MoveLog>(*o.report, kin.machine()) : std::nullopt),
-          planner(kin, state.line.planner, state.emitter, log ? &*log : nullptr),
-          resolver(kin.machine(), planner, state.line.planner),
-          interpreter(kin.machine(), state.line.modal, o.input_name, o.extruder_letter),
+          planner(kin, state.stages.planner, state.stages.emitter, log ? &*log : nullptr),
+          resolver(kin.machine(), planner, state.stages.planner),
+          interpreter(kin.machine(), state.modal, o.input_name, o.extruder_letter),
           lookback(*this, state, log ? &*log : nullptr),
           input_name(o.input_name) {
         const FirmwareDialect firmware = kin.machine().dialect.firmware;
         long_lines_matter = firmware == FirmwareDialect::Marlin || firmware == FirmwareDialect::MarlinArticulated;
-        if (o.keep_out) keep_out.emplace(kin, *o.keep_out, state.line.planner, planner);
+        if (o.keep_out) keep_out.emplace(kin, *o.keep_out, state.stages.planner, planner);
         // The collision check watches every piece the emitter writes (collide.hpp).
         if (kin.machine().geometry && o.collision != CollisionPolicy::Off) {
-            collide = std::make_unique<CollisionStage>(kin, o.collision, state.line.collide, state.line.modal.modes, o.reroute, o.lift);
-            // Told with the emitter's count, so the preview marks the written move it belongs to.
+            collide = std::make_unique<CollisionStage>(kin, o.collision, state.stages.collide, line_modes, o.reroute, o.lift);
+            // Told with the emitter's count, so the preview marks the written move it belongs to;
+            // not told again while the look-back replays lines told already.
             if (o.on_collision)
-                collide->on_collision = [emitter = &state.emitter, told = o.on_collision](const CollisionEvent& ev) {
+                collide->on_collision = [emitter = &state.stages.emitter, quiet = &quiet, told = o.on_collision](const CollisionEvent& ev) {
+                    if (*quiet) return;
                     CollisionEvent placed = ev;
                     placed.moves_written = emitter->moves_written();
                     told(placed);
                 };
-            state.emitter.set_observer(collide.get());
+            state.stages.emitter.set_observer(collide.get());
         }
+        lookback.restart();  // its copy of the stages' state, with the observer set
     }
 
     static ForwardState start(const Kinematics& kin, const TranslatorOptions& o) {
         ForwardState s(kin.machine());
-        s.line.planner.q = kin.machine().home_joints();
-        s.line.planner.pose = kin.forward(s.line.planner.q);
-        s.line.modal.mode = o.start_mode.value_or(kin.machine().start_mode);
+        s.stages.planner.q = kin.machine().home_joints();
+        s.stages.planner.pose = kin.forward(s.stages.planner.q);
+        s.modal.mode = o.start_mode.value_or(kin.machine().start_mode);
         return s;
     }
 
-    void feed_line(std::string_view line, LineRun& run, std::string& out, const LineState* before) override;
-    void run_command(const cmd::Command& c, LineRun& run, std::string& out);
+    bool interpret(std::string_view line, const LineRun& run, HeldLine& held) override;
+    bool may_travel(const HeldLine& held) const;
+    void run(const HeldLine& held, LineRun& run, std::string& out) override;
+    void position_unknown() override { planner.position_unknown(); }
+    void set_quiet(bool on) override { quiet = on; }
+    void run_command(const cmd::Command& c, const cmd::CommandList& list, LineRun& run, std::string& out);
     void tool_move(const cmd::ToolMove& mv, LineRun& run, std::string& out);
     void arc(const cmd::Arc& a, LineRun& run, std::string& out);
-    void fit_lines(std::string& out, std::size_t start, std::string_view line, std::uint64_t line_no);
+    void fit_lines(std::string& out, std::size_t start, const HeldLine& held, std::uint64_t line_no);
 
     ForwardState state;
-    LineState saved;  // the state before the current line (when the look-back keeps none)
     std::optional<MoveLog> log;
     Planner planner;
     Resolver resolver;
@@ -69,34 +74,68 @@ struct Translator::Forward final : LineStages {
     Interpreter interpreter;
     LookBack lookback;
     std::unique_ptr<CollisionStage> collide;
-    cmd::CommandList commands;  // the current line's
+    // The modes the collision stage reads E under: the line's being run (HeldLine::e_relative),
+    // which a replay runs after later lines were read.
+    Modes line_modes;
+    bool quiet = false;  // a replay of lines whose collisions were told (LineStages::set_quiet)
     std::string input_name;
     std::function<void(const std::string&)> notice;  // a display text shortened (TranslatorOptions::notice)
     std::uint64_t noticed_line = 0;  // the look-back replays lines: each is told once
     bool long_lines_matter = false;  // the firmware is Marlin's
 };
 
-void Translator::Forward::feed_line(std::string_view line, LineRun& run, std::string& out, const LineState* before) {
-    state.line.collide.line = run.line_no;  // the beads this line lays are its own (collide.hpp)
-    // Nothing is kept of a line that fails: output, joints, pose, modes (from `before`, or a copy
-    // taken here).
-    const std::size_t out_start = out.size();
-    if (!before) {
-        saved = state.line;
-        before = &saved;
-    }
+bool Translator::Forward::interpret(std::string_view line, const LineRun& run, HeldLine& held) {
+    // The commands' passed numbers are views into the text they were read from: the held copy
+    // (which the lexer reads in place, a NUL after it).
+    held.text.assign(line);
+    held.line_no = run.line_no;
     try {
-        interpreter.interpret(line, run.line_no, commands);
-        for (const cmd::Command& c : commands.commands) run_command(c, run, out);
+        interpreter.interpret(held.text, run.line_no, held.commands, true);
+    } catch (const LineError& e) {
+        throw InputError(input_name, run.line_no, e.column(), e.what());
+    }
+    held.text_argument = interpreter.text_argument();
+    held.e_relative = state.modal.modes.e_relative;
+    return may_travel(held);
+}
+
+// A travel move is a tool move that does not extrude (Planner::tool_move): with E followed
+// through the line as the planner follows it, a line whose one tool move prints does not travel.
+// The keep-out stage and an arc cut a move into pieces that may not extrude.
+inline bool Translator::Forward::may_travel(const HeldLine& held) const {
+    if (keep_out) return true;
+    const std::vector<cmd::Command>& commands = held.commands.commands;
+    double e = state.stages.planner.e;
+    if (commands.size() == 1) {  // most lines: one move
+        if (const auto* mv = std::get_if<cmd::ToolMove>(&commands[0])) return !extrudes(mv->e, mv->e_relative, e);
+    }
+    bool travels = false;
+    for (const cmd::Command& c : commands) {
+        if (const auto* mv = std::get_if<cmd::ToolMove>(&c)) {
+            travels = travels || !extrudes(mv->e, mv->e_relative, e);
+            if (mv->e) e = mv->e_relative ? e + mv->e->value : mv->e->value;
+        } else if (const auto* jm = std::get_if<cmd::JointMove>(&c)) {
+            if (jm->e) e = jm->e_relative ? e + jm->e->value : jm->e->value;
+        } else if (const auto* set = std::get_if<cmd::SetPosition>(&c)) {
+            if (set->e) e = set->e->value;
+        } else if (std::holds_alternative<cmd::Arc>(c)) {
+            return true;
+        }
+    }
+    return travels;
+}
+
+void Translator::Forward::run(const HeldLine& held, LineRun& run, std::string& out) {
+    state.stages.collide.line = run.line_no;  // the beads this line lays are its own (collide.hpp)
+    line_modes.e_relative = held.e_relative;
+    const std::size_t out_start = out.size();
+    try {
+        for (const cmd::Command& c : held.commands.commands) run_command(c, held.commands, run, out);
         // Only output of more than 95 characters can hold a line that long (a cheap test per line).
-        if (out.size() - out_start > kMarlinLineChars && long_lines_matter) fit_lines(out, out_start, line, run.line_no);
-    } catch (const InputError&) {
-        throw;  // a line the interpreter cannot read: nothing has changed
+        if (out.size() - out_start > kMarlinLineChars && long_lines_matter) fit_lines(out, out_start, held, run.line_no);
     } catch (...) {
-        // What the firmware was told of a failed line is not known either.
+        // Nothing is kept of a line that fails: its output (the look-back restores the state).
         out.resize(out_start);
-        state.line = *before;
-        planner.position_unknown();
         try {
             throw;
         } catch (const LineError& e) {
@@ -105,13 +144,13 @@ void Translator::Forward::feed_line(std::string_view line, LineRun& run, std::st
     }
 }
 
-void Translator::Forward::run_command(const cmd::Command& c, LineRun& run, std::string& out) {
+void Translator::Forward::run_command(const cmd::Command& c, const cmd::CommandList& list, LineRun& run, std::string& out) {
     if (const auto* mv = std::get_if<cmd::ToolMove>(&c)) return tool_move(*mv, run, out);
     if (const auto* p = std::get_if<cmd::Passthrough>(&c)) {
         using Effect = cmd::Passthrough::Effect;
         if (p->effect == Effect::PositionUnknown) planner.position_unknown();  // the firmware moves where xlate5 cannot follow
-        if (p->effect == Effect::FeedPerMinute || p->effect == Effect::InverseTime) state.emitter.feed_mode_sent(p->effect == Effect::InverseTime);
-        return state.emitter.pass(out, commands.text_of(*p));
+        if (p->effect == Effect::FeedPerMinute || p->effect == Effect::InverseTime) state.stages.emitter.feed_mode_sent(p->effect == Effect::InverseTime);
+        return state.stages.emitter.pass(out, list.text_of(*p));
     }
     if (const auto* a = std::get_if<cmd::Arc>(&c)) return arc(*a, run, out);
     if (const auto* mv = std::get_if<cmd::JointMove>(&c)) return planner.joint_move(*mv, out);
@@ -142,8 +181,8 @@ void Translator::Forward::arc(const cmd::Arc& a, LineRun& run, std::string& out)
     }
 }
 
-void Translator::Forward::fit_lines(std::string& out, std::size_t start, std::string_view line, std::uint64_t line_no) {
-    fit_marlin_lines(out, start, line, interpreter.text_argument(), [&](std::string_view command) {
+void Translator::Forward::fit_lines(std::string& out, std::size_t start, const HeldLine& held, std::uint64_t line_no) {
+    fit_marlin_lines(out, start, held.text, held.text_argument, [&](std::string_view command) {
         if (!notice || line_no <= noticed_line) return;
         noticed_line = line_no;
         notice(input_name + ":" + std::to_string(line_no) + ": note: " + std::string(command) + "'s text shortened to " +
@@ -216,21 +255,22 @@ void Translator::finish(std::string& out) {
 
 void Translator::place_at(const std::vector<double>& q, std::optional<double> e, double within) {
     if (!forward_ || holding()) return;
-    auto& s = forward_->state.line;
+    auto& s = forward_->state.stages;
     bool same = q.size() == s.planner.q.size();
     for (std::size_t j = 0; same && j < q.size(); ++j) same = std::abs(q[j] - s.planner.q[j]) <= within;
     if (!same) forward_->planner.moved_to(q);
     if (e) s.planner.e = *e;
+    forward_->lookback.restart();  // a replay starts from the state as placed
 }
 
-const std::vector<double>& Translator::joints() const { return forward_ ? forward_->state.line.planner.q : inverse_->joints(); }
-const Pose& Translator::pose() const { return forward_ ? forward_->state.line.planner.pose : inverse_->pose(); }
+const std::vector<double>& Translator::joints() const { return forward_ ? forward_->state.stages.planner.q : inverse_->joints(); }
+const Pose& Translator::pose() const { return forward_ ? forward_->state.stages.planner.pose : inverse_->pose(); }
 const Eigen::Vector3d& Translator::program_offset() const {
     static const Eigen::Vector3d kNone = Eigen::Vector3d::Zero();  // joint space has no program frame
-    return forward_ ? forward_->state.line.planner.offset : kNone;
+    return forward_ ? forward_->state.stages.planner.offset : kNone;
 }
 CollisionStage* Translator::collision() { return forward_ ? forward_->collide.get() : nullptr; }
-OrientationMode Translator::mode() const { return forward_ ? forward_->state.line.modal.mode : OrientationMode::Joints; }
-const Modes& Translator::modes() const { return forward_ ? forward_->state.line.modal.modes : inverse_->modes(); }
+OrientationMode Translator::mode() const { return forward_ ? forward_->state.modal.mode : OrientationMode::Joints; }
+const Modes& Translator::modes() const { return forward_ ? forward_->state.modal.modes : inverse_->modes(); }
 
 }  // namespace xlate5
