@@ -47,6 +47,17 @@ inline constexpr bool kAddressSanitized = false;
 // tenth of them (at least one): each case costs some ten times as much under the sanitizers.
 inline constexpr int sampled(int cases) { return kAddressSanitized ? std::max(1, cases / 10) : cases; }
 
+// A long corpus file's first lines: a tenth of them under the sanitizers (as sampled()), all of it
+// in the release tree. For the whole-file tests of a file of tens of thousands of lines.
+inline std::string sampled_lines(const std::string& text) {
+    if (!kAddressSanitized) return text;
+    const auto lines = std::count(text.begin(), text.end(), '\n');
+    std::size_t at = std::string::npos;  // the kept lines' last '\n' (npos + 1 is 0: the search starts at the front)
+    for (auto kept = std::max<decltype(lines)>(1, lines / 10); kept > 0; --kept)
+        if ((at = text.find('\n', at + 1)) == std::string::npos) return text;
+    return text.substr(0, at + 1);
+}
+
 // A whole file as text ("" when it cannot be read).
 inline std::string read(const std::filesystem::path& p) {
     std::ifstream in(p, std::ios::binary);

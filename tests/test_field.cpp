@@ -363,7 +363,11 @@ TEST_CASE("retargeting the S3-DeformFDM ring onto koc5: its parks above koc5's t
     if (xlate5::test::corpus_absent()) return;
     xlate5::test::TempDir dir;
     int rc = 0;
-    const std::filesystem::path ring = xlate5::test::corpus_dir() + "/s3deformfdm/ring_Gcode.txt";
+    // Under the sanitizers, the ring's first tenth (xlate5::test::sampled_lines): its first two parks.
+    const std::filesystem::path whole = xlate5::test::corpus_dir() + "/s3deformfdm/ring_Gcode.txt";
+    const std::string text = xlate5::test::sampled_lines(xlate5::test::read(whole));
+    const std::filesystem::path ring = xlate5::test::kAddressSanitized ? dir.write("ring.txt", text) : whole;
+    const auto ring_lines = std::uint64_t(std::count(text.begin(), text.end(), '\n'));
     const auto ta = run_xlate5("--machine s3deformfdm --extruder-letter A --inverse --preview-form G43.5", ring, dir, rc);
     REQUIRE(rc == 0);
     const auto jb = dir.write("b.gcode", run_xlate5("--machine koc5 --from s3deformfdm --extruder-letter A", ring, dir, rc));
@@ -377,7 +381,10 @@ TEST_CASE("retargeting the S3-DeformFDM ring onto koc5: its parks above koc5's t
         const std::string where = line.substr(0, at);
         held.push_back(where.substr(where.rfind(':') + 1));
     }
-    CHECK(held == std::vector<std::string>{"11", "12", "70467", "70468"});
+    std::vector<std::string> parks;
+    for (const char* at : {"11", "12", "70467", "70468"})
+        if (std::stoull(at) <= ring_lines) parks.push_back(at);
+    CHECK(held == parks);
     const Machine m = machine("koc5");
     const Kinematics k(m);
     std::vector<double> top = m.home_joints();
@@ -714,9 +721,10 @@ TEST_CASE("core-rtheta: a planar line passing near C's axis is followed round, C
         tr.finish(out);
     }
     if (xlate5::test::corpus_absent()) return;
+    // Under the sanitizers their first tenth, which still holds the lines once refused (332 and 1,248).
     for (const std::string name : {"planar/dino_prusaslicer-2.9.2.gcode", "planar/pi_3mm_deformed_tet_cura-5.8.0.gcode"}) {
         CAPTURE(name);
-        const std::string text = xlate5::test::read(std::filesystem::path(xlate5::test::corpus_dir()) / name);
+        const std::string text = xlate5::test::sampled_lines(xlate5::test::read(std::filesystem::path(xlate5::test::corpus_dir()) / name));
         Translator tr(k, {});
         tr.set_lookback(Translator::kDefaultLookback);
         std::string out;
