@@ -349,6 +349,54 @@ TEST_CASE("the report counts every G92 that re-zeroes a wound-up turntable, the 
     }
 }
 
+namespace {
+
+// A program on rw2 (angles mode) with a report, its blank lines the places of refused lines:
+// with `with_refused`, the i-th blank is fed refused[i % size], which must be refused naming
+// joint A; without, a blank is skipped. What the callers compare: the output, the report (its
+// JSON, its plot and its marks' count), the joints and G90/G91 at the end.
+struct RefusedRun {
+    std::string out, report;
+    std::vector<double> joints;
+    bool absolute = false;
+};
+
+RefusedRun run_with_refused(const Machine& m, const Kinematics& k, std::size_t lookback, const std::vector<std::string>& program,
+                            const std::vector<std::string>& refused, bool with_refused) {
+    DeviationReport report("t.gcode", "rw2", m.motion.tolerance, m.motion.angle_tolerance);
+    TranslatorOptions o;
+    o.report = &report;
+    o.start_mode = OrientationMode::Angles;
+    Translator t(k, o);
+    t.set_lookback(lookback);
+    RefusedRun r;
+    std::uint64_t n = 0;
+    int threw = 0, blanks = 0;
+    for (const auto& line : program) {
+        ++n;
+        if (!line.empty()) {
+            t.feed(line, n, r.out);
+        } else if (with_refused) {
+            try {
+                t.feed(refused[std::size_t(blanks) % refused.size()], n, r.out);
+            } catch (const InputError& e) {
+                ++threw;
+                CAPTURE(e.message());
+                CHECK(contains(e.message(), "joint A"));
+            }
+        }
+        blanks += line.empty();
+    }
+    t.finish(r.out);
+    CHECK(threw == (with_refused ? blanks : 0));
+    r.report = report.json() + report.svg() + std::to_string(report.marks().size());
+    r.joints = t.joints();
+    r.absolute = t.modes().absolute;
+    return r;
+}
+
+}  // namespace
+
 TEST_CASE("a refused line's moves leave the report as its output leaves the file (an arc cut short at a limit), with the look-back or not") {
     // rw2's A stops at +-168. An arc under G43.4 turning A from 100 on is refused at the chord that
     // passes 168, after the chords before it were measured. A caller that carries on after the
@@ -368,40 +416,13 @@ TEST_CASE("a refused line's moves leave the report as its output leaves the file
             program[2] = "G0 X115 Y100 Z10 A100 B30";
             refused = "G2 X125 Y100 I5 J0 A520 E1";  // 420 degrees of printing: no solution keeps it within 336
         }
-        auto run = [&](bool with_refused, std::string& out) {
-            DeviationReport report("t.gcode", "rw2", m.motion.tolerance, m.motion.angle_tolerance);
-            TranslatorOptions o;
-            o.report = &report;
-            o.start_mode = OrientationMode::Angles;
-            Translator t(k, o);
-            t.set_lookback(lookback);
-            std::uint64_t n = 0;
-            bool threw = false;
-            for (const auto& line : program) {
-                ++n;
-                if (!line.empty()) t.feed(line, n, out);
-                else if (with_refused) {
-                    try {
-                        t.feed(refused, n, out);
-                    } catch (const InputError& e) {
-                        threw = true;
-                        CAPTURE(e.message());
-                        CHECK(contains(e.message(), "joint A"));
-                    }
-                }
-            }
-            t.finish(out);
-            CHECK(threw == with_refused);
-            std::size_t marks = report.marks().size();
-            return report.json() + report.svg() + std::to_string(marks);
-        };
-        std::string out_with, out_without;
-        const std::string with = run(true, out_with), without = run(false, out_without);
+        const RefusedRun with = run_with_refused(m, k, lookback, program, {refused}, true);
+        const RefusedRun without = run_with_refused(m, k, lookback, program, {refused}, false);
         // Without the look-back what the firmware was told of the refused line is not known
         // (interpreter.cpp): the next line is written with every joint.
-        if (lookback > 0) CHECK(out_with == out_without);
-        else CHECK(out_with.size() > out_without.size());
-        CHECK(with == without);
+        if (lookback > 0) CHECK(with.out == without.out);
+        else CHECK(with.out.size() > without.out.size());
+        CHECK(with.report == without.report);
     }
 }
 
@@ -431,45 +452,16 @@ TEST_CASE("a refused printing line is undone by replaying the lines before it: o
             program.push_back("G1 " + tip(a, z) + " E0.05");
             if (a == 100 || a == 160 || a == 200 || a == 300) program.push_back("");
         }
-        auto run = [&](bool with_refused, std::string& out, std::vector<double>& joints) {
-            DeviationReport report("t.gcode", "rw2", m.motion.tolerance, m.motion.angle_tolerance);
-            TranslatorOptions o;
-            o.report = &report;
-            o.start_mode = OrientationMode::Angles;
-            Translator t(k, o);
-            t.set_lookback(lookback);
-            std::uint64_t n = 0;
-            int threw = 0, blanks = 0;
-            for (const auto& line : program) {
-                ++n;
-                if (!line.empty()) {
-                    t.feed(line, n, out);
-                } else if (with_refused) {
-                    try {
-                        t.feed(refused[std::size_t(blanks) % refused.size()], n, out);
-                    } catch (const InputError& e) {
-                        ++threw;
-                        CAPTURE(e.message());
-                        CHECK(contains(e.message(), "joint A"));
-                    }
-                }
-                blanks += line.empty();
-            }
-            t.finish(out);
-            joints = t.joints();
-            CHECK(threw == (with_refused ? blanks : 0));
-            CHECK(t.modes().absolute);
-            return report.json() + report.svg() + std::to_string(report.marks().size());
-        };
-        std::string out_with, out_without;
-        std::vector<double> joints_with, joints_without;
-        const std::string with = run(true, out_with, joints_with), without = run(false, out_without, joints_without);
-        CHECK(with == without);
-        CHECK(joints_with == joints_without);
+        const RefusedRun with = run_with_refused(m, k, lookback, program, refused, true);
+        const RefusedRun without = run_with_refused(m, k, lookback, program, refused, false);
+        CHECK(with.absolute);
+        CHECK(without.absolute);
+        CHECK(with.report == without.report);
+        CHECK(with.joints == without.joints);
         // Without the look-back what the firmware was told of a refused line is not known: the
         // next line is written with every joint.
-        if (lookback > 0) CHECK(out_with == out_without);
-        else CHECK(out_with.size() > out_without.size());
+        if (lookback > 0) CHECK(with.out == without.out);
+        else CHECK(with.out.size() > without.out.size());
     }
 }
 
