@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iomanip>
 #include <map>
 #include <random>
 #include <regex>
@@ -261,6 +262,57 @@ TEST_CASE("rw2's Z is held to the Ender 5 Pro's 5 mm/s: a fast Z move is written
     REQUIRE(lines.size() == 2);
     CHECK(xlate5::test::words_of(lines[1]).at('Z') == 250);
     CHECK(xlate5::test::words_of(lines[1]).at('F') == 300);  // Z alone: its limit (F6000 before)
+}
+
+TEST_CASE("core-rtheta: a turn of C alone is timed by C, not by the absent Y's last digit") {
+    // A circle of tool-space moves round C's axis at a 5 degree tilt: each is a turn of C alone
+    // (X, Z and B stand still as written). Y is absent (solved within a micron of 0, never
+    // written); counted in the firmware's length, its last-digit flicker made some of these a
+    // 0.00001 mm linear move, written at F0.019: 70 minutes for a 0.3 mm move.
+    constexpr int kMoves = 270;  // 1.33 degrees a move: within the tolerance of C's own arc, no split
+    constexpr double kRadius = 13.66, kZ = 20.16, kTilt = 5, kFeed = 600, kE = 0.000964506164;
+    std::ostringstream in;
+    in << std::fixed << std::setprecision(7) << "G43.5\nM83\n";  // as CAM writes: the axis rounded off C's plane
+    double programmed = 0;  // minutes: the tip's path at the programmed feed
+    for (int k = 0; k <= kMoves; ++k) {
+        const double a = rad(360.0 * k / kMoves);
+        in << "G1 X" << kRadius * std::cos(a) << " Y" << kRadius * std::sin(a) << " Z" << kZ << " I" << -std::sin(rad(kTilt)) * std::cos(a)
+           << " J" << -std::sin(rad(kTilt)) * std::sin(a) << " K" << std::cos(rad(kTilt)) << " E0.000964506164 F600\n";
+        if (k) programmed += 2 * kRadius * std::sin(rad(180.0 / kMoves)) / kFeed;
+    }
+    xlate5::test::TempDir dir;
+    const auto r = xlate5::test::run_xlate5(dir, "--machine core-rtheta", "", {in.str(), false});
+    REQUIRE(r.code == 0);
+    // The written file as RepRapFirmware times it: the XYZ length when a linear axis moves, else
+    // the rotaries' (the machine's dialect), over the modal F.
+    std::map<char, double> q{{'X', 0}, {'Z', 0}, {'B', 0}, {'C', 0}};
+    double f = 0, minutes = 0, e = 0, slowest = 1e300;
+    bool circling = false;
+    for (const auto& line : xlate5::test::lines_of(r.out)) {
+        if (line.rfind("G1 ", 0) != 0) continue;
+        const auto w = xlate5::test::words_of(line);
+        CHECK(!w.count('Y'));
+        const auto before = q;
+        for (auto& [axis, v] : q)
+            if (w.count(axis)) v = w.at(axis);
+        if (w.count('F')) f = w.at('F');
+        const double lin = std::hypot(q['X'] - before.at('X'), q['Z'] - before.at('Z'));
+        const double rot = std::hypot(q['B'] - before.at('B'), q['C'] - before.at('C'));
+        CAPTURE(line);
+        if (w.count('E')) {  // the move onto the start is split in two: its E shared out
+            e += w.at('E');
+            const std::string word = line.substr(line.find(" E") + 2);
+            CHECK(word.substr(0, word.find(' ')).size() <= 14);  // "0." and the programmed 12 decimals
+        }
+        circling = circling || (w.count('C') && !w.count('X') && !w.count('Z'));
+        if (!circling) continue;  // the move onto the circle's start
+        REQUIRE(f > 0);
+        slowest = std::min(slowest, f);
+        minutes += (lin > 0 ? lin : rot) / f;
+    }
+    CHECK(slowest > 1000);  // C's 2516 degrees a minute round a 13.66 mm radius at F600
+    CHECK(minutes == doctest::Approx(programmed).epsilon(0.02));
+    CHECK(e == doctest::Approx((kMoves + 1) * kE).epsilon(1e-12));
 }
 
 namespace {

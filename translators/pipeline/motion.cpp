@@ -261,6 +261,14 @@ namespace {
 // E shared among a move's pieces by tip length: each piece's E at the dialect's decimals, the
 // last one's exactly what the input said (absolute E as written; relative E as what is left), so
 // the pieces add up to the input exactly.
+// Digits after the point of a plain decimal ("-1.250" -> 3, "7" -> 0); -1 for any other form.
+int plain_decimals(std::string_view t) {
+    const std::size_t dot = t.find('.');
+    for (std::size_t i = 0; i < t.size(); ++i)
+        if (i != dot && !(t[i] >= '0' && t[i] <= '9') && !(i == 0 && (t[i] == '-' || t[i] == '+'))) return -1;
+    return t.empty() ? -1 : dot == std::string_view::npos ? 0 : int(t.size() - dot - 1);
+}
+
 class EShare {
 public:
     EShare(const MoveSpec& mv, int decimals) : mv_(mv), ed_(decimals) {
@@ -277,7 +285,10 @@ public:
             const double total = mv.e->value * escale_;
             if (std::abs(total - std::round(total)) < 1e-6)  // E has no more digits than the pieces
                 return PassedNumber{double(std::llround(total) - units_done_) / escale_, {}, ed_};
-            return PassedNumber{mv.e->value - double(units_done_) / escale_, {}};
+            // The rest to the programmed E's own decimals, so the pieces' words add up to it
+            // (unrounded, 0.000964506164 less 0.00048 was written 0.00048450616399999994).
+            const int given = plain_decimals(mv.e->text);
+            return PassedNumber{mv.e->value - double(units_done_) / escale_, {}, given < 0 ? -1 : std::max(given, ed_)};
         }
         const double value = mv.e_relative ? mv.e->value : mv.e->value - mv.e_start;
         const long long upto = std::llround(value * share * escale_);
