@@ -345,7 +345,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         const double* exact = segment_.pieces().exact(std::size_t(k), mv);
         const auto sent = compensation_.apply(std::span<const double>(exact, n));
         if (!sent.ok()) throw LineError(1, sent.why());
-        emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, feed.inverse_time_out);
+        emitter_.move(out, mv.gcode, qk, sent.sent, mv.commanded, e, f, feed.inverse_time_out);
         prev_share = share;
         qprev = qk;
     }

@@ -23,7 +23,7 @@ struct MoveSpec {
     // The position solve's own end, when it gave one: the split bounds the printed end from it
     // instead of an FK (used only when its joints are q1's).
     const Kinematics::SolvedEnd* end = nullptr;
-    const std::vector<bool>* commanded = nullptr;
+    JointBits commanded = 0;  // joints the line names: the emitter writes them when their firmware position is not known
     std::optional<PassedNumber> e;                   // E as written (mm, absolute or relative)
     bool e_relative = false;
     double e_start = 0;                              // absolute E before the move

@@ -42,19 +42,19 @@ void AngleMap::plain(PlannerState& s) const {
     for (std::size_t k = 0; k < rot.size(); ++k) s.image.shift[k] = -s.rezeroed[k];
 }
 
-void AngleMap::forget_rezeros(PlannerState& s, const std::vector<bool>& which) const {
+void AngleMap::forget_rezeros(PlannerState& s, JointBits which) const {
     for (std::size_t k = 0; k < rot.size(); ++k)
-        if (which[std::size_t(rot[k])]) s.rezeroed[k] = 0;
+        if (which >> rot[k] & 1u) s.rezeroed[k] = 0;
 }
 
-void AngleMap::map(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const {
+void AngleMap::map(const AngleImage& image, const Joints& a, std::vector<double>& q) const {
     for (std::size_t k = 0; k < rot.size(); ++k) {
         const std::size_t j = std::size_t(rot[k]);
         q[j] = image.sign[k] * a[j] + image.shift[k];
     }
 }
 
-void AngleMap::unmap(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const {
+void AngleMap::unmap(const AngleImage& image, const std::vector<double>& q, Joints& a) const {
     for (std::size_t k = 0; k < rot.size(); ++k) {
         const std::size_t j = std::size_t(rot[k]);
         a[j] = (q[j] - image.shift[k]) * image.sign[k];
@@ -68,7 +68,7 @@ namespace {
 // an image of the programmed angles (another turn, or the flipped branch), so the moves after it
 // keep their programmed interpolation.
 void end_candidates(const Kinematics& kin, const AngleMap& angles, const PlannerState& state, OrientationMode mode, const Pose& end,
-                    const std::vector<double>& programmed, const std::vector<double>& usual, std::vector<EndCandidate>& candidates) {
+                    const Joints& programmed, const std::vector<double>& usual, std::vector<EndCandidate>& candidates) {
     const Machine& machine = kin.machine();
     candidates.clear();
     const auto& rot = kin.rotary_joints();
@@ -214,7 +214,7 @@ bool bound_rotary_travel(const Kinematics& kin, const Eigen::Vector3d& pole, Pla
 }
 
 // G92 for the joints in `which` at `q` (compensated), and E when given.
-void send_joints(CompensationStage& compensation, JointEmitter& emitter, const std::vector<bool>& which,
+void send_joints(CompensationStage& compensation, JointEmitter& emitter, JointBits which,
                  const std::optional<PassedNumber>& e, const std::vector<double>& q, std::string& out) {
     const auto sent = compensation.apply(q);
     if (!sent.ok()) throw LineError(1, sent.why());
@@ -229,7 +229,7 @@ void send_joints(CompensationStage& compensation, JointEmitter& emitter, const s
 inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
     PlannerState& s = state_;
     q_next_ = s.q;
-    if (mv.any_rotary) angle_map_.map(s.image, *mv.angles, q_next_);
+    if (mv.any_rotary) angle_map_.map(s.image, mv.angles, q_next_);
     end_solved_.valid = false;
     ChosenSolution chosen;  // the solution the rotaries take (a tool vector's): the solve reuses its terms
     // Returned in place (prvalues): no result moved in, nor its message.
@@ -274,7 +274,7 @@ inline bool Planner::other_end(const ToolMove& mv, const Pose& next, bool travel
     const int forced = travel ? run.end_candidate : -1;
     if (travel) run.end_candidate = -1;
     if (!travel || !(forced >= 0 || (!r.ok() && r.status == IkStatus::OutOfLimits))) return false;
-    end_candidates(kin_, angle_map_, state_, mv.mode, next, *mv.angles, q_next_, candidates_);
+    end_candidates(kin_, angle_map_, state_, mv.mode, next, mv.angles, q_next_, candidates_);
     const std::size_t k = forced >= 0 ? std::size_t(forced) : 0;
     if (k >= candidates_.size()) {
         if (forced < 0) return false;
@@ -309,12 +309,10 @@ int Planner::rezero(std::string& out) {
         const Joint& J = kin_.machine().joints[j];
         if (J.rezero_beyond <= 0 || std::abs(q_next_[j]) <= J.rezero_beyond) continue;
         const double turns = std::round(q_next_[j] / 360.0);
-        which_.assign(q_next_.size(), false);
-        which_[j] = true;
         q_next_[j] -= 360.0 * turns;
         s.image.shift[k] -= 360.0 * turns;
         s.rezeroed[k] += 360.0 * turns;
-        send_joints(compensation_, emitter_, which_, std::nullopt, q_next_, out);
+        send_joints(compensation_, emitter_, JointBits(1) << j, std::nullopt, q_next_, out);
         ++rezeros;
     }
     return rezeros;
@@ -400,11 +398,9 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
 void Planner::joint_move(const cmd::JointMove& mv, std::string& out) {
     std::vector<double>& q = q_next_;
     q = state_.q;
-    which_.assign(q.size(), false);
     for (cmd::JointBits b = mv.given; b != 0; b &= b - 1) {
         const std::size_t j = std::size_t(std::countr_zero(b));
         q[j] = mv.relative ? state_.q[j] + mv.q[j] : mv.q[j];
-        which_[j] = true;
     }
     if (auto r = check_limits(kin_.machine(), q); !r.ok()) throw LineError(mv.column, r.message);
     state_.q.assign(q.begin(), q.end());
@@ -413,19 +409,17 @@ void Planner::joint_move(const cmd::JointMove& mv, std::string& out) {
     const auto sent = compensation_.apply(state_.q);
     if (!sent.ok()) throw LineError(1, sent.why());
     // Under G93 every move keeps its F.
-    emitter_.move(out, mv.gcode, state_.q, sent.sent, which_, mv.e, mv.f, mv.inverse_time);
+    emitter_.move(out, mv.gcode, state_.q, sent.sent, mv.given, mv.e, mv.f, mv.inverse_time);
     extruded(mv.e, mv.e_relative);
 }
 
 void Planner::set_position(const cmd::SetPosition& set, std::string& out) {
-    which_.assign(state_.q.size(), false);
     for (cmd::JointBits b = set.which; b != 0; b &= b - 1) {
         const std::size_t j = std::size_t(std::countr_zero(b));
         state_.q[j] = set.q[j];
-        which_[j] = true;
     }
     // The program and the firmware now agree on the joints named.
-    angle_map_.forget_rezeros(state_, which_);
+    angle_map_.forget_rezeros(state_, set.which);
     if (set.which) angle_map_.plain(state_);
     // The machine did not move: its true pose follows from the joints it now says it is at.
     if (set.pose_from_joints) state_.pose = kin_.forward(state_.q);
@@ -436,16 +430,13 @@ void Planner::set_position(const cmd::SetPosition& set, std::string& out) {
         state_.tip_known = true;
     }
     if (set.e) state_.e = set.e->value;
-    send_joints(compensation_, emitter_, which_, set.e, state_.q, out);
+    send_joints(compensation_, emitter_, set.which, set.e, state_.q, out);
 }
 
 void Planner::home(const cmd::Home& home) {
-    which_.assign(state_.q.size(), false);
-    for (std::size_t j = 0; j < state_.q.size(); ++j) {
-        which_[j] = (home.which & (1u << j)) != 0;
-        if (which_[j]) state_.q[j] = kin_.machine().joints[j].home;
-    }
-    angle_map_.forget_rezeros(state_, which_);
+    for (std::size_t j = 0; j < state_.q.size(); ++j)
+        if (home.which & (1u << j)) state_.q[j] = kin_.machine().joints[j].home;
+    angle_map_.forget_rezeros(state_, home.which);
     angle_map_.plain(state_);
     state_.tip_known = false;
     state_.pose = kin_.forward(state_.q);
