@@ -320,10 +320,10 @@ TEST_CASE("seven interior samples per piece do not miss the error: dense samplin
     for (int i = 0; i < 150; ++i) {
         auto q0 = g.random_joints();
         auto q1 = g.step(q0, 60, 20);
-        MoveSpec mv;
+        PlannedMove mv;
         mv.mode = OrientationMode::Angles;
-        mv.q0 = &q0;
-        mv.q1 = &q1;
+        set_joints(mv.q0, q0);
+        set_joints(mv.q1, q1);
         mv.p0 = k.forward(q0);
         mv.p1 = k.forward(q1);
         mv.commanded = commanded;
@@ -357,10 +357,10 @@ TEST_CASE("pieces stay near the minimum: against dense uniform splitting at the 
     for (int i = 0; i < 15; ++i) {
         auto q0 = g.random_joints();
         auto q1 = g.step(q0, 40, 15);
-        MoveSpec mv;
+        PlannedMove mv;
         mv.mode = OrientationMode::Vector;
-        mv.q0 = &q0;
-        mv.q1 = &q1;
+        set_joints(mv.q0, q0);
+        set_joints(mv.q1, q1);
         mv.p0 = k.forward(q0);
         mv.p1 = k.forward(q1);
         mv.commanded = commanded;
@@ -1481,7 +1481,7 @@ TEST_CASE("the pole passage's verdict without a report (fewer points, a bound be
 }
 
 TEST_CASE("the split's ends as printed: its one-pass rounding is to_units' over the power of ten, bit for bit, any value") {
-    // MoveSpec in joint space: split rounds both ends and stops there (one piece, split_joints()
+    // PlannedMove in joint space: split rounds both ends and stops there (one piece, split_joints()
     // is the end as printed). Moves chained from the last end (the one-pass path) and not.
     for (const std::string name : {"rw2", "pentarod", "koc5", "wpi5", "xyzac-trt"}) {
         CAPTURE(name);
@@ -1521,10 +1521,10 @@ TEST_CASE("the split's ends as printed: its one-pass rounding is to_units' over 
             else if (i % 3 == 0) {
                 for (std::size_t j = 0; j < n; ++j) q0[j] = value(m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals);
             } else q0 = prev;          // from the last end (the usual case)
-            MoveSpec mv;
+            PlannedMove mv;
             mv.mode = OrientationMode::Joints;
-            mv.q0 = &q0;
-            mv.q1 = &q1;
+            set_joints(mv.q0, q0);
+            set_joints(mv.q1, q1);
             mv.commanded = all;
             out.clear();
             try {

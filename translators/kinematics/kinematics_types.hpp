@@ -3,6 +3,7 @@
 // solutions of a tool axis, the result of a solve, and angle wrapping. Calls nothing.
 #pragma once
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -23,6 +24,8 @@ using Joints = std::array<double, kMaxJoints>;
 // One bit a joint (bit j: joint j).
 using JointBits = std::uint32_t;
 static_assert(kMaxJoints <= 32, "JointBits holds one bit a joint");
+// The joints of a joint vector (one value a machine joint) into an array's first entries.
+inline void set_joints(Joints& to, const std::vector<double>& from) { std::copy(from.begin(), from.end(), to.begin()); }
 
 // Tip position and tool axis (unit, tip -> holder), both in the part frame.
 struct Pose {

@@ -133,19 +133,19 @@ void end_candidates(const Kinematics& kin, const AngleMap& angles, const Planner
 }
 
 // The planned move handed to the motion stage, from the current joints and pose (`s`) to q1,
-// next; `end` is the position solve's end, `solutions` the end axis's (when the move gives I J K).
-inline MoveSpec planned(const ToolMove& mv, const PlannerState& s, const Pose& next, const std::vector<double>& q1,
-                        const Kinematics::SolvedEnd& end, const Kinematics::Solutions& solutions) {
-    MoveSpec spec;
+// next; `solutions` are the end axis's (when the move gives I J K). Its `end` (the position
+// solve's) is left as the solve wrote it.
+inline void plan_move(const ToolMove& mv, const PlannerState& s, const Pose& next, const std::vector<double>& q1,
+                      const Kinematics::Solutions& solutions, PlannedMove& spec) {
     spec.gcode = mv.gcode;
     // Before the program has placed the tip, the move is a joint move (one piece, F as written).
     spec.mode = (!mv.any_xyz && !s.tip_known) ? OrientationMode::Joints : mv.mode;
-    spec.q0 = &s.q;
+    set_joints(spec.q0, s.q);
     spec.p0 = s.pose;
-    spec.q1 = &q1;
+    set_joints(spec.q1, q1);
     spec.p1 = next;
-    spec.end = &end;  // the stage uses it only while its joints are still q1's
     if (mv.any_ijk) spec.end_solutions = solutions;  // the motion stage asks for them again
+    else spec.end_solutions.reset();
     spec.commanded = mv.commanded;
     spec.e = mv.e;
     spec.e_relative = mv.e_relative;
@@ -153,7 +153,8 @@ inline MoveSpec planned(const ToolMove& mv, const PlannerState& s, const Pose& n
     spec.feed = mv.feed;
     spec.f = mv.f;
     spec.inverse_time = mv.inverse_time && mv.f ? mv.f->value : 0.0;
-    return spec;
+    spec.start_held = false;
+    spec.turn = nullptr;
 }
 
 // A lower bound on the rotary travel of any plan whose moves end on their programmed axes, but
@@ -230,7 +231,7 @@ inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
     PlannerState& s = state_;
     q_next_ = s.q;
     if (mv.any_rotary) angle_map_.map(s.image, mv.angles, q_next_);
-    end_solved_.valid = false;
+    move_.end.valid = false;
     ChosenSolution chosen;  // the solution the rotaries take (a tool vector's): the solve reuses its terms
     // Returned in place (prvalues): no result moved in, nor its message.
     IkResult r = [&] {
@@ -251,12 +252,12 @@ inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
                 // asks for it at the next move's start.
                 Eigen::Vector3d at_end;
                 // r is ok here: only a failure needs moving in.
-                if (auto solved = kin_.solve_position(next.tip, q_next_, &at_end, &end_solved_, chosen); solved.ok())
+                if (auto solved = kin_.solve_position(next.tip, q_next_, &at_end, &move_.end, chosen); solved.ok())
                     pole_hold_.remember_axis(q_next_, at_end);
                 else
                     r = std::move(solved);
                 if (mv.any_rotary) next.axis = at_end;
-            } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr, &end_solved_, chosen); !solved.ok()) {
+            } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr, &move_.end, chosen); !solved.ok()) {
                 r = std::move(solved);  // r is ok here: only a failure needs moving in
             }
             if (mv.any_ijk) next.axis = mv.axis;
@@ -343,7 +344,8 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
         passage = true;
         q_next_ = pole_q_;
     }
-    MoveSpec spec = planned(mv, state_, next, q_next_, end_solved_, end_solutions_);
+    PlannedMove& spec = move_;
+    plan_move(mv, state_, next, q_next_, end_solutions_, spec);
     // An unwinding travel move turns the rotaries linearly from their start to the chosen end
     // (angle form) while the split holds the tip on the straight travel line, rather than
     // reorienting in place at one end: the tip never leaves the path the slicer planned for it

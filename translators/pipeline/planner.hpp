@@ -162,9 +162,9 @@ private:
     std::vector<double> pole_q_;  // scratch: a passage's end
     PoleHold pole_hold_;
     Kinematics::Solutions end_solutions_;  // of the move's end axis (G43.5 with I J K)
-    // The end's position solve with its pose and lever arms (when the solve gives them): the
-    // motion stage bounds the printed end from it instead of an FK.
-    Kinematics::SolvedEnd end_solved_;
+    // The move handed to the motion stage, made in place move after move (its joint arrays are
+    // set once); its `end` is filled by the end's position solve.
+    PlannedMove move_;
     AngleMap angle_map_;
 };
 
