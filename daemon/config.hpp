@@ -13,12 +13,14 @@
 #include <vector>
 
 #include "daemon/firmware_link.hpp"
+#include "daemon/sender_limits.hpp"
 #include "daemon/virtual_printer.hpp"
 #include "translators/machine/machine.hpp"
 
 namespace xlate5 {
 
-struct ServeConfig {
+// Its sender.* settings are the SenderLimits the service takes.
+struct ServeConfig : SenderLimits {
     std::string source;                 // the file it was read from ("" for defaults)
     std::string machine;                // required: no machine decides moves by default
     std::string http;                   // HOST:PORT of the read-only status page; empty: none
@@ -35,12 +37,6 @@ struct ServeConfig {
     std::string pty_group;              // give the pseudo-terminal to this group ("" : the service's own)
     std::string tcp;                    // "host:port" ("" for none)
     bool allow_remote = false;          // binding beyond loopback must be asked for
-    std::size_t queue_lines = 64;
-    double busy_interval = 2;           // seconds between "busy: processing" to a sender held by a full queue
-    double hold_seconds = 1;            // a pause this long in the stream ends the look-back window
-    std::size_t max_pending = 256;      // lines a sender may write ahead before it is read no further
-    std::size_t max_tcp = 16;           // TCP senders at once (each holds a descriptor and buffers)
-    double idle_seconds = 600;          // a TCP sender silent this long, not printing, is disconnected
     double drain_timeout = 60;          // seconds SIGTERM waits for the queue to drain
     // Virtual printer
     SimOptions sim;

@@ -69,12 +69,7 @@ int run_ports() {
 
 void assemble(asio::io_context& io, const ServeConfig& config, const Machine& machine, Assembly& a) {
     ServiceOptions sopt;
-    sopt.queue_lines = config.queue_lines;
-    sopt.busy_interval = config.busy_interval;
-    sopt.hold_seconds = config.hold_seconds;
-    sopt.max_pending = config.max_pending;
-    sopt.max_tcp = config.max_tcp;
-    sopt.idle_seconds = config.idle_seconds;
+    static_cast<SenderLimits&>(sopt) = config;  // the sender.* settings, as they are
     sopt.translator.input_name = "sender";
     sopt.translator.start_mode = config.mode;
     sopt.translator.extruder_letter = config.extruder_letter;

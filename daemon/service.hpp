@@ -18,6 +18,7 @@
 #include "daemon/lifetime.hpp"
 #include "daemon/log_policy.hpp"
 #include "daemon/position_report.hpp"
+#include "daemon/sender_limits.hpp"
 #include "daemon/sender_session.hpp"
 #include "daemon/serve_steps.hpp"
 #include "translators/kinematics/kinematics.hpp"
@@ -26,13 +27,8 @@
 
 namespace xlate5 {
 
-struct ServiceOptions {
-    std::size_t queue_lines = 64;     // translated lines waiting for the firmware before senders are held
-    double busy_interval = marlin::kKeepaliveSeconds;  // seconds between "busy: processing" to a sender held by a full queue
-    double hold_seconds = 1.0;        // a pause this long in the senders' stream ends the look-back window
-    std::size_t max_pending = 256;    // lines of one sender read ahead of the queue before it is read no further
-    std::size_t max_tcp = 16;         // TCP senders at once; more are turned away (docs/limits.md)
-    double idle_seconds = 600;        // a TCP sender silent this long, and not printing, is disconnected
+// The sender limits as serve's settings give them, and the translator's options.
+struct ServiceOptions : SenderLimits {
     TranslatorOptions translator;
 };
 

@@ -145,7 +145,7 @@ TEST_CASE("an emitter copied from another machine's writes as that one, and a co
     const Machine rw2 = load("rw2"), penta = load("pentarod");
     JointEmitter a(rw2), b(penta);
     const std::vector<double> q{10, 20, 30, 40, 50};
-    const std::vector<bool> all(5, true);
+    const JointBits all = 0x1f;
     std::string first;
     a.move(first, 1, std::span(q).first(rw2.joints.size()), std::span(q).first(rw2.joints.size()), all, {}, PassedNumber{1500, "1500"});
     b = a;  // the whole emitter: rw2's letters and decimals, and what it has told the firmware
@@ -169,7 +169,7 @@ TEST_CASE("an emitter copied from another machine's writes as that one, and a co
 TEST_CASE("the emitter's F: a computed one written where it changes, remembered as the passed text is, every move under G93") {
     const Machine m = load("rw2");
     JointEmitter em(m);
-    const std::vector<bool> all(m.joints.size(), true);
+    const JointBits all = (JointBits(1) << m.joints.size()) - 1;
     std::vector<double> q(m.joints.size(), 0.0);
     auto line = [&](double x, std::optional<PassedNumber> f, bool g93 = false) {
         q[0] = x;
@@ -196,7 +196,7 @@ TEST_CASE("the emitter's inline joint, E and F words are what the general format
     const Machine m = load("rw2");
     JointEmitter em(m);
     const std::size_t n = m.joints.size();
-    const std::vector<bool> all(n, true);
+    const JointBits all = (JointBits(1) << n) - 1;
     std::mt19937_64 rng(15);
     auto joint_value = [&]() -> double {
         switch (rng() % 8) {
@@ -271,7 +271,7 @@ TEST_CASE("the emitter's F under G94: written exactly when its text differs from
     const Machine m = load("rw2");
     JointEmitter em(m);
     const std::size_t n = m.joints.size();
-    const std::vector<bool> none(n, false);
+    const JointBits none = 0;
     const std::vector<double> q(n, 0.0);
     std::mt19937_64 rng(16);
     const std::vector<double> pool = {0.0, -0.0, 0.04, 0.05, 0.25, 0.75, 1.0, 12.25, 12.3, 99.95, 1234.5, 6468.46, 6468.5,
@@ -315,18 +315,18 @@ TEST_CASE("seven interior samples per piece do not miss the error: dense samplin
     JointEmitter em(m);
     MotionStage stage(k, em);
     Gen g{m, k, std::mt19937(11)};
-    std::vector<bool> commanded(m.joints.size(), true);
+    const JointBits commanded = (JointBits(1) << m.joints.size()) - 1;
     double worst_ratio = 0;
     for (int i = 0; i < 150; ++i) {
         auto q0 = g.random_joints();
         auto q1 = g.step(q0, 60, 20);
-        MoveSpec mv;
+        PlannedMove mv;
         mv.mode = OrientationMode::Angles;
-        mv.q0 = &q0;
-        mv.q1 = &q1;
+        set_joints(mv.q0, q0);
+        set_joints(mv.q1, q1);
         mv.p0 = k.forward(q0);
         mv.p1 = k.forward(q1);
-        mv.commanded = &commanded;
+        mv.commanded = commanded;
         mv.feed = 1000;
         std::string out;
         REQUIRE(stage.emit(mv, out).ok());
@@ -352,18 +352,18 @@ TEST_CASE("pieces stay near the minimum: against dense uniform splitting at the 
     JointEmitter em(m);
     MotionStage stage(k, em);
     Gen g{m, k, std::mt19937(5)};
-    std::vector<bool> commanded(m.joints.size(), true);
+    const JointBits commanded = (JointBits(1) << m.joints.size()) - 1;
     double total_adaptive = 0, total_uniform = 0;
     for (int i = 0; i < 15; ++i) {
         auto q0 = g.random_joints();
         auto q1 = g.step(q0, 40, 15);
-        MoveSpec mv;
+        PlannedMove mv;
         mv.mode = OrientationMode::Vector;
-        mv.q0 = &q0;
-        mv.q1 = &q1;
+        set_joints(mv.q0, q0);
+        set_joints(mv.q1, q1);
         mv.p0 = k.forward(q0);
         mv.p1 = k.forward(q1);
-        mv.commanded = &commanded;
+        mv.commanded = commanded;
         std::string out;
         MoveResult res;
         if (!stage.emit(mv, out, &res).ok()) continue;
@@ -1481,7 +1481,7 @@ TEST_CASE("the pole passage's verdict without a report (fewer points, a bound be
 }
 
 TEST_CASE("the split's ends as printed: its one-pass rounding is to_units' over the power of ten, bit for bit, any value") {
-    // MoveSpec in joint space: split rounds both ends and stops there (one piece, split_joints()
+    // PlannedMove in joint space: split rounds both ends and stops there (one piece, split_joints()
     // is the end as printed). Moves chained from the last end (the one-pass path) and not.
     for (const std::string name : {"rw2", "pentarod", "koc5", "wpi5", "xyzac-trt"}) {
         CAPTURE(name);
@@ -1510,7 +1510,7 @@ TEST_CASE("the split's ends as printed: its one-pass rounding is to_units' over 
             }
         };
         std::vector<double> q0(n), q1(n), prev(n);
-        std::vector<bool> all(n, true);
+        const JointBits all = (JointBits(1) << n) - 1;
         std::string out;
         for (int i = 0; i < 20000; ++i) {
             for (std::size_t j = 0; j < n; ++j) {
@@ -1521,11 +1521,11 @@ TEST_CASE("the split's ends as printed: its one-pass rounding is to_units' over 
             else if (i % 3 == 0) {
                 for (std::size_t j = 0; j < n; ++j) q0[j] = value(m.joints[j].rotary ? m.dialect.rotary_decimals : m.dialect.linear_decimals);
             } else q0 = prev;          // from the last end (the usual case)
-            MoveSpec mv;
+            PlannedMove mv;
             mv.mode = OrientationMode::Joints;
-            mv.q0 = &q0;
-            mv.q1 = &q1;
-            mv.commanded = &all;
+            set_joints(mv.q0, q0);
+            set_joints(mv.q1, q1);
+            mv.commanded = all;
             out.clear();
             try {
                 stage.emit(mv, out);

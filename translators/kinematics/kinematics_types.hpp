@@ -3,8 +3,11 @@
 // solutions of a tool axis, the result of a solve, and angle wrapping. Calls nothing.
 #pragma once
 #include <Eigen/Core>
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -14,6 +17,15 @@ namespace xlate5 {
 // the split's, the path bound's), so none allocates per move. The emitter refuses a machine with
 // more.
 inline constexpr std::size_t kMaxJoints = 8;
+
+// A value per joint, by joint number, owned by whatever carries it (a command, a planned move):
+// the first machine.joints.size() are read, the rest are left as they are.
+using Joints = std::array<double, kMaxJoints>;
+// One bit a joint (bit j: joint j).
+using JointBits = std::uint32_t;
+static_assert(kMaxJoints <= 32, "JointBits holds one bit a joint");
+// The joints of a joint vector (one value a machine joint) into an array's first entries.
+inline void set_joints(Joints& to, const std::vector<double>& from) { std::copy(from.begin(), from.end(), to.begin()); }
 
 // Tip position and tool axis (unit, tip -> holder), both in the part frame.
 struct Pose {

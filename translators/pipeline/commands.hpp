@@ -23,9 +23,8 @@
 
 namespace xlate5::cmd {
 
-using Joints = std::array<double, kMaxJoints>;
-using JointBits = std::uint32_t;  // one bit a joint
-static_assert(kMaxJoints <= 32, "JointBits holds one bit a joint");
+using xlate5::JointBits;
+using xlate5::Joints;
 
 // X Y Z (mm) as the line gave them, in the frame the input reads them in: the program frame
 // (G92's), or inside a tilted plane the plane's. An axis not given is as before.

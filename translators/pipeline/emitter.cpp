@@ -200,12 +200,11 @@ namespace {
 // A detour the observer asked for, before the piece: checked already, so written without the
 // observer, at the piece's feed, uncompensated (the check re-routes only machines without
 // compensation).
-[[gnu::noinline]] void JointEmitter::write_detour(std::string& out, const std::vector<std::vector<double>>& detour, std::size_t n,
+[[gnu::noinline]] void JointEmitter::write_detour(std::string& out, const std::vector<std::vector<double>>& detour,
                                                   const std::optional<PassedNumber>& f, bool inverse_time) {
     PieceObserver* const watching = observer_;
     observer_ = nullptr;
-    const std::vector<bool> none(n, false);
-    for (const auto& w : detour) move(out, 0, w, w, none, std::nullopt, f, inverse_time);
+    for (const auto& w : detour) move(out, 0, w, w, JointBits(0), std::nullopt, f, inverse_time);
     observer_ = watching;
 }
 
@@ -254,11 +253,11 @@ namespace {
 }
 
 void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, std::span<const double> sent,
-                        const std::vector<bool>& commanded, std::optional<PassedNumber> e, std::optional<PassedNumber> f,
+                        JointBits commanded, std::optional<PassedNumber> e, std::optional<PassedNumber> f,
                         bool inverse_time) {
     if (observer_) {
         if (const auto* detour = observer_->piece(std::span<const double>(believed_.data(), q.size()), q, e))
-            write_detour(out, *detour, q.size(), f, inverse_time);
+            write_detour(out, *detour, f, inverse_time);
     }
     if (inverse_time != inverse_time_) {
         out += inverse_time ? "G93\n" : "G94\n";
@@ -287,7 +286,7 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
         else if ((wide = std::abs(scaled) < wide_below_[j])) units = round_half_away(scaled);
         else fast = to_units(sent[j], d, units);
         if (!fast) units = std::numeric_limits<long long>::min();  // never equal: always written
-        const bool write = known_[j] ? units != last_[j] : (commanded[j] || q[j] != believed_[j]);
+        const bool write = known_[j] ? units != last_[j] : ((commanded >> j & 1u) != 0 || q[j] != believed_[j]);
         believed_[j] = q[j];
         if (!write) continue;
         last_[j] = units;
@@ -317,7 +316,7 @@ void JointEmitter::move(std::string& out, int gcode, std::span<const double> q, 
 }
 
 void JointEmitter::set_position(std::string& out, std::span<const double> q, std::span<const double> sent,
-                                const std::vector<bool>& which, std::optional<PassedNumber> e) {
+                                JointBits which, std::optional<PassedNumber> e) {
     if (observer_ && e) observer_->e_set(e->value);
     // Klipper's G92 reads X Y Z E alone, and one with none of them sets all four to 0: an extra
     // axis is set through its manual stepper, which takes SET_POSITION only while unregistered
@@ -328,7 +327,7 @@ void JointEmitter::set_position(std::string& out, std::span<const double> q, std
     out += "G92";
     const std::size_t empty = out.size();
     for (std::size_t j = 0; j < q.size(); ++j) {
-        if (!which[j] || absent_[j]) continue;
+        if ((which >> j & 1u) == 0 || absent_[j]) continue;
         const Joint& J = machine_->joints[j];
         if (klipper && J.output != 'X' && J.output != 'Y' && J.output != 'Z') {
             long long units = 0;

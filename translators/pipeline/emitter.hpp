@@ -77,12 +77,12 @@ public:
     // believed to be at), `sent` the values written (after the compensation stage; `q` itself
     // when there is none).
     void move(std::string& out, int gcode, std::span<const double> q, std::span<const double> sent,
-              const std::vector<bool>& commanded, std::optional<PassedNumber> e, std::optional<PassedNumber> f,
+              JointBits commanded, std::optional<PassedNumber> e, std::optional<PassedNumber> f,
               bool inverse_time = false);
 
     // "G92" for the joints in `which` (the firmware is told where they are) and E when given.
     void set_position(std::string& out, std::span<const double> q, std::span<const double> sent,
-                      const std::vector<bool>& which, std::optional<PassedNumber> e);
+                      JointBits which, std::optional<PassedNumber> e);
 
     // The firmware's position is not exactly known (start, homing, probing): xlate5 believes it
     // is at `q`. Until written again, a joint is sent only when commanded or changed, so a wrong
@@ -114,8 +114,8 @@ private:
     int decimals(std::size_t joint) const { return decimals_[joint]; }
     void format(std::string& text, std::size_t joint, double value) const;
     // move's parts (emitter.cpp).
-    void write_detour(std::string& out, const std::vector<std::vector<double>>& detour, std::size_t n,
-                      const std::optional<PassedNumber>& f, bool inverse_time);
+    void write_detour(std::string& out, const std::vector<std::vector<double>>& detour, const std::optional<PassedNumber>& f,
+                      bool inverse_time);
     char* put_f(std::string& out, char* line, char* p, const PassedNumber& f);
 
     // Fixed arrays, not vectors: a copy of the emitter (the look-back's, before a line that may

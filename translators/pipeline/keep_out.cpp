@@ -172,14 +172,10 @@ double KeepOutStage::continuous(double from, double r, const Eigen::Vector2d& p,
 }
 
 void KeepOutStage::send(const ToolMove& mv, double r, LineRun& run, std::string& out) {
-    angles_.assign(mv.angles->begin(), mv.angles->end());
-    angles_[std::size_t(r_)] = r;
     ToolMove m = mv;
     m.any_rotary = true;
-    m.angles = &angles_;
-    commanded_.assign(mv.commanded->begin(), mv.commanded->end());
-    commanded_[std::size_t(r_)] = true;
-    m.commanded = &commanded_;
+    m.angles[std::size_t(r_)] = r;
+    m.commanded |= JointBits(1) << r_;
     planner_.tool_move(m, run, out);
 }
 
@@ -243,8 +239,7 @@ void KeepOutStage::turn_in_place(const ToolMove& mv, const Eigen::Vector3d& at, 
     turn.e.reset();
     turn.f.reset();
     turn.e_position = e_at;
-    turn_only_.assign(mv.commanded->size(), false);
-    turn.commanded = &turn_only_;
+    turn.commanded = 0;  // send names R alone
     LineRun turn_run;  // a turn in place is no travel move: it never unwinds
     turn_run.line_no = run.line_no;
     try {

@@ -82,8 +82,7 @@ private:
     const PlannerState& state_;
     Planner& planner_;
     int r_ = -1;  // the rotary joint
-    std::vector<double> angles_, current_;
-    std::vector<bool> commanded_, turn_only_;
+    Joints current_;  // scratch: the programmed angles where the machine is
     std::vector<std::pair<double, int>> pieces_;  // (end parameter, nearest item)
 };
 

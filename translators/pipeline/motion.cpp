@@ -26,11 +26,16 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
       compensation_(kinematics.machine().compensation),
       emitter_(emitter) {}
 
-IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* result, std::vector<double>* ended) {
+IkResult MotionStage::emit(const PlannedMove& mv, std::string& out, MoveResult* result, std::vector<double>* ended) {
     if (mv.end_solutions) segment_.points().remember_solutions(*mv.end_solutions);
+    crossed_ = false;
     IkResult r = emit_move(mv, out, result);
-    if (r.ok() && ended && mv.mode == OrientationMode::Vector)
-        if (const std::vector<double>* moved = segment_.final_joints_moved()) *ended = *moved;
+    // The last part's split ends the move: where a tool vector's continuous solution arrived, or
+    // the other branch a crossing took. A move written whole otherwise ends on its own q1.
+    if (r.ok() && ended && mv.mode == OrientationMode::Vector && (crossed_ || !segment_.pieces().whole())) {
+        const double* end = segment_.pieces().end_exact();
+        ended->assign(end, end + joints_);
+    }
     return r;
 }
 
@@ -39,17 +44,19 @@ IkResult MotionStage::emit(const MoveSpec& mv, std::string& out, MoveResult* res
 // another angle. Turn it first, with the tip and the tool axis held (a re-index about the pole),
 // then make the move; never a jump inside one joint move. True when the move was written that
 // way, or failed (`r` says which). Vector moves, when the machine splits.
-bool MotionStage::leave_pole(const MoveSpec& mv, std::string& out, MoveResult* result, IkResult& r) {
+bool MotionStage::leave_pole(const PlannedMove& mv, std::string& out, MoveResult* result, IkResult& r) {
     std::vector<double>& q_eps = probe_q_;
     // The probe's IK only where it matters: at a pole, on a move that turns.
     const double probe = pole_leaving_probe(segment_.points().solutions_of(mv.p0.axis), kin_.rotary_joints().size(), mv.p0.axis, mv.p1.axis);
-    if (!(probe > 0 && segment_.points().solve_at(mv, probe, *mv.q0, q_eps).ok())) return false;
+    if (!(probe > 0)) return false;
+    const std::vector<double>& q0 = start_of(mv);
+    if (!segment_.points().solve_at(mv, probe, q0, q_eps).ok()) return false;
     std::vector<double> turned;
-    if (r = pole_reindex(kin_, *mv.q0, q_eps, mv.p0.tip, turned); !r.ok()) return true;
+    if (r = pole_reindex(kin_, q0, q_eps, mv.p0.tip, turned); !r.ok()) return true;
     if (turned.empty()) return false;
-    MoveSpec turn = mv;
+    PlannedMove turn = mv;
     turn.mode = OrientationMode::Angles;
-    turn.q1 = &turned;
+    set_joints(turn.q1, turned);
     turn.p1 = mv.p0;
     turn.p1.axis = kin_.forward(turned).axis;
     turn.e.reset();
@@ -58,8 +65,8 @@ bool MotionStage::leave_pole(const MoveSpec& mv, std::string& out, MoveResult* r
     std::string text;
     MoveResult first;
     if (r = emit_one(turn, text, &first); !r.ok()) return true;
-    MoveSpec rest = mv;
-    rest.q0 = &turned;
+    PlannedMove rest = mv;
+    set_joints(rest.q0, turned);
     if (r = emit_one(rest, text, result); !r.ok()) return true;
     out += text;
     if (result) {
@@ -79,7 +86,7 @@ bool MotionStage::leave_pole(const MoveSpec& mv, std::string& out, MoveResult* r
     return true;
 }
 
-inline IkResult MotionStage::emit_move(const MoveSpec& mv, std::string& out, MoveResult* result) {
+inline IkResult MotionStage::emit_move(const PlannedMove& mv, std::string& out, MoveResult* result) {
     split_for_ = nullptr;
     if (mv.turn) return turn_in_place(mv, out, result);
     if (mv.mode == OrientationMode::Vector && machine_.motion.segment) {
@@ -90,12 +97,11 @@ inline IkResult MotionStage::emit_move(const MoveSpec& mv, std::string& out, Mov
         // Across the pole (Isa, Koc 2018, sec. 4.6: C patched linearly through the singular
         // cone): the rotaries turn linearly to the other branch while the split holds the tip
         // on the line; the tool axis stays within the angle tolerance (checked in cross_pole).
-        MoveSpec across = mv;
+        PlannedMove across = mv;
         across.mode = OrientationMode::Angles;
-        across.q1 = &cross_end_;
-        const std::vector<double> end = cross_end_;
+        set_joints(across.q1, cross_end_);
         if (auto r = emit_one(across, out, result); !r.ok()) return r;
-        segment_.ended_at(end);
+        crossed_ = true;
         if (result) {
             result->pole_crossings = 1;
             result->angle_error = std::max(result->angle_error, cross_angle_);
@@ -126,7 +132,7 @@ namespace {
 // A move written as two parts, `first` up to s1 and `rest`: E shared by tip length as emit_one
 // shares it among pieces, the first part's at the dialect's decimals, the rest what is left (the
 // parts add up to the input exactly).
-void share_e(const MoveSpec& mv, double s1, int ed, MoveSpec& first, MoveSpec& rest) {
+void share_e(const PlannedMove& mv, double s1, int ed, PlannedMove& first, PlannedMove& rest) {
     if (!mv.e) return;
     const double escale = std::pow(10.0, ed);
     const double value = mv.e_relative ? mv.e->value : mv.e->value - mv.e_start;
@@ -165,21 +171,19 @@ void add_result(MoveResult& into, const MoveResult& part) {
 }
 }  // namespace
 
-IkResult MotionStage::join_from_held(const MoveSpec& mv, std::string& out, MoveResult* result) {
+IkResult MotionStage::join_from_held(const PlannedMove& mv, std::string& out, MoveResult* result) {
     double worst = 0;
-    const double s1 = pole_join(kin_, *mv.q0, mv.p0.tip, mv.p1.tip, segment_.points().arc_of(mv), cross_scratch_, join_q_, worst);
+    const double s1 = pole_join(kin_, start_of(mv), mv.p0.tip, mv.p1.tip, segment_.points().arc_of(mv), cross_scratch_, join_q_, worst);
     if (s1 == 0) return {IkStatus::Singular, "no join"};
-    const std::vector<double>& q1 = join_q_;
     const Pose mid = segment_.points().pose_at(mv, s1);
-    const std::vector<double> joined = q1;  // a copy: the parts' splits may reuse join_q_
-    MoveSpec first = mv, rest = mv;
+    PlannedMove first = mv, rest = mv;
     first.mode = OrientationMode::Angles;
     first.start_held = false;
-    first.q1 = &joined;
+    set_joints(first.q1, join_q_);
     first.p1 = mid;
-    first.end = nullptr;
+    first.end.valid = false;
     rest.start_held = false;
-    rest.q0 = &joined;
+    rest.q0 = first.q1;
     rest.p0 = mid;
     if (mv.inverse_time > 0) {
         first.inverse_time = mv.inverse_time / s1;
@@ -197,25 +201,25 @@ IkResult MotionStage::join_from_held(const MoveSpec& mv, std::string& out, MoveR
     return {};
 }
 
-IkResult MotionStage::turn_in_place(const MoveSpec& mv, std::string& out, MoveResult* result) {
+IkResult MotionStage::turn_in_place(const PlannedMove& mv, std::string& out, MoveResult* result) {
     const PoleTurn& turn = *mv.turn;
     const double s1 = turn.at;
     const Pose mid{mv.p0.tip + s1 * (mv.p1.tip - mv.p0.tip), kin_.tool_axis(turn.before)};
-    MoveSpec first = mv, in_place = mv, rest = mv;
+    PlannedMove first = mv, in_place = mv, rest = mv;
     first.turn = in_place.turn = rest.turn = nullptr;
-    first.q1 = &turn.before;
+    set_joints(first.q1, turn.before);
     first.p1 = mid;
-    first.end = nullptr;
-    in_place.q0 = &turn.before;
+    first.end.valid = false;
+    in_place.q0 = first.q1;
     in_place.p0 = mid;
-    in_place.q1 = &turn.after;
+    set_joints(in_place.q1, turn.after);
     in_place.p1 = mid;
     in_place.p1.axis = kin_.tool_axis(turn.after);
-    in_place.end = nullptr;
+    in_place.end.valid = false;
     in_place.e.reset();
     in_place.f.reset();
     in_place.inverse_time = 0;
-    rest.q0 = &turn.after;
+    rest.q0 = in_place.q1;
     rest.p0 = in_place.p1;
     if (mv.inverse_time > 0) {
         first.inverse_time = mv.inverse_time / s1;
@@ -237,7 +241,7 @@ IkResult MotionStage::turn_in_place(const MoveSpec& mv, std::string& out, MoveRe
     return {};
 }
 
-bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
+bool MotionStage::cross_pole(const PlannedMove& mv, std::vector<double>& end) {
     if (mv.mode != OrientationMode::Vector || !machine_.motion.segment || kin_.rotary_joints().size() != 2) return false;
     // The continuous branch's split is made first: the way across is taken only when it turns
     // the rotaries clearly less than that split, and when it is not taken the split is kept for
@@ -250,7 +254,7 @@ bool MotionStage::cross_pole(const MoveSpec& mv, std::vector<double>& end) {
         split_for_ = &mv;
         return false;
     }
-    const bool across = pole_crossing(kin_, *mv.q0, mv.p1.tip, segment_.points().arc_of(mv), segment_.points().solutions_of(mv.p1.axis), split_ok, measured,
+    const bool across = pole_crossing(kin_, start_of(mv), mv.p1.tip, segment_.points().arc_of(mv), segment_.points().solutions_of(mv.p1.axis), split_ok, measured,
                                       cross_scratch_, end, cross_angle_);
     if (split_ok && !across) split_for_ = &mv;
     return across;
@@ -271,14 +275,14 @@ int plain_decimals(std::string_view t) {
 
 class EShare {
 public:
-    EShare(const MoveSpec& mv, int decimals) : mv_(mv), ed_(decimals) {
+    EShare(const PlannedMove& mv, int decimals) : mv_(mv), ed_(decimals) {
         // 10^ed from a table for the usual decimals (the same exact value pow gives, without the call).
         static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
         escale_ = ed_ >= 0 && ed_ <= 9 ? kPow10[ed_] : std::pow(10.0, ed_);
     }
     // The E of the piece ending at `share` of the move.
     std::optional<PassedNumber> piece(double share, bool last, int pieces) {
-        const MoveSpec& mv = mv_;
+        const PlannedMove& mv = mv_;
         if (!mv.e) return std::nullopt;
         if (last) {
             if (!mv.e_relative || pieces == 1) return mv.e;
@@ -298,7 +302,7 @@ public:
     }
 
 private:
-    const MoveSpec& mv_;
+    const PlannedMove& mv_;
     int ed_;
     double escale_;
     long long units_done_ = 0;
@@ -307,7 +311,7 @@ private:
 // The feed terms of a move: its duration at the programmed feed (G94) or as given (G93), and
 // whether the firmware is given inverse-time feeds (where it takes them, for tool-space moves
 // that have a duration).
-MoveFeed move_feed(const MoveSpec& mv, const Machine& machine) {
+MoveFeed move_feed(const PlannedMove& mv, const Machine& machine) {
     MoveFeed feed;
     feed.length = (mv.p1.tip - mv.p0.tip).norm();
     if (mv.inverse_time > 0) feed.minutes = 1.0 / mv.inverse_time;
@@ -322,7 +326,7 @@ MoveFeed move_feed(const MoveSpec& mv, const Machine& machine) {
 
 }  // namespace
 
-IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult* result) {
+IkResult MotionStage::emit_one(const PlannedMove& mv, std::string& out, MoveResult* result) {
     if (split_for_ != &mv)
         if (auto r = segment_.split(mv); !r.ok()) return r;
     split_for_ = nullptr;
@@ -353,10 +357,10 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
         // corrected and nothing upstream sees anything but nominal joints.
         // Compensated from the joints as solved: the emitter rounds once (without compensation
         // that gives exactly the rounded joints checked above).
-        const double* exact = segment_.pieces().exact(std::size_t(k), mv);
+        const double* exact = segment_.pieces().exact(std::size_t(k));
         const auto sent = compensation_.apply(std::span<const double>(exact, n));
         if (!sent.ok()) throw LineError(1, sent.why());
-        emitter_.move(out, mv.gcode, qk, sent.sent, *mv.commanded, e, f, feed.inverse_time_out);
+        emitter_.move(out, mv.gcode, qk, sent.sent, mv.commanded, e, f, feed.inverse_time_out);
         prev_share = share;
         qprev = qk;
     }
@@ -364,7 +368,7 @@ IkResult MotionStage::emit_one(const MoveSpec& mv, std::string& out, MoveResult*
     return {};
 }
 
-void MotionStage::measure(const MoveSpec& mv, MoveResult& result) const {
+void MotionStage::measure(const PlannedMove& mv, MoveResult& result) const {
     // The report: deviation of each piece (denser than the split's own check), the tip's real
     // speed along the firmware's path against the programmed feed, and joint travel.
     const std::size_t n = joints_;

@@ -51,13 +51,13 @@ public:
 
     // Splits, feeds and writes the move. On an error (a split point out of reach) nothing is
     // written and the message says where along the move. `ended`, when given, receives the joints
-    // a tool-vector move really ended at (as solved) where they are not move.q1's: its continuous
+    // a tool-vector move really ended at (as solved), which may not be move.q1: its continuous
     // solution arrived on the other branch or another turn, or the pole policy chose another end.
-    IkResult emit(const MoveSpec& move, std::string& out, MoveResult* result = nullptr, std::vector<double>* ended = nullptr);
+    IkResult emit(const PlannedMove& move, std::string& out, MoveResult* result = nullptr, std::vector<double>* ended = nullptr);
 
     // Deviation of the firmware's joint-linear path from qa to qb from the programmed move,
     // between move parameters sa and sb: largest of `samples` interior points (tests use many).
-    void piece_error(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, int samples,
+    void piece_error(const PlannedMove& move, double sa, double sb, const double* qa, const double* qb, int samples,
                      double& tip, double& angle) const {
         segment_.check().piece_error(move, sa, sb, qa, qb, samples, tip, angle);
     }
@@ -67,21 +67,26 @@ public:
     const std::vector<double>& split_joints() const { return segment_.pieces().joints(); }  // pieces x joints
 
 private:
-    IkResult emit_move(const MoveSpec& move, std::string& out, MoveResult* result);
-    bool leave_pole(const MoveSpec& move, std::string& out, MoveResult* result, IkResult& r);
-    IkResult emit_one(const MoveSpec& move, std::string& out, MoveResult* result);
+    IkResult emit_move(const PlannedMove& move, std::string& out, MoveResult* result);
+    bool leave_pole(const PlannedMove& move, std::string& out, MoveResult* result, IkResult& r);
+    IkResult emit_one(const PlannedMove& move, std::string& out, MoveResult* result);
     // Across a pole (pole_policy.hpp: cross): true, with the end on the other branch in `end`,
     // when the policy takes that way; else the continuous branch's split is kept for emit_one.
-    bool cross_pole(const MoveSpec& move, std::vector<double>& end);
+    bool cross_pole(const PlannedMove& move, std::vector<double>& end);
     // From a start held off its axis, when the continuous solution cannot be followed from it
     // (pole_policy.hpp: join): the first part, up to the policy's s1, in angle form with E shared
     // by tip length, then the rest as the usual vector move. Not ok when no s1 does that.
-    IkResult join_from_held(const MoveSpec& move, std::string& out, MoveResult* result);
+    IkResult join_from_held(const PlannedMove& move, std::string& out, MoveResult* result);
     // A passage with a half turn in place (pole_policy.hpp: turn): to the turn's joints, the turn
     // (no E, the tip held), then to the end, each part in angle form, E shared by tip length.
-    IkResult turn_in_place(const MoveSpec& move, std::string& out, MoveResult* result);
+    IkResult turn_in_place(const PlannedMove& move, std::string& out, MoveResult* result);
+    // The move's start joints as a joint vector, for the pole policy (start_q_).
+    const std::vector<double>& start_of(const PlannedMove& move) {
+        start_q_.assign(move.q0.begin(), move.q0.begin() + std::ptrdiff_t(joints_));
+        return start_q_;
+    }
     // The report's figures of the pieces just written.
-    void measure(const MoveSpec& move, MoveResult& result) const;
+    void measure(const PlannedMove& move, MoveResult& result) const;
 
     const Kinematics& kin_;
     const Machine& machine_;
@@ -90,10 +95,12 @@ private:
     FeedRule feed_rule_;
     CompensationStage compensation_;
     JointEmitter& emitter_;
-    const MoveSpec* split_for_ = nullptr;  // the move whose split segment_ holds already (cross_pole made it)
+    const PlannedMove* split_for_ = nullptr;  // the move whose split segment_ holds already (cross_pole made it)
     PoleScratch cross_scratch_;
     std::vector<double> cross_end_, join_q_, probe_q_;  // the ends the pole policy chose; its probe
+    std::vector<double> start_q_;  // see start_of
     double cross_angle_ = 0;  // the axis deviation of the last crossing found
+    bool crossed_ = false;    // the move being written crossed the pole (its end is cross_end_)
     std::vector<double> piece_time_;  // minutes each piece of the last move takes
 };
 

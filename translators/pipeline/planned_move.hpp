@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The planner's output, the value the motion stage takes: a tool-space move solved at both ends
-// (joints and poses), with its E and feed terms.
+// (joints and poses), with its E and feed terms. It owns its joints (the machine's first n of
+// each array), so a stage may keep it, cut it into parts or hand it on.
 #pragma once
 #include <optional>
 #include <vector>
@@ -13,17 +14,17 @@ namespace xlate5 {
 
 struct PoleTurn;
 
-struct MoveSpec {
+struct PlannedMove {
     int gcode = 1;
     OrientationMode mode = OrientationMode::Angles;  // how the move is interpolated in tool space
-    const std::vector<double>* q0 = nullptr;         // start joints and pose
+    Joints q0{};                                     // start joints and pose
     Pose p0;
-    const std::vector<double>* q1 = nullptr;         // end joints (solved) and pose
+    Joints q1{};                                     // end joints (solved) and pose
     Pose p1;
-    // The position solve's own end, when it gave one: the split bounds the printed end from it
-    // instead of an FK (used only when its joints are q1's).
-    const Kinematics::SolvedEnd* end = nullptr;
-    const std::vector<bool>* commanded = nullptr;
+    // The position solve's own end, when it gave one (valid): the split bounds the printed end
+    // from it instead of an FK (used only when its joints are q1's).
+    Kinematics::SolvedEnd end;
+    JointBits commanded = 0;  // joints the line names: the emitter writes them when their firmware position is not known
     std::optional<PassedNumber> e;                   // E as written (mm, absolute or relative)
     bool e_relative = false;
     double e_start = 0;                              // absolute E before the move

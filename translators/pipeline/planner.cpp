@@ -42,19 +42,19 @@ void AngleMap::plain(PlannerState& s) const {
     for (std::size_t k = 0; k < rot.size(); ++k) s.image.shift[k] = -s.rezeroed[k];
 }
 
-void AngleMap::forget_rezeros(PlannerState& s, const std::vector<bool>& which) const {
+void AngleMap::forget_rezeros(PlannerState& s, JointBits which) const {
     for (std::size_t k = 0; k < rot.size(); ++k)
-        if (which[std::size_t(rot[k])]) s.rezeroed[k] = 0;
+        if (which >> rot[k] & 1u) s.rezeroed[k] = 0;
 }
 
-void AngleMap::map(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const {
+void AngleMap::map(const AngleImage& image, const Joints& a, std::vector<double>& q) const {
     for (std::size_t k = 0; k < rot.size(); ++k) {
         const std::size_t j = std::size_t(rot[k]);
         q[j] = image.sign[k] * a[j] + image.shift[k];
     }
 }
 
-void AngleMap::unmap(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const {
+void AngleMap::unmap(const AngleImage& image, const std::vector<double>& q, Joints& a) const {
     for (std::size_t k = 0; k < rot.size(); ++k) {
         const std::size_t j = std::size_t(rot[k]);
         a[j] = (q[j] - image.shift[k]) * image.sign[k];
@@ -68,7 +68,7 @@ namespace {
 // an image of the programmed angles (another turn, or the flipped branch), so the moves after it
 // keep their programmed interpolation.
 void end_candidates(const Kinematics& kin, const AngleMap& angles, const PlannerState& state, OrientationMode mode, const Pose& end,
-                    const std::vector<double>& programmed, const std::vector<double>& usual, std::vector<EndCandidate>& candidates) {
+                    const Joints& programmed, const std::vector<double>& usual, std::vector<EndCandidate>& candidates) {
     const Machine& machine = kin.machine();
     candidates.clear();
     const auto& rot = kin.rotary_joints();
@@ -133,19 +133,19 @@ void end_candidates(const Kinematics& kin, const AngleMap& angles, const Planner
 }
 
 // The planned move handed to the motion stage, from the current joints and pose (`s`) to q1,
-// next; `end` is the position solve's end, `solutions` the end axis's (when the move gives I J K).
-inline MoveSpec planned(const ToolMove& mv, const PlannerState& s, const Pose& next, const std::vector<double>& q1,
-                        const Kinematics::SolvedEnd& end, const Kinematics::Solutions& solutions) {
-    MoveSpec spec;
+// next; `solutions` are the end axis's (when the move gives I J K). Its `end` (the position
+// solve's) is left as the solve wrote it.
+inline void plan_move(const ToolMove& mv, const PlannerState& s, const Pose& next, const std::vector<double>& q1,
+                      const Kinematics::Solutions& solutions, PlannedMove& spec) {
     spec.gcode = mv.gcode;
     // Before the program has placed the tip, the move is a joint move (one piece, F as written).
     spec.mode = (!mv.any_xyz && !s.tip_known) ? OrientationMode::Joints : mv.mode;
-    spec.q0 = &s.q;
+    set_joints(spec.q0, s.q);
     spec.p0 = s.pose;
-    spec.q1 = &q1;
+    set_joints(spec.q1, q1);
     spec.p1 = next;
-    spec.end = &end;  // the stage uses it only while its joints are still q1's
     if (mv.any_ijk) spec.end_solutions = solutions;  // the motion stage asks for them again
+    else spec.end_solutions.reset();
     spec.commanded = mv.commanded;
     spec.e = mv.e;
     spec.e_relative = mv.e_relative;
@@ -153,7 +153,8 @@ inline MoveSpec planned(const ToolMove& mv, const PlannerState& s, const Pose& n
     spec.feed = mv.feed;
     spec.f = mv.f;
     spec.inverse_time = mv.inverse_time && mv.f ? mv.f->value : 0.0;
-    return spec;
+    spec.start_held = false;
+    spec.turn = nullptr;
 }
 
 // A lower bound on the rotary travel of any plan whose moves end on their programmed axes, but
@@ -214,7 +215,7 @@ bool bound_rotary_travel(const Kinematics& kin, const Eigen::Vector3d& pole, Pla
 }
 
 // G92 for the joints in `which` at `q` (compensated), and E when given.
-void send_joints(CompensationStage& compensation, JointEmitter& emitter, const std::vector<bool>& which,
+void send_joints(CompensationStage& compensation, JointEmitter& emitter, JointBits which,
                  const std::optional<PassedNumber>& e, const std::vector<double>& q, std::string& out) {
     const auto sent = compensation.apply(q);
     if (!sent.ok()) throw LineError(1, sent.why());
@@ -229,8 +230,8 @@ void send_joints(CompensationStage& compensation, JointEmitter& emitter, const s
 inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
     PlannerState& s = state_;
     q_next_ = s.q;
-    if (mv.any_rotary) angle_map_.map(s.image, *mv.angles, q_next_);
-    end_solved_.valid = false;
+    if (mv.any_rotary) angle_map_.map(s.image, mv.angles, q_next_);
+    move_.end.valid = false;
     ChosenSolution chosen;  // the solution the rotaries take (a tool vector's): the solve reuses its terms
     // Returned in place (prvalues): no result moved in, nor its message.
     IkResult r = [&] {
@@ -251,12 +252,12 @@ inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
                 // asks for it at the next move's start.
                 Eigen::Vector3d at_end;
                 // r is ok here: only a failure needs moving in.
-                if (auto solved = kin_.solve_position(next.tip, q_next_, &at_end, &end_solved_, chosen); solved.ok())
+                if (auto solved = kin_.solve_position(next.tip, q_next_, &at_end, &move_.end, chosen); solved.ok())
                     pole_hold_.remember_axis(q_next_, at_end);
                 else
                     r = std::move(solved);
                 if (mv.any_rotary) next.axis = at_end;
-            } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr, &end_solved_, chosen); !solved.ok()) {
+            } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr, &move_.end, chosen); !solved.ok()) {
                 r = std::move(solved);  // r is ok here: only a failure needs moving in
             }
             if (mv.any_ijk) next.axis = mv.axis;
@@ -274,7 +275,7 @@ inline bool Planner::other_end(const ToolMove& mv, const Pose& next, bool travel
     const int forced = travel ? run.end_candidate : -1;
     if (travel) run.end_candidate = -1;
     if (!travel || !(forced >= 0 || (!r.ok() && r.status == IkStatus::OutOfLimits))) return false;
-    end_candidates(kin_, angle_map_, state_, mv.mode, next, *mv.angles, q_next_, candidates_);
+    end_candidates(kin_, angle_map_, state_, mv.mode, next, mv.angles, q_next_, candidates_);
     const std::size_t k = forced >= 0 ? std::size_t(forced) : 0;
     if (k >= candidates_.size()) {
         if (forced < 0) return false;
@@ -309,12 +310,10 @@ int Planner::rezero(std::string& out) {
         const Joint& J = kin_.machine().joints[j];
         if (J.rezero_beyond <= 0 || std::abs(q_next_[j]) <= J.rezero_beyond) continue;
         const double turns = std::round(q_next_[j] / 360.0);
-        which_.assign(q_next_.size(), false);
-        which_[j] = true;
         q_next_[j] -= 360.0 * turns;
         s.image.shift[k] -= 360.0 * turns;
         s.rezeroed[k] += 360.0 * turns;
-        send_joints(compensation_, emitter_, which_, std::nullopt, q_next_, out);
+        send_joints(compensation_, emitter_, JointBits(1) << j, std::nullopt, q_next_, out);
         ++rezeros;
     }
     return rezeros;
@@ -345,7 +344,8 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
         passage = true;
         q_next_ = pole_q_;
     }
-    MoveSpec spec = planned(mv, state_, next, q_next_, end_solved_, end_solutions_);
+    PlannedMove& spec = move_;
+    plan_move(mv, state_, next, q_next_, end_solutions_, spec);
     // An unwinding travel move turns the rotaries linearly from their start to the chosen end
     // (angle form) while the split holds the tip on the straight travel line, rather than
     // reorienting in place at one end: the tip never leaves the path the slicer planned for it
@@ -400,11 +400,9 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
 void Planner::joint_move(const cmd::JointMove& mv, std::string& out) {
     std::vector<double>& q = q_next_;
     q = state_.q;
-    which_.assign(q.size(), false);
     for (cmd::JointBits b = mv.given; b != 0; b &= b - 1) {
         const std::size_t j = std::size_t(std::countr_zero(b));
         q[j] = mv.relative ? state_.q[j] + mv.q[j] : mv.q[j];
-        which_[j] = true;
     }
     if (auto r = check_limits(kin_.machine(), q); !r.ok()) throw LineError(mv.column, r.message);
     state_.q.assign(q.begin(), q.end());
@@ -413,19 +411,17 @@ void Planner::joint_move(const cmd::JointMove& mv, std::string& out) {
     const auto sent = compensation_.apply(state_.q);
     if (!sent.ok()) throw LineError(1, sent.why());
     // Under G93 every move keeps its F.
-    emitter_.move(out, mv.gcode, state_.q, sent.sent, which_, mv.e, mv.f, mv.inverse_time);
+    emitter_.move(out, mv.gcode, state_.q, sent.sent, mv.given, mv.e, mv.f, mv.inverse_time);
     extruded(mv.e, mv.e_relative);
 }
 
 void Planner::set_position(const cmd::SetPosition& set, std::string& out) {
-    which_.assign(state_.q.size(), false);
     for (cmd::JointBits b = set.which; b != 0; b &= b - 1) {
         const std::size_t j = std::size_t(std::countr_zero(b));
         state_.q[j] = set.q[j];
-        which_[j] = true;
     }
     // The program and the firmware now agree on the joints named.
-    angle_map_.forget_rezeros(state_, which_);
+    angle_map_.forget_rezeros(state_, set.which);
     if (set.which) angle_map_.plain(state_);
     // The machine did not move: its true pose follows from the joints it now says it is at.
     if (set.pose_from_joints) state_.pose = kin_.forward(state_.q);
@@ -436,16 +432,13 @@ void Planner::set_position(const cmd::SetPosition& set, std::string& out) {
         state_.tip_known = true;
     }
     if (set.e) state_.e = set.e->value;
-    send_joints(compensation_, emitter_, which_, set.e, state_.q, out);
+    send_joints(compensation_, emitter_, set.which, set.e, state_.q, out);
 }
 
 void Planner::home(const cmd::Home& home) {
-    which_.assign(state_.q.size(), false);
-    for (std::size_t j = 0; j < state_.q.size(); ++j) {
-        which_[j] = (home.which & (1u << j)) != 0;
-        if (which_[j]) state_.q[j] = kin_.machine().joints[j].home;
-    }
-    angle_map_.forget_rezeros(state_, which_);
+    for (std::size_t j = 0; j < state_.q.size(); ++j)
+        if (home.which & (1u << j)) state_.q[j] = kin_.machine().joints[j].home;
+    angle_map_.forget_rezeros(state_, home.which);
     angle_map_.plain(state_);
     state_.tip_known = false;
     state_.pose = kin_.forward(state_.q);

@@ -81,10 +81,10 @@ struct ToolMove {
     bool any_xyz = false;
     Eigen::Vector3d tip = Eigen::Vector3d::Zero();   // part frame (the current tip when no X Y Z)
     bool any_rotary = false;
-    const std::vector<double>* angles = nullptr;     // programmed angle per joint (rotaries): under G43.4 the words, or the current ones; not filled under G43.5 (tool-vector mode), where nothing reads them
+    Joints angles;  // programmed angle per joint (rotaries): under G43.4 the words, or the current ones; not filled under G43.5 (tool-vector mode), where nothing reads them
     bool any_ijk = false;
     Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // G43.5: the tool axis, unit (when any_ijk)
-    const std::vector<bool>* commanded = nullptr;    // joints the line names (directly or through the tip)
+    JointBits commanded = 0;  // joints the line names (directly or through the tip), the machine's only
     std::optional<PassedNumber> e, f;
     bool e_relative = false;
     double e_position = 0;   // absolute E before the move
@@ -96,11 +96,11 @@ struct ToolMove {
 // rotary_joints(), in that order).
 struct AngleMap {
     const std::vector<int>& rot;
-    void map(const AngleImage& image, const std::vector<double>& a, std::vector<double>& q) const;
-    void unmap(const AngleImage& image, const std::vector<double>& q, std::vector<double>& a) const;
+    void map(const AngleImage& image, const Joints& a, std::vector<double>& q) const;
+    void unmap(const AngleImage& image, const std::vector<double>& q, Joints& a) const;
     // The image with no other turn or branch chosen: identity, but for the turns re-zeros took off.
     void plain(PlannerState& s) const;
-    void forget_rezeros(PlannerState& s, const std::vector<bool>& which) const;  // joints the program has just set
+    void forget_rezeros(PlannerState& s, JointBits which) const;  // joints the program has just set
 };
 
 // Another end a travel move may take (end_candidates, planner.cpp): its joints and, under G43.4, the
@@ -138,8 +138,7 @@ public:
     // The programmed angles (G43.4) of the current joints, per joint: the rotaries' through the
     // image (the plain image gives the joints themselves: (q - 0) * 1 is q, bit for bit). Only
     // the rotaries' are read (AngleMap), so only they are written.
-    void programmed_angles(std::vector<double>& a) const {
-        if (a.size() != state_.q.size()) a.resize(state_.q.size());
+    void programmed_angles(Joints& a) const {
         if (!(state_.image == AngleImage{})) return angle_map_.unmap(state_.image, state_.q, a);
         for (const int j : angle_map_.rot) a[std::size_t(j)] = state_.q[std::size_t(j)];
     }
@@ -159,14 +158,13 @@ private:
     MotionStage motion_;
     MoveResult move_result_;
     std::vector<double> q_next_;    // scratch: the move being solved
-    std::vector<bool> which_;       // scratch: joints a re-zero tells the firmware about
     std::vector<EndCandidate> candidates_;
     std::vector<double> pole_q_;  // scratch: a passage's end
     PoleHold pole_hold_;
     Kinematics::Solutions end_solutions_;  // of the move's end axis (G43.5 with I J K)
-    // The end's position solve with its pose and lever arms (when the solve gives them): the
-    // motion stage bounds the printed end from it instead of an FK.
-    Kinematics::SolvedEnd end_solved_;
+    // The move handed to the motion stage, made in place move after move (its joint arrays are
+    // set once); its `end` is filled by the end's position solve.
+    PlannedMove move_;
     AngleMap angle_map_;
 };
 

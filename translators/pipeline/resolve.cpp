@@ -13,10 +13,8 @@
 namespace xlate5 {
 
 Resolver::Resolver(const Machine& machine, const Planner& planner, const PlannerState& state)
-    : machine_(machine), planner_(planner), state_(state), commanded_(machine.joints.size(), false) {
+    : machine_(machine), planner_(planner), state_(state) {
     for (std::size_t j = 0; j < machine.joints.size(); ++j) joint_bits_ |= 1u << j;
-    resolved_.angles = &angles_;
-    resolved_.commanded = &commanded_;
 }
 
 int Resolver::start_arc(const cmd::Arc& c) {
@@ -59,7 +57,7 @@ cmd::ToolMove Resolver::chord(int k) const {
     mv.xyz.given = 7;
     mv.plane = a.tilted;
     mv.reads_angles = a.mode != OrientationMode::Vector;
-    const std::vector<double>& q_start = arc_angles_;
+    const Joints& q_start = arc_angles_;
     for (cmd::JointBits b = a.angles_given; b != 0; b &= b - 1) {
         const std::size_t j = std::size_t(std::countr_zero(b));
         const double target = a.absolute ? a.angles[j] : q_start[j] + a.angles[j];

@@ -39,16 +39,11 @@ private:
     const Planner& planner_;
     const PlannerState& state_;
     ToolMove resolved_;
-    std::vector<double> angles_;  // the programmed angles of the move resolved last
     cmd::JointBits joint_bits_ = 0;  // one bit for each of the machine's joints
-    // Its commanded joints (ToolMove::commanded), rewritten from one bit a joint, and those bits:
-    // only a flag that changed is written (a program names the same axes move after move).
-    std::vector<bool> commanded_;
-    cmd::JointBits commanded_bits_ = 0;
     // The arc started last: its command, chord ends, start angles and E.
     const cmd::Arc* arc_ = nullptr;
     std::vector<Eigen::Vector3d> chord_ends_;
-    std::vector<double> arc_angles_;
+    Joints arc_angles_;
     double arc_e0_ = 0;
     int arc_bound_ = 0;
 };
@@ -70,18 +65,14 @@ inline const ToolMove& Resolver::tool_move(const cmd::ToolMove& c) {
     }
     // Under G43.4 the rotary words are programmed angles: the rest are the current ones.
     if (c.reads_angles) {
-        planner_.programmed_angles(angles_);
+        planner_.programmed_angles(mv.angles);
         for (cmd::JointBits b = c.angles_given; b != 0; b &= b - 1) {
             const std::size_t j = std::size_t(std::countr_zero(b));
-            angles_[j] = c.angles_relative ? angles_[j] + c.angles[j] : c.angles[j];
+            mv.angles[j] = c.angles_relative ? mv.angles[j] + c.angles[j] : c.angles[j];
         }
     }
     mv.axis = c.any_ijk ? c.axis : at.pose.axis;
-    // The joints named: one bit a joint, the machine's joints only.
-    const cmd::JointBits bits = c.commanded & joint_bits_;
-    for (cmd::JointBits change = bits ^ commanded_bits_; change != 0; change &= change - 1)
-        commanded_[std::size_t(std::countr_zero(change))].flip();
-    commanded_bits_ = bits;
+    mv.commanded = c.commanded & joint_bits_;  // the machine's joints only
     mv.gcode = c.gcode;
     mv.column = c.column;
     mv.mode = c.mode;

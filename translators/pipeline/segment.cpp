@@ -24,10 +24,14 @@ constexpr double kPredictAim = 0.98;
 void round_printed(const Machine& m, std::vector<double>& q) {
     for (std::size_t j = 0; j < q.size(); ++j) q[j] = printed_value(m, j, q[j]);
 }
-// The same of `from`, written to `to` (no copy first).
-void round_printed(const Machine& m, const std::vector<double>& from, std::vector<double>& to) {
-    to.resize(from.size());
-    for (std::size_t j = 0; j < from.size(); ++j) to[j] = printed_value(m, j, from[j]);
+// The same of the machine's joints in `from`, written to `to` (no copy first).
+void round_printed(const Machine& m, const Joints& from, std::vector<double>& to) {
+    to.resize(m.joints.size());
+    for (std::size_t j = 0; j < to.size(); ++j) to[j] = printed_value(m, j, from[j]);
+}
+// A joint vector holds the first joints of an array.
+bool same_joints(const std::vector<double>& a, const Joints& b, std::size_t n) {
+    return a.size() == n && std::equal(a.begin(), a.end(), b.begin());
 }
 
 }  // namespace
@@ -74,39 +78,39 @@ Segmenter::Segmenter(const Kinematics& kinematics)
       rounding_(kinematics),
       pieces_(kinematics.machine().joints.size()) {}
 
-IkResult Segmenter::split(const MoveSpec& mv) {
+IkResult Segmenter::split(const PlannedMove& mv) {
     // A move usually starts where the one before ended: its start as printed is known then.
     // And every move ends exactly on its programmed tip (the planner solves the linear joints
     // for it): a move that starts at the last one's end, joints and tip, starts on its line.
-    const bool from_last = *mv.q0 == last_end_q_;
+    std::vector<double>& last_end_q = pieces_.q1_exact_;
+    const std::size_t n = joints_;
+    const bool from_last = same_joints(last_end_q, mv.q0, n);
     const bool start_on_line = from_last && mv.p0.tip == last_end_tip_;
-    // q1 (the pieces' end as printed) holds the last move's end as printed (last_end_q_
+    // q1 (the pieces' end as printed) holds the last move's end as printed (last_end_q
     // rounded): taken, then refilled. The ends' slots (path_end) follow: the last end's is the
     // start's now.
     std::vector<double>& q0 = pieces_.q0_printed_;
     std::vector<double>& q1 = pieces_.q1_printed_;
     if (from_last) q0.swap(q1);
-    else round_printed(machine_, *mv.q0, q0);
+    else round_printed(machine_, mv.q0, q0);
     check_.next_move(from_last);
-    const std::size_t n = joints_;
     bool rotates = false;
-    if (n <= kMaxJoints && mv.q1->size() == n && q0.size() == n && q1.size() == n && last_end_q_.size() == n) {
+    if (n <= kMaxJoints && q0.size() == n && q1.size() == n && last_end_q.size() == n) {
         // The usual move (every one after the first): one pass, no copies or calls.
-        rotates = rounding_.round_end(mv.q1->data(), q1.data(), last_end_q_.data(), q0.data());
+        rotates = rounding_.round_end(mv.q1.data(), q1.data(), last_end_q.data(), q0.data());
     } else {
-        round_printed(machine_, *mv.q1, q1);
-        last_end_q_ = *mv.q1;
+        round_printed(machine_, mv.q1, q1);
+        last_end_q.assign(mv.q1.begin(), mv.q1.begin() + std::ptrdiff_t(n));
         for (const int j : kin_.rotary_joints()) rotates = rotates || q1[std::size_t(j)] != q0[std::size_t(j)];
     }
     last_end_tip_ = mv.p1.tip;
-    final_moved_ = false;
     // One piece, the whole move: read from q1 and the move's own end (no copies).
     if (pieces_.s_.size() == 1) pieces_.s_[0] = 1.0;
     else pieces_.s_.assign(1, 1.0);
     pieces_.whole_ = true;
     // With the rotaries still the tip is affine in the linear joints: the firmware's line is exact.
     if (!rotates || mv.mode == OrientationMode::Joints || !machine_.motion.segment) return {};
-    check_.set_ends(q0.data(), q1.data(), mv.end && mv.end->valid && mv.end->q == *mv.q1 ? mv.end : nullptr);
+    check_.set_ends(q0.data(), q1.data(), mv.end.valid && same_joints(mv.end.q, mv.q1, n) ? &mv.end : nullptr);
 
     const double tol = kSampleMargin * machine_.motion.tolerance;
     if (start_on_line && check_.reach_clears(mv, tol)) return {};
@@ -117,7 +121,7 @@ IkResult Segmenter::split(const MoveSpec& mv) {
 // Near a pole the continuous branch swings a joint round; the other branch may cut across within
 // the tolerance (a tilt through zero instead of a half turn): true, with qb and m_.exact_b that
 // branch's end, when one passes.
-bool Segmenter::other_branch_passes(const MoveSpec& mv, double sa, double sb, const std::vector<double>& qa,
+bool Segmenter::other_branch_passes(const PlannedMove& mv, double sa, double sb, const std::vector<double>& qa,
                                     std::vector<double>& qb, double tol) {
     std::vector<double>& alt = m_.b;
     for (int b = 0; b < 2; ++b) {
@@ -149,7 +153,7 @@ bool Segmenter::other_branch_passes(const MoveSpec& mv, double sa, double sb, co
 // that line, and the nearest angle to the hint jumps half a turn: no piece across the jump stays
 // within the tolerance, however short. Then C is taken nearest the piece's start instead (the
 // swing the tip really makes): true, with qb and m_.exact_b that end, when its piece passes.
-bool Segmenter::polar_continuous_passes(const MoveSpec& mv, double sa, double sb, const std::vector<double>& qa,
+bool Segmenter::polar_continuous_passes(const PlannedMove& mv, double sa, double sb, const std::vector<double>& qa,
                                         std::vector<double>& qb, double tol) {
     bool jumped = false;
     for (const int j : kin_.rotary_joints()) jumped = jumped || std::abs(m_.exact_b[std::size_t(j)] - qa[std::size_t(j)]) > 60.0;
@@ -171,7 +175,7 @@ bool Segmenter::polar_continuous_passes(const MoveSpec& mv, double sa, double sb
 // The longest piece from sa (joints qa = m_.march_a, as printed) that passes: halved until one
 // passes, then closed in on the limit between the longest passing and the shortest failing
 // length. Its length in ok_len, its end in m_.a (as printed) and m_.ok_exact (as solved).
-IkResult Segmenter::longest_piece(const MoveSpec& mv, double tol, double sa, double step, double& ok_len) {
+IkResult Segmenter::longest_piece(const PlannedMove& mv, double tol, double sa, double step, double& ok_len) {
     const auto& q1 = pieces_.q1_printed_;
     const std::vector<double>& qa = m_.march_a;
     std::vector<double>& qb = m_.march_b;
@@ -199,7 +203,7 @@ IkResult Segmenter::longest_piece(const MoveSpec& mv, double tol, double sa, dou
             r.message += " (at " + std::to_string(int(std::lround(std::min(sb, 1.0) * 100))) + "% of the move)";
             return r;
         }
-        if (sb >= 1.0 && mv.mode == OrientationMode::Angles) m_.exact_b = *mv.q1;
+        if (sb >= 1.0 && mv.mode == OrientationMode::Angles) m_.exact_b.assign(mv.q1.begin(), mv.q1.begin() + std::ptrdiff_t(joints_));
         else m_.exact_b = qb;
         round_printed(machine_, qb);
         double middle_ratio = 0;  // the failing middle sample's error over the tolerance (0: not known)
@@ -239,7 +243,7 @@ IkResult Segmenter::longest_piece(const MoveSpec& mv, double tol, double sa, dou
     return {};
 }
 
-IkResult Segmenter::march(const MoveSpec& mv, double tol) {
+IkResult Segmenter::march(const PlannedMove& mv, double tol) {
     const auto& q0 = pieces_.q0_printed_;
     const auto& q1 = pieces_.q1_printed_;
     const double atol = check_.angle_limit();
@@ -268,10 +272,6 @@ IkResult Segmenter::march(const MoveSpec& mv, double tol) {
         const std::vector<double>& qok = m_.a;
         const double sb = std::min(1.0, sa + ok_len);
         qb = qok;
-        if (sb >= 1.0) {
-            final_exact_ = m_.ok_exact;
-            final_moved_ = true;
-        }
         step = std::max(sb - sa, 1e-9) * 1.25;  // the next piece is likely about as long: start a bit farther
         pieces_.s_.push_back(sb);
         pieces_.qs_.insert(pieces_.qs_.end(), qb.begin(), qb.end());

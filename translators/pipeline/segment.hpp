@@ -52,18 +52,25 @@ public:
     const std::vector<double>& params() const { return s_; }
     const std::vector<double>& joints() const { return whole_ ? q1_printed_ : qs_; }  // pieces x joints
     const double* printed(std::size_t k) const { return whole_ ? q1_printed_.data() : &qs_[k * joints_]; }
-    const double* exact(std::size_t k, const MoveSpec& move) const { return whole_ ? move.q1->data() : &qs_exact_[k * joints_]; }
+    const double* exact(std::size_t k) const { return whole_ ? q1_exact_.data() : &qs_exact_[k * joints_]; }
     const std::vector<double>& start_printed() const { return q0_printed_; }
+    // Where the move ends, as solved: its q1, or where a tool vector's continuous solution
+    // arrived when the split found it on other joints (the other branch or another turn).
+    const double* end_exact() const { return exact(count() - 1); }
+    bool whole() const { return whole_; }  // one piece: the move's own q1 ends it
 
 private:
     friend class Segmenter;  // which fills them
     std::size_t joints_;
     std::vector<double> s_, qs_;                 // the pieces, joints as printed
     std::vector<double> qs_exact_;               // the pieces' ends as solved
-    // The move is one piece (s_ = {1}): its end is q1_printed_ as printed and the move's q1 as
+    // The move is one piece (s_ = {1}): its end is q1_printed_ as printed and q1_exact_ as
     // solved, and qs_, qs_exact_ are not filled.
     bool whole_ = false;
     std::vector<double> q0_printed_, q1_printed_;  // the move's ends as printed
+    // The move's q1 as solved (the end asked for). Kept to the next split: a move that starts
+    // there starts where the last one ended.
+    std::vector<double> q1_exact_;
 };
 
 // The split to tolerance itself: where to cut (the march, each piece as long as the tolerance
@@ -76,20 +83,11 @@ public:
     explicit Segmenter(const Kinematics& kinematics);
 
     // Splits the move; on an error (a split point out of reach) the message says where along it.
-    IkResult split(const MoveSpec& move);
+    IkResult split(const PlannedMove& move);
     // The split of the last move.
     const SplitPieces& pieces() const { return pieces_; }
     // Degrees the rotaries turn along the pieces.
     double split_rotary_travel() const;
-
-    // Where the last move ended, when a tool vector's continuous solution arrived on other joints
-    // than the ones asked for (the other branch or another turn), as solved; null otherwise.
-    const std::vector<double>* final_joints_moved() const { return final_moved_ ? &final_exact_ : nullptr; }
-    // The last move ended at `q` (a way the pole policy chose).
-    void ended_at(const std::vector<double>& q) {
-        final_exact_ = q;
-        final_moved_ = true;
-    }
 
     // The split's points (poses, solves) and its test of a piece, for the motion stage's own use.
     const SplitPoints& points() const { return points_; }
@@ -98,11 +96,11 @@ public:
 private:
     // The rest of split for a move that the bounds did not clear whole: sampled, and split if
     // it must be (split's usual move never gets here, and its code stays small).
-    IkResult march(const MoveSpec& move, double tol);
-    IkResult longest_piece(const MoveSpec& move, double tol, double sa, double step, double& ok_len);
-    bool other_branch_passes(const MoveSpec& move, double sa, double sb, const std::vector<double>& qa, std::vector<double>& qb,
+    IkResult march(const PlannedMove& move, double tol);
+    IkResult longest_piece(const PlannedMove& move, double tol, double sa, double step, double& ok_len);
+    bool other_branch_passes(const PlannedMove& move, double sa, double sb, const std::vector<double>& qa, std::vector<double>& qb,
                              double tol);
-    bool polar_continuous_passes(const MoveSpec& move, double sa, double sb, const std::vector<double>& qa, std::vector<double>& qb,
+    bool polar_continuous_passes(const PlannedMove& move, double sa, double sb, const std::vector<double>& qa, std::vector<double>& qb,
                                  double tol);
 
     const Kinematics& kin_;
@@ -112,12 +110,8 @@ private:
     PieceCheck check_;
     PrintedRounding rounding_;
     SplitPieces pieces_;
-    // The last move's end: its joints as solved, and its tip (which they reach). Its joints as
-    // printed are pieces_.q1_printed_ until the next move's split.
-    std::vector<double> last_end_q_;
+    // The last move's end tip (which its q1, pieces_.q1_exact_, reaches).
     Eigen::Vector3d last_end_tip_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
-    std::vector<double> final_exact_;
-    bool final_moved_ = false;  // final_exact_ holds the last move's end (else it is the end asked for)
     // The march's tries, reused move after move (no allocation on the hot path): the try's target,
     // its end as solved, the longest passing end (printed: a, solved: ok_exact), the other
     // branch's try (b, alt_exact), and the pieces' ends.

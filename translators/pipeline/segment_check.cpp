@@ -37,7 +37,7 @@ PieceCheck::PieceCheck(const Kinematics& kinematics, const SplitPoints& points, 
       chord_limit_(chord_within(sample_angle_.degrees() - 1e-6)),
       ends_(kinematics) {}
 
-void PieceCheck::piece_error(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, int samples,
+void PieceCheck::piece_error(const PlannedMove& mv, double sa, double sb, const double* qa, const double* qb, int samples,
                               double& tip, double& angle) const {
     tip = 0;
     angle = 0;
@@ -56,7 +56,7 @@ void PieceCheck::piece_error(const MoveSpec& mv, double sa, double sb, const dou
     }
 }
 
-bool PieceCheck::piece_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol,
+bool PieceCheck::piece_within(const PlannedMove& mv, double sa, double sb, const double* qa, const double* qb, double tol,
                                double* middle_ratio) const {
     const double atol = sample_angle_.degrees();
     // The same points as piece_error's, the middle first (where a chord's error is largest): a
@@ -129,7 +129,7 @@ bool PieceCheck::piece_within(const MoveSpec& mv, double sa, double sb, const do
     return true;
 }
 
-bool PieceCheck::reach_clears(const MoveSpec& mv, double tol) const {
+bool PieceCheck::reach_clears(const PlannedMove& mv, double tol) const {
     // The whole move under the angle form, with no FK: kinematics' bound from the machine's
     // reach (it holds anywhere inside the limits), and the printed ends' distance from the line
     // at most how far rounding moves the tip from the exact ends, which are on it. A pass here
@@ -142,15 +142,15 @@ bool PieceCheck::reach_clears(const MoveSpec& mv, double tol) const {
     // The start's shift is the last move's end's, measured by the split before this one when it
     // got here (split calls this only for a move that starts at the last one's end, joints and
     // tip): the same values, the same sum.
-    const double start = shift_split_ + 1 == splits_ ? end_shift_ : bound.reach_shift(mv.q0->data(), start_);
-    const double end = bound.reach_shift(mv.q1->data(), end_);
+    const double start = shift_split_ + 1 == splits_ ? end_shift_ : bound.reach_shift(mv.q0.data(), start_);
+    const double end = bound.reach_shift(mv.q1.data(), end_);
     end_shift_ = end;
     shift_split_ = splits_;
     const double ends = std::max(start, end);
     return b.tip + ends <= tol - kSlack;
 }
 
-bool PieceCheck::bounded_within(const MoveSpec& mv, double sa, double sb, const double* qa, const double* qb, double tol) const {
+bool PieceCheck::bounded_within(const PlannedMove& mv, double sa, double sb, const double* qa, const double* qb, double tol) const {
     // Sampling finds at most the true deviation, and the bound is at least that: when the bound
     // passes, the samples would have too, so the split is the same, only cheaper. The slack
     // covers rounding in the two computations.

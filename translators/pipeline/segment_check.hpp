@@ -74,18 +74,18 @@ public:
 
     // Deviation of the firmware's joint-linear path from qa to qb from the programmed move,
     // between move parameters sa and sb: largest of `samples` interior points (tests use many).
-    void piece_error(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, int samples,
+    void piece_error(const PlannedMove& move, double sa, double sb, const double* qa, const double* qb, int samples,
                      double& tip, double& angle) const;
     // piece_error's verdict against `tol` and the split's angle limit (sample_angle_), stopping at
     // the first point outside them. `middle_ratio`, when given, receives the error over its
     // tolerance when the verdict is no at the middle point (left as it is otherwise).
-    bool piece_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol,
+    bool piece_within(const PlannedMove& move, double sa, double sb, const double* qa, const double* qb, double tol,
                       double* middle_ratio = nullptr) const;
     // True when the firmware's path from qa to qb (move parameters sa to sb) is proved within
     // `tol` (mm) and the split's angle limit (chord_limit_) by kinematics' bound, without sampling it.
-    bool bounded_within(const MoveSpec& move, double sa, double sb, const double* qa, const double* qb, double tol) const;
+    bool bounded_within(const PlannedMove& move, double sa, double sb, const double* qa, const double* qb, double tol) const;
     // The same for the whole move (set_ends) under the angle form, from the machine's reach: no FK at all.
-    bool reach_clears(const MoveSpec& move, double tol) const;
+    bool reach_clears(const PlannedMove& move, double tol) const;
 
 private:
     // The ends bounded_within met last (the end of one move is the start of the next).

@@ -27,23 +27,23 @@ const Kinematics::Solutions& SolutionCache::store(const Eigen::Vector3d& axis, K
 SplitPoints::SplitPoints(const Kinematics& kinematics)
     : kin_(kinematics), machine_(kinematics.machine()), limits_(kinematics.machine()), solutions_(kinematics) {}
 
-const GreatArc& SplitPoints::arc_of(const MoveSpec& mv) const {
+const GreatArc& SplitPoints::arc_of(const PlannedMove& mv) const {
     if (!(mv.p0.axis == arc_.a && mv.p1.axis == arc_.b)) arc_ = GreatArc(mv.p0.axis, mv.p1.axis);
     return arc_;
 }
 
-Pose SplitPoints::pose_at(const MoveSpec& mv, double s) const {
+Pose SplitPoints::pose_at(const PlannedMove& mv, double s) const {
     Pose p;
     p.tip = mv.p0.tip + s * (mv.p1.tip - mv.p0.tip);
     p.axis = arc_of(mv).at(s);
     return p;
 }
 
-IkResult SplitPoints::solve_at(const MoveSpec& mv, double s, const std::vector<double>& previous, std::vector<double>& q,
+IkResult SplitPoints::solve_at(const PlannedMove& mv, double s, const std::vector<double>& previous, std::vector<double>& q,
                                int branch) const {
     if (mv.mode == OrientationMode::Angles) {
-        const auto& q0 = *mv.q0;
-        const auto& q1 = *mv.q1;
+        const Joints& q0 = mv.q0;
+        const Joints& q1 = mv.q1;
         q = previous;
         // The angles are the programmed orientation: they move linearly, as the firmware moves
         // them. Only the tip is solved for (no point on the axes' arc is needed).
@@ -59,15 +59,15 @@ IkResult SplitPoints::solve_at(const MoveSpec& mv, double s, const std::vector<d
     return place(target, q, chosen);
 }
 
-void SplitPoints::target_at(const MoveSpec& mv, double s, Target& target) const {
+void SplitPoints::target_at(const PlannedMove& mv, double s, Target& target) const {
     target.pose = pose_at(mv, s);
     target.solutions = kin_.orientation_solutions(target.pose.axis);
 }
 
-IkResult SplitPoints::orient_at(const MoveSpec& mv, double s, const Target& target, const std::vector<double>& previous,
+IkResult SplitPoints::orient_at(const PlannedMove& mv, double s, const Target& target, const std::vector<double>& previous,
                                 std::vector<double>& q, int branch, ChosenSolution& chosen) const {
-    const auto& q0 = *mv.q0;
-    const auto& q1 = *mv.q1;
+    const Joints& q0 = mv.q0;
+    const Joints& q1 = mv.q1;
     q = previous;
     // A free joint (axis along the tool) follows the line from its start to its end value.
     std::vector<double>& hint = lerp_;
@@ -88,7 +88,7 @@ bool SplitPoints::same_rotaries(const std::vector<double>& a, const std::vector<
     return true;
 }
 
-IkResult SplitPoints::leaves_limits(const MoveSpec& mv, double s, const std::vector<double>& previous) const {
+IkResult SplitPoints::leaves_limits(const PlannedMove& mv, double s, const std::vector<double>& previous) const {
     if (mv.mode != OrientationMode::Vector) return {};
     std::vector<double>& cont = cont_;
     cont = previous;

@@ -45,9 +45,9 @@ public:
     const Kinematics::Solutions& solutions_of(const Eigen::Vector3d& axis) const { return solutions_.of(axis); }
     void remember_solutions(const Kinematics::Solutions& solutions) const { solutions_.remember(solutions); }
     // The programmed axis's great circle, and the programmed pose at move parameter s.
-    const GreatArc& arc_of(const MoveSpec& mv) const;
-    Pose pose_at(const MoveSpec& move, double s) const;
-    IkResult solve_at(const MoveSpec& move, double s, const std::vector<double>& previous, std::vector<double>& q,
+    const GreatArc& arc_of(const PlannedMove& mv) const;
+    Pose pose_at(const PlannedMove& move, double s) const;
+    IkResult solve_at(const PlannedMove& move, double s, const std::vector<double>& previous, std::vector<double>& q,
                       int branch = -1) const;
 
     // solve_at's steps under the vector form: the programmed pose at s and its orientation
@@ -57,16 +57,16 @@ public:
         Pose pose;
         Kinematics::Solutions solutions;
     };
-    void target_at(const MoveSpec& move, double s, Target& target) const;
+    void target_at(const PlannedMove& move, double s, Target& target) const;
     // `chosen` receives which of target.solutions q's rotaries took, for place.
-    IkResult orient_at(const MoveSpec& move, double s, const Target& target, const std::vector<double>& previous,
+    IkResult orient_at(const PlannedMove& move, double s, const Target& target, const std::vector<double>& previous,
                        std::vector<double>& q, int branch, ChosenSolution& chosen) const;
     IkResult place(const Target& target, std::vector<double>& q, ChosenSolution chosen) const;
     // The rotary joints of a and b are the same to the bit.
     bool same_rotaries(const std::vector<double>& a, const std::vector<double>& b) const;
     // An OutOfLimits result when the continuous solution at s (from `previous`) is outside a
     // rotary joint's limits.
-    IkResult leaves_limits(const MoveSpec& move, double s, const std::vector<double>& previous) const;
+    IkResult leaves_limits(const PlannedMove& move, double s, const std::vector<double>& previous) const;
 
 private:
     const Kinematics& kin_;
