@@ -289,20 +289,24 @@ std::vector<Pose> tool_poses(const std::string& text) {
 }
 
 // The poses a joint-space file makes its own machine visit, from the machine's FK: each
-// distinct end pose of a G0/G1 move (absolute joints, G92 re-zeros of a joint, G28 home; the
-// letter `extruder` ignored), with the tips of the firmware's joint-linear path to it from the
-// previous pose (256 points a move): the path the machine that file was written for takes.
+// distinct end pose of a G0/G1 move (absolute joints, G92 re-zeros of a joint, G28 home), with
+// the tips of the firmware's joint-linear path to it from the previous pose (256 points a move):
+// the path the machine that file was written for takes. With `travel_straight`, a move that does
+// not extrude (the letter `extruder`, absolute after M82, relative after M83) takes the straight
+// line instead, as a retargeted travel does on a target that is not polar.
 struct SourcePose {
     Pose pose;
     std::vector<Eigen::Vector3d> path;
 };
-std::vector<SourcePose> source_poses(const Machine& m, const std::string& text, char extruder) {
+std::vector<SourcePose> source_poses(const Machine& m, const std::string& text, char extruder, bool travel_straight) {
     const Kinematics k(m);
     std::vector<double> q = m.home_joints(), zero(q.size(), 0.0);
     std::vector<SourcePose> out;
     Pose last = k.forward(q);
     std::vector<Eigen::Vector3d> pending;
     std::vector<double> lerp(q.size());
+    bool e_relative = false, extrudes = false;
+    double e_at = 0;
     for (const auto& raw : xlate5::test::lines_of(text)) {
         std::string line = raw.substr(0, raw.find(';'));
         line = line.substr(0, line.find('('));
@@ -315,8 +319,15 @@ std::vector<SourcePose> source_poses(const Machine& m, const std::string& text, 
             const double v = std::stod((*it)[2].str());
             if (letter == 'G' && (v == 0 || v == 1 || v == 28 || v == 92) && !gcode) gcode = v;
             if (letter != 'G') words.emplace(letter, v);
+            if (letter == 'M' && (v == 82 || v == 83)) e_relative = v == 83;
         }
         if (!gcode) continue;
+        if (const auto e = words.find(extruder); e != words.end()) {
+            extrudes = *gcode != 92 && (e_relative ? e->second != 0 : e->second != e_at);
+            if (!e_relative) e_at = e->second;
+        } else {
+            extrudes = false;
+        }
         const auto g = std::make_pair('G', *gcode);
         if (g.second == 28) {
             q = m.home_joints();
@@ -335,7 +346,8 @@ std::vector<SourcePose> source_poses(const Machine& m, const std::string& text, 
             else next[j] = w->second + zero[j];
         }
         if (!move || next == q) continue;
-        for (int i = 1; i <= 256; ++i) {
+        if (travel_straight && !extrudes) pending.push_back(k.forward(next).tip);
+        for (int i = 1; i <= 256 && !(travel_straight && !extrudes); ++i) {
             for (std::size_t j = 0; j < q.size(); ++j) lerp[j] = q[j] + (i / 256.0) * (next[j] - q[j]);
             pending.push_back(k.forward(lerp).tip);
         }
@@ -419,7 +431,7 @@ TEST_CASE("retargeting: NX's CL data for xyzac-trt's trunnion, through tool spac
     const auto tb = run_xlate5("--machine koc5 --inverse --preview-form G43.5", jb, dir, rc);
     REQUIRE(rc == 0);
     // The path xyzac-trt takes between its poses (its joints turning linearly), which koc5 follows.
-    const auto source = source_poses(machine("xyzac-trt"), xlate5::test::read(ja), 'E');
+    const auto source = source_poses(machine("xyzac-trt"), xlate5::test::read(ja), 'E', true);
     std::vector<Pose> start;
     for (const auto& p : source) start.push_back(p.pose);
     // (xyzac-trt's first move, to C 88.95 at A 0, keeps the pose of its home: not one of source's.)
@@ -470,7 +482,7 @@ TEST_CASE("retargeting the S3-DeformFDM ring onto koc5: its parks above koc5's t
     const double top_z = k.forward(top).tip.z();
     CHECK(top_z < 250);
     // The path the ring's machine takes between its poses (its joints turning linearly).
-    auto source = source_poses(machine("s3deformfdm"), text, 'A');
+    auto source = source_poses(machine("s3deformfdm"), text, 'A', true);
     REQUIRE(source.size() == tool_poses(ta).size());
     std::vector<Pose> start;
     int parked = 0;
@@ -498,6 +510,73 @@ TEST_CASE("retargeting the S3-DeformFDM ring onto koc5: its parks above koc5's t
     CHECK(xlate5::test::read(dir.path / "run.err").find("p.gcode:3:1: joint Z would go to 250.000") != std::string::npos);
 }
 
+TEST_CASE("retargeting the S3-DeformFDM ring onto rw2, placed with --place: the same print where rw2 reaches it") {
+    // The ring's part frame at rw2's origin puts its park (X0 Y0 Z250, the head at home, A -168)
+    // at rw2's Y -52.4, outside its travel: refused at line 11. Placed at (120, 120, 0) on rw2's
+    // bed, every pose of the ring is visited, 120 mm over in X and Y, its printing moves along
+    // the ring machine's own path.
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    int rc = 0;
+    const std::filesystem::path whole = xlate5::test::corpus_dir() + "/s3deformfdm/ring_Gcode.txt";
+    const std::string text = xlate5::test::sampled_lines(xlate5::test::read(whole));
+    const std::filesystem::path ring = xlate5::test::kAddressSanitized ? dir.write("ring.txt", text) : whole;
+    run_xlate5("--machine rw2 --from s3deformfdm --extruder-letter A", ring, dir, rc);
+    CHECK(rc == 1);
+    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), ":11:1: joint Y would go to -52.421"));
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine rw2 --from s3deformfdm --extruder-letter A --place 120,120,0", ring, dir, rc));
+    INFO(xlate5::test::read(dir.path / "run.err"));
+    REQUIRE(rc == 0);
+    const auto tb = run_xlate5("--machine rw2 --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    auto source = source_poses(machine("s3deformfdm"), text, 'A', true);
+    const Eigen::Vector3d offset(120, 120, 0);
+    std::vector<Pose> start;
+    for (auto& [p, path] : source) {
+        p.tip += offset;
+        for (auto& tip : path) tip += offset;
+        start.push_back(p);
+    }
+    REQUIRE(start.size() > 6000);
+    const std::size_t visited = check_same_path(start, tool_poses(tb), 0.01, 0.5, &source);
+    MESSAGE(start.size() << " poses of the ring, " << visited << " on rw2");
+    // --place is for retargeting only.
+    run_xlate5("--machine rw2 --place 120,120,0", ring, dir, rc);
+    CHECK(rc == 2);
+}
+
+TEST_CASE("retargeting S4's file onto voron-xyzac: below its Z0 at the tilt, placed 0.3 mm higher it prints") {
+    // At line 27 the tip is 6.03 mm from C's axis at Z 0.12, the nozzle tilted 3.7 degrees from
+    // the bed's normal: the Voron tilts its table (A about X through the origin, a_pivot_z 0) and
+    // the tip's side of it goes 0.39 mm down, Z -0.268 where its travel ends at 0 (M208 Z0). A
+    // real limit of the part on the pivot's plane; on a bed 0.3 mm higher (--place 0,0,0.3) the
+    // whole file translates and round-trips.
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    int rc = 0;
+    const std::filesystem::path s4 = xlate5::test::corpus_dir() + "/s4/pi_3mm_side_paint_rtheta.gcode";
+    run_xlate5("--machine voron-xyzac --from core-rtheta", s4, dir, rc);
+    CHECK(rc == 1);
+    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), ":27:1: joint Z would go to -0.268"));
+    run_xlate5("--machine voron-xyzac --from core-rtheta --place 0,0,0.25", s4, dir, rc);
+    CHECK(rc == 1);
+    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), ":27:1: joint Z would go to -0.019"));
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine voron-xyzac --from core-rtheta --place 0,0,0.3", s4, dir, rc));
+    INFO(xlate5::test::read(dir.path / "run.err"));
+    REQUIRE(rc == 0);
+    const auto tb = run_xlate5("--machine voron-xyzac --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    auto source = source_poses(machine("core-rtheta"), xlate5::test::read(s4), 'E', true);
+    std::vector<Pose> start;
+    for (auto& [p, path] : source) {
+        p.tip.z() += 0.3;
+        for (auto& tip : path) tip.z() += 0.3;
+        start.push_back(p);
+    }
+    REQUIRE(start.size() > 5000);
+    check_same_path(start, tool_poses(tb), 0.01, 0.5, &source);
+}
+
 TEST_CASE("retargeting: S4's joint-space file for the Core R-Theta, onto pentarod and back to the same path") {
     if (xlate5::test::corpus_absent()) return;
     xlate5::test::TempDir dir;
@@ -513,7 +592,7 @@ TEST_CASE("retargeting: S4's joint-space file for the Core R-Theta, onto pentaro
     // The path the Core R-Theta takes between S4's poses: its C turning round while the tip is
     // off C's axis draws arcs (1,959 of its 5,094 moves leave their chord by more than 0.01 mm,
     // the farthest by 24.7 mm), which pentarod follows, not the chords.
-    const auto source = source_poses(machine("core-rtheta"), xlate5::test::read(s4), 'E');
+    const auto source = source_poses(machine("core-rtheta"), xlate5::test::read(s4), 'E', true);
     std::vector<Pose> start;
     for (const auto& p : source) start.push_back(p.pose);
     REQUIRE(start.size() == tool_poses(ta).size());
@@ -721,7 +800,7 @@ TEST_CASE("retargeting S4's file onto the Core R-Theta itself with the split: th
     REQUIRE(rc == 0);
     const auto tb = run_xlate5("--machine core-rtheta --inverse --preview-form G43.5", jb, dir, rc);
     REQUIRE(rc == 0);
-    const auto source = source_poses(machine("core-rtheta"), xlate5::test::read(s4), 'E');
+    const auto source = source_poses(machine("core-rtheta"), xlate5::test::read(s4), 'E', false);
     std::vector<Pose> start;
     for (const auto& p : source) start.push_back(p.pose);
     REQUIRE(start.size() > 5000);

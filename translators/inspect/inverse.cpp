@@ -185,7 +185,7 @@ void InverseTranslator::move(int gcode, Params words, std::string& out) {
     if (retarget_) {
         // The source machine moves its joints linearly: its tip and tool axis follow that path,
         // not the straight line and great arc between the ends. Cut where they part.
-        const int n = retarget_->source_pieces(kin_, q_next_, state_.q);
+        const int n = retarget_->source_pieces(kin_, q_next_, state_.q, travel);
         if (n > 1) source_parts(gcode, n, travel, e, f, out);
         const Pose placed = retarget_->place(state_.pose, travel, words_.line());
         emitter_.move(out, gcode, placed.tip, placed.axis, state_.q, n > 1 ? last_part_e(n, e) : e, n > 1 && !modes.inverse_time ? std::nullopt : part_f(n, f));

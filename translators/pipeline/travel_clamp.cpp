@@ -21,12 +21,13 @@ constexpr double kInside = 1e-6;
 
 }  // namespace
 
-TravelClamp::TravelClamp(const Kinematics& target, std::string input_name, std::function<void(const std::string&)> notice)
-    : target_(target), input_name_(std::move(input_name)), notice_(std::move(notice)), q_(target.machine().home_joints()) {}
+TravelClamp::TravelClamp(const Kinematics& target, std::string input_name, std::function<void(const std::string&)> notice,
+                         const Eigen::Vector3d& offset)
+    : target_(target), input_name_(std::move(input_name)), notice_(std::move(notice)), offset_(offset), q_(target.machine().home_joints()) {}
 
-int TravelClamp::source_pieces(const Kinematics& source, const std::vector<double>& q0, const std::vector<double>& q1) const {
+int TravelClamp::source_pieces(const Kinematics& source, const std::vector<double>& q0, const std::vector<double>& q1, bool travel) const {
     const MotionSettings& motion = target_.machine().motion;
-    if (!motion.segment || q0.size() != q1.size()) return 1;
+    if (!motion.segment || q0.size() != q1.size() || (travel && !target_.is_polar())) return 1;
     bool turns = false;
     for (const int j : source.rotary_joints()) turns = turns || q0[std::size_t(j)] != q1[std::size_t(j)];
     if (!turns) return 1;  // the rotaries still: the source draws a straight line
@@ -56,7 +57,9 @@ int TravelClamp::source_pieces(const Kinematics& source, const std::vector<doubl
     }
 }
 
-Pose TravelClamp::place(const Pose& pose, bool travel, std::uint64_t line) {
+Pose TravelClamp::place(const Pose& source_pose, bool travel, std::uint64_t line) {
+    Pose pose = source_pose;
+    pose.tip += offset_;
     // The same solve as the planner's end (Kinematics::inverse: the orientation nearest the
     // joints before, then the position), from the joints this stage placed last.
     const IkResult r = target_.inverse(pose, q_, solved_);
