@@ -7,6 +7,7 @@
 #include "translators/pipeline/joint_limits.hpp"
 #include "translators/number.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace xlate5 {
@@ -206,6 +207,10 @@ int decimals_of(const PassedNumber& n) {
     return int(d);
 }
 
+// A part's E: three decimals more than written, within what a written number may carry.
+constexpr int kMaxPartDecimals = 12;
+int part_decimals(const PassedNumber& n) { return std::min(decimals_of(n) + 3, kMaxPartDecimals); }
+
 double rounded(double v, int decimals) {
     const double scale = std::pow(10.0, decimals);
     return std::round(v * scale) / scale;
@@ -228,7 +233,7 @@ void InverseTranslator::source_parts(int gcode, int n, bool travel, const std::o
         const Pose placed = retarget_->place(kin_.forward(q), travel, words_.line());
         std::optional<PassedNumber> ek;
         if (e) {
-            const int d = decimals_of(*e) + 3;
+            const int d = part_decimals(*e);
             ek = PassedNumber{modes.e_relative ? rounded(e->value / n, d) : rounded(modes.e_position + s * (e->value - modes.e_position), d), {}, d};
         }
         emitter_.move(out, gcode, placed.tip, placed.axis, q, ek, k == 1 || modes.inverse_time ? part_f(n, f) : std::nullopt);
@@ -237,13 +242,13 @@ void InverseTranslator::source_parts(int gcode, int n, bool travel, const std::o
 
 std::optional<PassedNumber> InverseTranslator::last_part_e(int n, const std::optional<PassedNumber>& e) const {
     if (!e || !state_.modes.e_relative) return e;  // absolute: the last part ends at E as written
-    const int d = decimals_of(*e) + 3;
+    const int d = part_decimals(*e);
     return PassedNumber{rounded(e->value - (n - 1) * rounded(e->value / n, d), d), {}, d};
 }
 
 std::optional<PassedNumber> InverseTranslator::part_f(int n, const std::optional<PassedNumber>& f) const {
     if (!f || !state_.modes.inverse_time || n == 1) return f;
-    return PassedNumber{f->value * n, {}, decimals_of(*f)};
+    return PassedNumber{f->value * n, {}, std::min(decimals_of(*f), kMaxPartDecimals)};
 }
 
 void InverseTranslator::set_position(Params words, std::string_view body, std::string& out) {
