@@ -40,6 +40,8 @@ def cause(message):
     m = message
     if re.search(r"is not a (joint|tool-space word) |rotary word . under G43.5", m):
         return "n/a: written for other joints (%s)" % re.sub(r"^.*?:\d+:\d+: ", "", m)[:48]
+    if re.search(r"joint [XYZUVW] would go to .* outside its limits -0\.001 \.\. 0\.001", m):
+        return "tool axis out of the machine's reach (its absent joint)"
     if re.search(r"joint [XYZUVW] would go to .* outside its limits", m):
         return "placement (a linear joint out of travel)"
     if "out of this machine's reach" in m:
@@ -60,7 +62,8 @@ def translate(machine, path, tmp, extra=()):
     run = subprocess.run([xlate5, "-m", machine, "-i", path, "-o", os.path.join(tmp, "out.gcode"), "--report", report,
                           "--no-progress", *extra], capture_output=True, text=True)
     if run.returncode != 0:
-        first = (run.stderr.strip().splitlines() or ["?"])[0]
+        # The refusal, past any notes (a retargeted park held at the limits).
+        first = ([l for l in run.stderr.strip().splitlines() if ": note: " not in l] or ["?"])[0]
         line = re.search(r":(\d+):\d+:", first)
         return None, "refused at line %s: %s" % (line.group(1) if line else "?", cause(first))
     with open(report) as f:
@@ -126,3 +129,21 @@ with tempfile.TemporaryDirectory() as tmp:
         else:
             r, err = translate("s3deformfdm", tool, tmp, ("--mode", "G43.5"))
             print(row("s3deformfdm/ring_Gcode.txt, read back to tool space", "s3deformfdm", r, err, theirs))
+    # Retargeting (--from): each joint-space corpus file onto the machines named here, placed
+    # with --place where its own origin lies outside that machine's travel (README, --from).
+    s4 = os.path.join(corpus, "s4", "pi_3mm_side_paint_rtheta.gcode")
+    for path, source, extra, target, place in (
+            (ring, "s3deformfdm", ("--extruder-letter", "A"), "koc5", None),
+            (ring, "s3deformfdm", ("--extruder-letter", "A"), "rw2", None),
+            (ring, "s3deformfdm", ("--extruder-letter", "A"), "rw2", "120,120,0"),
+            (ring, "s3deformfdm", ("--extruder-letter", "A"), "core-rtheta", None),
+            (s4, "core-rtheta", (), "core-rtheta", None),
+            (s4, "core-rtheta", (), "pentarod", None),
+            (s4, "core-rtheta", (), "voron-xyzac", None),
+            (s4, "core-rtheta", (), "voron-xyzac", "0,0,0.3")):
+        if not os.path.exists(path) or target not in machines:
+            continue
+        args = ("--from", source) + extra + (("--place", place) if place else ())
+        r, err = translate(target, path, tmp, args)
+        name = "%s --from %s%s" % (os.path.relpath(path, corpus), source, " --place " + place if place else "")
+        print(row(name, target, r, err))

@@ -105,6 +105,13 @@ void add_translate_options(CLI::App& app, TranslateOptions& o) {
                    "the input is joint-space G-code written for machine NAME|PATH: its forward kinematics give the tip and "
                    "tool axis, translated for --machine (retargeting)")
         ->option_text("MACHINE");
+    app.add_option("--place", o.place,
+                   with_default("with --from: where the source's part frame lies on this machine, X,Y,Z in mm (added to every "
+                                "tip: the part placed elsewhere on this bed than on the source's)", "0,0,0"))
+        ->delimiter(',')
+        ->expected(3)
+        ->check(number_in(-1e6, 1e6, "mm", false))
+        ->option_text("X,Y,Z");
     app.add_option("--preview-form", o.preview, with_default("with --inverse: write orientation as G43.4 angles or G43.5 I J K", "G43.4"))
         ->check(CLI::IsMember({"G43.4", "G43.5"}))
         ->option_text("G43.4|G43.5");
@@ -157,8 +164,11 @@ int run_translate(const Common& common, const TranslateOptions& given, const Mad
             throw CLI::ValidationError("--extrusion-per-mm", "is for apt and waypoints input (G-code has its own E)");
         if (o.inverse && o.input_format != "auto" && o.input_format != "gcode")
             throw CLI::ValidationError("--input-format", "--inverse reads joint-space G-code only");
+        if (!o.place.empty() && o.from.empty())
+            throw CLI::ValidationError("--place", "places a retargeted part (--from); a tool-space file is placed in its slicer");
         if (!o.from.empty()) {
             if (o.inverse) throw CLI::ValidationError("--from", "reads joint space and writes joint space (not with --inverse)");
+            if (o.place.size() == 3) std::copy(o.place.begin(), o.place.end(), options.place.begin());
             if (!o.mode.empty()) throw CLI::ValidationError("--mode", "is not for --from: its input is joints, read through its machine's kinematics");
             if (o.input_format != "auto" && o.input_format != "gcode")
                 throw CLI::ValidationError("--input-format", "--from reads joint-space G-code only");

@@ -25,6 +25,7 @@ struct TranslateOptions {
     bool force = false;
     // Retargeting: the input is joint-space G-code written for this machine (--from).
     std::string from;
+    std::vector<double> place;  // --place X,Y,Z: the source's part frame on this machine
     // The collision check of a machine with [[bodies]]: refuse, warn or off.
     std::string collision = "refuse";
     std::string reroute;  // "", "on" or "off"

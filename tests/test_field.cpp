@@ -10,7 +10,9 @@
 #include <cmath>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <map>
+#include <optional>
 #include <random>
 #include <regex>
 #include <sstream>
@@ -338,6 +340,81 @@ std::vector<Pose> tool_poses(const std::string& text) {
     return out;
 }
 
+// The poses a joint-space file makes its own machine visit, from the machine's FK: each
+// distinct end pose of a G0/G1 move (absolute joints, G92 re-zeros of a joint, G28 home), with
+// the tips of the firmware's joint-linear path to it from the previous pose (256 points a move):
+// the path the machine that file was written for takes. With `travel_straight`, a move that does
+// not extrude (the letter `extruder`, absolute after M82, relative after M83) takes the straight
+// line instead, as a retargeted travel does on a target that is not polar.
+struct SourcePose {
+    Pose pose;
+    std::vector<Eigen::Vector3d> path;
+};
+std::vector<SourcePose> source_poses(const Machine& m, const std::string& text, char extruder, bool travel_straight) {
+    const Kinematics k(m);
+    std::vector<double> q = m.home_joints(), zero(q.size(), 0.0);
+    std::vector<SourcePose> out;
+    Pose last = k.forward(q);
+    std::vector<Eigen::Vector3d> pending;
+    std::vector<double> lerp(q.size());
+    bool e_relative = false, extrudes = false;
+    double e_at = 0;
+    for (const auto& raw : xlate5::test::lines_of(text)) {
+        std::string line = raw.substr(0, raw.find(';'));
+        line = line.substr(0, line.find('('));
+        // Words as letter and number; the first G that moves, re-zeros or homes.
+        std::map<char, double> words;
+        static const std::regex word("([A-Za-z])\\s*([-+]?[0-9]*\\.?[0-9]+)");
+        std::optional<double> gcode;
+        for (auto it = std::sregex_iterator(line.begin(), line.end(), word); it != std::sregex_iterator(); ++it) {
+            const char letter = char(std::toupper((*it)[1].str()[0]));
+            const double v = std::stod((*it)[2].str());
+            if (letter == 'G' && (v == 0 || v == 1 || v == 28 || v == 92) && !gcode) gcode = v;
+            if (letter != 'G') words.emplace(letter, v);
+            if (letter == 'M' && (v == 82 || v == 83)) e_relative = v == 83;
+        }
+        if (!gcode) continue;
+        if (const auto e = words.find(extruder); e != words.end()) {
+            extrudes = *gcode != 92 && (e_relative ? e->second != 0 : e->second != e_at);
+            if (!e_relative) e_at = e->second;
+        } else {
+            extrudes = false;
+        }
+        const auto g = std::make_pair('G', *gcode);
+        if (g.second == 28) {
+            q = m.home_joints();
+            std::fill(zero.begin(), zero.end(), 0.0);
+            continue;
+        }
+        const bool rezero = g.second == 92, move = g.second == 0 || g.second == 1;
+        if (!rezero && !move) continue;
+        std::vector<double> next = q;
+        for (std::size_t j = 0; j < q.size(); ++j) {
+            const char letter = m.joints[j].output;
+            if (letter == extruder) continue;
+            const auto w = words.find(letter);
+            if (w == words.end()) continue;
+            if (rezero) zero[j] = q[j] - w->second;
+            else next[j] = w->second + zero[j];
+        }
+        if (!move || next == q) continue;
+        if (travel_straight && !extrudes) pending.push_back(k.forward(next).tip);
+        for (int i = 1; i <= 256 && !(travel_straight && !extrudes); ++i) {
+            for (std::size_t j = 0; j < q.size(); ++j) lerp[j] = q[j] + (i / 256.0) * (next[j] - q[j]);
+            pending.push_back(k.forward(lerp).tip);
+        }
+        q = next;
+        const Pose p = k.forward(q);
+        if ((p.tip - last.tip).norm() > 0 || (p.axis - last.axis).norm() > 0) {
+            out.push_back({p, {}});
+            out.back().path.swap(pending);
+            out.back().path.insert(out.back().path.begin(), last.tip);
+            last = p;
+        }
+    }
+    return out;
+}
+
 // Runs xlate5 with `args` on `in`; its output, or "" with the exit code in `rc`.
 std::string run_xlate5(const std::string& args, const std::filesystem::path& in, const xlate5::test::TempDir& dir, int& rc) {
     const auto out = dir.path / "run.out";
@@ -350,8 +427,10 @@ std::string run_xlate5(const std::string& args, const std::filesystem::path& in,
 
 // Every pose of `start` is visited by `end`, in the same order, within `tip_tol` mm and
 // `axis_deg` degrees; the poses `end` visits between two of them (a split) stay within the tip
-// tolerance of the straight line between them. The count of end's poses is returned.
-std::size_t check_same_path(const std::vector<Pose>& start, const std::vector<Pose>& end, double tip_tol, double axis_deg) {
+// tolerance of the straight line between them, or with `paths` (source_poses: start[i]'s is
+// paths[i]) of that path. The count of end's poses is returned.
+std::size_t check_same_path(const std::vector<Pose>& start, const std::vector<Pose>& end, double tip_tol, double axis_deg,
+                            const std::vector<SourcePose>* paths = nullptr) {
     const double axis_tol = 2 * std::sin(rad(axis_deg) / 2);
     std::size_t k = 0, matched = 0;
     for (std::size_t i = 0; i < start.size(); ++i) {
@@ -365,10 +444,15 @@ std::size_t check_same_path(const std::vector<Pose>& start, const std::vector<Po
         // The pieces between the previous start pose and this one lie on the line between them.
         if (i > 0)
             for (std::size_t j = from; j < k; ++j) {
-                const Eigen::Vector3d a = start[i - 1].tip, b = start[i].tip, p = end[j].tip;
-                const Eigen::Vector3d ab = b - a;
-                const double t = ab.squaredNorm() > 0 ? std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
-                CHECK((a + t * ab - p).norm() <= tip_tol);
+                std::vector<Eigen::Vector3d> line = {start[i - 1].tip, start[i].tip};
+                const std::vector<Eigen::Vector3d>& way = paths ? (*paths)[i].path : line;
+                double nearest = std::numeric_limits<double>::infinity();
+                for (std::size_t w = 1; w < way.size(); ++w) {
+                    const Eigen::Vector3d a = way[w - 1], ab = way[w] - a, p = end[j].tip;
+                    const double t = ab.squaredNorm() > 0 ? std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+                    nearest = std::min(nearest, (a + t * ab - p).norm());
+                }
+                CHECK(nearest <= tip_tol);
             }
         ++matched;
         ++k;
@@ -398,9 +482,15 @@ TEST_CASE("retargeting: NX's CL data for xyzac-trt's trunnion, through tool spac
     CHECK(xlate5::test::contains(xlate5::test::read(jb), "machine=koc5 joint space"));
     const auto tb = run_xlate5("--machine koc5 --inverse --preview-form G43.5", jb, dir, rc);
     REQUIRE(rc == 0);
-    const auto start = tool_poses(ta), end = tool_poses(tb);
+    // The path xyzac-trt takes between its poses (its joints turning linearly), which koc5 follows.
+    const auto source = source_poses(machine("xyzac-trt"), xlate5::test::read(ja), 'E', true);
+    std::vector<Pose> start;
+    for (const auto& p : source) start.push_back(p.pose);
+    // (xyzac-trt's first move, to C 88.95 at A 0, keeps the pose of its home: not one of source's.)
+    REQUIRE(start.size() + 1 == tool_poses(ta).size());
     REQUIRE(start.size() > 300);
-    const std::size_t visited = check_same_path(start, end, 0.01, 0.5);
+    const auto end = tool_poses(tb);
+    const std::size_t visited = check_same_path(start, end, 0.01, 0.5, &source);
     MESSAGE(start.size() << " poses on xyzac-trt, " << visited << " on koc5");
     // A pose the target cannot reach is refused with the input line and the pose it became.
     run_xlate5("--machine rw2 --from xyzac-trt", ja, dir, rc);
@@ -443,27 +533,103 @@ TEST_CASE("retargeting the S3-DeformFDM ring onto koc5: its parks above koc5's t
     for (std::size_t j = 0; j < m.joints.size(); ++j) top[j] = m.joints[j].name == 'Z' ? m.joints[j].max : 0.0;
     const double top_z = k.forward(top).tip.z();
     CHECK(top_z < 250);
-    auto start = tool_poses(ta);
+    // The path the ring's machine takes between its poses (its joints turning linearly).
+    auto source = source_poses(machine("s3deformfdm"), text, 'A', true);
+    REQUIRE(source.size() == tool_poses(ta).size());
+    std::vector<Pose> start;
     int parked = 0;
-    for (Pose& p : start)
+    for (auto& [p, path] : source) {
         if (p.tip.z() > top_z) {
             CHECK(p.tip.z() == doctest::Approx(250).epsilon(1e-9));
             CHECK(p.axis.z() == doctest::Approx(1).epsilon(1e-12));  // upright: Z alone moves the tip along it
             p.tip.z() = top_z, ++parked;
         }
+        for (auto& tip : path) tip.z() = std::min(tip.z(), top_z);
+        start.push_back(p);
+    }
     CHECK(parked >= 2);
     const auto tb = run_xlate5("--machine koc5 --inverse --preview-form G43.5", jb, dir, rc);
     REQUIRE(rc == 0);
     // koc5 starts at home, its Z at the top: the first park is already there and writes nothing.
     auto end = tool_poses(tb);
     end.insert(end.begin(), k.forward(m.home_joints()));
-    const std::size_t visited = check_same_path(start, end, 0.01, 0.5);
+    const std::size_t visited = check_same_path(start, end, 0.01, 0.5, &source);
     MESSAGE(start.size() << " poses of the ring, " << visited << " on koc5, " << parked << " held at koc5's top");
     // A printing move there is not held: refused as the part lying outside the travel.
     const auto printing = dir.write("p.gcode", "G90\nG1 X0 Y0 Z2 B0 C0 F3000\nG1 X1 Z250 A5 F600\n");
     run_xlate5("--machine koc5 --from s3deformfdm --extruder-letter A", printing, dir, rc);
     CHECK(rc == 1);
     CHECK(xlate5::test::read(dir.path / "run.err").find("p.gcode:3:1: joint Z would go to 250.000") != std::string::npos);
+}
+
+TEST_CASE("retargeting the S3-DeformFDM ring onto rw2, placed with --place: the same print where rw2 reaches it") {
+    // The ring's part frame at rw2's origin puts its park (X0 Y0 Z250, the head at home, A -168)
+    // at rw2's Y -52.4, outside its travel: refused at line 11. Placed at (120, 120, 0) on rw2's
+    // bed, every pose of the ring is visited, 120 mm over in X and Y, its printing moves along
+    // the ring machine's own path.
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    int rc = 0;
+    const std::filesystem::path whole = xlate5::test::corpus_dir() + "/s3deformfdm/ring_Gcode.txt";
+    const std::string text = xlate5::test::sampled_lines(xlate5::test::read(whole));
+    const std::filesystem::path ring = xlate5::test::kAddressSanitized ? dir.write("ring.txt", text) : whole;
+    run_xlate5("--machine rw2 --from s3deformfdm --extruder-letter A", ring, dir, rc);
+    CHECK(rc == 1);
+    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), ":11:1: joint Y would go to -52.421"));
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine rw2 --from s3deformfdm --extruder-letter A --place 120,120,0", ring, dir, rc));
+    INFO(xlate5::test::read(dir.path / "run.err"));
+    REQUIRE(rc == 0);
+    const auto tb = run_xlate5("--machine rw2 --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    auto source = source_poses(machine("s3deformfdm"), text, 'A', true);
+    const Eigen::Vector3d offset(120, 120, 0);
+    std::vector<Pose> start;
+    for (auto& [p, path] : source) {
+        p.tip += offset;
+        for (auto& tip : path) tip += offset;
+        start.push_back(p);
+    }
+    REQUIRE(start.size() > (xlate5::test::kAddressSanitized ? 5000 : 60000));
+    const std::size_t visited = check_same_path(start, tool_poses(tb), 0.01, 0.5, &source);
+    MESSAGE(start.size() << " poses of the ring, " << visited << " on rw2");
+    // --place is for retargeting only.
+    run_xlate5("--machine rw2 --place 120,120,0", ring, dir, rc);
+    CHECK(rc == 2);
+}
+
+TEST_CASE("retargeting S4's file onto voron-xyzac: below its Z0 at the tilt, placed 0.3 mm higher it prints") {
+    // At line 27 the tip is 6.03 mm from C's axis at Z 0.12, the nozzle tilted 3.7 degrees from
+    // the bed's normal: the Voron tilts its table (A about X through the origin, a_pivot_z 0) and
+    // the tip's side of it goes 0.39 mm down, Z -0.268 where its travel ends at 0 (M208 Z0). A
+    // real limit of the part on the pivot's plane; on a bed 0.3 mm higher (--place 0,0,0.3) the
+    // whole file translates and round-trips.
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    int rc = 0;
+    // Under the sanitizers, the file's first tenth (xlate5::test::sampled_lines): line 27 is in it.
+    const std::filesystem::path whole = xlate5::test::corpus_dir() + "/s4/pi_3mm_side_paint_rtheta.gcode";
+    const std::string text = xlate5::test::sampled_lines(xlate5::test::read(whole));
+    const std::filesystem::path s4 = xlate5::test::kAddressSanitized ? dir.write("s4.gcode", text) : whole;
+    run_xlate5("--machine voron-xyzac --from core-rtheta", s4, dir, rc);
+    CHECK(rc == 1);
+    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), ":27:1: joint Z would go to -0.268"));
+    run_xlate5("--machine voron-xyzac --from core-rtheta --place 0,0,0.25", s4, dir, rc);
+    CHECK(rc == 1);
+    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), ":27:1: joint Z would go to -0.019"));
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine voron-xyzac --from core-rtheta --place 0,0,0.3", s4, dir, rc));
+    INFO(xlate5::test::read(dir.path / "run.err"));
+    REQUIRE(rc == 0);
+    const auto tb = run_xlate5("--machine voron-xyzac --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    auto source = source_poses(machine("core-rtheta"), text, 'E', true);
+    std::vector<Pose> start;
+    for (auto& [p, path] : source) {
+        p.tip.z() += 0.3;
+        for (auto& tip : path) tip.z() += 0.3;
+        start.push_back(p);
+    }
+    REQUIRE(start.size() > (xlate5::test::kAddressSanitized ? 200 : 5000));
+    check_same_path(start, tool_poses(tb), 0.01, 0.5, &source);
 }
 
 TEST_CASE("retargeting: S4's joint-space file for the Core R-Theta, onto pentarod and back to the same path") {
@@ -478,9 +644,16 @@ TEST_CASE("retargeting: S4's joint-space file for the Core R-Theta, onto pentaro
     REQUIRE(rc == 0);
     const auto tb = run_xlate5("--machine pentarod --inverse --preview-form G43.5", jb, dir, rc);
     REQUIRE(rc == 0);
-    const auto start = tool_poses(ta), end = tool_poses(tb);
+    // The path the Core R-Theta takes between S4's poses: its C turning round while the tip is
+    // off C's axis draws arcs (1,959 of its 5,094 moves leave their chord by more than 0.01 mm,
+    // the farthest by 24.7 mm), which pentarod follows, not the chords.
+    const auto source = source_poses(machine("core-rtheta"), xlate5::test::read(s4), 'E', true);
+    std::vector<Pose> start;
+    for (const auto& p : source) start.push_back(p.pose);
+    REQUIRE(start.size() == tool_poses(ta).size());
     REQUIRE(start.size() > 5000);
-    const std::size_t visited = check_same_path(start, end, 0.01, 0.5);
+    const auto end = tool_poses(tb);
+    const std::size_t visited = check_same_path(start, end, 0.01, 0.5, &source);
     MESSAGE(start.size() << " poses on core-rtheta, " << visited << " on pentarod");
 }
 
@@ -665,6 +838,31 @@ TEST_CASE("retargeting S4's file onto the Core R-Theta itself: the same poses ba
     const auto start = tool_poses(ta), end = tool_poses(tb);
     REQUIRE(start.size() > 5000);
     check_same_path(start, end, 0.01, 0.5);
+}
+
+TEST_CASE("retargeting S4's file onto the Core R-Theta itself with the split: the machine's own path back") {
+    // Split to the tolerance, the straight line between two of S4's poses is not the way: at its
+    // line 24 C turns 136 degrees with the tip 0.2 to 1.3 mm from C's axis, where a polar machine
+    // keeps its tool axis 4 degrees off that line's great arc (it reaches only axes in the tip's
+    // plane through C's axis). It was refused at line 23 (Y 0.01 mm off at 50% of the move).
+    // The Core R-Theta's own path is followed instead, as any target follows its source's.
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    int rc = 0;
+    const std::filesystem::path whole = xlate5::test::corpus_dir() + "/s4/pi_3mm_side_paint_rtheta.gcode";
+    const std::string text = xlate5::test::sampled_lines(xlate5::test::read(whole));
+    const std::filesystem::path s4 = xlate5::test::kAddressSanitized ? dir.write("s4.gcode", text) : whole;
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine core-rtheta --from core-rtheta", s4, dir, rc));
+    INFO(xlate5::test::read(dir.path / "run.err"));
+    REQUIRE(rc == 0);
+    const auto tb = run_xlate5("--machine core-rtheta --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    const auto source = source_poses(machine("core-rtheta"), text, 'E', false);
+    std::vector<Pose> start;
+    for (const auto& p : source) start.push_back(p.pose);
+    REQUIRE(start.size() > (xlate5::test::kAddressSanitized ? 200 : 5000));
+    const std::size_t visited = check_same_path(start, tool_poses(tb), 0.01, 0.5, &source);
+    MESSAGE(start.size() << " poses of S4's file, " << visited << " written");
 }
 
 TEST_CASE("core-rtheta: a vertical nozzle takes C from the tip, as S4's cartesian_to_rtheta does") {

@@ -252,15 +252,16 @@ bool path_exists(const Machine& m, const Kinematics& k, const Program& p) {
 // before each; the tool axis's tilt vector (its tangent-plane components) runs round a small
 // circle of radius rho about c, so it starts, passes and ends near the pole when |c| is near rho.
 // With `vertical_start` the first loop is flat (axis exactly vertical) and the tilt grows from
-// zero after it.
-Program curved_layers(std::mt19937& rng, const Eigen::Vector3d& centre, bool vertical_start) {
+// zero after it. With `coarse`, 10 to 20 moves a loop instead of 40 to 80 (each turning the axis
+// by more than the angle tolerance where the tilt circle is large).
+Program curved_layers(std::mt19937& rng, const Eigen::Vector3d& centre, bool vertical_start, bool coarse = false) {
     std::uniform_real_distribution<double> U(0, 1);
     Program p;
     const double r = 5 + 15 * U(rng);
     const double c_mag = rad(2.5 * U(rng)), c_dir = 2 * kPi * U(rng);
     const double rho = rad(0.2 + 2.3 * U(rng)), phase = 2 * kPi * U(rng);
     const double turns = 0.3 + 0.9 * U(rng);  // the tilt circle's turns per loop
-    const int loops = 3, steps = 40 + int(40 * U(rng));
+    const int loops = 3, steps = coarse ? 10 + int(10 * U(rng)) : 40 + int(40 * U(rng));
     double z = centre.z() + 0.3;
     double t_all = 0;
     for (int loop = 0; loop < loops; ++loop) {
@@ -393,7 +394,10 @@ TEST_CASE("pole: a bent tube that starts vertical on rw2 (head at home, A = -168
     CHECK(q[std::size_t(m.joint_index('B'))] > 7.9);
 }
 
-TEST_CASE("pole: random curved-layer paths near the pole on every machine family: never refused where a path within the limits exists") {
+namespace {
+
+// The property test below, on loops of 40 to 80 moves or (coarse) 10 to 20.
+void near_pole_paths(bool coarse) {
     // Head-head (rw2: A bounded at +-168, home -168) and table-table (pentarod, koc5, wpi5,
     // xyzac-trt: the turntable unbounded). The oracle of existence is the exhaustive search
     // above. The unsplit translation (--no-segment: each move's end alone) is the oracle of
@@ -407,20 +411,21 @@ TEST_CASE("pole: random curved-layer paths near the pole on every machine family
         Machine unsplit_m = m;
         unsplit_m.motion.segment = false;
         const Kinematics unsplit(unsplit_m);
-        std::mt19937 rng(std::uint32_t(std::hash<std::string>{}(name) & 0xffffff));
+        std::mt19937 rng(std::uint32_t(std::hash<std::string>{}(coarse ? name + " coarse" : name) & 0xffffff));
         int exists = 0, translated = 0, refused_without_path = 0, refused_with_path = 0, ends_only = 0;
         int turns_in_place = 0;
         double worst_tip = 0, worst_angle = 0;
         const int trials = sampled(24);  // a tenth under the sanitizers
         for (int trial = 0; trial < trials; ++trial) {
             CAPTURE(trial);
-            const Program p = curved_layers(rng, centre_for(name), trial % 3 == 0);
+            const Program p = curved_layers(rng, centre_for(name), trial % 3 == 0, coarse);
             const Outcome o = translate(k, p);
             const bool path = path_exists(m, k, p);
             exists += path;
             if (!o.ok) {
                 CAPTURE(o.error);
                 if (path) {
+                    MESSAGE("refused with a path: " << o.error);
                     ++refused_with_path;
                 } else {
                     ++refused_without_path;
@@ -438,7 +443,7 @@ TEST_CASE("pole: random curved-layer paths near the pole on every machine family
             worst_angle = std::max(worst_angle, e.angle);
             turns_in_place += e.turns_in_place;
         }
-        MESSAGE(name << ": " << translated << " of " << trials << " translated (" << exists << " with a path within the limits and the tolerance; refused: "
+        MESSAGE(name << std::string(coarse ? " (coarse loops)" : "") << ": " << translated << " of " << trials << " translated (" << exists << " with a path within the limits and the tolerance; refused: "
                      << refused_without_path << " without one (of them " << ends_only << " with every end reachable), " << refused_with_path
                      << " with one); worst tip " << worst_tip << " mm, axis " << worst_angle << " deg as written (printing moves); "
                      << turns_in_place << " turns in place inside printing moves");
@@ -457,6 +462,16 @@ TEST_CASE("pole: random curved-layer paths near the pole on every machine family
         // loop round the pole cannot go on turning one way; a turntable never needs one.
         if (!m.joints[std::size_t(k.rotary_joints()[0])].bounded()) CHECK(turns_in_place == 0);
     }
+}
+
+}  // namespace
+
+TEST_CASE("pole: random curved-layer paths near the pole on every machine family: never refused where a path within the limits exists") {
+    near_pole_paths(false);
+}
+
+TEST_CASE("pole: the same with coarse loops (each move turning the axis by more than the tolerance): never refused where a path exists") {
+    near_pole_paths(true);
 }
 
 namespace {

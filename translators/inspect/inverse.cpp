@@ -7,6 +7,9 @@
 #include "translators/pipeline/joint_limits.hpp"
 #include "translators/number.hpp"
 
+#include <algorithm>
+#include <cmath>
+
 namespace xlate5 {
 
 InverseTranslator::InverseTranslator(const Kinematics& kinematics, std::string input_name, char extruder_letter,
@@ -179,9 +182,73 @@ void InverseTranslator::move(int gcode, Params words, std::string& out) {
     if (auto r = check_limits(machine_, q_next_); !r.ok()) fail(words.empty() ? 1 : words.front().column, r.message);
     state_.q.swap(q_next_);
     state_.pose = kin_.forward(state_.q);
-    const Pose placed = retarget_ ? retarget_->place(state_.pose, !extrudes(e, modes.e_relative, modes.e_position), words_.line()) : state_.pose;
-    emitter_.move(out, gcode, placed.tip, placed.axis, state_.q, e, f);
+    const bool travel = !extrudes(e, modes.e_relative, modes.e_position);
+    if (retarget_) {
+        // The source machine moves its joints linearly: its tip and tool axis follow that path,
+        // not the straight line and great arc between the ends. Cut where they part.
+        const int n = retarget_->source_pieces(kin_, q_next_, state_.q, travel);
+        if (n > 1) source_parts(gcode, n, travel, e, f, out);
+        const Pose placed = retarget_->place(state_.pose, travel, words_.line());
+        emitter_.move(out, gcode, placed.tip, placed.axis, state_.q, n > 1 ? last_part_e(n, e) : e, n > 1 && !modes.inverse_time ? std::nullopt : part_f(n, f));
+    } else {
+        emitter_.move(out, gcode, state_.pose.tip, state_.pose.axis, state_.q, e, f);
+    }
     if (e) modes.e_position = modes.e_relative ? modes.e_position + e->value : e->value;
+}
+
+namespace {
+
+// Digits after the point of a number as written (0 for a computed one: its parts get three).
+int decimals_of(const PassedNumber& n) {
+    const auto dot = n.text.find('.');
+    if (n.text.empty() || dot == std::string_view::npos) return 0;
+    std::size_t d = 0;
+    while (dot + 1 + d < n.text.size() && n.text[dot + 1 + d] >= '0' && n.text[dot + 1 + d] <= '9') ++d;
+    return int(d);
+}
+
+// A part's E: three decimals more than written, within what a written number may carry.
+constexpr int kMaxPartDecimals = 12;
+int part_decimals(const PassedNumber& n) { return std::min(decimals_of(n) + 3, kMaxPartDecimals); }
+
+double rounded(double v, int decimals) {
+    const double scale = std::pow(10.0, decimals);
+    return std::round(v * scale) / scale;
+}
+
+}  // namespace
+
+// The first n - 1 of n equal parts of a retargeted move (the source's joints at k / n): E shared
+// out at three more decimals than written (the last part takes the rest, last_part_e), F as
+// written on the first (G94; modal after it) or n times it on each (G93: each part takes 1/n of
+// the time).
+void InverseTranslator::source_parts(int gcode, int n, bool travel, const std::optional<PassedNumber>& e,
+                                     const std::optional<PassedNumber>& f, std::string& out) {
+    const Modes& modes = state_.modes;
+    std::vector<double>& q = part_q_;
+    q = q_next_;
+    for (int k = 1; k < n; ++k) {
+        const double s = double(k) / n;
+        for (std::size_t j = 0; j < q.size(); ++j) q[j] = q_next_[j] + s * (state_.q[j] - q_next_[j]);
+        const Pose placed = retarget_->place(kin_.forward(q), travel, words_.line());
+        std::optional<PassedNumber> ek;
+        if (e) {
+            const int d = part_decimals(*e);
+            ek = PassedNumber{modes.e_relative ? rounded(e->value / n, d) : rounded(modes.e_position + s * (e->value - modes.e_position), d), {}, d};
+        }
+        emitter_.move(out, gcode, placed.tip, placed.axis, q, ek, k == 1 || modes.inverse_time ? part_f(n, f) : std::nullopt);
+    }
+}
+
+std::optional<PassedNumber> InverseTranslator::last_part_e(int n, const std::optional<PassedNumber>& e) const {
+    if (!e || !state_.modes.e_relative) return e;  // absolute: the last part ends at E as written
+    const int d = part_decimals(*e);
+    return PassedNumber{rounded(e->value - (n - 1) * rounded(e->value / n, d), d), {}, d};
+}
+
+std::optional<PassedNumber> InverseTranslator::part_f(int n, const std::optional<PassedNumber>& f) const {
+    if (!f || !state_.modes.inverse_time || n == 1) return f;
+    return PassedNumber{f->value * n, {}, std::min(decimals_of(*f), kMaxPartDecimals)};
 }
 
 void InverseTranslator::set_position(Params words, std::string_view body, std::string& out) {

@@ -74,6 +74,12 @@ private:
     void run_command(const CommandWord& c, std::string_view body, bool alone, Params words, std::string& out);
     void move(int gcode, Params words, std::string& out);
     void set_position(Params words, std::string_view body, std::string& out);
+    // A retargeted move cut into n parts along the source's path (move): the first n - 1, and
+    // the last part's E and each part's F.
+    void source_parts(int gcode, int n, bool travel, const std::optional<PassedNumber>& e, const std::optional<PassedNumber>& f,
+                      std::string& out);
+    std::optional<PassedNumber> last_part_e(int n, const std::optional<PassedNumber>& e) const;
+    std::optional<PassedNumber> part_f(int n, const std::optional<PassedNumber>& f) const;
     void home(Params words, std::string& out);
 
     const Kinematics& kin_;
@@ -89,6 +95,7 @@ private:
     LinePlan plan_;
     std::string move_letters_, position_letters_;  // see plan_line
     TravelClamp* retarget_ = nullptr;
+    std::vector<double> part_q_;  // scratch of source_parts
 };
 
 }  // namespace xlate5

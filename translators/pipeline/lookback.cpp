@@ -108,7 +108,9 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
         // window cannot be translated again to fit it (without a window unwind_before refuses at
         // once, so `to` is still the one written to).
         const bool limit = run.hit_limit, had_checkpoint = win_.checkpoint, linear = run.linear_limit;
-        if (!limit || !unwind_before(current, line_no, run)) {
+        // A pole that no way within the tolerance passes may be one an earlier branch choice
+        // near it led into (coarse loops round a bounded turning joint's pole): tried again too.
+        if (!(limit || (run.at_pole && run.pole.seen > 0)) || !unwind_before(current, line_no, run)) {
             to.resize(held_start);
             if (log_) log_->drop_held_from(moves_start);
             undo_line(copied);
@@ -212,7 +214,11 @@ bool LookBack::unwind_before(HeldLine& current, std::uint64_t line_no, LineRun& 
     // Then all of that again with a flipped choice allowed a half turn in place where its move
     // passes nearest the pole (PoleChoices::turns): the last resort, each pass within kMaxReplays.
     const int first_choices = last.pole.seen;
-    for (const bool turns : {false, true}) {
+    // Last, with longer moves held near the pole as well (PoleChoices::wide), for a line that
+    // failed on a rotary's limit or at a pole (a linear joint's is a placement no hold changes).
+    const int passes = last.linear_limit ? 2 : 3;
+    for (int pass = 0; pass < passes; ++pass) {
+        const bool turns = pass > 0, wide = pass == 2;
         int replays = 0;
         bool missing = false;
         last.pole.seen = first_choices;
@@ -222,10 +228,11 @@ bool LookBack::unwind_before(HeldLine& current, std::uint64_t line_no, LineRun& 
             const int candidate = taken ? was : k;
             PoleChoices base = taken ? win_.flips : PoleChoices{};
             base.turns = turns;
+            base.wide = wide;
             // The end as it is (tried already, for the end taken, by the line's own translation).
             int choices = last.pole.seen;  // the choices up to where the line failed
             // (With turns, the end taken with its flips is another translation than the line's own.)
-            if (!taken || (turns && base.n_flips > 0)) {
+            if (!taken || (turns && base.n_flips > 0) || wide) {
                 ++replays;
                 if (replay(candidate, base, current, line_no, last, missing)) {
                     win_.chosen = candidate;

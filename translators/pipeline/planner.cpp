@@ -369,6 +369,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     if (!res.ok()) {
         run.hit_limit = res.status == IkStatus::OutOfLimits;
         run.linear_limit = run.hit_limit && res.linear;
+        run.at_pole = res.status == IkStatus::Singular;
         throw LineError(mv.column, res.message);
     }
     if (measured) {

@@ -20,6 +20,7 @@ PoleHold::PoleHold(const Kinematics& kinematics)
       machine_(kinematics.machine()),
       region_(kPoleRegion * kinematics.machine().motion.angle_tolerance),
       short_turn_(kinematics.machine().motion.angle_tolerance),
+      wide_turn_(kPoleWideTurns * kinematics.machine().motion.angle_tolerance),
       exact_start_(least_dot_below(1e-6)),
       chord_limit_(chord_within(kPoleMargin * kinematics.machine().motion.angle_tolerance - kPoleSlack)) {
     // The pole of a has_flip machine: the tool axis with the tilting rotary at 0, which the first
@@ -91,7 +92,8 @@ bool PoleHold::passage(const std::vector<double>& q0, const std::vector<double>&
     // Only a move turning the tool axis by less than the tolerance may end off its axis: a
     // passage made of such moves cannot cross in any one of them. A longer move ends exactly
     // where it was programmed (a crossing within it is the motion stage's).
-    const bool short_move = short_turn_.below(from.axis.dot(to.axis));
+    const double turned = from.axis.dot(to.axis);
+    const bool short_move = short_turn_.below(turned) || (choices.wide && wide_turn_.below(turned));
     if (start_exact && !short_move) return false;
     return hold(q0, usual, from, to, at_end, q, worst, need_worst, start_exact, near_pole && short_move, choices);
 }

@@ -49,6 +49,7 @@ constexpr double kPoleSlack = 1e-9;   // degrees: rounding in pole_passage's two
 // Another way than the continuous branch's is taken only when it turns the rotaries by this many
 // degrees less.
 constexpr double kPoleClearlyLess = 1.0;
+constexpr double kPoleWideTurns = 4.0;
 
 // The branch choices the hold made near a pole (held_end: the exact angles of more than one
 // solution within reach, clearly apart), counted across a look-back window. Each takes the
@@ -65,6 +66,11 @@ struct PoleChoices {
     // replay without it has failed, so a half turn inside a printing move is taken only where no
     // other way it tries keeps the path within the limits.
     bool turns = false;
+    // After those too have failed: a move turning the tool axis by up to kPoleWideTurns angle
+    // tolerances may be held near the pole as well (a loop drawn with few, long moves: where its
+    // end lies nearest the pole the budget lets the turning joint stay back), the look-back's
+    // last pass.
+    bool wide = false;
     bool next_flipped() {
         const int i = seen++;
         for (int k = 0; k < n_flips; ++k)
@@ -123,7 +129,7 @@ private:
     bool checks_ = false;
     bool polar_ = false;                   // Kinematics::is_polar
     std::size_t c_ = 0, b_ = 0;            // the rotaries' joints (rotary_joints() order)
-    AngleLimit region_, short_turn_;       // the tests of the angles passage compares
+    AngleLimit region_, short_turn_, wide_turn_;  // the tests of the angles passage compares
     double exact_start_;                   // a start within 1e-6 degrees of its axis: a dot at least this
     double chord_limit_;                   // hold's chord within its limit (a constant of the machine)
     std::vector<double> probe_;            // scratch

@@ -198,7 +198,8 @@ Translator::Translator(const Kinematics& kinematics, TranslatorOptions options) 
         retarget_ = true;
         input_name_ = options.input_name;
         inverse_ = std::make_unique<InverseTranslator>(*options.from, options.input_name, options.extruder_letter, OrientationMode::Vector);
-        clamp_ = std::make_unique<TravelClamp>(kinematics, options.input_name, options.notice);
+        clamp_ = std::make_unique<TravelClamp>(kinematics, options.input_name, options.notice,
+                                               Eigen::Vector3d(options.place[0], options.place[1], options.place[2]));
         inverse_->set_retarget(*clamp_);
         if (options.compact_words) inverse_->set_compact_words();
         options.start_mode = OrientationMode::Vector;

@@ -5,6 +5,7 @@
 // inverse.cpp. It wires the stages together and holds no logic of its own.
 // May call: every forward stage (it hands each one's output to the next), their state (for the accessors), inverse.
 #pragma once
+#include <array>
 #include <functional>
 #include <cstdint>
 #include <memory>
@@ -35,6 +36,9 @@ struct TranslatorOptions {
     // its forward kinematics give the tip and tool axis (as the inverse does, in the vector
     // form), which are translated for this machine. Null: the input is tool space.
     const Kinematics* from = nullptr;
+    // Retargeting: where the source's part frame lies in this machine's (mm, added to every tip):
+    // the part placed elsewhere on this machine's bed than on the source's (--place).
+    std::array<double, 3> place{};
     DeviationReport* report = nullptr;  // when set, every tool-space move is measured into it
     const KeepOutItems* keep_out = nullptr;  // when set, R comes from the path and these items (keep_out.hpp)
     // The input is written without blanks from its first line on: "X1.5E-05" is X1.5 and E-05, as

@@ -3,7 +3,11 @@
 #include "translators/pipeline/travel_clamp.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
+
+#include "translators/constants.hpp"
+#include "translators/kinematics/great_arc.hpp"
 
 #include "translators/pipeline/joint_limits.hpp"
 
@@ -17,10 +21,45 @@ constexpr double kInside = 1e-6;
 
 }  // namespace
 
-TravelClamp::TravelClamp(const Kinematics& target, std::string input_name, std::function<void(const std::string&)> notice)
-    : target_(target), input_name_(std::move(input_name)), notice_(std::move(notice)), q_(target.machine().home_joints()) {}
+TravelClamp::TravelClamp(const Kinematics& target, std::string input_name, std::function<void(const std::string&)> notice,
+                         const Eigen::Vector3d& offset)
+    : target_(target), input_name_(std::move(input_name)), notice_(std::move(notice)), offset_(offset), q_(target.machine().home_joints()) {}
 
-Pose TravelClamp::place(const Pose& pose, bool travel, std::uint64_t line) {
+int TravelClamp::source_pieces(const Kinematics& source, const std::vector<double>& q0, const std::vector<double>& q1, bool travel) const {
+    const MotionSettings& motion = target_.machine().motion;
+    if (!motion.segment || q0.size() != q1.size() || (travel && !target_.is_polar())) return 1;
+    bool turns = false;
+    for (const int j : source.rotary_joints()) turns = turns || q0[std::size_t(j)] != q1[std::size_t(j)];
+    if (!turns) return 1;  // the rotaries still: the source draws a straight line
+    const double tol = 0.25 * motion.tolerance, angle = 0.25 * motion.angle_tolerance * kRadPerDeg;
+    std::vector<double>& q = lerp_;
+    q = q0;
+    const auto at = [&](double s) {
+        for (std::size_t j = 0; j < q.size(); ++j) q[j] = q0[j] + s * (q1[j] - q0[j]);
+        return source.forward(q);
+    };
+    // Doubled until every part passes on three points each (the middle and its quarters).
+    for (int n = 1;; n *= 2) {
+        bool within = true;
+        Pose a = at(0);
+        for (int k = 1; k <= n && within; ++k) {
+            const Pose b = at(double(k) / n);
+            const GreatArc arc(a.axis, b.axis);
+            for (const double t : {0.25, 0.5, 0.75}) {
+                const Pose p = at((k - 1 + t) / n);
+                const Eigen::Vector3d chord = a.tip + t * (b.tip - a.tip);
+                const double axis_off = std::acos(std::clamp(p.axis.dot(arc.at(t)), -1.0, 1.0));
+                if ((p.tip - chord).norm() > tol || axis_off > angle) within = false;
+            }
+            a = b;
+        }
+        if (within || n >= kMaxSourcePieces) return n;
+    }
+}
+
+Pose TravelClamp::place(const Pose& source_pose, bool travel, std::uint64_t line) {
+    Pose pose = source_pose;
+    pose.tip += offset_;
     // The same solve as the planner's end (Kinematics::inverse: the orientation nearest the
     // joints before, then the position), from the joints this stage placed last.
     const IkResult r = target_.inverse(pose, q_, solved_);
@@ -48,6 +87,9 @@ Pose TravelClamp::place(const Pose& pose, bool travel, std::uint64_t line) {
     const double along = back.dot(pose.axis);
     if (!(along > 0) || (back - along * pose.axis).norm() > 1e-6 * std::max(1.0, along)) return pose;
     q_.swap(solved_);
+    // One note a line (a move cut into parts along the source's path is held part by part).
+    if (line == held_line_) return placed;
+    held_line_ = line;
     ++held_;
     if (notice_ && held_ <= kMaxNotices)
         notice_(input_name_ + ":" + std::to_string(line) + ": note: a travel move past " + m.name + "'s travel is held at its limits: " +

@@ -13,6 +13,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -25,21 +26,35 @@ public:
     // Notices (one line each, at most kMaxNotices, then one saying the rest are not listed) go to
     // `notice` when set.
     static constexpr std::uint64_t kMaxNotices = 10;
-    TravelClamp(const Kinematics& target, std::string input_name, std::function<void(const std::string&)> notice);
+    // `offset`: the source's part frame placed on the target's (--place), added to every tip.
+    TravelClamp(const Kinematics& target, std::string input_name, std::function<void(const std::string&)> notice,
+                const Eigen::Vector3d& offset = Eigen::Vector3d::Zero());
 
-    // Where a move of input line `line` goes on the target: `pose`, or for a travel move past a
-    // linear joint's limit, the pose with the tip where that joint stops at its limit.
-    Pose place(const Pose& pose, bool travel, std::uint64_t line);
+    // Where a move of input line `line` goes on the target: `pose` moved by the offset, or for a
+    // travel move past a linear joint's limit, that pose with the tip where the joint stops at its limit.
+    Pose place(const Pose& source_pose, bool travel, std::uint64_t line);
+    // Into how many equal parts of the source's joint-linear move q0 -> q1 (the source's forward
+    // kinematics `source`) the move is cut so that each part's chord and great arc stay within a
+    // quarter of the target's tolerances of the path the source machine takes (the target then
+    // follows each chord within its tolerances): 1 for a move the source draws straight, or when
+    // the target does not split (--no-segment), at most kMaxSourcePieces.
+    static constexpr int kMaxSourcePieces = 256;
+    // A travel move (not printed) keeps the straight line, as any tool-space travel, except on a
+    // polar target (Kinematics::is_polar), which reaches a tool axis only in the tip's plane
+    // through C's axis: there the straight line between two poses is mostly out of its reach.
+    int source_pieces(const Kinematics& source, const std::vector<double>& q0, const std::vector<double>& q1, bool travel) const;
     // The target homed (G28): its joints are at home again.
     void homed() { q_ = target_.machine().home_joints(); }
-    std::uint64_t held() const { return held_; }  // travel moves held at a limit so far
+    std::uint64_t held() const { return held_; }  // input lines with a travel move held at a limit so far
 
 private:
     const Kinematics& target_;
     std::string input_name_;
     std::function<void(const std::string&)> notice_;
+    Eigen::Vector3d offset_;
     std::vector<double> q_, solved_;  // the target's joints as last placed; scratch
-    std::uint64_t held_ = 0;
+    mutable std::vector<double> lerp_;  // scratch of source_pieces
+    std::uint64_t held_ = 0, held_line_ = 0;
 };
 
 }  // namespace xlate5
