@@ -230,6 +230,8 @@ struct CollisionStage::Impl {
         for (std::size_t j = 0; j < m.joints.size(); ++j)
             if (!m.joints[j].rotary) linear_joints.push_back(int(j));
         q.resize(m.joints.size());
+        solid_clear.resize(tools.size() * solids.size());
+        new_epoch();
         // The fixed obstacles' poses never change: set once, at home.
         const auto home = m.home_joints();
         walk(m.part_chain, home.data(), part_frames);
@@ -476,7 +478,9 @@ struct CollisionStage::Impl {
                 const int t = tools[k];
                 if ((k < 32 && !(mask >> k & 1u)) || !overlaps(b.box, swept[std::size_t(t)])) continue;
                 if (!risen) r = rise(b.centre, b.half, b.reach, bound), risen = true;
-                if (under(t, r) || apart(t, bead_obb(b))) continue;
+                if (under(t, r) || known_clear(bead_clear[i * tools.size() + k], odo[std::size_t(t)], step_rate(t)) ||
+                    apart(t, bead_obb(b)))
+                    continue;
                 candidates[k].push_back(i);
             }
         }
@@ -552,22 +556,54 @@ struct CollisionStage::Impl {
     // The outcome of one step's test.
     enum class Step { Clear, Unsure, Hit };
     // Conservative advancement of tool t against `other` over sa..sb: the contact, if any.
+    // Clear: `until` is how far the pair may move (on the odometer, from the step's start) before
+    // they can meet: the last distance measured plus the motion bound up to where it was measured.
     bool advance(int t, const fcl::CollisionObjectd& other, int who, double rate, const double* q0, const double* q1, double sa,
-                 double sb, double& s_hit) {
+                 double sb, double& s_hit, double& until) {
         double s = sa;
         for (int it = 0;; ++it) {
-            pose_at(q0, q1, s, mid);
-            place(t, mid.pose[std::size_t(t)]);
-            if (who >= 0 && solids[std::size_t(who)].moves) place(who, mid.pose[std::size_t(who)]);
+            // At the step's start the poses are its snapshot's: most pairs clear there at once.
+            const Snapshot* at = step_a;
+            if (it > 0) pose_at(q0, q1, s, mid), at = &mid;
+            place(t, at->pose[std::size_t(t)]);
+            if (who >= 0 && solids[std::size_t(who)].moves) place(who, at->pose[std::size_t(who)]);
             const double d = distance(*solids[std::size_t(t)].object, other);
             if (d <= kContact || it >= kMaxAdvances) {
                 s_hit = s;
                 return true;
             }
             // The pair cannot meet before s + d / rate: past the step's end, done.
-            if (rate <= 0 || s + d / rate >= sb) return false;
+            if (rate <= 0 || s + d / rate >= sb) {
+                until = (s - sa) * rate + d;
+                return false;
+            }
             s += d / rate;
         }
+    }
+
+    // Cached clearance (conservative advancement carried across steps and pieces): a distance d
+    // measured between a tool body and a bead (or obstacle) stays a lower bound until the pair
+    // has moved d towards each other. Each solid's odometer sums its motion bound (step_rate)
+    // over the steps swept clear in a row; a pair is skipped while its odometers at the step's
+    // end are below what they were when measured plus d. A sweep that does not start where the
+    // last one ended clear (a contact, a detour's retry, the look-back's replay) starts a new
+    // epoch: every cached value lapses.
+    struct Clear {
+        double until = 0;          // the pair's odometer sum up to which it cannot meet
+        std::uint32_t epoch = 0;   // 0: never measured
+    };
+    std::vector<Clear> bead_clear;      // per bead and tool (beads.size() x tools.size())
+    std::vector<Clear> solid_clear;     // per tool and solid (tools.size() x solids.size())
+    std::vector<double> odo;            // per solid: motion bound summed, this epoch
+    std::uint32_t epoch = 1;
+    void new_epoch() {
+        ++epoch;
+        odo.assign(solids.size(), 0.0);
+    }
+    // Whether the pair (tool k, with odometer sum `at_start` at the step's start and `moving`
+    // over it) is known apart over the whole step.
+    bool known_clear(const Clear& c, double at_start, double moving) const {
+        return c.epoch == epoch && at_start + moving < c.until;
     }
 
     Snapshot mid;
@@ -617,7 +653,8 @@ struct CollisionStage::Impl {
         };
         const Node* root = part.getRoot();
         bool collected = false;
-        for (const int& t : tools) {
+        for (std::size_t k = 0; k < tools.size(); ++k) {
+            const int t = tools[k];
             const fcl::AABBd& box = swept[std::size_t(t)];
             for (const auto* list : {&fixed_obstacles, &moving_obstacles})
                 for (const int o : *list) {
@@ -629,19 +666,24 @@ struct CollisionStage::Impl {
                         const Eigen::Vector3d half[3] = {Eigen::Vector3d(e.x(), 0, 0), Eigen::Vector3d(0, e.y(), 0), Eigen::Vector3d(0, 0, e.z())};
                         if (below(t, ob.center(), half, e.norm(), bound)) continue;
                     }
+                    Clear& c = solid_clear[std::size_t(k) * solids.size() + std::size_t(o)];
+                    const double at_start = odo[std::size_t(t)] + odo[std::size_t(o)], moving = rate_of(t) + rate_of(o);
+                    if (known_clear(c, at_start, moving)) continue;
                     if (!leaf) return Step::Unsure;
-                    double s = 0;
-                    if (advance(t, *obstacle.object, o, (rate_of(t) + rate_of(o)) / (sb - sa), q0, q1, sa, sb, s)) hit(t, o, nullptr, s);
+                    double s = 0, until = 0;
+                    if (advance(t, *obstacle.object, o, moving / (sb - sa), q0, q1, sa, sb, s, until)) hit(t, o, nullptr, s);
+                    else c = {at_start + until, epoch};
                 }
             // The printed part: the beads whose boxes meet the tool body's swept box, less those
             // wholly below the body's lowest point over the step (the layers it prints on).
             if ((!root || !overlaps(root->bv, box)) && open_first == beads.size()) continue;
             if (!collected) collect_part(bound), collected = true;
-            for (const std::size_t c : candidates[std::size_t(&t - tools.data())]) {
+            for (const std::size_t c : candidates[std::size_t(k)]) {
                 const Bead& bead = beads[c];
                 if (!leaf) return Step::Unsure;
-                double s = 0;
-                if (advance(t, object_of(bead), -1, rate_of(t) / (sb - sa), q0, q1, sa, sb, s)) hit(t, -1, &bead, s);
+                double s = 0, until = 0;
+                if (advance(t, object_of(bead), -1, rate_of(t) / (sb - sa), q0, q1, sa, sb, s, until)) hit(t, -1, &bead, s);
+                else bead_clear[c * tools.size() + std::size_t(k)] = {odo[std::size_t(t)] + until, epoch};
             }
         }
         return first ? Step::Hit : Step::Clear;
@@ -661,6 +703,9 @@ struct CollisionStage::Impl {
         // The bounds hold for a turn under half a radian (bound_at); test larger spans halved.
         if (turn < kWholeTurn) {
             const Step r = test_step(q0, q1, sa, sb, a, b, leaf, first);
+            if (r == Step::Clear)  // the odometers run on past the step
+                for (std::size_t i = 0; i < solids.size(); ++i)
+                    if (solids[i].moves) odo[i] += step_rate(int(i));
             if (r != Step::Unsure) return r == Step::Hit;
         }
         if (std::size_t(depth) >= pool.size()) pool.resize(std::size_t(depth) + 1);
@@ -674,7 +719,10 @@ struct CollisionStage::Impl {
     // The first contact over the sweep q0 -> q1, or none.
     std::optional<CollisionEvent> sweep(const double* q0, const double* q1) {
         const std::size_t n = q.size();
-        if (!start_valid || !std::equal(q0, q0 + n, start.q.begin())) snap(q0, start, true);
+        if (!start_valid || !std::equal(q0, q0 + n, start.q.begin())) {
+            snap(q0, start, true);
+            new_epoch();
+        }
         if (end.q.size() != n) end.q.resize(n);
         snap(q1, end, true);
         std::optional<CollisionEvent> first;
@@ -728,6 +776,7 @@ struct CollisionStage::Impl {
         // The bead lies under the tip's path: its top along it.
         pose.translation() = 0.5 * (p0 + p1) - 0.5 * h * up;
         Bead& b = beads.emplace_back();
+        bead_clear.resize(beads.size() * tools.size());
         b.line = line;
         b.pose = pose;
         b.size = Eigen::Vector3d(length, w, h);
@@ -777,6 +826,7 @@ struct CollisionStage::Impl {
         }
         open_first = chunks.empty() ? 0 : chunks.back().first + kChunk;
         beads.erase(beads.begin() + std::ptrdiff_t(count), beads.end());
+        bead_clear.resize(count * tools.size());
     }
 };
 
