@@ -338,8 +338,10 @@ struct CollisionStage::Impl {
         // The bounding sphere's centre: the body's chain frame origin.
         const Eigen::Vector3d o = body.place.inverse().translation();
         const Eigen::Vector3d oa = pa * o, ob = pb * o;
-        const double turned = Eigen::AngleAxisd(pa.linear().transpose() * pb.linear()).angle();
-        const double chord = (ob - oa).norm() + std::abs(turned) * body.radius;
+        // A point at R from the origin moves by at most |Rb - Ra| R = 2 sin(turn / 2) R =
+        // sqrt(3 - trace(Ra^T Rb)) R: no angle needed.
+        const double tr = pa.linear().cwiseProduct(pb.linear()).sum();
+        const double chord = (ob - oa).norm() + std::sqrt(std::max(0.0, 3 - tr)) * body.radius;
         return chord + curve(a.centre[std::size_t(i)], body.radius, a, dq);
     }
     // Half the bound on |p''| of rate() for a sphere of radius R about `centre` (base frame).
