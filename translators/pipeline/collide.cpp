@@ -538,20 +538,39 @@ struct CollisionStage::Impl {
         if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, *step_a, *step_b, dstep.data());
         return D[std::size_t(i)];
     }
-    bool apart(int t, const fcl::OBBd& other) {
+    // Tool body t's own box grown by step_rate(t) + kContact, in the part frame at the step's
+    // start: made once a step (`held_ok`, cleared by test_step), for apart().
+    struct Held {
+        Eigen::Matrix3d axes;  // the body's axes, columns
+        Eigen::Vector3d centre, extent;
+    };
+    std::vector<Held> held;
+    std::vector<char> held_ok;
+    const Held& held_box(int t) {
+        Held& h = held[std::size_t(t)];
+        if (held_ok[std::size_t(t)]) return h;
         const fcl::CollisionGeometryd& g = *solids[std::size_t(t)].object->collisionGeometry();
         const Iso& pose = step_a->pose[std::size_t(t)];
-        const Eigen::Vector3d centre = pose * (0.5 * (g.aabb_local.min_ + g.aabb_local.max_));
-        const Eigen::Vector3d extent = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_) + Eigen::Vector3d::Constant(step_rate(t) + kContact);
+        h.axes = pose.linear();
+        h.centre = pose * (0.5 * (g.aabb_local.min_ + g.aabb_local.max_));
+        h.extent = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_) + Eigen::Vector3d::Constant(step_rate(t) + kContact);
+        held_ok[std::size_t(t)] = 1;
+        return h;
+    }
+    bool apart(int t, const fcl::OBBd& other) {
+        const Held& h = held_box(t);
+        const Eigen::Vector3d w = other.To - h.centre;
         // The separating-axis test on the two boxes' own six face normals (of the fifteen: fewer
-        // axes find fewer gaps, never a false one). R: the other's axes in the body's frame.
-        const Eigen::Matrix3d R = pose.linear().transpose() * other.axis;
-        const Eigen::Vector3d d = pose.linear().transpose() * (other.To - centre);
-        const Eigen::Matrix3d A = R.cwiseAbs();
-        for (int i = 0; i < 3; ++i)
-            if (std::abs(d[i]) > extent[i] + A.row(i).dot(other.extent)) return true;
+        // axes find fewer gaps, never a false one), the body's first, each row of R (the body's
+        // axes against the other's) made only when its axis is tried: most gaps show on one.
+        Eigen::Matrix3d R;
+        for (int i = 0; i < 3; ++i) {
+            const Eigen::Vector3d a = h.axes.col(i);
+            R.row(i) = a.transpose() * other.axis;
+            if (std::abs(a.dot(w)) > h.extent[i] + R.row(i).cwiseAbs().dot(other.extent)) return true;
+        }
         for (int j = 0; j < 3; ++j)
-            if (std::abs(R.col(j).dot(d)) > other.extent[j] + A.col(j).dot(extent)) return true;
+            if (std::abs(other.axis.col(j).dot(w)) > other.extent[j] + R.col(j).cwiseAbs().dot(h.extent)) return true;
         return false;
     }
 
@@ -635,6 +654,8 @@ struct CollisionStage::Impl {
         }
         const StepBound bound = step_bound(a, b, tt);
         D.assign(solids.size(), -1.0);
+        held.resize(solids.size());
+        held_ok.assign(solids.size(), 0);
         step_a = &a;
         step_b = &b;
         auto rate_of = [&](int i) { return step_rate(i); };
