@@ -470,6 +470,7 @@ struct CollisionStage::Impl {
     // is the same for every body), or its oriented box stays apart from the body's (apart()).
     std::vector<std::vector<std::size_t>> candidates;
     std::vector<const Node*> stack;
+    std::vector<const fcl::AABBd*> active;
     // `mask`: the tools (bit k: tools[k]; from the 33rd on, all) the beads' chunk did not rule out.
     void sift(std::size_t first, std::size_t last, const StepBound& bound, unsigned mask) {
         for (std::size_t i = first; i < last; ++i) {
@@ -493,14 +494,19 @@ struct CollisionStage::Impl {
         sift(open_first, beads.size(), bound, ~0u);
         const Node* root = part.getRoot();
         if (!root) return;
+        // Only the tool bodies whose swept boxes meet the root's can meet a node's below it.
+        active.clear();
+        for (const int t : tools)
+            if (overlaps(root->bv, swept[std::size_t(t)])) active.push_back(&swept[std::size_t(t)]);
+        if (active.empty()) return;
         stack.clear();
         stack.push_back(root);
         while (!stack.empty()) {
             const auto* node = stack.back();
             stack.pop_back();
             bool meets = false;
-            for (const int t : tools)
-                if (overlaps(node->bv, swept[std::size_t(t)])) {
+            for (const fcl::AABBd* box : active)
+                if (overlaps(node->bv, *box)) {
                     meets = true;
                     break;
                 }
