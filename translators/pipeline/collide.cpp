@@ -98,6 +98,7 @@ struct Solid {
     std::unique_ptr<Placed> object;
     int frame = -1;  // index into the frames bodies ride on (Impl::frame_keys)
     bool moves = true;  // in the part frame (false: on the plate, fixed there)
+    Eigen::Vector3d origin = Eigen::Vector3d::Zero();  // its chain frame's origin, in the shape's frame (rate())
 };
 
 // A sub-step's end: every solid's pose in the part frame, and what the bound needs.
@@ -209,6 +210,7 @@ struct CollisionStage::Impl {
             s.body = &b;
             s.object = std::make_unique<Placed>(make_geometry(b.shape));
             s.moves = !(!b.tool_side && b.after == int(m.part_chain.size()) - 1);
+            s.origin = b.place.inverse().translation();
             const std::pair<bool, int> key(b.tool_side, b.after);
             const auto at = std::find(frame_keys.begin(), frame_keys.end(), key);
             s.frame = int(at - frame_keys.begin());
@@ -324,29 +326,25 @@ struct CollisionStage::Impl {
     }
 
     // The most any point of solid i moves in the part frame per unit of the sub-step from a to b
-    // (joint change dq over it): a Lipschitz bound, tight where bound() is loose. A point's
+    // (`bow`: curve() over it): a Lipschitz bound, tight where bound() is loose. A point's
     // path p(u) has |p'(u) - (p(1) - p(0))| <= M / 2 with M >= |p''|; p(1) - p(0) is at most
     // the body frame's chord plus its turn times the body's radius; and with the joints moving
     // at constant rates, M <= 4 T^2 r + 3 T L (T: the rotaries' turn, L: the linear joints'
     // travel, r: the farthest a point or axis gets from a rotary axis). Derivation:
     // docs/machines.md, "Bodies".
-    double rate(int i, const Snapshot& a, const Snapshot& b, const double* dq) const {
+    double rate(int i, const Snapshot& a, const Snapshot& b, double bow) const {
         if (!solids[std::size_t(i)].moves) return 0;
         const Body& body = *solids[std::size_t(i)].body;
         const Iso& pa = a.pose[std::size_t(i)];
         const Iso& pb = b.pose[std::size_t(i)];
         // The bounding sphere's centre: the body's chain frame origin.
-        const Eigen::Vector3d o = body.place.inverse().translation();
+        const Eigen::Vector3d& o = solids[std::size_t(i)].origin;
         const Eigen::Vector3d oa = pa * o, ob = pb * o;
         // A point at R from the origin moves by at most |Rb - Ra| R = 2 sin(turn / 2) R =
         // sqrt(3 - trace(Ra^T Rb)) R: no angle needed.
         const double tr = pa.linear().cwiseProduct(pb.linear()).sum();
         const double chord = (ob - oa).norm() + std::sqrt(std::max(0.0, 3 - tr)) * body.radius;
-        return chord + curve(a.centre[std::size_t(i)], body.radius, a, dq);
-    }
-    // Half the bound on |p''| of rate() for a sphere of radius R about `centre` (base frame).
-    double curve(const Eigen::Vector3d& centre, double R, const Snapshot& a, const double* dq) const {
-        return curve(centre, R, a, turns_of(dq));
+        return chord + bow;
     }
     // A step's joint motion as the bow needs it: the linear joints' travel, each rotary's turn.
     struct Turns {
@@ -362,6 +360,7 @@ struct CollisionStage::Impl {
         }
         return tt;
     }
+    // Half the bound on |p''| of rate() for a sphere of radius R about `centre` (base frame).
     double curve(const Eigen::Vector3d& centre, double R, const Snapshot& a, const Turns& tt) const {
         if (tt.T == 0) return 0;
         double r = 0, A = 0;
@@ -541,7 +540,7 @@ struct CollisionStage::Impl {
     // frame) grown by that much holds it all along; FCL's separating-axis test of two boxes.
     const Snapshot *step_a = nullptr, *step_b = nullptr;
     double step_rate(int i) {
-        if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, *step_a, *step_b, dstep.data());
+        if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, *step_a, *step_b, bow[std::size_t(i)]);
         return D[std::size_t(i)];
     }
     // Tool body t's own box grown by step_rate(t) + kContact, in the part frame at the step's
@@ -635,7 +634,7 @@ struct CollisionStage::Impl {
 
     Snapshot mid;
     std::vector<fcl::AABBd> swept;
-    std::vector<double> grown, D;
+    std::vector<double> bow, D;  // per solid, this step: curve() and step_rate()
     std::vector<double> dstep;
 
     // One step sa..sb of the piece q0 -> q1, its ends' snapshots a and b (with boxes). `leaf`:
@@ -652,11 +651,13 @@ struct CollisionStage::Impl {
         // straight line between its two ends (|p''| <= M), and those lines lie in the join of the
         // end boxes (docs/machines.md, "Bodies").
         swept.resize(solids.size());
+        bow.assign(solids.size(), 0.0);
         for (std::size_t i = 0; i < solids.size(); ++i) {
             swept[i] = a.box[i];
             if (!solids[i].moves) continue;
             swept[i] += b.box[i];
-            grow(swept[i], (turns ? 0.25 * curve(a.centre[i], solids[i].body->radius, a, tt) : 0.0) + kContact);
+            if (turns) bow[i] = curve(a.centre[i], solids[i].body->radius, a, tt);
+            grow(swept[i], 0.25 * bow[i] + kContact);
         }
         const StepBound bound = step_bound(a, b, tt);
         D.assign(solids.size(), -1.0);
