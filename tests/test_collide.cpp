@@ -4,6 +4,7 @@
 // move's ends, the sweep against dense sampling, the look-back's replay, and real files.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <sys/wait.h>
@@ -307,6 +308,43 @@ TEST_CASE("rw2: the sweep never misses what dense sampling finds (property)") {
     MESSAGE("sweeps with a contact: " << hits << ", without: " << misses);
     CHECK(hits > 10);
     CHECK(misses > 10);
+}
+
+TEST_CASE("rw2: chained pieces, each starting where the last ended, never miss what dense sampling finds") {
+    // The check carries each pair's clearance from piece to piece while they chain (the
+    // odometers of collide.cpp): a random walk near the wall, each piece against dense samples.
+    const Machine m = load_with_bodies("rw2");
+    const Kinematics k(m);
+    TranslatorOptions opt;
+    opt.collision = CollisionPolicy::Warn;
+    Translator t(k, opt);
+    std::string out;
+    std::uint64_t n = 0;
+    for (const auto& l : lines_of(rw2_wall())) t.feed(l, ++n, out);
+    CollisionStage& stage = *t.collision();
+    std::mt19937 rng(3838);
+    std::uniform_real_distribution<double> U(-1, 1);
+    const double lo[5] = {38, 90, 1, -60, -60}, hi[5] = {62, 110, 4, 60, 60}, step[5] = {6, 4, 2, 30, 30};
+    std::vector<double> q0 = {42, 100, 3, 0, 0}, q(5);
+    int hits = 0, misses = 0;
+    for (int i = 0; i < 150; ++i) {
+        std::vector<double> q1 = q0;
+        for (std::size_t j = 0; j < 5; ++j) q1[j] = std::clamp(q0[j] + step[j] * U(rng), lo[j], hi[j]);
+        constexpr int kSamples = 200;
+        double least = 1e300;
+        for (int s = 0; s <= kSamples; ++s) {
+            for (std::size_t j = 0; j < 5; ++j) q[j] = q0[j] + (q1[j] - q0[j]) * s / kSamples;
+            least = std::min(least, stage.clearance(q));
+        }
+        const bool swept = bool(stage.sweep(q0, q1));
+        if (least <= 0) CHECK(swept);
+        if (swept) CHECK(least < 1.0);
+        (swept ? hits : misses)++;
+        q0 = q1;
+    }
+    MESSAGE("chained pieces with a contact: " << hits << ", without: " << misses);
+    CHECK(hits > 5);
+    CHECK(misses > 50);
 }
 
 TEST_CASE("rw2: beads are laid once through the look-back's replay and a refused line") {

@@ -98,6 +98,7 @@ struct Solid {
     std::unique_ptr<Placed> object;
     int frame = -1;  // index into the frames bodies ride on (Impl::frame_keys)
     bool moves = true;  // in the part frame (false: on the plate, fixed there)
+    Eigen::Vector3d origin = Eigen::Vector3d::Zero();  // its chain frame's origin, in the shape's frame (rate())
 };
 
 // A sub-step's end: every solid's pose in the part frame, and what the bound needs.
@@ -209,6 +210,7 @@ struct CollisionStage::Impl {
             s.body = &b;
             s.object = std::make_unique<Placed>(make_geometry(b.shape));
             s.moves = !(!b.tool_side && b.after == int(m.part_chain.size()) - 1);
+            s.origin = b.place.inverse().translation();
             const std::pair<bool, int> key(b.tool_side, b.after);
             const auto at = std::find(frame_keys.begin(), frame_keys.end(), key);
             s.frame = int(at - frame_keys.begin());
@@ -230,6 +232,8 @@ struct CollisionStage::Impl {
         for (std::size_t j = 0; j < m.joints.size(); ++j)
             if (!m.joints[j].rotary) linear_joints.push_back(int(j));
         q.resize(m.joints.size());
+        solid_clear.resize(tools.size() * solids.size());
+        new_epoch();
         // The fixed obstacles' poses never change: set once, at home.
         const auto home = m.home_joints();
         walk(m.part_chain, home.data(), part_frames);
@@ -322,27 +326,25 @@ struct CollisionStage::Impl {
     }
 
     // The most any point of solid i moves in the part frame per unit of the sub-step from a to b
-    // (joint change dq over it): a Lipschitz bound, tight where bound() is loose. A point's
+    // (`bow`: curve() over it): a Lipschitz bound, tight where bound() is loose. A point's
     // path p(u) has |p'(u) - (p(1) - p(0))| <= M / 2 with M >= |p''|; p(1) - p(0) is at most
     // the body frame's chord plus its turn times the body's radius; and with the joints moving
     // at constant rates, M <= 4 T^2 r + 3 T L (T: the rotaries' turn, L: the linear joints'
     // travel, r: the farthest a point or axis gets from a rotary axis). Derivation:
     // docs/machines.md, "Bodies".
-    double rate(int i, const Snapshot& a, const Snapshot& b, const double* dq) const {
+    double rate(int i, const Snapshot& a, const Snapshot& b, double bow) const {
         if (!solids[std::size_t(i)].moves) return 0;
         const Body& body = *solids[std::size_t(i)].body;
         const Iso& pa = a.pose[std::size_t(i)];
         const Iso& pb = b.pose[std::size_t(i)];
         // The bounding sphere's centre: the body's chain frame origin.
-        const Eigen::Vector3d o = body.place.inverse().translation();
+        const Eigen::Vector3d& o = solids[std::size_t(i)].origin;
         const Eigen::Vector3d oa = pa * o, ob = pb * o;
-        const double turned = Eigen::AngleAxisd(pa.linear().transpose() * pb.linear()).angle();
-        const double chord = (ob - oa).norm() + std::abs(turned) * body.radius;
-        return chord + curve(a.centre[std::size_t(i)], body.radius, a, dq);
-    }
-    // Half the bound on |p''| of rate() for a sphere of radius R about `centre` (base frame).
-    double curve(const Eigen::Vector3d& centre, double R, const Snapshot& a, const double* dq) const {
-        return curve(centre, R, a, turns_of(dq));
+        // A point at R from the origin moves by at most |Rb - Ra| R = 2 sin(turn / 2) R =
+        // sqrt(3 - trace(Ra^T Rb)) R: no angle needed.
+        const double tr = pa.linear().cwiseProduct(pb.linear()).sum();
+        const double chord = (ob - oa).norm() + std::sqrt(std::max(0.0, 3 - tr)) * body.radius;
+        return chord + bow;
     }
     // A step's joint motion as the bow needs it: the linear joints' travel, each rotary's turn.
     struct Turns {
@@ -358,6 +360,7 @@ struct CollisionStage::Impl {
         }
         return tt;
     }
+    // Half the bound on |p''| of rate() for a sphere of radius R about `centre` (base frame).
     double curve(const Eigen::Vector3d& centre, double R, const Snapshot& a, const Turns& tt) const {
         if (tt.T == 0) return 0;
         double r = 0, A = 0;
@@ -466,6 +469,7 @@ struct CollisionStage::Impl {
     // is the same for every body), or its oriented box stays apart from the body's (apart()).
     std::vector<std::vector<std::size_t>> candidates;
     std::vector<const Node*> stack;
+    std::vector<const fcl::AABBd*> active;
     // `mask`: the tools (bit k: tools[k]; from the 33rd on, all) the beads' chunk did not rule out.
     void sift(std::size_t first, std::size_t last, const StepBound& bound, unsigned mask) {
         for (std::size_t i = first; i < last; ++i) {
@@ -476,7 +480,9 @@ struct CollisionStage::Impl {
                 const int t = tools[k];
                 if ((k < 32 && !(mask >> k & 1u)) || !overlaps(b.box, swept[std::size_t(t)])) continue;
                 if (!risen) r = rise(b.centre, b.half, b.reach, bound), risen = true;
-                if (under(t, r) || apart(t, bead_obb(b))) continue;
+                if (under(t, r) || known_clear(bead_clear[i * tools.size() + k], odo[std::size_t(t)], step_rate(t)) ||
+                    apart(t, bead_obb(b)))
+                    continue;
                 candidates[k].push_back(i);
             }
         }
@@ -487,14 +493,19 @@ struct CollisionStage::Impl {
         sift(open_first, beads.size(), bound, ~0u);
         const Node* root = part.getRoot();
         if (!root) return;
+        // Only the tool bodies whose swept boxes meet the root's can meet a node's below it.
+        active.clear();
+        for (const int t : tools)
+            if (overlaps(root->bv, swept[std::size_t(t)])) active.push_back(&swept[std::size_t(t)]);
+        if (active.empty()) return;
         stack.clear();
         stack.push_back(root);
         while (!stack.empty()) {
             const auto* node = stack.back();
             stack.pop_back();
             bool meets = false;
-            for (const int t : tools)
-                if (overlaps(node->bv, swept[std::size_t(t)])) {
+            for (const fcl::AABBd* box : active)
+                if (overlaps(node->bv, *box)) {
                     meets = true;
                     break;
                 }
@@ -529,50 +540,101 @@ struct CollisionStage::Impl {
     // frame) grown by that much holds it all along; FCL's separating-axis test of two boxes.
     const Snapshot *step_a = nullptr, *step_b = nullptr;
     double step_rate(int i) {
-        if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, *step_a, *step_b, dstep.data());
+        if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, *step_a, *step_b, bow[std::size_t(i)]);
         return D[std::size_t(i)];
     }
-    bool apart(int t, const fcl::OBBd& other) {
+    // Tool body t's own box grown by step_rate(t) + kContact, in the part frame at the step's
+    // start: made once a step (`held_ok`, cleared by test_step), for apart().
+    struct Held {
+        Eigen::Matrix3d axes;  // the body's axes, columns
+        Eigen::Vector3d centre, extent;
+    };
+    std::vector<Held> held;
+    std::vector<char> held_ok;
+    const Held& held_box(int t) {
+        Held& h = held[std::size_t(t)];
+        if (held_ok[std::size_t(t)]) return h;
         const fcl::CollisionGeometryd& g = *solids[std::size_t(t)].object->collisionGeometry();
         const Iso& pose = step_a->pose[std::size_t(t)];
-        const Eigen::Vector3d centre = pose * (0.5 * (g.aabb_local.min_ + g.aabb_local.max_));
-        const Eigen::Vector3d extent = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_) + Eigen::Vector3d::Constant(step_rate(t) + kContact);
+        h.axes = pose.linear();
+        h.centre = pose * (0.5 * (g.aabb_local.min_ + g.aabb_local.max_));
+        h.extent = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_) + Eigen::Vector3d::Constant(step_rate(t) + kContact);
+        held_ok[std::size_t(t)] = 1;
+        return h;
+    }
+    bool apart(int t, const fcl::OBBd& other) {
+        const Held& h = held_box(t);
+        const Eigen::Vector3d w = other.To - h.centre;
         // The separating-axis test on the two boxes' own six face normals (of the fifteen: fewer
-        // axes find fewer gaps, never a false one). R: the other's axes in the body's frame.
-        const Eigen::Matrix3d R = pose.linear().transpose() * other.axis;
-        const Eigen::Vector3d d = pose.linear().transpose() * (other.To - centre);
-        const Eigen::Matrix3d A = R.cwiseAbs();
-        for (int i = 0; i < 3; ++i)
-            if (std::abs(d[i]) > extent[i] + A.row(i).dot(other.extent)) return true;
+        // axes find fewer gaps, never a false one), the body's first, each row of R (the body's
+        // axes against the other's) made only when its axis is tried: most gaps show on one.
+        Eigen::Matrix3d R;
+        for (int i = 0; i < 3; ++i) {
+            const Eigen::Vector3d a = h.axes.col(i);
+            R.row(i) = a.transpose() * other.axis;
+            if (std::abs(a.dot(w)) > h.extent[i] + R.row(i).cwiseAbs().dot(other.extent)) return true;
+        }
         for (int j = 0; j < 3; ++j)
-            if (std::abs(R.col(j).dot(d)) > other.extent[j] + A.col(j).dot(extent)) return true;
+            if (std::abs(other.axis.col(j).dot(w)) > other.extent[j] + R.col(j).cwiseAbs().dot(h.extent)) return true;
         return false;
     }
 
     // The outcome of one step's test.
     enum class Step { Clear, Unsure, Hit };
     // Conservative advancement of tool t against `other` over sa..sb: the contact, if any.
+    // Clear: `until` is how far the pair may move (on the odometer, from the step's start) before
+    // they can meet: the last distance measured plus the motion bound up to where it was measured.
     bool advance(int t, const fcl::CollisionObjectd& other, int who, double rate, const double* q0, const double* q1, double sa,
-                 double sb, double& s_hit) {
+                 double sb, double& s_hit, double& until) {
         double s = sa;
         for (int it = 0;; ++it) {
-            pose_at(q0, q1, s, mid);
-            place(t, mid.pose[std::size_t(t)]);
-            if (who >= 0 && solids[std::size_t(who)].moves) place(who, mid.pose[std::size_t(who)]);
+            // At the step's start the poses are its snapshot's: most pairs clear there at once.
+            const Snapshot* at = step_a;
+            if (it > 0) pose_at(q0, q1, s, mid), at = &mid;
+            place(t, at->pose[std::size_t(t)]);
+            if (who >= 0 && solids[std::size_t(who)].moves) place(who, at->pose[std::size_t(who)]);
             const double d = distance(*solids[std::size_t(t)].object, other);
             if (d <= kContact || it >= kMaxAdvances) {
                 s_hit = s;
                 return true;
             }
             // The pair cannot meet before s + d / rate: past the step's end, done.
-            if (rate <= 0 || s + d / rate >= sb) return false;
+            if (rate <= 0 || s + d / rate >= sb) {
+                until = (s - sa) * rate + d;
+                return false;
+            }
             s += d / rate;
         }
     }
 
+    // Cached clearance (conservative advancement carried across steps and pieces): a distance d
+    // measured between a tool body and a bead (or obstacle) stays a lower bound until the pair
+    // has moved d towards each other. Each solid's odometer sums its motion bound (step_rate)
+    // over the steps swept clear in a row; a pair is skipped while its odometers at the step's
+    // end are below what they were when measured plus d. A sweep that does not start where the
+    // last one ended clear (a contact, a detour's retry, the look-back's replay) starts a new
+    // epoch: every cached value lapses.
+    struct Clear {
+        double until = 0;          // the pair's odometer sum up to which it cannot meet
+        std::uint32_t epoch = 0;   // 0: never measured
+    };
+    std::vector<Clear> bead_clear;      // per bead and tool (beads.size() x tools.size())
+    std::vector<Clear> solid_clear;     // per tool and solid (tools.size() x solids.size())
+    std::vector<double> odo;            // per solid: motion bound summed, this epoch
+    std::uint32_t epoch = 1;
+    void new_epoch() {
+        ++epoch;
+        odo.assign(solids.size(), 0.0);
+    }
+    // Whether the pair (tool k, with odometer sum `at_start` at the step's start and `moving`
+    // over it) is known apart over the whole step.
+    bool known_clear(const Clear& c, double at_start, double moving) const {
+        return c.epoch == epoch && at_start + moving < c.until;
+    }
+
     Snapshot mid;
     std::vector<fcl::AABBd> swept;
-    std::vector<double> grown, D;
+    std::vector<double> bow, D;  // per solid, this step: curve() and step_rate()
     std::vector<double> dstep;
 
     // One step sa..sb of the piece q0 -> q1, its ends' snapshots a and b (with boxes). `leaf`:
@@ -589,14 +651,18 @@ struct CollisionStage::Impl {
         // straight line between its two ends (|p''| <= M), and those lines lie in the join of the
         // end boxes (docs/machines.md, "Bodies").
         swept.resize(solids.size());
+        bow.assign(solids.size(), 0.0);
         for (std::size_t i = 0; i < solids.size(); ++i) {
             swept[i] = a.box[i];
             if (!solids[i].moves) continue;
             swept[i] += b.box[i];
-            grow(swept[i], (turns ? 0.25 * curve(a.centre[i], solids[i].body->radius, a, tt) : 0.0) + kContact);
+            if (turns) bow[i] = curve(a.centre[i], solids[i].body->radius, a, tt);
+            grow(swept[i], 0.25 * bow[i] + kContact);
         }
         const StepBound bound = step_bound(a, b, tt);
         D.assign(solids.size(), -1.0);
+        held.resize(solids.size());
+        held_ok.assign(solids.size(), 0);
         step_a = &a;
         step_b = &b;
         auto rate_of = [&](int i) { return step_rate(i); };
@@ -617,7 +683,8 @@ struct CollisionStage::Impl {
         };
         const Node* root = part.getRoot();
         bool collected = false;
-        for (const int& t : tools) {
+        for (std::size_t k = 0; k < tools.size(); ++k) {
+            const int t = tools[k];
             const fcl::AABBd& box = swept[std::size_t(t)];
             for (const auto* list : {&fixed_obstacles, &moving_obstacles})
                 for (const int o : *list) {
@@ -629,19 +696,24 @@ struct CollisionStage::Impl {
                         const Eigen::Vector3d half[3] = {Eigen::Vector3d(e.x(), 0, 0), Eigen::Vector3d(0, e.y(), 0), Eigen::Vector3d(0, 0, e.z())};
                         if (below(t, ob.center(), half, e.norm(), bound)) continue;
                     }
+                    Clear& c = solid_clear[std::size_t(k) * solids.size() + std::size_t(o)];
+                    const double at_start = odo[std::size_t(t)] + odo[std::size_t(o)], moving = rate_of(t) + rate_of(o);
+                    if (known_clear(c, at_start, moving)) continue;
                     if (!leaf) return Step::Unsure;
-                    double s = 0;
-                    if (advance(t, *obstacle.object, o, (rate_of(t) + rate_of(o)) / (sb - sa), q0, q1, sa, sb, s)) hit(t, o, nullptr, s);
+                    double s = 0, until = 0;
+                    if (advance(t, *obstacle.object, o, moving / (sb - sa), q0, q1, sa, sb, s, until)) hit(t, o, nullptr, s);
+                    else c = {at_start + until, epoch};
                 }
             // The printed part: the beads whose boxes meet the tool body's swept box, less those
             // wholly below the body's lowest point over the step (the layers it prints on).
             if ((!root || !overlaps(root->bv, box)) && open_first == beads.size()) continue;
             if (!collected) collect_part(bound), collected = true;
-            for (const std::size_t c : candidates[std::size_t(&t - tools.data())]) {
+            for (const std::size_t c : candidates[std::size_t(k)]) {
                 const Bead& bead = beads[c];
                 if (!leaf) return Step::Unsure;
-                double s = 0;
-                if (advance(t, object_of(bead), -1, rate_of(t) / (sb - sa), q0, q1, sa, sb, s)) hit(t, -1, &bead, s);
+                double s = 0, until = 0;
+                if (advance(t, object_of(bead), -1, rate_of(t) / (sb - sa), q0, q1, sa, sb, s, until)) hit(t, -1, &bead, s);
+                else bead_clear[c * tools.size() + std::size_t(k)] = {odo[std::size_t(t)] + until, epoch};
             }
         }
         return first ? Step::Hit : Step::Clear;
@@ -661,6 +733,9 @@ struct CollisionStage::Impl {
         // The bounds hold for a turn under half a radian (bound_at); test larger spans halved.
         if (turn < kWholeTurn) {
             const Step r = test_step(q0, q1, sa, sb, a, b, leaf, first);
+            if (r == Step::Clear)  // the odometers run on past the step
+                for (std::size_t i = 0; i < solids.size(); ++i)
+                    if (solids[i].moves) odo[i] += step_rate(int(i));
             if (r != Step::Unsure) return r == Step::Hit;
         }
         if (std::size_t(depth) >= pool.size()) pool.resize(std::size_t(depth) + 1);
@@ -674,7 +749,10 @@ struct CollisionStage::Impl {
     // The first contact over the sweep q0 -> q1, or none.
     std::optional<CollisionEvent> sweep(const double* q0, const double* q1) {
         const std::size_t n = q.size();
-        if (!start_valid || !std::equal(q0, q0 + n, start.q.begin())) snap(q0, start, true);
+        if (!start_valid || !std::equal(q0, q0 + n, start.q.begin())) {
+            snap(q0, start, true);
+            new_epoch();
+        }
         if (end.q.size() != n) end.q.resize(n);
         snap(q1, end, true);
         std::optional<CollisionEvent> first;
@@ -728,6 +806,7 @@ struct CollisionStage::Impl {
         // The bead lies under the tip's path: its top along it.
         pose.translation() = 0.5 * (p0 + p1) - 0.5 * h * up;
         Bead& b = beads.emplace_back();
+        bead_clear.resize(beads.size() * tools.size());
         b.line = line;
         b.pose = pose;
         b.size = Eigen::Vector3d(length, w, h);
@@ -777,6 +856,7 @@ struct CollisionStage::Impl {
         }
         open_first = chunks.empty() ? 0 : chunks.back().first + kChunk;
         beads.erase(beads.begin() + std::ptrdiff_t(count), beads.end());
+        bead_clear.resize(count * tools.size());
     }
 };
 
