@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The general chain solver, the readable specification the fast paths (two_turns.cpp,
+// The general chain solver, the readable specification the fast paths (table_table.cpp,
 // orientation_shortcut.cpp) are held to: the chain walk, forward kinematics, the position solve
 // and the orientation solutions (Paden-Kahan subproblems 1 and 2) for any chain of the family.
 #include "translators/kinematics/kinematics.hpp"

@@ -4,7 +4,7 @@
 // its own policy), and the path bound (how far the firmware's joint-space path strays). Any
 // machine with up to two rotary joints, no machine's own formula: the general chain solver
 // (chain.cpp, Paden-Kahan subproblems 1 and 2) is the specification; the fast paths
-// (two_turns.hpp, orientation_shortcut.hpp) are chosen once at load where the machine's shape
+// (table_table.hpp, orientation_shortcut.hpp) are chosen once at load where the machine's shape
 // allows them, and the tests hold them equal to it. Used by the planner, the motion stage,
 // calibration and --inverse. May call: the machine data, and joint_limits (the one definition of
 // the limits) for the choice inverse() makes.
@@ -19,7 +19,7 @@
 #include "translators/kinematics/orientation_shortcut.hpp"
 #include "translators/kinematics/path_bound.hpp"
 #include "translators/kinematics/polar.hpp"
-#include "translators/kinematics/two_turns.hpp"
+#include "translators/kinematics/table_table.hpp"
 #include "translators/machine/machine.hpp"
 
 namespace xlate5 {
@@ -157,7 +157,7 @@ private:
     JointPathBound bound_;        // see path_bound()
     PositionSolve position_;      // the position solve's unknowns and constants
     SolvedEndPlan ends_;          // how the solve gives its SolvedEnd
-    TwoTurns turns_;  // forward, tool_axis and the position solve's closed form (two_turns.hpp)
+    TwoTurns turns_;  // forward, tool_axis and the position solve's closed form (table_table.hpp)
     PolarTurn polar_;             // see is_polar()
 };
 

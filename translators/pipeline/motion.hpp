@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The motion stage, between the planner and the compensation stage: has a tool-space move
-// (already solved at both ends by the planner) split to tolerance (segment.hpp) or made one of
+// (already solved at both ends by the planner) split to tolerance (split.hpp) or made one of
 // the pole policy's ways (pole_policy.hpp), shares E among the pieces by tool-space length, sets
 // each piece's F by the firmware's feed rule (feed_rules.hpp), and hands the pieces, measured
 // errors taken off (compensation), to the emitter.
@@ -20,7 +20,7 @@
 #include "translators/pipeline/joint_limits.hpp"
 #include "translators/pipeline/planned_move.hpp"
 #include "translators/pipeline/pole_policy.hpp"
-#include "translators/pipeline/segment.hpp"
+#include "translators/pipeline/split.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// See two_turns.hpp.
-#include "translators/kinematics/two_turns.hpp"
+// See table_table.hpp.
+#include "translators/kinematics/table_table.hpp"
 
 #include <Eigen/LU>
 #include <algorithm>

@@ -2,7 +2,7 @@
 // The split's test of one piece: whether the firmware's joint-linear path between two joint sets
 // (as printed) stays within the tolerance of the programmed move between their move parameters,
 // tip and (vector form) tool axis. Kinematics' path bound first, which usually decides without
-// any FK; samples where it does not. For the split to tolerance (segment.hpp). May call:
+// any FK; samples where it does not. For the split to tolerance (split.hpp). May call:
 // kinematics, the split's points (the programmed axis's arc).
 #pragma once
 #include <cstdint>
@@ -12,7 +12,7 @@
 #include "translators/kinematics/great_arc.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/pipeline/planned_move.hpp"
-#include "translators/pipeline/segment_points.hpp"
+#include "translators/pipeline/split_points.hpp"
 
 namespace xlate5 {
 
@@ -95,7 +95,7 @@ private:
     const SplitPoints& points_;
     std::size_t joints_;
     AngleLimit sample_angle_;  // the split's angle limit
-    double chord_limit_;       // the bound's form of it: a tool axis within this chord is inside it (segment_check.cpp)
+    double chord_limit_;       // the bound's form of it: a tool axis within this chord is inside it (split_check.cpp)
     EndCache ends_;
     const double* start_ = nullptr;
     const double* end_ = nullptr;

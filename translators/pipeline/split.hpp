@@ -18,8 +18,8 @@
 #include "translators/machine/machine.hpp"
 #include "translators/pipeline/joint_limits.hpp"
 #include "translators/pipeline/planned_move.hpp"
-#include "translators/pipeline/segment_check.hpp"
-#include "translators/pipeline/segment_points.hpp"
+#include "translators/pipeline/split_check.hpp"
+#include "translators/pipeline/split_points.hpp"
 
 namespace xlate5 {
 

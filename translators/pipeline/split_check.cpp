@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The split's test of one piece. What it may call: see segment_check.hpp.
-#include "translators/pipeline/segment_check.hpp"
+// The split's test of one piece. What it may call: see split_check.hpp.
+#include "translators/pipeline/split_check.hpp"
 
 #include <Eigen/Geometry>
 #include <algorithm>

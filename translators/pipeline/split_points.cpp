@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The split's points. What it may call: see segment_points.hpp.
-#include "translators/pipeline/segment_points.hpp"
+// The split's points. What it may call: see split_points.hpp.
+#include "translators/pipeline/split_points.hpp"
 
 #include <cmath>
 #include <cstdio>

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The split's points: the programmed pose at a move parameter s (the tip on its line, the tool
 // axis on its great circle) and the joints solved there, continuous from the point before or on
-// a branch asked for, inside the limits. For the split to tolerance (segment.hpp) and for the
+// a branch asked for, inside the limits. For the split to tolerance (split.hpp) and for the
 // motion stage's pole handling. May call: kinematics, joint_limits.
 #pragma once
 #include <vector>

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The split to tolerance. What it may call: see segment.hpp.
-#include "translators/pipeline/segment.hpp"
+// The split to tolerance. What it may call: see split.hpp.
+#include "translators/pipeline/split.hpp"
 
 #include <algorithm>
 #include <cmath>
