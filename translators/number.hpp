@@ -12,6 +12,14 @@
 
 namespace xlate5 {
 
+// A number passed on from the input (E, F): written as it was typed, unless it was converted
+// (inches), in which case `text` is empty and the shortest exact form of `value` is written.
+struct PassedNumber {
+    double value = 0;
+    std::string_view text;
+    int decimals = -1;  // for a computed value: digits after the point (-1: shortest exact form)
+};
+
 // Largest magnitude ever written into G-code, the same bound the lexer puts on input numbers:
 // far beyond any machine, and small enough that firmware reading it as a float stays sane.
 inline constexpr double kMaxWritten = 1e9;

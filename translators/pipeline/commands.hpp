@@ -18,7 +18,7 @@
 
 #include "translators/kinematics/kinematics_types.hpp"
 #include "translators/machine/machine.hpp"
-#include "translators/pipeline/emitter.hpp"
+#include "translators/number.hpp"
 #include "translators/pipeline/work_plane.hpp"
 
 namespace xlate5::cmd {

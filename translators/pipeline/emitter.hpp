@@ -15,16 +15,10 @@
 
 #include "translators/kinematics/kinematics_types.hpp"
 #include "translators/machine/machine.hpp"
+#include "translators/number.hpp"
 
 namespace xlate5 {
 
-// A number passed on from the input (E, F): written as it was typed, unless it was converted
-// (inches), in which case `text` is empty and the shortest exact form of `value` is written.
-struct PassedNumber {
-    double value = 0;
-    std::string_view text;
-    int decimals = -1;  // for a computed value: digits after the point (-1: shortest exact form)
-};
 void append_passed(std::string& out, const PassedNumber& n);
 // Whether a move's E word extrudes: a relative E other than 0, an absolute E other than `position`
 // (E0 after E5 extrudes, backwards). A move without E does not.
