@@ -88,7 +88,7 @@ bool MotionStage::leave_pole(const PlannedMove& mv, std::string& out, MoveResult
 
 inline IkResult MotionStage::emit_move(const PlannedMove& mv, std::string& out, MoveResult* result) {
     split_for_ = nullptr;
-    if (mv.turn) return turn_in_place(mv, out, result);
+    if (mv.turn.valid) return turn_in_place(mv, out, result);
     if (mv.mode == OrientationMode::Vector && machine_.motion.segment) {
         if (IkResult r; leave_pole(mv, out, result, r)) return r;
     }
@@ -202,11 +202,11 @@ IkResult MotionStage::join_from_held(const PlannedMove& mv, std::string& out, Mo
 }
 
 IkResult MotionStage::turn_in_place(const PlannedMove& mv, std::string& out, MoveResult* result) {
-    const PoleTurn& turn = *mv.turn;
+    const PoleTurn& turn = mv.turn;
     const double s1 = turn.at;
     const Pose mid{mv.p0.tip + s1 * (mv.p1.tip - mv.p0.tip), kin_.tool_axis(turn.before)};
     PlannedMove first = mv, in_place = mv, rest = mv;
-    first.turn = in_place.turn = rest.turn = nullptr;
+    first.turn.valid = in_place.turn.valid = rest.turn.valid = false;
     set_joints(first.q1, turn.before);
     first.p1 = mid;
     first.end.valid = false;

@@ -7,12 +7,20 @@
 #include <vector>
 
 #include "translators/kinematics/kinematics.hpp"
-#include "translators/pipeline/emitter.hpp"
+#include "translators/number.hpp"
 #include "translators/pipeline/modes.hpp"
 
 namespace xlate5 {
 
-struct PoleTurn;
+// A passage made in three joint-linear parts (pole_policy.hpp: PoleHold, turn): from the start to the joints
+// `before` at move parameter `at` (the closest approach to the pole of the programmed axis's arc,
+// kept off the move's very ends), there a turn in place to `after` (the tip held, the rotaries
+// onto the other branch), then on to the passage's end.
+struct PoleTurn {
+    bool valid = false;
+    double at = 0;
+    std::vector<double> before, after;
+};
 
 struct PlannedMove {
     int gcode = 1;
@@ -38,8 +46,8 @@ struct PlannedMove {
     // The orientation solutions of p1's axis, when the planner solved them (a tool vector's end):
     // the split takes them instead of solving that axis again.
     std::optional<Kinematics::Solutions> end_solutions;
-    // A passage near a pole made with a half turn in place on the way (pole_policy.hpp: turn).
-    const PoleTurn* turn = nullptr;
+    // A passage near a pole made with a half turn in place on the way (valid), its own copy.
+    PoleTurn turn;
 };
 
 }  // namespace xlate5

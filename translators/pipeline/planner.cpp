@@ -154,7 +154,7 @@ inline void plan_move(const ToolMove& mv, const PlannerState& s, const Pose& nex
     spec.f = mv.f;
     spec.inverse_time = mv.inverse_time && mv.f ? mv.f->value : 0.0;
     spec.start_held = false;
-    spec.turn = nullptr;
+    spec.turn.valid = false;
 }
 
 // A lower bound on the rotary travel of any plan whose moves end on their programmed axes, but
@@ -354,7 +354,7 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // For a branch flip (rw2: A by 180 degrees, B to -B) the tool passes upright (B = 0) on the
     // way instead of sweeping a full turn at its printing tilt.
     if (unwind || passage) spec.mode = OrientationMode::Angles;
-    if (passage && pole_hold_.turn().valid) spec.turn = &pole_hold_.turn();
+    if (passage && pole_hold_.turn().valid) spec.turn = pole_hold_.turn();
     spec.start_held = start_held && !passage;
     MoveResult* measured = log_ && spec.mode != OrientationMode::Joints ? &move_result_ : nullptr;
     move_result_.pole_crossings = 0;  // set by the move that crosses, not kept from an earlier one

@@ -24,6 +24,7 @@
 #include "translators/kinematics/great_arc.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
+#include "translators/pipeline/planned_move.hpp"
 
 namespace xlate5 {
 
@@ -77,16 +78,6 @@ struct PoleChoices {
             if (flips[k] == i) return true;
         return false;
     }
-};
-
-// A passage made in three joint-linear parts (PoleHold, turn): from the start to the joints
-// `before` at move parameter `at` (the closest approach to the pole of the programmed axis's arc,
-// kept off the move's very ends), there a turn in place to `after` (the tip held, the rotaries
-// onto the other branch), then on to the passage's end.
-struct PoleTurn {
-    bool valid = false;
-    double at = 0;
-    std::vector<double> before, after;
 };
 
 class PoleHold {
