@@ -562,6 +562,30 @@ TEST_CASE("retargeting the S3-DeformFDM ring onto koc5: its parks above koc5's t
     CHECK(xlate5::test::read(dir.path / "run.err").find("p.gcode:3:1: joint Z would go to 250.000") != std::string::npos);
 }
 
+// Translates `file` (joint space for machine `from`, text `text`) onto `target` with `place`
+// (--place X,Y,Z), reads the output back to tool space and checks it visits every source pose,
+// moved by `offset`, along the source machine's own path. Returns how many poses it visited.
+std::size_t placed_round_trip(const std::string& target, const std::string& from, char extruder, const std::filesystem::path& file,
+                              const std::string& text, const std::string& place, const Eigen::Vector3d& offset, std::size_t least,
+                              const xlate5::test::TempDir& dir) {
+    int rc = 0;
+    const std::string letter = extruder == 'E' ? "" : std::string(" --extruder-letter ") + extruder;
+    const auto jb = dir.write("b.gcode", run_xlate5("--machine " + target + " --from " + from + letter + " --place " + place, file, dir, rc));
+    INFO(xlate5::test::read(dir.path / "run.err"));
+    REQUIRE(rc == 0);
+    const auto tb = run_xlate5("--machine " + target + " --inverse --preview-form G43.5", jb, dir, rc);
+    REQUIRE(rc == 0);
+    auto source = source_poses(machine(from), text, extruder, true);
+    std::vector<Pose> start;
+    for (auto& sp : source) {
+        sp.pose.tip += offset;
+        for (auto& tip : sp.path) tip += offset;
+        start.push_back(sp.pose);
+    }
+    REQUIRE(start.size() > least);
+    return check_same_path(start, tool_poses(tb), 0.01, 0.5, &source);
+}
+
 TEST_CASE("retargeting the S3-DeformFDM ring onto rw2, placed with --place: the same print where rw2 reaches it") {
     // The ring's part frame at rw2's origin puts its park (X0 Y0 Z250, the head at home, A -168)
     // at rw2's Y -52.4, outside its travel: refused at line 11. Placed at (120, 120, 0) on rw2's
@@ -576,22 +600,9 @@ TEST_CASE("retargeting the S3-DeformFDM ring onto rw2, placed with --place: the 
     run_xlate5("--machine rw2 --from s3deformfdm --extruder-letter A", ring, dir, rc);
     CHECK(rc == 1);
     CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), ":11:1: joint Y would go to -52.421"));
-    const auto jb = dir.write("b.gcode", run_xlate5("--machine rw2 --from s3deformfdm --extruder-letter A --place 120,120,0", ring, dir, rc));
-    INFO(xlate5::test::read(dir.path / "run.err"));
-    REQUIRE(rc == 0);
-    const auto tb = run_xlate5("--machine rw2 --inverse --preview-form G43.5", jb, dir, rc);
-    REQUIRE(rc == 0);
-    auto source = source_poses(machine("s3deformfdm"), text, 'A', true);
-    const Eigen::Vector3d offset(120, 120, 0);
-    std::vector<Pose> start;
-    for (auto& [p, path] : source) {
-        p.tip += offset;
-        for (auto& tip : path) tip += offset;
-        start.push_back(p);
-    }
-    REQUIRE(start.size() > (xlate5::test::kAddressSanitized ? 5000 : 60000));
-    const std::size_t visited = check_same_path(start, tool_poses(tb), 0.01, 0.5, &source);
-    MESSAGE(start.size() << " poses of the ring, " << visited << " on rw2");
+    const std::size_t visited = placed_round_trip("rw2", "s3deformfdm", 'A', ring, text, "120,120,0", Eigen::Vector3d(120, 120, 0),
+                                                  xlate5::test::kAddressSanitized ? 5000 : 60000, dir);
+    MESSAGE(visited << " poses of the ring visited on rw2");
     // --place is for retargeting only.
     run_xlate5("--machine rw2 --place 120,120,0", ring, dir, rc);
     CHECK(rc == 2);
@@ -616,20 +627,8 @@ TEST_CASE("retargeting S4's file onto voron-xyzac: below its Z0 at the tilt, pla
     run_xlate5("--machine voron-xyzac --from core-rtheta --place 0,0,0.25", s4, dir, rc);
     CHECK(rc == 1);
     CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), ":27:1: joint Z would go to -0.019"));
-    const auto jb = dir.write("b.gcode", run_xlate5("--machine voron-xyzac --from core-rtheta --place 0,0,0.3", s4, dir, rc));
-    INFO(xlate5::test::read(dir.path / "run.err"));
-    REQUIRE(rc == 0);
-    const auto tb = run_xlate5("--machine voron-xyzac --inverse --preview-form G43.5", jb, dir, rc);
-    REQUIRE(rc == 0);
-    auto source = source_poses(machine("core-rtheta"), text, 'E', true);
-    std::vector<Pose> start;
-    for (auto& [p, path] : source) {
-        p.tip.z() += 0.3;
-        for (auto& tip : path) tip.z() += 0.3;
-        start.push_back(p);
-    }
-    REQUIRE(start.size() > (xlate5::test::kAddressSanitized ? 200 : 5000));
-    check_same_path(start, tool_poses(tb), 0.01, 0.5, &source);
+    placed_round_trip("voron-xyzac", "core-rtheta", 'E', s4, text, "0,0,0.3", Eigen::Vector3d(0, 0, 0.3),
+                      xlate5::test::kAddressSanitized ? 200 : 5000, dir);
 }
 
 TEST_CASE("retargeting: S4's joint-space file for the Core R-Theta, onto pentarod and back to the same path") {
