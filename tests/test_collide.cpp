@@ -272,16 +272,28 @@ TEST_CASE("rw2: a travel through the wall is re-routed: lifted along the tool ax
     CHECK_THROWS_WITH_AS(refused.feed("G0 X60 Y100 Z2", ++n, ignored), doctest::Contains("collision: "), InputError);
 }
 
+namespace {
+// rw2 with its test bodies under --collision warn, the wall printed: the part the property
+// tests sweep pieces against.
+struct WallPrinted {
+    Machine m = load_with_bodies("rw2");
+    Kinematics k{m};
+    Translator t{k, [] {
+        TranslatorOptions opt;
+        opt.collision = CollisionPolicy::Warn;
+        return opt;
+    }()};
+    WallPrinted() {
+        std::string out;
+        std::uint64_t n = 0;
+        for (const auto& l : lines_of(rw2_wall())) t.feed(l, ++n, out);
+    }
+};
+}  // namespace
+
 TEST_CASE("rw2: the sweep never misses what dense sampling finds (property)") {
-    const Machine m = load_with_bodies("rw2");
-    const Kinematics k(m);
-    TranslatorOptions opt;
-    opt.collision = CollisionPolicy::Warn;
-    Translator t(k, opt);
-    std::string out;
-    std::uint64_t n = 0;
-    for (const auto& l : lines_of(rw2_wall())) t.feed(l, ++n, out);
-    CollisionStage& stage = *t.collision();
+    WallPrinted wall;
+    CollisionStage& stage = *wall.t.collision();
     std::mt19937 rng(38);
     std::uniform_real_distribution<double> U(0, 1);
     int hits = 0, misses = 0;
@@ -313,15 +325,8 @@ TEST_CASE("rw2: the sweep never misses what dense sampling finds (property)") {
 TEST_CASE("rw2: chained pieces, each starting where the last ended, never miss what dense sampling finds") {
     // The check carries each pair's clearance from piece to piece while they chain (the
     // odometers of collide.cpp): a random walk near the wall, each piece against dense samples.
-    const Machine m = load_with_bodies("rw2");
-    const Kinematics k(m);
-    TranslatorOptions opt;
-    opt.collision = CollisionPolicy::Warn;
-    Translator t(k, opt);
-    std::string out;
-    std::uint64_t n = 0;
-    for (const auto& l : lines_of(rw2_wall())) t.feed(l, ++n, out);
-    CollisionStage& stage = *t.collision();
+    WallPrinted wall;
+    CollisionStage& stage = *wall.t.collision();
     std::mt19937 rng(3838);
     std::uniform_real_distribution<double> U(-1, 1);
     const double lo[5] = {38, 90, 1, -60, -60}, hi[5] = {62, 110, 4, 60, 60}, step[5] = {6, 4, 2, 30, 30};
