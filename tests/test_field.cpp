@@ -562,6 +562,23 @@ TEST_CASE("retargeting the S3-DeformFDM ring onto koc5: its parks above koc5's t
     CHECK(xlate5::test::read(dir.path / "run.err").find("p.gcode:3:1: joint Z would go to 250.000") != std::string::npos);
 }
 
+// A corpus file, or under the sanitizers its first tenth written into `dir`: the path to give
+// xlate5, and its text.
+std::pair<std::filesystem::path, std::string> corpus_sample(const std::string& name, const xlate5::test::TempDir& dir) {
+    const std::filesystem::path whole = xlate5::test::corpus_dir() + "/" + name;
+    std::string text = xlate5::test::sampled_lines(xlate5::test::read(whole));
+    if (!xlate5::test::kAddressSanitized) return {whole, text};
+    return {dir.write(whole.filename().string(), text), text};
+}
+
+// xlate5 with `args` on `file` is refused (exit 1), its error holding `message`.
+void check_refused(const std::string& args, const std::filesystem::path& file, const xlate5::test::TempDir& dir, const std::string& message) {
+    int rc = 0;
+    run_xlate5(args, file, dir, rc);
+    CHECK(rc == 1);
+    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), message));
+}
+
 // Translates `file` (joint space for machine `from`, text `text`) onto `target` with `place`
 // (--place X,Y,Z), reads the output back to tool space and checks it visits every source pose,
 // moved by `offset`, along the source machine's own path. Returns how many poses it visited.
@@ -593,17 +610,13 @@ TEST_CASE("retargeting the S3-DeformFDM ring onto rw2, placed with --place: the 
     // the ring machine's own path.
     if (xlate5::test::corpus_absent()) return;
     xlate5::test::TempDir dir;
-    int rc = 0;
-    const std::filesystem::path whole = xlate5::test::corpus_dir() + "/s3deformfdm/ring_Gcode.txt";
-    const std::string text = xlate5::test::sampled_lines(xlate5::test::read(whole));
-    const std::filesystem::path ring = xlate5::test::kAddressSanitized ? dir.write("ring.txt", text) : whole;
-    run_xlate5("--machine rw2 --from s3deformfdm --extruder-letter A", ring, dir, rc);
-    CHECK(rc == 1);
-    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), ":11:1: joint Y would go to -52.421"));
+    const auto [ring, text] = corpus_sample("s3deformfdm/ring_Gcode.txt", dir);
+    check_refused("--machine rw2 --from s3deformfdm --extruder-letter A", ring, dir, ":11:1: joint Y would go to -52.421");
     const std::size_t visited = placed_round_trip("rw2", "s3deformfdm", 'A', ring, text, "120,120,0", Eigen::Vector3d(120, 120, 0),
                                                   xlate5::test::kAddressSanitized ? 5000 : 60000, dir);
     MESSAGE(visited << " poses of the ring visited on rw2");
     // --place is for retargeting only.
+    int rc = 0;
     run_xlate5("--machine rw2 --place 120,120,0", ring, dir, rc);
     CHECK(rc == 2);
 }
@@ -616,17 +629,10 @@ TEST_CASE("retargeting S4's file onto voron-xyzac: below its Z0 at the tilt, pla
     // whole file translates and round-trips.
     if (xlate5::test::corpus_absent()) return;
     xlate5::test::TempDir dir;
-    int rc = 0;
     // Under the sanitizers, the file's first tenth (xlate5::test::sampled_lines): line 27 is in it.
-    const std::filesystem::path whole = xlate5::test::corpus_dir() + "/s4/pi_3mm_side_paint_rtheta.gcode";
-    const std::string text = xlate5::test::sampled_lines(xlate5::test::read(whole));
-    const std::filesystem::path s4 = xlate5::test::kAddressSanitized ? dir.write("s4.gcode", text) : whole;
-    run_xlate5("--machine voron-xyzac --from core-rtheta", s4, dir, rc);
-    CHECK(rc == 1);
-    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), ":27:1: joint Z would go to -0.268"));
-    run_xlate5("--machine voron-xyzac --from core-rtheta --place 0,0,0.25", s4, dir, rc);
-    CHECK(rc == 1);
-    CHECK(xlate5::test::contains(xlate5::test::read(dir.path / "run.err"), ":27:1: joint Z would go to -0.019"));
+    const auto [s4, text] = corpus_sample("s4/pi_3mm_side_paint_rtheta.gcode", dir);
+    check_refused("--machine voron-xyzac --from core-rtheta", s4, dir, ":27:1: joint Z would go to -0.268");
+    check_refused("--machine voron-xyzac --from core-rtheta --place 0,0,0.25", s4, dir, ":27:1: joint Z would go to -0.019");
     placed_round_trip("voron-xyzac", "core-rtheta", 'E', s4, text, "0,0,0.3", Eigen::Vector3d(0, 0, 0.3),
                       xlate5::test::kAddressSanitized ? 200 : 5000, dir);
 }
