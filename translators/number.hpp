@@ -20,6 +20,15 @@ struct PassedNumber {
     int decimals = -1;  // for a computed value: digits after the point (-1: shortest exact form)
 };
 
+// Digits after the point of a number as typed ("-1.250" -> 3, "7" -> 0); -1 for text that is
+// not a plain decimal (empty, as a computed number's is, or other characters).
+inline int plain_decimals(std::string_view t) {
+    const std::size_t dot = t.find('.');
+    for (std::size_t i = 0; i < t.size(); ++i)
+        if (i != dot && !(t[i] >= '0' && t[i] <= '9') && !(i == 0 && (t[i] == '-' || t[i] == '+'))) return -1;
+    return t.empty() ? -1 : dot == std::string_view::npos ? 0 : int(t.size() - dot - 1);
+}
+
 // Largest magnitude ever written into G-code, the same bound the lexer puts on input numbers:
 // far beyond any machine, and small enough that firmware reading it as a float stays sane.
 inline constexpr double kMaxWritten = 1e9;

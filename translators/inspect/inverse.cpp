@@ -199,13 +199,7 @@ void InverseTranslator::move(int gcode, Params words, std::string& out) {
 namespace {
 
 // Digits after the point of a number as written (0 for a computed one: its parts get three).
-int decimals_of(const PassedNumber& n) {
-    const auto dot = n.text.find('.');
-    if (n.text.empty() || dot == std::string_view::npos) return 0;
-    std::size_t d = 0;
-    while (dot + 1 + d < n.text.size() && n.text[dot + 1 + d] >= '0' && n.text[dot + 1 + d] <= '9') ++d;
-    return int(d);
-}
+int decimals_of(const PassedNumber& n) { return std::max(0, plain_decimals(n.text)); }
 
 // A part's E: three decimals more than written, within what a written number may carry.
 constexpr int kMaxPartDecimals = 12;

@@ -265,14 +265,6 @@ namespace {
 // E shared among a move's pieces by tip length: each piece's E at the dialect's decimals, the
 // last one's exactly what the input said (absolute E as written; relative E as what is left), so
 // the pieces add up to the input exactly.
-// Digits after the point of a plain decimal ("-1.250" -> 3, "7" -> 0); -1 for any other form.
-int plain_decimals(std::string_view t) {
-    const std::size_t dot = t.find('.');
-    for (std::size_t i = 0; i < t.size(); ++i)
-        if (i != dot && !(t[i] >= '0' && t[i] <= '9') && !(i == 0 && (t[i] == '-' || t[i] == '+'))) return -1;
-    return t.empty() ? -1 : dot == std::string_view::npos ? 0 : int(t.size() - dot - 1);
-}
-
 class EShare {
 public:
     EShare(const PlannedMove& mv, int decimals) : mv_(mv), ed_(decimals) {
