@@ -60,16 +60,27 @@ LengthRule length_rule(FirmwareDialect firmware) {
     return nist_length;
 }
 
-double firmware_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1) {
+namespace {
+
+// The joints the firmware's length reads, by kind. An absent joint (core-rtheta's Y, solved
+// within a micron of 0) is never written, so it is left out: counted, its last-digit flicker
+// made a turn of C a 0.00001 mm linear move, written at F0.019.
+JointKinds written_kinds(const Machine& m) {
     JointKinds kinds;
+    for (std::size_t j = 0; j < m.joints.size(); ++j)
+        if (!m.joints[j].absent) (m.joints[j].rotary ? kinds.rotary : kinds.linear).push_back(j);
+    return kinds;
+}
+
+}  // namespace
+
+double firmware_length(const Machine& m, const std::vector<double>& q0, const std::vector<double>& q1) {
     std::vector<double> a(q0.size()), b(q1.size());
     for (std::size_t j = 0; j < q0.size(); ++j) {
-        if (m.joints[j].absent) continue;  // never written: the firmware does not move it
-        (m.joints[j].rotary ? kinds.rotary : kinds.linear).push_back(j);
         a[j] = printed_value(m, j, q0[j]);
         b[j] = printed_value(m, j, q1[j]);
     }
-    return length_rule(m.dialect.firmware)(a.data(), b.data(), kinds, 0);
+    return length_rule(m.dialect.firmware)(a.data(), b.data(), written_kinds(m), 0);
 }
 
 // Below 1e-9 (a piece no step of which could be timed) the least feed nine decimals can write;
@@ -85,15 +96,9 @@ PassedNumber feed_number(double v, int decimals) {
 }
 
 FeedRule::FeedRule(const Machine& machine)
-    : length_(length_rule(machine.dialect.firmware)), rotary_feed_(machine.motion.rotary_feed) {
-    for (std::size_t j = 0; j < machine.joints.size(); ++j) {
-        // An absent joint (core-rtheta's Y, solved within a micron of 0) is never written, so the
-        // firmware's length leaves it out: counted, its last-digit flicker made a turn of C a
-        // 0.00001 mm linear move, written at F0.019.
-        if (machine.joints[j].absent) continue;
-        (machine.joints[j].rotary ? kinds_.rotary : kinds_.linear).push_back(j);
-        if (machine.joints[j].max_feed > 0) limits_.push_back({j, machine.joints[j].max_feed});
-    }
+    : length_(length_rule(machine.dialect.firmware)), kinds_(written_kinds(machine)), rotary_feed_(machine.motion.rotary_feed) {
+    for (std::size_t j = 0; j < machine.joints.size(); ++j)
+        if (!machine.joints[j].absent && machine.joints[j].max_feed > 0) limits_.push_back({j, machine.joints[j].max_feed});
 }
 
 PieceFeed FeedRule::piece(const MoveFeed& mv, std::span<const double> qprev, std::span<const double> qk, double share) const {
