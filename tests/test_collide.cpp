@@ -380,6 +380,26 @@ TEST_CASE("rw2: beads are laid once through the look-back's replay and a refused
     CHECK(held.beads >= 30);
 }
 
+TEST_CASE("rw2: filament drawn back is pushed out again before a bead is laid") {
+    const Machine m = load_with_bodies("rw2");
+    const Kinematics k(m);
+    // One printed line, a retraction of 2 mm, a travel, then a move whose E primes: as much
+    // as was drawn back lays nothing (it refills the nozzle), more lays a bead of the rest.
+    auto beads = [&](const std::string& e_mode, const std::string& retract, const std::string& prime) {
+        const std::string s = "G21\nG90\n" + e_mode + "\nG43.4\nG1 X50 Y80 Z0.2 A0 B0 F3000\nG1 X50 Y100 " + retract +
+                              "\nG0 X60 Y100\nG1 X60 Y120 " + prime + "\n";
+        const Outcome o = run(k, s, CollisionPolicy::Refuse);
+        REQUIRE(o.error == "");
+        return o.beads;
+    };
+    CHECK(beads("M83", "E1\nG1 E-2", "E2") == 1);    // the prime only refills
+    CHECK(beads("M83", "E1\nG1 E-2", "E2.5") == 2);  // 0.5 mm more: a bead
+    CHECK(beads("M83", "E1", "E2") == 2);             // nothing drawn back: every E prints
+    // Absolute E, the coordinate reset while retracted: G92 moves the coordinate, not the filament.
+    CHECK(beads("M82", "E1\nG1 E-1\nG92 E0", "E2") == 1);
+    CHECK(beads("M82", "E1\nG1 E-1\nG92 E0", "E2.5") == 2);
+}
+
 TEST_CASE("the bundled examples raise no collision on their machines") {
     const fs::path examples = fs::path(XLATE5_MACHINE_DIR_FOR_TESTS).parent_path() / "examples";
     for (const auto& [machine, file] : std::vector<std::pair<std::string, std::string>>{{"rw2", "rw2_flared_wall.gcode"},

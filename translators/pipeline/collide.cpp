@@ -351,6 +351,16 @@ const std::vector<std::vector<double>>* CollisionStage::piece(std::span<const do
         if (modes_.e_relative) de = e->value;
         else de = e->value - cursor_.e, cursor_.e = e->value;
     }
+    // Filament drawn back (a retraction) is pushed out again before any leaves the nozzle: the
+    // prime after a travel refills the nozzle and lays no bead.
+    if (de < 0) {
+        cursor_.retracted -= de;
+        de = 0;
+    } else {
+        const double refill = std::min(de, cursor_.retracted);
+        cursor_.retracted -= refill;
+        de -= refill;
+    }
     const std::vector<std::vector<double>>* detour = nullptr;
     if (auto ev = sweep(from, to)) {
         // A travel goes round instead, when it can.

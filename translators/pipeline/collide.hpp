@@ -30,6 +30,7 @@ namespace xlate5 {
 struct CollideCursor {
     std::uint64_t beads = 0;
     double e = 0;
+    double retracted = 0;  // filament drawn back and not yet pushed out again (mm of E)
     std::uint64_t line = 0;
 };
 
