@@ -153,6 +153,7 @@ struct CollisionStage::Impl : CollidePart {
         for (std::size_t j = 0; j < n; ++j) dstep[j] = b.q[j] - a.q[j];
         const Turns tt = turns_of(dstep.data());
         const bool turns = tt.T > 0;
+        step_turns = turns;
         // Each moving solid's sweep over the step, boxed: every point stays within M / 8 of the
         // straight line between its two ends (|p''| <= M), and those lines lie in the join of the
         // end boxes (docs/machines.md, "Bodies").

@@ -46,6 +46,13 @@ CollideBodies::CollideBodies(const Machine& m) : machine(m), settings(m.geometry
         s.object = std::make_unique<Placed>(make_geometry(b.shape));
         s.moves = !(!b.tool_side && b.after == int(m.part_chain.size()) - 1);
         s.origin = b.place.inverse().translation();
+        s.place = rigid(b.place);
+        {
+            const fcl::CollisionGeometryd& g = *s.object->collisionGeometry();
+            s.box_centre = g.aabb_local.center();
+            s.box_half = 0.5 * (g.aabb_local.max_ - g.aabb_local.min_);
+            s.round = g.getNodeType() == fcl::GEOM_SPHERE;
+        }
         const std::pair<bool, int> key(b.tool_side, b.after);
         const auto at = std::find(frame_keys.begin(), frame_keys.end(), key);
         s.frame = int(at - frame_keys.begin());

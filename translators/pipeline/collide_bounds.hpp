@@ -136,9 +136,15 @@ struct CollideBounds : CollideBodies {
     // step_rate, set by test_step), stays apart from the box `other`: its own box (in its
     // frame) grown by that much holds it all along; FCL's separating-axis test of two boxes.
     const Snapshot *step_a = nullptr, *step_b = nullptr;
+    bool step_turns = true;  // whether a rotary turns over the step (test_step)
     double step_rate(int i) {
-        if (D[std::size_t(i)] < 0) D[std::size_t(i)] = rate(i, *step_a, *step_b, bow[std::size_t(i)]);
-        return D[std::size_t(i)];
+        double& d = D[std::size_t(i)];
+        if (d >= 0) return d;
+        if (step_turns) d = rate(i, *step_a, *step_b, bow[std::size_t(i)]);
+        // No rotary turns: every frame keeps its rotation (bit for bit: snap()), so a body moves
+        // by its translation's change alone.
+        else d = solids[std::size_t(i)].moves ? (step_b->pose[std::size_t(i)].translation() - step_a->pose[std::size_t(i)].translation()).norm() : 0.0;
+        return d;
     }
     // Tool body t's own box grown by step_rate(t) + kContact, in the part frame at the step's
     // start: made once a step (`held_ok`, cleared by test_step), for apart().

@@ -3,6 +3,7 @@
 #include "translators/pipeline/collide_part.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 namespace xlate5::collision_parts {
@@ -82,7 +83,7 @@ void CollidePart::add_bead(const double* q0, const double* q1, double e, std::ui
     // Inserted in printing order, the tree's boxes come to overlap much (a layer's chunks
     // under one node with the last layer's): rebuilt by FCL's top-down split each time the
     // part doubles (a rebuild costs about a hundred walks).
-    if (const std::size_t n = chunks.size(); n >= 64 && (n & (n - 1)) == 0) part.balanceTopdown();
+    if (const std::size_t n = chunks.size(); n >= 64 && (n & (n - 1)) == 0 && (std::countr_zero(n) % 2 == 0)) part.balanceTopdown();
 }
 
 void CollidePart::truncate(std::size_t count) {
