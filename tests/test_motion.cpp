@@ -18,6 +18,7 @@
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
 #include "translators/inspect/report.hpp"
+#include "translators/pipeline/joint_limits.hpp"
 #include "translators/pipeline/motion.hpp"
 #include "translators/number.hpp"
 #include "translators/pipeline/translator.hpp"
@@ -344,6 +345,72 @@ TEST_CASE("seven interior samples per piece do not miss the error: dense samplin
     }
     MESSAGE("worst dense-sampled error / tolerance: " << worst_ratio);
     CHECK(worst_ratio <= 1.0);
+}
+
+TEST_CASE("the motion stage's outcome says where a tool-vector move ended: its end pose, as written, on the branch followed") {
+    // Planned ends given on either branch of their pose (rw2: A + 180, B negated): the split
+    // follows the continuous solution from the start, so a move planned onto the far branch ends
+    // on the near one; the outcome names the joints it really ended at, which the next move
+    // starts from.
+    const Machine m = load("rw2");
+    const Kinematics k(m);
+    JointEmitter em(m);
+    MotionStage stage(k, em);
+    Gen g{m, k, std::mt19937(23)};
+    const JointBits commanded = (JointBits(1) << m.joints.size()) - 1;
+    const std::size_t n = m.joints.size(), a = std::size_t(k.rotary_joints()[0]), b = std::size_t(k.rotary_joints()[1]);
+    int ended = 0, elsewhere = 0, whole = 0;
+    for (int i = 0; i < 200; ++i) {
+        const auto q0 = g.random_joints();
+        auto q1 = g.step(q0, 40, 15);
+        const Pose p1 = k.forward(q1);
+        if (i % 2 == 1) {  // the same pose on the other branch, inside A's limits
+            q1[a] += q1[a] > 0 ? -180 : 180;
+            q1[b] = -q1[b];
+            if (!k.solve_position(p1.tip, q1).ok() || !check_limits(m, q1).ok()) continue;
+            const Pose flipped = k.forward(q1);
+            REQUIRE((flipped.tip - p1.tip).norm() < 1e-9);
+            REQUIRE(flipped.axis.dot(p1.axis) > 1 - 1e-12);
+        }
+        for (const OrientationMode mode : {OrientationMode::Vector, OrientationMode::Angles}) {
+            PlannedMove mv;
+            mv.mode = mode;
+            set_joints(mv.q0, q0);
+            set_joints(mv.q1, q1);
+            mv.p0 = k.forward(q0);
+            mv.p1 = p1;
+            mv.commanded = commanded;
+            mv.feed = 1000;
+            em.invalidate(q0);
+            std::string out;
+            const MotionOutcome outcome = stage.emit(mv, out);
+            if (!outcome.ok()) continue;
+            // The last line written holds the joints the move ended at.
+            std::vector<double> last = q0;
+            std::istringstream lines(out);
+            for (std::string line; std::getline(lines, line);) apply_line(m, line, last, nullptr, nullptr);
+            if (!outcome.ended) {
+                // Ended on the planned q1: an angle-form move (q interpolated to it), or one piece.
+                if (mode == OrientationMode::Vector) ++whole;
+                for (std::size_t j = 0; j < n; ++j) CHECK(std::abs(last[j] - q1[j]) < 0.0006);
+                continue;
+            }
+            CHECK(mode == OrientationMode::Vector);
+            ++ended;
+            std::vector<double> end(outcome.ended->begin(), outcome.ended->begin() + std::ptrdiff_t(n));
+            const Pose at = k.forward(end);
+            CHECK((at.tip - p1.tip).norm() < 1e-6);
+            CHECK(at.axis.dot(p1.axis) > 1 - 1e-9);
+            for (std::size_t j = 0; j < n; ++j) CHECK(std::abs(last[j] - end[j]) < 0.0006);
+            if (std::abs(end[a] - q1[a]) > 90) {
+                ++elsewhere;
+                CHECK(end[b] * q1[b] <= 0);  // the other branch's tilt
+            }
+        }
+    }
+    MESSAGE("vector moves ending as split: " << ended << ", on the other branch than planned: " << elsewhere << ", whole: " << whole);
+    CHECK(ended > 50);
+    CHECK(elsewhere > 10);
 }
 
 TEST_CASE("pieces stay near the minimum: against dense uniform splitting at the same achieved error") {

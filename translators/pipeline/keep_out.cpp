@@ -99,8 +99,8 @@ KeepOutItems load_keep_out(const std::string& path) {
     return parse_keep_out(read_small_file(path, kMaxKeepOutBytes, "a keep-out list"), path);
 }
 
-KeepOutStage::KeepOutStage(const Kinematics& kinematics, const KeepOutItems& items, const PlannerState& state, Planner& planner)
-    : kin_(kinematics), items_(items), state_(state), planner_(planner) {
+KeepOutStage::KeepOutStage(const Kinematics& kinematics, const KeepOutItems& items, const PlannerState& state)
+    : kin_(kinematics), items_(items), state_(state), angles_{kinematics.rotary_joints()} {
     const Machine& m = kin_.machine();
     const auto& rot = kin_.rotary_joints();
     bool about_own_axis = rot.size() == 1;
@@ -171,12 +171,12 @@ double KeepOutStage::continuous(double from, double r, const Eigen::Vector2d& p,
     return std::abs(short_way + shift - middle) <= std::abs(long_way + shift - middle) ? short_way : long_way;
 }
 
-void KeepOutStage::send(const ToolMove& mv, double r, LineRun& run, std::string& out) {
-    ToolMove m = mv;
+void KeepOutStage::send(const ToolMove& mv, double r, bool turn) {
+    KeepOutMoves::Step& step = moves_.steps.emplace_back(KeepOutMoves::Step{mv, turn});
+    ToolMove& m = step.move;
     m.any_rotary = true;
     m.angles[std::size_t(r_)] = r;
     m.commanded |= JointBits(1) << r_;
-    planner_.tool_move(m, run, out);
 }
 
 void KeepOutStage::find_pieces(const Eigen::Vector3d& p1, const Eigen::Vector3d& p2) {
@@ -221,13 +221,12 @@ void KeepOutStage::find_pieces(const Eigen::Vector3d& p1, const Eigen::Vector3d&
     }
 }
 
-void KeepOutStage::turn_in_place(const ToolMove& mv, const Eigen::Vector3d& at, double target, double shift, double e_at,
-                                 LineRun& run, std::string& out) {
+void KeepOutStage::turn_in_place(const ToolMove& mv, const Eigen::Vector3d& at, double target, double shift, double e_at) {
     const Joint& J = kin_.machine().joints[std::size_t(r_)];
     const double q = target + shift;
     if (q < J.min - 1e-9 || q > J.max + 1e-9) {
         // Reported as a limit hit: the look-back then unwinds on the travel move before.
-        run.hit_limit = true;
+        moves_.refused_at_limit = true;
         std::ostringstream s;
         s << "R would turn to " << q << " (limits " << J.min << " .. " << J.max
           << ") while printing; add a travel move before this line where it can unwind";
@@ -240,26 +239,33 @@ void KeepOutStage::turn_in_place(const ToolMove& mv, const Eigen::Vector3d& at, 
     turn.f.reset();
     turn.e_position = e_at;
     turn.commanded = 0;  // send names R alone
-    LineRun turn_run;  // a turn in place is no travel move: it never unwinds
-    turn_run.line_no = run.line_no;
-    try {
-        send(turn, target, turn_run, out);
-    } catch (...) {
-        run.hit_limit = run.hit_limit || turn_run.hit_limit;
-        throw;
-    }
+    send(turn, target, true);
 }
 
-void KeepOutStage::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
+const KeepOutMoves& KeepOutStage::tool_move(const ToolMove& mv) {
+    moves_.steps.clear();
+    moves_.refusal.reset();
+    moves_.refused_at_limit = false;
+    // Everything is read from the state as it is before the move (no move made here has run yet),
+    // so the moves can be made first and run after.
+    try {
+        make_moves(mv);
+    } catch (const LineError& e) {
+        moves_.refusal = e;
+    }
+    return moves_;
+}
+
+void KeepOutStage::make_moves(const ToolMove& mv) {
     if (mv.any_rotary) throw LineError(mv.column, "with --keep-out R is computed from the path: the input must not turn it");
     if (mv.mode != OrientationMode::Angles) throw LineError(mv.column, "--keep-out works in angle form (G43.4)");
     const Eigen::Vector3d p1 = state_.pose.tip, p2 = mv.tip;
     const Eigen::Vector2d d = (p2 - p1).head<2>();
     if (items_.items.empty() || !state_.tip_known || !mv.any_xyz || d.norm() < kNoDirection) {
-        planner_.tool_move(mv, run, out);
+        moves_.steps.push_back({mv, false});
         return;
     }
-    planner_.programmed_angles(current_);
+    angles_.programmed(state_, current_);
     const double r_now = current_[std::size_t(r_)];
     const double shift = state_.q[std::size_t(r_)] - r_now;  // programmed R -> joint (one rotary: no flip)
     const bool prints = extrudes(mv.e, mv.e_relative, mv.e_position);
@@ -268,10 +274,10 @@ void KeepOutStage::tool_move(const ToolMove& mv, LineRun& run, std::string& out)
         // end it on another turn inside the limits (unwinding).
         const int k = nearest(p2.head<2>(), p2.z());
         if (k < 0) {
-            planner_.tool_move(mv, run, out);
+            moves_.steps.push_back({mv, false});
             return;
         }
-        send(mv, continuous(r_now, normal_toward(p2.head<2>(), d, k, mv.column), p2.head<2>(), k, -1, shift), run, out);
+        send(mv, continuous(r_now, normal_toward(p2.head<2>(), d, k, mv.column), p2.head<2>(), k, -1, shift));
         return;
     }
 
@@ -288,7 +294,7 @@ void KeepOutStage::tool_move(const ToolMove& mv, LineRun& run, std::string& out)
         if (k >= 0) {
             const double target = continuous(r, normal_toward(at.head<2>(), d, k, mv.column), at.head<2>(), before, k, shift);
             if (std::abs(target - r) > 1e-9) {
-                turn_in_place(mv, at, target, shift, e_at, run, out);
+                turn_in_place(mv, at, target, shift, e_at);
                 r = target;
             }
         }
@@ -305,7 +311,7 @@ void KeepOutStage::tool_move(const ToolMove& mv, LineRun& run, std::string& out)
             piece.e = mv.e;
             if (mv.e_relative && i > 0) piece.e = PassedNumber{mv.e->value - e_sent, {}, 5};
         }
-        send(piece, r, run, out);
+        send(piece, r);
         if (!mv.e_relative) e_at = piece.e->value;
         t0 = t1;
         before = k;

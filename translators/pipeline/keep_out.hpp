@@ -17,16 +17,19 @@
 //    so the nozzle never points away mid-move. Within a piece R is constant: the side of a
 //    straight line an item lies on does not change along it.
 // Travel moves get R the same way at their end (no split, no turn in place). Moves without an
-// X/Y change keep R. Stateless between moves (everything it needs is in the planner's state), so
-// the look-back's copies of the state and its replays need nothing from it.
-// May call: the planner; kinematics (the machine's check).
+// X/Y change keep R. Stateless between moves (everything it needs is in the planner's state, which
+// it reads), so the look-back's copies of the state and its replays need nothing from it. It hands
+// its moves on as values (KeepOutMoves), which translator.cpp runs through the planner in turn.
+// May call: kinematics (the machine's check), the planner's angle map.
 #pragma once
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "translators/error.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/pipeline/planner.hpp"
 
@@ -53,13 +56,30 @@ inline constexpr std::size_t kMaxKeepOutBytes = 64u << 10;
 KeepOutItems load_keep_out(const std::string& path);
 KeepOutItems parse_keep_out(const std::string& text, const std::string& name);
 
+// What the keep-out stage makes of one tool move: the moves for the planner, to be run in order,
+// and then, when it refuses the move at some point, the refusal (after the moves before that
+// point, as a refusal found while running them).
+struct KeepOutMoves {
+    struct Step {
+        ToolMove move;
+        // A turn of R in place before a piece: no travel move, so it never unwinds (run on a
+        // LineRun of its own; only its limit hit is the line's).
+        bool turn = false;
+    };
+    std::vector<Step> steps;
+    std::optional<LineError> refusal;
+    bool refused_at_limit = false;  // the refusal is a limit hit (the look-back unwinds before it)
+};
+
 class KeepOutStage {
 public:
     // Throws MachineError unless the machine has one rotary joint and turning it leaves the tool
     // axis vertical (it turns the nozzle about its own axis), and the input is in angle form.
-    KeepOutStage(const Kinematics& kinematics, const KeepOutItems& items, const PlannerState& state, Planner& planner);
-    // The move with R set (split, with turns in place, when printing); throws LineError.
-    void tool_move(const ToolMove& mv, LineRun& run, std::string& out);
+    // `state` is the planner's: where the machine is before each move.
+    KeepOutStage(const Kinematics& kinematics, const KeepOutItems& items, const PlannerState& state);
+    // The move with R set (split, with turns in place, when printing), from where the machine
+    // is; valid until the next call.
+    const KeepOutMoves& tool_move(const ToolMove& mv);
 
 private:
     // The item nearest to p among those at or below z (-1: none).
@@ -69,18 +89,21 @@ private:
     // The continuous R nearest `from` that points along `r` (mod 360), turning the way on which
     // the nozzle never points directly away from items a or b (at p); `shift` maps it to the joint.
     double continuous(double from, double r, const Eigen::Vector2d& p, int a, int b, double shift) const;
-    void send(const ToolMove& mv, double r, LineRun& run, std::string& out);
+    // tool_move's moves into moves_; throws LineError where it refuses the move.
+    void make_moves(const ToolMove& mv);
+    // A move with R at `r` (programmed), after those made so far.
+    void send(const ToolMove& mv, double r, bool turn = false);
     // A printing move's pieces into pieces_: constant eligibility, then constant nearest item.
     void find_pieces(const Eigen::Vector3d& p1, const Eigen::Vector3d& p2);
     // Before a piece: R turned in place to `target` (programmed; + shift: the joint) at `at`;
     // throws at R's limits.
-    void turn_in_place(const ToolMove& mv, const Eigen::Vector3d& at, double target, double shift, double e_at, LineRun& run,
-                       std::string& out);
+    void turn_in_place(const ToolMove& mv, const Eigen::Vector3d& at, double target, double shift, double e_at);
 
     const Kinematics& kin_;
     const KeepOutItems& items_;
     const PlannerState& state_;
-    Planner& planner_;
+    const AngleMap angles_;  // programmed angles <-> joints
+    KeepOutMoves moves_;
     int r_ = -1;  // the rotary joint
     Joints current_;  // scratch: the programmed angles where the machine is
     std::vector<std::pair<double, int>> pieces_;  // (end parameter, nearest item)

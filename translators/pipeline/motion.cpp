@@ -26,17 +26,18 @@ MotionStage::MotionStage(const Kinematics& kinematics, JointEmitter& emitter)
       compensation_(kinematics.machine().compensation),
       emitter_(emitter) {}
 
-IkResult MotionStage::emit(const PlannedMove& mv, std::string& out, MoveResult* result, std::vector<double>* ended) {
+MotionOutcome MotionStage::emit(const PlannedMove& mv, std::string& out, MoveResult* result) {
     if (mv.end_solutions) segment_.points().remember_solutions(*mv.end_solutions);
     crossed_ = false;
-    IkResult r = emit_move(mv, out, result);
+    if (result) result->pole_crossings = 0;  // set by the move that crosses, not kept from an earlier one
+    MotionOutcome outcome{emit_move(mv, out, result)};
     // The last part's split ends the move: where a tool vector's continuous solution arrived, or
     // the other branch a crossing took. A move written whole otherwise ends on its own q1.
-    if (r.ok() && ended && mv.mode == OrientationMode::Vector && (crossed_ || !segment_.pieces().whole())) {
+    if (outcome.ok() && mv.mode == OrientationMode::Vector && (crossed_ || !segment_.pieces().whole())) {
         const double* end = segment_.pieces().end_exact();
-        ended->assign(end, end + joints_);
+        std::copy(end, end + joints_, outcome.ended.emplace().begin());
     }
-    return r;
+    return outcome;
 }
 
 // Leaving a pole (pole_policy.hpp: re-index): at the start the tool axis is on a rotary axis, so

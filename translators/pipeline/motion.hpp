@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The motion stage, between the planner and the compensation stage: has a tool-space move
-// (already solved at both ends by the planner) split to tolerance (split.hpp) or made one of
-// the pole policy's ways (pole_policy.hpp), shares E among the pieces by tool-space length, sets
-// each piece's F by the firmware's feed rule (feed_rules.hpp), and hands the pieces, measured
-// errors taken off (compensation), to the emitter.
+// The motion stage, between the planner and the compensation stage: takes a PlannedMove (a
+// tool-space move already solved at both ends by the planner), has it split to tolerance
+// (split.hpp) or made one of the pole policy's ways (pole_policy.hpp), shares E among the pieces
+// by tool-space length, sets each piece's F by the firmware's feed rule (feed_rules.hpp), hands
+// the pieces, measured errors taken off (compensation), to the emitter, and returns a
+// MotionOutcome: whether the move was written and where it ended. It never sees the planner:
+// translator.cpp hands it the planner's moves and hands its outcomes back to the planner.
 // May call: kinematics, the split, the pole policy, the feed rule, the compensation stage, the
 // emitter.
 #pragma once
@@ -26,34 +28,13 @@
 
 namespace xlate5 {
 
-// A travel move that ended on another solution of its pose than the usual one.
-enum class SolutionChange { None, Turns, Branch };
-
-// What one move became, for the report and tests.
-struct MoveResult {
-    int pieces = 0;
-    double tip_error = 0;    // mm, the largest sampled deviation of the firmware's path
-    double angle_error = 0;  // degrees
-    double feed_error = 0;   // relative: the tip's speed under the firmware over the programmed, - 1 (worst piece)
-    std::vector<double> travel;  // degrees (or mm) each joint moves, summed over the pieces
-    int pole_crossings = 0;      // the move changed branch across a pole
-    std::vector<double> low, high;  // each joint's extremes over the move (its start and every piece's end)
-    double minutes = 0;          // time the pieces take at the feeds written (no acceleration)
-    SolutionChange change = SolutionChange::None;  // set by the planner
-    bool prints = false;         // set by the planner: the move extrudes
-    int rezeros = 0;             // G92s the planner wrote after the move to re-zero a wound-up rotary
-    std::uint64_t moves_written = 0;  // the emitter's count of move lines once the move was written (its output's place)
-};
-
 class MotionStage {
 public:
     MotionStage(const Kinematics& kinematics, JointEmitter& emitter);
 
-    // Splits, feeds and writes the move. On an error (a split point out of reach) nothing is
-    // written and the message says where along the move. `ended`, when given, receives the joints
-    // a tool-vector move really ended at (as solved), which may not be move.q1: its continuous
-    // solution arrived on the other branch or another turn, or the pole policy chose another end.
-    IkResult emit(const PlannedMove& move, std::string& out, MoveResult* result = nullptr, std::vector<double>* ended = nullptr);
+    // Splits, feeds and writes the move; `result`, when given, receives the report's figures of
+    // its pieces (MoveResult: the planner adds its own before the log takes them).
+    MotionOutcome emit(const PlannedMove& move, std::string& out, MoveResult* result = nullptr);
 
     // Deviation of the firmware's joint-linear path from qa to qb from the programmed move,
     // between move parameters sa and sb: largest of `samples` interior points (tests use many).

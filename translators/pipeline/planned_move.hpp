@@ -1,8 +1,12 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The planner's output, the value the motion stage takes: a tool-space move solved at both ends
-// (joints and poses), with its E and feed terms. It owns its joints (the machine's first n of
-// each array), so a stage may keep it, cut it into parts or hand it on.
+// The values the planner and the motion stage exchange, through translator.cpp (neither calls the
+// other): the planner's output, PlannedMove, the value the motion stage takes (a tool-space move
+// solved at both ends, joints and poses, with its E and feed terms; it owns its joints, the
+// machine's first n of each array, so a stage may keep it, cut it into parts or hand it on); and
+// what the motion stage made of it, MotionOutcome (where it ended: the next move's start) and
+// MoveResult (the report's figures), which the planner takes on arrival.
 #pragma once
+#include <cstdint>
 #include <optional>
 #include <vector>
 
@@ -48,6 +52,39 @@ struct PlannedMove {
     std::optional<Kinematics::Solutions> end_solutions;
     // A passage near a pole made with a half turn in place on the way (valid), its own copy.
     PoleTurn turn;
+};
+
+// A travel move that ended on another solution of its pose than the usual one.
+enum class SolutionChange { None, Turns, Branch };
+
+// What one move became, for the report and tests: the motion stage measures its pieces, the
+// planner adds what it chose on the move's arrival, and the report's log takes it.
+struct MoveResult {
+    int pieces = 0;
+    double tip_error = 0;    // mm, the largest sampled deviation of the firmware's path
+    double angle_error = 0;  // degrees
+    double feed_error = 0;   // relative: the tip's speed under the firmware over the programmed, - 1 (worst piece)
+    std::vector<double> travel;  // degrees (or mm) each joint moves, summed over the pieces
+    int pole_crossings = 0;      // the move changed branch across a pole
+    std::vector<double> low, high;  // each joint's extremes over the move (its start and every piece's end)
+    double minutes = 0;          // time the pieces take at the feeds written (no acceleration)
+    SolutionChange change = SolutionChange::None;  // set by the planner
+    bool prints = false;         // set by the planner: the move extrudes
+    int rezeros = 0;             // G92s the planner wrote after the move to re-zero a wound-up rotary
+    std::uint64_t moves_written = 0;  // the emitter's count of move lines once the move was written (its output's place)
+};
+
+// What the motion stage made of a planned move, handed on (translator.cpp) to the planner, whose
+// next move starts where this one ended.
+struct MotionOutcome {
+    // Not ok: nothing was written, and the message says where along the move it failed.
+    IkResult result;
+    // Set when the move's last part was split: the joints it ended at as that split solved them
+    // (the machine's first n), which may not be q1: a tool-vector move's continuous solution may
+    // arrive on the other branch or another turn, or the pole policy took it across to another
+    // end. Unset: it ended on its own q1.
+    std::optional<Joints> ended{};
+    bool ok() const { return result.ok(); }
 };
 
 }  // namespace xlate5

@@ -32,7 +32,6 @@ Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter
       emitter_(emitter),
       log_(log),
       compensation_(kinematics.machine().compensation),
-      motion_(kinematics, emitter),
       q_next_(state.q),
       pole_hold_(kinematics),
       angle_map_{kinematics.rotary_joints()} {}
@@ -231,7 +230,7 @@ inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
     PlannerState& s = state_;
     q_next_ = s.q;
     if (mv.any_rotary) angle_map_.map(s.image, mv.angles, q_next_);
-    move_.end.valid = false;
+    plan_.move.end.valid = false;
     ChosenSolution chosen;  // the solution the rotaries take (a tool vector's): the solve reuses its terms
     // Returned in place (prvalues): no result moved in, nor its message.
     IkResult r = [&] {
@@ -252,12 +251,12 @@ inline IkResult Planner::solve_end(const ToolMove& mv, Pose& next) {
                 // asks for it at the next move's start.
                 Eigen::Vector3d at_end;
                 // r is ok here: only a failure needs moving in.
-                if (auto solved = kin_.solve_position(next.tip, q_next_, &at_end, &move_.end, chosen); solved.ok())
+                if (auto solved = kin_.solve_position(next.tip, q_next_, &at_end, &plan_.move.end, chosen); solved.ok())
                     pole_hold_.remember_axis(q_next_, at_end);
                 else
                     r = std::move(solved);
                 if (mv.any_rotary) next.axis = at_end;
-            } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr, &move_.end, chosen); !solved.ok()) {
+            } else if (auto solved = kin_.solve_position(next.tip, q_next_, mv.any_rotary ? &next.axis : nullptr, &plan_.move.end, chosen); !solved.ok()) {
                 r = std::move(solved);  // r is ok here: only a failure needs moving in
             }
             if (mv.any_ijk) next.axis = mv.axis;
@@ -319,33 +318,34 @@ int Planner::rezero(std::string& out) {
     return rezeros;
 }
 
-void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
-    PlannerState& s = state_;
+MovePlan& Planner::plan(const ToolMove& mv, LineRun& run) {
+    const PlannerState& s = state_;
+    MovePlan& p = plan_;
     Pose next;
     IkResult r = solve_end(mv, next);
     const bool tool_space = mv.any_xyz || s.tip_known;
-    const bool prints = extrudes(mv.e, mv.e_relative, mv.e_position);
-    const bool travel = tool_space && !prints && (mv.any_xyz || mv.any_rotary || mv.any_ijk);
-    run.travels = run.travels || travel;
-    SolutionChange change = SolutionChange::None;
-    bool unwind = other_end(mv, next, travel, r, run, change);
+    p.prints = extrudes(mv.e, mv.e_relative, mv.e_position);
+    p.travel = tool_space && !p.prints && (mv.any_xyz || mv.any_rotary || mv.any_ijk);
+    run.travels = run.travels || p.travel;
+    p.change = SolutionChange::None;
+    p.unwind = other_end(mv, next, p.travel, r, run, p.change);
     if (!r.ok()) {
         run.hit_limit = r.status == IkStatus::OutOfLimits;
         run.linear_limit = run.hit_limit && r.linear;
         throw LineError(mv.column, r.message);
     }
     // Near a pole the end may be chosen across moves (pole_policy.hpp): rotaries turn linearly.
-    bool passage = false;
-    double passage_angle = 0;
+    p.passage = false;
+    p.passage_angle = 0;
     bool start_held = false;
-    if (!unwind && mv.mode == OrientationMode::Vector && (mv.any_xyz || s.tip_known) &&
-        pole_hold_.passage(s.q, q_next_, s.pose, next, mv.any_ijk ? &end_solutions_ : nullptr, pole_q_, passage_angle,
+    if (!p.unwind && mv.mode == OrientationMode::Vector && (mv.any_xyz || s.tip_known) &&
+        pole_hold_.passage(s.q, q_next_, s.pose, next, mv.any_ijk ? &end_solutions_ : nullptr, pole_q_, p.passage_angle,
                            log_ != nullptr, start_held, run.pole)) {
-        passage = true;
+        p.passage = true;
         q_next_ = pole_q_;
     }
-    PlannedMove& spec = move_;
-    plan_move(mv, state_, next, q_next_, end_solutions_, spec);
+    PlannedMove& spec = p.move;
+    plan_move(mv, s, next, q_next_, end_solutions_, spec);
     // An unwinding travel move turns the rotaries linearly from their start to the chosen end
     // (angle form) while the split holds the tip on the straight travel line, rather than
     // reorienting in place at one end: the tip never leaves the path the slicer planned for it
@@ -353,39 +353,37 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     // round on it, and each rotary moves monotonically between two values inside its limits.
     // For a branch flip (rw2: A by 180 degrees, B to -B) the tool passes upright (B = 0) on the
     // way instead of sweeping a full turn at its printing tilt.
-    if (unwind || passage) spec.mode = OrientationMode::Angles;
-    if (passage && pole_hold_.turn().valid) spec.turn = pole_hold_.turn();
-    spec.start_held = start_held && !passage;
-    MoveResult* measured = log_ && spec.mode != OrientationMode::Joints ? &move_result_ : nullptr;
-    move_result_.pole_crossings = 0;  // set by the move that crosses, not kept from an earlier one
-    auto res = motion_.emit(spec, out, measured, &q_next_);
-    if (!res.ok() && res.status == IkStatus::OutOfLimits && travel && !unwind && spec.mode == OrientationMode::Vector) {
-        // The continuous path of this travel move leaves the limits, though its end (the
-        // solution nearest the start inside them) does not: turn there in angle form instead.
-        spec.mode = OrientationMode::Angles;
-        unwind = true;
-        res = motion_.emit(spec, out, measured, &q_next_);
-    }
-    if (!res.ok()) {
-        run.hit_limit = res.status == IkStatus::OutOfLimits;
-        run.linear_limit = run.hit_limit && res.linear;
-        run.at_pole = res.status == IkStatus::Singular;
-        throw LineError(mv.column, res.message);
-    }
+    if (p.unwind || p.passage) spec.mode = OrientationMode::Angles;
+    if (p.passage && pole_hold_.turn().valid) spec.turn = pole_hold_.turn();
+    spec.start_held = start_held && !p.passage;
+    p.column = mv.column;
+    p.places_tip = mv.any_xyz;
+    p.measure = log_ && spec.mode != OrientationMode::Joints;
+    return p;
+}
+
+void Planner::refused(const MovePlan& p, const IkResult& res, LineRun& run) {
+    run.hit_limit = res.status == IkStatus::OutOfLimits;
+    run.linear_limit = run.hit_limit && res.linear;
+    run.at_pole = res.status == IkStatus::Singular;
+    throw LineError(p.column, res.message);
+}
+
+void Planner::arrived(const MovePlan& p, MoveResult* measured, LineRun& run, std::string& out) {
     if (measured) {
-        measured->prints = prints;
-        if (double bound = 0; bound_rotary_travel(kin_, pole_hold_.pole(), state_, next.axis, bound)) log_->set_rotary_bound(bound);
-        measured->change = change;
+        measured->prints = p.prints;
+        if (double bound = 0; bound_rotary_travel(kin_, pole_hold_.pole(), state_, p.move.p1.axis, bound)) log_->set_rotary_bound(bound);
+        measured->change = p.change;
         measured->moves_written = emitter_.moves_written();
-        if (passage) {
+        if (p.passage) {
             // The split measures the tip only in angle form: the axis as checked above.
-            measured->angle_error = std::max(measured->angle_error, passage_angle);
+            measured->angle_error = std::max(measured->angle_error, p.passage_angle);
             const std::size_t b = std::size_t(kin_.rotary_joints()[1]);
-            if (s.q[b] * q_next_[b] < 0) measured->pole_crossings = 1;  // the tilt changed sign: the other branch
+            if (state_.q[b] * q_next_[b] < 0) measured->pole_crossings = 1;  // the tilt changed sign: the other branch
         }
     }
     // Under absolute E, E0 after E5 extrudes (backwards): only an unchanged E does not.
-    const int rezeros = prints ? 0 : rezero(out);
+    const int rezeros = p.prints ? 0 : rezero(out);
     // The move's events are logged whole, with its re-zeros.
     if (measured) {
         measured->rezeros = rezeros;
@@ -393,9 +391,6 @@ void Planner::tool_move(const ToolMove& mv, LineRun& run, std::string& out) {
     } else if (log_ && rezeros > 0) {
         log_->add_rezeros(run.line_no, emitter_.moves_written(), rezeros);
     }
-    s.q.swap(q_next_);
-    s.pose = next;
-    s.tip_known = s.tip_known || mv.any_xyz;
 }
 
 void Planner::joint_move(const cmd::JointMove& mv, std::string& out) {

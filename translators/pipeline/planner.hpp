@@ -3,12 +3,15 @@
 // joint moves. It solves the end of each tool-space move (IK), chooses the solution (the
 // continuous one, or for a travel move another solution of its pose inside the limits: the other
 // branch or another turn; near a pole, over short moves, the turntable held within the angle
-// tolerance), is the stage that applies the joint limits, re-zeroes a wound-up
-// turntable, and hands the move to the motion stage to be split. Joint-space moves (G49),
-// position changes (G92) and homing (G28) reach the firmware through it too.
-// May call: kinematics, joint_limits, the motion stage, the compensation stage, the emitter, and
-// the report's move log.
+// tolerance), and is the stage that applies the joint limits. A tool move is planned in two
+// steps with the motion stage between them, which translator.cpp calls in turn: plan() gives the
+// PlannedMove the motion stage splits and writes, arrive() takes the MotionOutcome (where the move
+// really ended) and the report's figures, re-zeroes a wound-up turntable and moves the state on.
+// Joint-space moves (G49), position changes (G92) and homing (G28) reach the firmware through it.
+// May call: kinematics, joint_limits, the pole policy, the compensation stage, the emitter, and
+// the report's move log. Never the motion stage.
 #pragma once
+#include <algorithm>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -22,7 +25,7 @@
 #include "translators/pipeline/joint_limits.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
-#include "translators/pipeline/motion.hpp"
+#include "translators/pipeline/planned_move.hpp"
 #include "translators/pipeline/pole_policy.hpp"
 
 namespace xlate5 {
@@ -102,6 +105,13 @@ struct AngleMap {
     // The image with no other turn or branch chosen: identity, but for the turns re-zeros took off.
     void plain(PlannerState& s) const;
     void forget_rezeros(PlannerState& s, JointBits which) const;  // joints the program has just set
+    // The programmed angles (G43.4) of the joints `s` is at, per joint: the rotaries' through the
+    // image (the plain image gives the joints themselves: (q - 0) * 1 is q, bit for bit). Only the
+    // rotaries' are read (map), so only they are written.
+    void programmed(const PlannerState& s, Joints& a) const {
+        if (!(s.image == AngleImage{})) return unmap(s.image, s.q, a);
+        for (const int j : rot) a[std::size_t(j)] = s.q[std::size_t(j)];
+    }
 };
 
 // Another end a travel move may take (end_candidates, planner.cpp): its joints and, under G43.4, the
@@ -111,13 +121,50 @@ struct EndCandidate {
     AngleImage image;
 };
 
+// A tool move as the planner planned it: the PlannedMove the motion stage takes, and what the
+// planner chose on the way, which its arrival reads (Planner::arrive). The planner's own buffer,
+// made in place move after move (the joint arrays are set once).
+struct MovePlan {
+    PlannedMove move;
+    std::uint32_t column = 1;  // of the command, for errors
+    bool prints = false;       // the move extrudes
+    bool travel = false;       // a tool-space move that does not extrude: it may end on another solution
+    bool unwind = false;       // it ends on another solution than the continuous one, in angle form
+    bool passage = false;      // near a pole, a passage (pole_policy.hpp), in angle form
+    bool places_tip = false;   // it gives X Y Z: the program has placed the tip once it arrives
+    bool measure = false;      // the report measures it (MoveResult)
+    double passage_angle = 0;  // the passage's largest axis deviation, as checked
+    SolutionChange change = SolutionChange::None;  // an unwind's kind, for the report
+};
+
 class Planner {
 public:
     // `log` (may be null) receives every measured tool-space move for the report.
     Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter& emitter, MoveLog* log);
 
-    // Throws LineError(column, cause); `run` says whether the move travelled or hit a limit.
-    void tool_move(const ToolMove& move, LineRun& run, std::string& out);
+    // A tool move, first step: its end solved and its solution chosen, as the move the motion
+    // stage is to write (MovePlan::move), valid until the next plan(). Throws LineError(column,
+    // cause) when its end cannot be reached; `run` says whether the move travels or hit a limit.
+    MovePlan& plan(const ToolMove& move, LineRun& run);
+    // The motion stage could not write a planned move: whether the planner has it written again
+    // another way (the plan is then changed). The continuous path of a travel move leaves the
+    // limits, though its end (the solution nearest the start inside them) does not: it turns
+    // there in angle form instead.
+    static bool retry_in_angle_form(MovePlan& plan, const MotionOutcome& outcome) {
+        if (outcome.ok() || outcome.result.status != IkStatus::OutOfLimits || !plan.travel || plan.unwind ||
+            plan.move.mode != OrientationMode::Vector)
+            return false;
+        plan.move.mode = OrientationMode::Angles;
+        plan.unwind = true;
+        return true;
+    }
+    // A tool move, last step: the motion stage's outcome of the plan taken on (the plan last
+    // made: a plan() and its arrive() are made in turn, move after move). Throws LineError
+    // when it failed (`run` says whether on a limit or at a pole); else the machine is where the
+    // move ended (the next move starts there), a wound-up rotary is re-zeroed (G92s to `out`)
+    // and, when the plan is measured, `measured` (the motion stage's figures) is completed and
+    // logged for the report.
+    void arrive(const MovePlan& plan, const MotionOutcome& outcome, MoveResult* measured, LineRun& run, std::string& out);
     // A tool move's E, as a whole (its pieces apart): the extruder's position after it.
     void extruded(const std::optional<PassedNumber>& e, bool relative) {
         if (e) state_.e = relative ? state_.e + e->value : e->value;
@@ -136,16 +183,12 @@ public:
     // A mode switch: the programmed angles mean the joints as they are (but for re-zeros).
     void new_mode() { angle_map_.plain(state_); }
 
-    // The programmed angles (G43.4) of the current joints, per joint: the rotaries' through the
-    // image (the plain image gives the joints themselves: (q - 0) * 1 is q, bit for bit). Only
-    // the rotaries' are read (AngleMap), so only they are written.
-    void programmed_angles(Joints& a) const {
-        if (!(state_.image == AngleImage{})) return angle_map_.unmap(state_.image, state_.q, a);
-        for (const int j : angle_map_.rot) a[std::size_t(j)] = state_.q[std::size_t(j)];
-    }
-
 private:
-    // tool_move's steps (planner.cpp).
+    // arrive's steps (planner.cpp): a move the motion stage could not write refused (throws), and
+    // the report's figures and re-zeros of a move written.
+    [[noreturn]] static void refused(const MovePlan& plan, const IkResult& result, LineRun& run);
+    void arrived(const MovePlan& plan, MoveResult* measured, LineRun& run, std::string& out);
+    // plan's steps (planner.cpp).
     IkResult solve_end(const ToolMove& mv, Pose& next);
     bool other_end(const ToolMove& mv, const Pose& next, bool travel, IkResult& r, LineRun& run, SolutionChange& change);
     int rezero(std::string& out);
@@ -156,17 +199,29 @@ private:
     JointEmitter& emitter_;
     MoveLog* log_;
     CompensationStage compensation_;
-    MotionStage motion_;
-    MoveResult move_result_;
-    std::vector<double> q_next_;    // scratch: the move being solved
+    // The end of the move being solved; from plan() to arrive() the planned move's q1, which
+    // arrive() takes on unless the motion stage ended the move elsewhere.
+    std::vector<double> q_next_;
     std::vector<EndCandidate> candidates_;
     std::vector<double> pole_q_;  // scratch: a passage's end
     PoleHold pole_hold_;
     Kinematics::Solutions end_solutions_;  // of the move's end axis (G43.5 with I J K)
-    // The move handed to the motion stage, made in place move after move (its joint arrays are
-    // set once); its `end` is filled by the end's position solve.
-    PlannedMove move_;
+    // The plan handed out (plan()); its move's `end` is filled by the end's position solve.
+    MovePlan plan_;
     AngleMap angle_map_;
 };
+
+// Inline: every tool move passes here, and most need none of the report's figures or re-zeros.
+inline void Planner::arrive(const MovePlan& p, const MotionOutcome& outcome, MoveResult* measured, LineRun& run, std::string& out) {
+    if (!outcome.ok()) refused(p, outcome.result, run);
+    // Where the move ended: its own q1 (which plan() left in q_next_), or where the split of its
+    // last part arrived.
+    if (outcome.ended) std::copy(outcome.ended->begin(), outcome.ended->begin() + std::ptrdiff_t(q_next_.size()), q_next_.begin());
+    if (measured || log_ || !p.prints) arrived(p, measured, run, out);
+    PlannerState& s = state_;
+    s.q.swap(q_next_);
+    s.pose = p.move.p1;
+    s.tip_known = s.tip_known || p.places_tip;
+}
 
 }  // namespace xlate5

@@ -66,7 +66,7 @@ void PoleHold::remember_axis(const std::vector<double>& q, const Eigen::Vector3d
 }
 
 // The tests every move makes, cheapest first; most moves leave here (see hold). Small, so
-// that tool_move takes it inline.
+// that Planner::plan takes it inline.
 bool PoleHold::passage(const std::vector<double>& q0, const std::vector<double>& usual, const Pose& from, const Pose& to,
                        const Kinematics::Solutions* at_end, std::vector<double>& q, double& worst, bool need_worst,
                        bool& start_held, PoleChoices& choices) {

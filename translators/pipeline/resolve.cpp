@@ -12,9 +12,9 @@
 
 namespace xlate5 {
 
-Resolver::Resolver(const Machine& machine, const Planner& planner, const PlannerState& state)
-    : machine_(machine), planner_(planner), state_(state) {
-    for (std::size_t j = 0; j < machine.joints.size(); ++j) joint_bits_ |= 1u << j;
+Resolver::Resolver(const Kinematics& kinematics, const PlannerState& state)
+    : machine_(kinematics.machine()), angles_{kinematics.rotary_joints()}, state_(state) {
+    for (std::size_t j = 0; j < machine_.joints.size(); ++j) joint_bits_ |= 1u << j;
 }
 
 int Resolver::start_arc(const cmd::Arc& c) {
@@ -35,7 +35,7 @@ int Resolver::start_arc(const cmd::Arc& c) {
     a.turns = c.turns;
     arc_bound_ = pieces_bound(machine_.motion.max_pieces);
     if (auto why = arc_chords(a, 0.5 * machine_.motion.tolerance, chord_ends_, arc_bound_); !why.empty()) throw LineError(c.column, why);
-    planner_.programmed_angles(arc_angles_);  // rotary words are programmed angles
+    angles_.programmed(at, arc_angles_);  // rotary words are programmed angles
     arc_e0_ = at.e;
     arc_ = &c;
     return int(chord_ends_.size());

@@ -2,9 +2,10 @@
 // The planner stage's first step: a command's "as before" and relative words filled in from where
 // the machine is (the planner's state: joints, pose, the G92 program frame, E), so that the
 // interpreter never reads that state. A tool move becomes the fully stated move the planner (or
-// the keep-out stage before it) takes; an arc becomes its chords, cut from where the tool is.
-// Reads the planner's state, changes nothing. May call: arcs (the chords), the planner's
-// programmed angles.
+// the keep-out stage before it) takes, handed on by translator.cpp; an arc becomes its chords,
+// cut from where the tool is.
+// Reads the planner's state, changes nothing; holds no stage. May call: arcs (the chords), the
+// planner's angle map (the programmed angles of the joints the state is at).
 #pragma once
 #include <bit>
 #include <cstdint>
@@ -19,7 +20,7 @@ namespace xlate5 {
 
 class Resolver {
 public:
-    Resolver(const Machine& machine, const Planner& planner, const PlannerState& state);
+    Resolver(const Kinematics& kinematics, const PlannerState& state);
 
     // The move `mv` says, from where the machine is now. Valid until the next call.
     const ToolMove& tool_move(const cmd::ToolMove& mv);
@@ -36,7 +37,7 @@ public:
 
 private:
     const Machine& machine_;
-    const Planner& planner_;
+    const AngleMap angles_;  // programmed angles <-> joints
     const PlannerState& state_;
     ToolMove resolved_;
     cmd::JointBits joint_bits_ = 0;  // one bit for each of the machine's joints
@@ -65,7 +66,7 @@ inline const ToolMove& Resolver::tool_move(const cmd::ToolMove& c) {
     }
     // Under G43.4 the rotary words are programmed angles: the rest are the current ones.
     if (c.reads_angles) {
-        planner_.programmed_angles(mv.angles);
+        angles_.programmed(at, mv.angles);
         for (cmd::JointBits b = c.angles_given; b != 0; b &= b - 1) {
             const std::size_t j = std::size_t(std::countr_zero(b));
             mv.angles[j] = c.angles_relative ? mv.angles[j] + c.angles[j] : c.angles[j];

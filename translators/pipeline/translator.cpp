@@ -12,25 +12,30 @@
 #include "translators/pipeline/travel_clamp.hpp"
 #include "translators/pipeline/keep_out.hpp"
 #include "translators/pipeline/lookback.hpp"
+#include "translators/pipeline/motion.hpp"
 #include "translators/pipeline/planner.hpp"
 #include "translators/pipeline/resolve.hpp"
 
 namespace xlate5 {
 
 // The forward pipeline's stages and the one state they share: a line goes interpreter ->
-// commands -> (resolve -> [keep-out] -> planner | emitter) -> text.
+// commands -> (resolve -> [keep-out] -> planner -> motion -> planner | planner | emitter) -> text.
+// The resolver, the keep-out stage, the planner and the motion stage hold none of each other:
+// each hands its value back here, and this passes it on (they write their lines through the
+// compensation stage and the emitter).
 struct Translator::Forward final : LineStages {
     Forward(const Kinematics& kin, const TranslatorOptions& o)
         : state(start(kin, o)),
           log(o.report ? std::make_optional<MoveLog>(*o.report, kin.machine()) : std::nullopt),
           planner(kin, state.stages.planner, state.stages.emitter, log ? &*log : nullptr),
-          resolver(kin.machine(), planner, state.stages.planner),
+          motion(kin, state.stages.emitter),
+          resolver(kin, state.stages.planner),
           interpreter(kin.machine(), state.modal, o.input_name, o.extruder_letter),
           lookback(*this, state, log ? &*log : nullptr),
           input_name(o.input_name) {
         const FirmwareDialect firmware = kin.machine().dialect.firmware;
         long_lines_matter = firmware == FirmwareDialect::Marlin || firmware == FirmwareDialect::MarlinArticulated;
-        if (o.keep_out) keep_out.emplace(kin, *o.keep_out, state.stages.planner, planner);
+        if (o.keep_out) keep_out.emplace(kin, *o.keep_out, state.stages.planner);
         // The collision check watches every piece the emitter writes (collide.hpp).
         if (kin.machine().geometry && o.collision != CollisionPolicy::Off) {
             collide = std::make_unique<CollisionStage>(kin, o.collision, state.stages.collide, line_modes, o.reroute, o.lift);
@@ -63,12 +68,16 @@ struct Translator::Forward final : LineStages {
     void set_quiet(bool on) override { quiet = on; }
     void run_command(const cmd::Command& c, const cmd::CommandList& list, LineRun& run, std::string& out);
     void tool_move(const cmd::ToolMove& mv, LineRun& run, std::string& out);
+    void move(const ToolMove& mv, LineRun& run, std::string& out);
+    void keep_out_moves(const ToolMove& mv, LineRun& run, std::string& out);
     void arc(const cmd::Arc& a, LineRun& run, std::string& out);
     void fit_lines(std::string& out, std::size_t start, const HeldLine& held, std::uint64_t line_no);
 
     ForwardState state;
     std::optional<MoveLog> log;
     Planner planner;
+    MotionStage motion;
+    MoveResult measured;  // the report's figures of the move being made (reused move after move)
     Resolver resolver;
     std::optional<KeepOutStage> keep_out;
     Interpreter interpreter;
@@ -99,7 +108,7 @@ bool Translator::Forward::interpret(std::string_view line, const LineRun& run, H
     return may_travel(held);
 }
 
-// A travel move is a tool move that does not extrude (Planner::tool_move): with E followed
+// A travel move is a tool move that does not extrude (Planner::plan): with E followed
 // through the line as the planner follows it, a line whose one tool move prints does not travel.
 // The keep-out stage and an arc cut a move into pieces that may not extrude.
 inline bool Translator::Forward::may_travel(const HeldLine& held) const {
@@ -160,12 +169,47 @@ void Translator::Forward::run_command(const cmd::Command& c, const cmd::CommandL
     if (std::holds_alternative<cmd::NewMode>(c)) return planner.new_mode();
 }
 
+// One tool move: planner -> PlannedMove -> motion (pieces -> compensation -> emitter) ->
+// MotionOutcome -> planner. The outcome goes back to the planner because the next move starts
+// where this one ended, which only the motion stage knows (the split's last part may arrive
+// elsewhere than the planned end); the planner may also have a refused move written again.
+inline void Translator::Forward::move(const ToolMove& mv, LineRun& run, std::string& out) {
+    MovePlan& plan = planner.plan(mv, run);
+    MoveResult* figures = plan.measure ? &measured : nullptr;
+    const MotionOutcome outcome = motion.emit(plan.move, out, figures);
+    if (Planner::retry_in_angle_form(plan, outcome)) return planner.arrive(plan, motion.emit(plan.move, out, figures), figures, run, out);
+    planner.arrive(plan, outcome, figures, run, out);
+}
+
 // Tool moves go through the keep-out stage (which sets R) before the planner, when set.
 void Translator::Forward::tool_move(const cmd::ToolMove& c, LineRun& run, std::string& out) {
     const ToolMove& mv = resolver.tool_move(c);
-    if (keep_out) keep_out->tool_move(mv, run, out);
-    else planner.tool_move(mv, run, out);
+    if (keep_out) keep_out_moves(mv, run, out);
+    else move(mv, run, out);
     planner.extruded(c.e, c.e_relative);
+}
+
+// The keep-out stage's moves run in turn, then its refusal, if any, where it found it.
+void Translator::Forward::keep_out_moves(const ToolMove& mv, LineRun& run, std::string& out) {
+    const KeepOutMoves& moves = keep_out->tool_move(mv);
+    for (const KeepOutMoves::Step& step : moves.steps) {
+        if (!step.turn) {
+            move(step.move, run, out);
+            continue;
+        }
+        LineRun turn_run;  // a turn in place is no travel move: it never unwinds
+        turn_run.line_no = run.line_no;
+        try {
+            move(step.move, turn_run, out);
+        } catch (...) {
+            run.hit_limit = run.hit_limit || turn_run.hit_limit;
+            throw;
+        }
+    }
+    if (moves.refusal) {
+        run.hit_limit = run.hit_limit || moves.refused_at_limit;
+        throw *moves.refusal;
+    }
 }
 
 // Each chord may be split further: the line's output as a whole is bounded too.

@@ -2,7 +2,8 @@
 // The front door of the library: one object that takes input lines and returns output text.
 // Forward (tool space -> joints): interpreter -> planner -> motion -> compensation -> emitter,
 // under the look-back. Inverse (options.inverse: joints -> tool space): its own pipeline in
-// inverse.cpp. It wires the stages together and holds no logic of its own.
+// inverse.cpp. It wires the stages together (the only place that hands one stage's value to the
+// next: translator.cpp) and holds no logic of its own.
 // May call: every forward stage (it hands each one's output to the next), their state (for the accessors), inverse.
 #pragma once
 #include <array>
