@@ -162,7 +162,8 @@ struct CollisionStage::Impl : CollidePart {
         for (std::size_t i = 0; i < solids.size(); ++i) {
             swept[i] = a.box[i];
             if (!solids[i].moves) continue;
-            swept[i] += b.box[i];
+            swept[i].min_ = swept[i].min_.cwiseMin(b.box[i].min_);  // FCL's += is out of line
+            swept[i].max_ = swept[i].max_.cwiseMax(b.box[i].max_);
             if (turns) bow[i] = curve(a.centre[i], solids[i].body->radius, a, tt);
             grow(swept[i], 0.25 * bow[i] + kContact);
         }

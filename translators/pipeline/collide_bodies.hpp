@@ -246,7 +246,8 @@ struct CollideBodies {
                 if (!solids[i].moves) s.box[i] = solids[i].object->getAABB();
                 else {
                     const Eigen::Vector3d c = turned.Rc[i] + s.pose[i].translation();
-                    s.box[i] = fcl::AABBd(c - turned.E[i], c + turned.E[i]);
+                    s.box[i].min_ = c - turned.E[i];  // set in place: FCL's constructor is out of line
+                    s.box[i].max_ = c + turned.E[i];
                 }
         (void)part_frames_now;
         (void)tool_frames_now;
