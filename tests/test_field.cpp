@@ -621,6 +621,20 @@ TEST_CASE("retargeting the S3-DeformFDM ring onto rw2, placed with --place: the 
     CHECK(rc == 2);
 }
 
+TEST_CASE("the S3-DeformFDM ring onto core-rtheta: refused where it needs the Y the polar machine does not have") {
+    // From line 2961 on, the ring's tool axis leaves the plane through the tip and C's axis, the
+    // only plane the Core R-Theta tilts in: its absent Y would have to go to -4.94 mm. Moving
+    // the part cannot help, so the error says so rather than asking for a placement.
+    if (xlate5::test::corpus_absent()) return;
+    xlate5::test::TempDir dir;
+    const auto [ring, text] = corpus_sample("s3deformfdm/ring_Gcode.txt", dir);
+    check_refused("--machine core-rtheta --from s3deformfdm --extruder-letter A", ring, dir,
+                  ":2961:1: joint Y would go to -4.940, outside its limits -0.001 .. 0.001: the machine has no Y (it is held at 0.000)");
+    const std::string err = xlate5::test::read(dir.path / "run.err");
+    CHECK(xlate5::test::contains(err, "no placement of the part changes that"));
+    CHECK(!xlate5::test::contains(err, "Place the part"));
+}
+
 TEST_CASE("retargeting S4's file onto voron-xyzac: below its Z0 at the tilt, placed 0.3 mm higher it prints") {
     // At line 27 the tip is 6.03 mm from C's axis at Z 0.12, the nozzle tilted 3.7 degrees from
     // the bed's normal: the Voron tilts its table (A about X through the origin, a_pivot_z 0) and

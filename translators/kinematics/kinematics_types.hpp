@@ -59,6 +59,7 @@ struct IkResult {
     IkStatus status = IkStatus::Ok;
     std::string message;  // what went wrong, for the error that names the input line
     bool linear = false;  // OutOfLimits: the joint past its limit is a linear one
+    bool absent = false;  // OutOfLimits: ... one the machine does not have (held at its home)
     bool ok() const { return status == IkStatus::Ok; }
 };
 

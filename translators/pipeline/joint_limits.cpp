@@ -160,10 +160,17 @@ IkResult check_limits(const Machine& machine, const std::vector<double>& q) {
         for (std::size_t j = 0; j < machine.joints.size(); ++j) {
             const Joint& J = machine.joints[j];
             if (J.rotary != (pass == 0)) continue;
-            if (!inside_limits(J, q[j]))
-                return {IkStatus::OutOfLimits,
-                        std::string("joint ") + J.name + " would go to " + joint_value_text(q[j]) + ", outside its limits " + joint_value_text(J.min) + " .. " + joint_value_text(J.max),
-                        !J.rotary};
+            if (!inside_limits(J, q[j])) {
+                IkResult r{IkStatus::OutOfLimits,
+                           std::string("joint ") + J.name + " would go to " + joint_value_text(q[j]) + ", outside its limits " + joint_value_text(J.min) + " .. " + joint_value_text(J.max),
+                           !J.rotary};
+                // An absent joint (a polar machine's Y) is held: the pose is out of reach, wherever the part is.
+                if (J.absent) {
+                    r.message += std::string(": the machine has no ") + J.name + " (it is held at " + joint_value_text(J.home) + ")";
+                    r.absent = true;
+                }
+                return r;
+            }
         }
     }
     return {};

@@ -30,6 +30,11 @@ std::string linear_limit_advice() {
            "the machine file's limits (xlate5 --machine NAME pose shows where the tip is for given joints), or set the limits "
            "to the machine's real travel";
 }
+// A joint the machine does not have: no placement or turn helps.
+std::string absent_limit_advice() {
+    return "; no placement of the part changes that: this machine cannot tilt the tool to the axis the program asks for "
+           "there (slice or plan the part for this machine's axes)";
+}
 }  // namespace
 
 void LookBack::set_lines(std::size_t lines, int candidates) {
@@ -55,9 +60,10 @@ void LookBack::feed_alone(HeldLine& current, std::uint64_t line_no, std::string&
         stages_.position_unknown();
         if (!run.hit_limit) throw;
         throw InputError(e.file(), e.line(), e.column(),
-                         e.message() + (run.linear_limit ? linear_limit_advice()
-                                                         : "; turn the joint back on a travel move before this line, or plan the path "
-                                                           "within the limits"));
+                         e.message() + (run.absent_limit   ? absent_limit_advice()
+                                        : run.linear_limit ? linear_limit_advice()
+                                                           : "; turn the joint back on a travel move before this line, or plan the path "
+                                                             "within the limits"));
     }
     if (log_) log_->release(held_moves());
     if (++win_.size >= kMaxUndoLines) restart();
@@ -107,7 +113,7 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
         // and later lines print as if it never came. One on a limit is refused only when the
         // window cannot be translated again to fit it (without a window unwind_before refuses at
         // once, so `to` is still the one written to).
-        const bool limit = run.hit_limit, had_checkpoint = win_.checkpoint, linear = run.linear_limit;
+        const bool limit = run.hit_limit, had_checkpoint = win_.checkpoint, linear = run.linear_limit, absent = run.absent_limit;
         // A pole that no way within the tolerance passes may be one an earlier branch choice
         // near it led into (coarse loops round a bounded turning joint's pole): tried again too.
         if (!(limit || (run.at_pole && run.pole.seen > 0)) || !unwind_before(current, line_no, run)) {
@@ -115,7 +121,7 @@ void LookBack::feed(std::string_view line, std::uint64_t line_no, std::string& o
             if (log_) log_->drop_held_from(moves_start);
             undo_line(copied);
             if (!limit) throw;
-            throw InputError(e.file(), e.line(), e.column(), e.message() + refusal_advice(linear, had_checkpoint));
+            throw InputError(e.file(), e.line(), e.column(), e.message() + (absent ? absent_limit_advice() : refusal_advice(linear, had_checkpoint)));
         }
     }
     if (direct && run.travels) {

@@ -332,6 +332,7 @@ MovePlan& Planner::plan(const ToolMove& mv, LineRun& run) {
     if (!r.ok()) {
         run.hit_limit = r.status == IkStatus::OutOfLimits;
         run.linear_limit = run.hit_limit && r.linear;
+        run.absent_limit = run.hit_limit && r.absent;
         throw LineError(mv.column, r.message);
     }
     // Near a pole the end may be chosen across moves (pole_policy.hpp): rotaries turn linearly.
@@ -365,6 +366,7 @@ MovePlan& Planner::plan(const ToolMove& mv, LineRun& run) {
 void Planner::refused(const MovePlan& p, const IkResult& res, LineRun& run) {
     run.hit_limit = res.status == IkStatus::OutOfLimits;
     run.linear_limit = run.hit_limit && res.linear;
+    run.absent_limit = run.hit_limit && res.absent;
     run.at_pole = res.status == IkStatus::Singular;
     throw LineError(p.column, res.message);
 }

@@ -72,6 +72,7 @@ struct LineRun {
     bool travels = false;            // out: the line made a tool-space travel move
     bool hit_limit = false;          // out: it failed on a joint limit
     bool linear_limit = false;       // out: ... of a linear joint (the part is placed out of reach)
+    bool absent_limit = false;       // out: ... of a joint the machine does not have (the pose is out of reach)
     bool at_pole = false;            // out: it failed at a pole (no way within the tolerance there)
     bool candidate_missing = false;  // out: there is no solution end_candidate
     PoleChoices pole;                // in and out: the window's branch choices near a pole (a replay flips some)
