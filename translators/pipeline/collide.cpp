@@ -74,7 +74,13 @@ struct CollisionStage::Impl : CollidePart {
     void collect_part(const StepBound& bound) {
         candidates.resize(tools.size());
         for (auto& c : candidates) c.clear();
-        sift(open_first, beads.size(), bound, ~0u);
+        // The open chunk's beads, when its box meets a tool body's swept box.
+        if (open_first < beads.size())
+            for (const int t : tools)
+                if (overlaps(open_box, swept[std::size_t(t)])) {
+                    sift(open_first, beads.size(), bound, ~0u);
+                    break;
+                }
         const Node* root = part.getRoot();
         if (!root) return;
         // Only the tool bodies whose swept boxes meet the root's can meet a node's below it.
@@ -214,7 +220,7 @@ struct CollisionStage::Impl : CollidePart {
                 }
             // The printed part: the beads whose boxes meet the tool body's swept box, less those
             // wholly below the body's lowest point over the step (the layers it prints on).
-            if ((!root || !overlaps(root->bv, box)) && open_first == beads.size()) continue;
+            if ((!root || !overlaps(root->bv, box)) && (open_first == beads.size() || !overlaps(open_box, box))) continue;
             if (!collected) collect_part(bound), collected = true;
             for (const std::size_t c : candidates[std::size_t(k)]) {
                 const Bead& bead = beads[c];

@@ -56,6 +56,12 @@ void CollidePart::add_bead(const double* q0, const double* q1, double e, std::ui
     // Its box: the extent of the turned box along each axis.
     const Eigen::Vector3d E = b.half[0].cwiseAbs() + b.half[1].cwiseAbs() + b.half[2].cwiseAbs();
     b.box = fcl::AABBd(b.centre - E, b.centre + E);
+    if (beads.size() - 1 == open_first) {
+        open_box = b.box;
+    } else {
+        open_box.min_ = open_box.min_.cwiseMin(b.box.min_);
+        open_box.max_ = open_box.max_.cwiseMax(b.box.max_);
+    }
     if (beads.size() - open_first < kChunk) return;
     fcl::AABBd box = beads[open_first].box;
     for (std::size_t i = open_first + 1; i < beads.size(); ++i) box += beads[i].box;
@@ -94,6 +100,11 @@ void CollidePart::truncate(std::size_t count) {
     }
     open_first = chunks.empty() ? 0 : chunks.back().first + kChunk;
     beads.erase(beads.begin() + std::ptrdiff_t(count), beads.end());
+    for (std::size_t i = open_first; i < beads.size(); ++i) {
+        if (i == open_first) open_box = beads[i].box;
+        open_box.min_ = open_box.min_.cwiseMin(beads[i].box.min_);
+        open_box.max_ = open_box.max_.cwiseMax(beads[i].box.max_);
+    }
     bead_clear.resize(count * tools.size());
 }
 

@@ -45,6 +45,7 @@ struct CollidePart : CollideClearance {
     };
     std::vector<Chunk> chunks;
     std::size_t open_first = 0;
+    fcl::AABBd open_box;  // the open chunk's beads' boxes joined (when it has any)
     fcl::detail::HierarchyTree<fcl::AABBd> part;  // FCL's dynamic AABB tree of the chunks
     std::shared_ptr<fcl::Boxd> bead_box = std::make_shared<fcl::Boxd>(1, 1, 1);
     Placed bead_object{bead_box};
