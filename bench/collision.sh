@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: GPL-3.0-or-later
 # The collision check's cost (issue 38: at most as much again as translation): each bundled
-# example with bodies, translated with --collision off and --collision warn, the machine being
+# example with bodies, and the corpus's deformed tet (Cura, planar) on rw2 and pentarod when
+# CORPUS_DIR (default ../shared/corpus) has it, translated with --collision off and --collision
+# warn, the machine being
 # machines/NAME.toml with tests/bodies/NAME.toml appended (no bundled machine has bodies yet:
 # bench/README.md says why).
 # Prints the best of 3 wall times of the whole file, instructions per line (callgrind, as
@@ -29,8 +31,13 @@ best_time() {  # best_time MACHINE FILE MODE: least of 3 wall times, s
 }
 printf '%-18s %6s %6s %10s %10s %6s %10s %10s %6s %10s\n' file "off s" "warn s" "off ins/ln" "warn ins/ln" ratio \
     "whole off" "whole warn" ratio collisions
-for pair in rw2:rw2_flared_wall pentarod:pentarod_dome; do
-    m=${pair%%:*} f=$here/examples/${pair#*:}.gcode
+corpus=${CORPUS_DIR:-$here/../shared/corpus}
+tet=$corpus/planar/pi_3mm_deformed_tet_cura-5.8.0.gcode
+pairs="rw2:$here/examples/rw2_flared_wall.gcode pentarod:$here/examples/pentarod_dome.gcode"
+# A real slicer's planar file (Cura, from the corpus) on a head-head and a table-table machine.
+[ -f "$tet" ] && pairs="$pairs rw2:$tet pentarod:$tet"
+for pair in $pairs; do
+    m=${pair%%:*} f=${pair#*:}
     cat "$here/machines/$m.toml" "$here/tests/bodies/$m.toml" >"$dir/$m.toml"
     head -"$lines" "$f" >"$dir/part.gcode"
     head -5 "$f" >"$dir/head.gcode"
@@ -42,6 +49,6 @@ for pair in rw2:rw2_flared_wall pentarod:pentarod_dome; do
     po=$(per "$dir/part.gcode" "$lines" off) pw=$(per "$dir/part.gcode" "$lines" warn)
     wo=$(per "$f" "$n" off) ww=$(per "$f" "$n" warn)
     found=$("$x" -m "$dir/$m.toml" -i "$f" -o /dev/null --collision warn 2>&1 | grep -c "warning: collision" || true)
-    printf '%-18s %6s %6s %10s %10s %6.2f %10s %10s %6.2f %10s\n' "${pair#*:}" "$(best_time "$dir/$m.toml" "$f" off)" \
+    printf '%-18s %6s %6s %10s %10s %6.2f %10s %10s %6.2f %10s\n' "$m/$(basename "$f" .gcode | cut -c1-$((17 - ${#m})))" "$(best_time "$dir/$m.toml" "$f" off)" \
         "$(best_time "$dir/$m.toml" "$f" warn)" "$po" "$pw" "$(echo "$pw / $po" | bc -l)" "$wo" "$ww" "$(echo "$ww / $wo" | bc -l)" "$found"
 done
