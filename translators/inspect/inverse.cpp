@@ -151,6 +151,36 @@ void InverseTranslator::run_command(const CommandWord& c, std::string_view body,
     }
 }
 
+namespace {
+
+// Digits after the point of a number as written (0 for a computed one: its parts get three).
+int decimals_of(const PassedNumber& n) { return std::max(0, plain_decimals(n.text)); }
+
+// A part's E: three decimals more than written, within what a written number may carry.
+constexpr int kMaxPartDecimals = 12;
+int part_decimals(const PassedNumber& n) { return std::min(decimals_of(n) + 3, kMaxPartDecimals); }
+
+double rounded(double v, int decimals) {
+    const double scale = std::pow(10.0, decimals);
+    return std::round(v * scale) / scale;
+}
+
+// The last of a retargeted move's n parts takes E's rest (relative E); under absolute E it
+// ends at E as written.
+std::optional<PassedNumber> last_part_e(const Modes& modes, int n, const std::optional<PassedNumber>& e) {
+    if (!e || !modes.e_relative) return e;
+    const int d = part_decimals(*e);
+    return PassedNumber{rounded(e->value - (n - 1) * rounded(e->value / n, d), d), {}, d};
+}
+
+// Each part's F: under G93 the whole move's rate times n (each part takes 1/n of its time).
+std::optional<PassedNumber> part_f(const Modes& modes, int n, const std::optional<PassedNumber>& f) {
+    if (!f || !modes.inverse_time || n == 1) return f;
+    return PassedNumber{f->value * n, {}, std::min(decimals_of(*f), kMaxPartDecimals)};
+}
+
+}  // namespace
+
 void InverseTranslator::move(int gcode, Params words, std::string& out) {
     Modes& modes = state_.modes;
     const double unit = modes.unit();
@@ -189,28 +219,14 @@ void InverseTranslator::move(int gcode, Params words, std::string& out) {
         const int n = retarget_->source_pieces(kin_, q_next_, state_.q, travel);
         if (n > 1) source_parts(gcode, n, travel, e, f, out);
         const Pose placed = retarget_->place(state_.pose, travel, words_.line());
-        emitter_.move(out, gcode, placed.tip, placed.axis, state_.q, n > 1 ? last_part_e(n, e) : e, n > 1 && !modes.inverse_time ? std::nullopt : part_f(n, f));
+        emitter_.move(out, gcode, placed.tip, placed.axis, state_.q, n > 1 ? last_part_e(modes, n, e) : e,
+                      n > 1 && !modes.inverse_time ? std::nullopt : part_f(modes, n, f));
     } else {
         emitter_.move(out, gcode, state_.pose.tip, state_.pose.axis, state_.q, e, f);
     }
     if (e) modes.e_position = modes.e_relative ? modes.e_position + e->value : e->value;
 }
 
-namespace {
-
-// Digits after the point of a number as written (0 for a computed one: its parts get three).
-int decimals_of(const PassedNumber& n) { return std::max(0, plain_decimals(n.text)); }
-
-// A part's E: three decimals more than written, within what a written number may carry.
-constexpr int kMaxPartDecimals = 12;
-int part_decimals(const PassedNumber& n) { return std::min(decimals_of(n) + 3, kMaxPartDecimals); }
-
-double rounded(double v, int decimals) {
-    const double scale = std::pow(10.0, decimals);
-    return std::round(v * scale) / scale;
-}
-
-}  // namespace
 
 // The first n - 1 of n equal parts of a retargeted move (the source's joints at k / n): E shared
 // out at three more decimals than written (the last part takes the rest, last_part_e), F as
@@ -230,19 +246,8 @@ void InverseTranslator::source_parts(int gcode, int n, bool travel, const std::o
             const int d = part_decimals(*e);
             ek = PassedNumber{modes.e_relative ? rounded(e->value / n, d) : rounded(modes.e_position + s * (e->value - modes.e_position), d), {}, d};
         }
-        emitter_.move(out, gcode, placed.tip, placed.axis, q, ek, k == 1 || modes.inverse_time ? part_f(n, f) : std::nullopt);
+        emitter_.move(out, gcode, placed.tip, placed.axis, q, ek, k == 1 || modes.inverse_time ? part_f(modes, n, f) : std::nullopt);
     }
-}
-
-std::optional<PassedNumber> InverseTranslator::last_part_e(int n, const std::optional<PassedNumber>& e) const {
-    if (!e || !state_.modes.e_relative) return e;  // absolute: the last part ends at E as written
-    const int d = part_decimals(*e);
-    return PassedNumber{rounded(e->value - (n - 1) * rounded(e->value / n, d), d), {}, d};
-}
-
-std::optional<PassedNumber> InverseTranslator::part_f(int n, const std::optional<PassedNumber>& f) const {
-    if (!f || !state_.modes.inverse_time || n == 1) return f;
-    return PassedNumber{f->value * n, {}, std::min(decimals_of(*f), kMaxPartDecimals)};
 }
 
 void InverseTranslator::set_position(Params words, std::string_view body, std::string& out) {

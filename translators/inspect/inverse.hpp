@@ -78,8 +78,6 @@ private:
     // the last part's E and each part's F.
     void source_parts(int gcode, int n, bool travel, const std::optional<PassedNumber>& e, const std::optional<PassedNumber>& f,
                       std::string& out);
-    std::optional<PassedNumber> last_part_e(int n, const std::optional<PassedNumber>& e) const;
-    std::optional<PassedNumber> part_f(int n, const std::optional<PassedNumber>& f) const;
     void home(Params words, std::string& out);
 
     const Kinematics& kin_;

@@ -62,12 +62,14 @@ void CollidePart::add_bead(const double* q0, const double* q1, double e, std::ui
         open_box.min_ = open_box.min_.cwiseMin(b.box.min_);
         open_box.max_ = open_box.max_.cwiseMax(b.box.max_);
     }
-    if (beads.size() - open_first < kChunk) return;
-    fcl::AABBd box = beads[open_first].box;
-    for (std::size_t i = open_first + 1; i < beads.size(); ++i) box += beads[i].box;
+    if (beads.size() - open_first == kChunk) seal_chunk();
+}
+
+// The open chunk's beads, now kChunk of them, into the tree as one leaf.
+void CollidePart::seal_chunk() {
     Chunk& ch = chunks.emplace_back();
     ch.first = open_first;
-    ch.node = part.insert(box, reinterpret_cast<void*>(std::intptr_t(chunks.size() - 1)));
+    ch.node = part.insert(open_box, reinterpret_cast<void*>(std::intptr_t(chunks.size() - 1)));
     const Eigen::Matrix3d axes = beads[open_first].pose.linear();
     Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
     for (std::size_t i = open_first; i < beads.size(); ++i) {
@@ -88,7 +90,8 @@ void CollidePart::add_bead(const double* q0, const double* q1, double e, std::ui
     open_first = beads.size();
     // Inserted in printing order, the tree's boxes come to overlap much (a layer's chunks
     // under one node with the last layer's): rebuilt by FCL's top-down split each time the
-    // part doubles (a rebuild costs about a hundred walks).
+    // chunks reach a power of four (a rebuild costs about a hundred walks; at every power of two
+    // the rebuilds cost more than the walks gained: bench/README.md).
     if (const std::size_t n = chunks.size(); n >= 64 && (n & (n - 1)) == 0 && (std::countr_zero(n) % 2 == 0)) part.balanceTopdown();
 }
 

@@ -70,6 +70,7 @@ struct CollidePart : CollideClearance {
 
     // Adds the bead from the tip at q0 to the tip at q1 (CollisionStage::add_bead).
     void add_bead(const double* q0, const double* q1, double e, std::uint64_t line);
+    void seal_chunk();
     // Drops the beads from `count` on (the look-back's replay).
     void truncate(std::size_t count);
 };
