@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -463,6 +464,89 @@ TEST_CASE("planner state: PlannerState's copy gives what vector assignment gives
         CHECK(a.rezeroed[0] == b.rezeroed[0]);
         CHECK(a.rezeroed[1] == b.rezeroed[1]);
     }
+}
+
+// The planner writes no text: a G49 move, a G92 and a travel move's re-zero come back as values
+// (translator.cpp writes them), with the state moved on as the command says. koc5: an unbounded
+// C re-zeroed past 1800 degrees.
+TEST_CASE("planner: a joint move, a G92 and a re-zero come back as values, the state moved on") {
+    const Machine m = load("koc5");
+    const Kinematics kin(m);
+    PlannerState state;
+    state.q = m.home_joints();
+    state.pose = kin.forward(state.q);
+    Planner planner(kin, state, nullptr);
+    const std::size_t b = 3, c = 4;
+    const std::vector<double> home = state.q;
+
+    cmd::JointMove jm;
+    jm.gcode = 1;
+    jm.q[b] = 10;
+    jm.q[c] = 30;
+    jm.given = (1u << b) | (1u << c);
+    JointStep step = planner.joint_move(jm);
+    CHECK(step.gcode == 1);
+    CHECK(step.given == jm.given);
+    for (std::size_t j = 0; j < home.size(); ++j) {
+        CHECK(state.q[j] == (j == b ? 10.0 : j == c ? 30.0 : home[j]));
+        CHECK(step.q[j] == state.q[j]);
+    }
+    CHECK((state.pose.tip - kin.forward(state.q).tip).norm() < 1e-12);
+    jm.relative = true;
+    jm.q[b] = 5;
+    jm.given = 1u << b;
+    step = planner.joint_move(jm);
+    CHECK(state.q[b] == 15.0);
+    CHECK(step.q[b] == 15.0);
+    jm.relative = false;
+    jm.q[b] = 100;  // past B's 90
+    CHECK_THROWS_AS(planner.joint_move(jm), LineError);
+    CHECK(state.q[b] == 15.0);
+
+    cmd::SetPosition set;
+    set.q[b] = 0;
+    set.q[c] = 1790;
+    set.which = (1u << b) | (1u << c);
+    set.pose_from_joints = true;
+    const SetJoints told = planner.set_position(set);
+    CHECK(told.which == set.which);
+    CHECK(!told.e);
+    CHECK(told.q[b] == 0.0);
+    CHECK(told.q[c] == 1790.0);
+    CHECK(state.q[c] == 1790.0);
+    CHECK((state.pose.tip - kin.forward(state.q).tip).norm() < 1e-12);
+
+    // G43.4 travel to C 1900 (the tip where it is, on the C axis): past 1800, re-zeroed by whole
+    // turns on arrival; the program's next angle is read in the re-zeroed frame.
+    ToolMove mv;
+    mv.gcode = 0;
+    mv.mode = OrientationMode::Angles;
+    mv.any_xyz = true;
+    mv.tip = state.pose.tip;
+    mv.any_rotary = true;
+    mv.angles[b] = 0;
+    mv.angles[c] = 1900;
+    mv.commanded = 1u << c;
+    mv.feed = 1000;
+    LineRun run;
+    run.line_no = 1;
+    const MovePlan& p = planner.plan(mv, run);
+    CHECK(p.travel);
+    CHECK(p.move.q1[c] == doctest::Approx(1900));
+    REQUIRE(planner.arrive(p, MotionOutcome{}, false, run));
+    const std::span<const SetJoints> g92s = planner.arrived(p, nullptr, run);
+    REQUIRE(g92s.size() == 1);
+    CHECK(g92s[0].which == 1u << c);
+    CHECK(g92s[0].q[c] == doctest::Approx(1900 - 5 * 360.0));
+    CHECK(state.q[c] == g92s[0].q[c]);
+    mv.angles[c] = 1910;
+    const PassedNumber e{1.0, "1", 0};  // a printing move: never re-zeroed
+    mv.e = e;
+    const MovePlan& printing = planner.plan(mv, run);
+    CHECK(printing.prints);
+    CHECK(printing.move.q1[c] == doctest::Approx(1910 - 5 * 360.0));
+    CHECK_FALSE(planner.arrive(printing, MotionOutcome{}, false, run));
+    CHECK(state.q[c] == doctest::Approx(1910 - 5 * 360.0));
 }
 
 // Each firmware's length of a move, from the rules as their documentation states them (NIST

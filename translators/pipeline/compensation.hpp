@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Error compensation (Andersons, Twente 2023, eq. 4.6): measured deviations of the tip as functions
 // of a rotary angle, subtracted from the joint targets after IK and added back by --inverse.
-// The compensation stage sits between the motion stage (and the planner's joint moves) and the
-// emitter: nominal joints in, the joints the firmware is sent out, or why not. May call: nothing
+// The compensation stage sits between the motion stage (and the planner's joint moves and G92s,
+// which translator.cpp hands it) and the emitter: nominal joints in, the joints the firmware is sent out, or why not. May call: nothing
 // but its own tables. (The series `calibrate fit` prints is fitted in calibration.hpp.)
 #pragma once
 #include <span>

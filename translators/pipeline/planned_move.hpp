@@ -4,7 +4,9 @@
 // solved at both ends, joints and poses, with its E and feed terms; it owns its joints, the
 // machine's first n of each array, so a stage may keep it, cut it into parts or hand it on); and
 // what the motion stage made of it, MotionOutcome (where it ended: the next move's start) and
-// MoveResult (the report's figures), which the planner takes on arrival.
+// MoveResult (the report's figures), which the planner takes on arrival. And the planner's
+// joint-space output, JointStep and SetJoints, which translator.cpp hands through the compensation
+// stage to the emitter: the planner writes no text.
 #pragma once
 #include <cstdint>
 #include <optional>
@@ -70,7 +72,7 @@ struct MoveResult {
     double minutes = 0;          // time the pieces take at the feeds written (no acceleration)
     SolutionChange change = SolutionChange::None;  // set by the planner
     bool prints = false;         // set by the planner: the move extrudes
-    int rezeros = 0;             // G92s the planner wrote after the move to re-zero a wound-up rotary
+    int rezeros = 0;             // G92s the planner had written after the move to re-zero a wound-up rotary
     std::uint64_t moves_written = 0;  // the emitter's count of move lines once the move was written (its output's place)
 };
 
@@ -85,6 +87,25 @@ struct MotionOutcome {
     // end. Unset: it ended on its own q1.
     std::optional<Joints> ended{};
     bool ok() const { return result.ok(); }
+};
+
+// A joint-space move (G0/G1 under G49) as the planner resolved it: the firmware is sent to `q`
+// (nominal joints, the machine's first n), naming the joints the line names when their position
+// is not known, with E and F as written.
+struct JointStep {
+    int gcode = 1;
+    Joints q{};
+    JointBits given = 0;
+    std::optional<PassedNumber> e, f;
+    bool inverse_time = false;  // G93: F is 1/minutes, written on every move
+};
+
+// A G92 as the planner resolved it: the firmware is told the joints in `which` are at `q` (nominal,
+// the machine's first n), and E when given. Also the planner's re-zero of a wound-up rotary.
+struct SetJoints {
+    Joints q{};
+    JointBits which = 0;
+    std::optional<PassedNumber> e;
 };
 
 }  // namespace xlate5

@@ -25,13 +25,11 @@ double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { retur
 
 }  // namespace
 
-Planner::Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter& emitter, MoveLog* log)
+Planner::Planner(const Kinematics& kinematics, PlannerState& state, MoveLog* log)
     : kin_(kinematics),
       limits_(kinematics.machine()),
       state_(state),
-      emitter_(emitter),
       log_(log),
-      compensation_(kinematics.machine().compensation),
       q_next_(state.q),
       pole_hold_(kinematics),
       angle_map_{kinematics.rotary_joints()} {}
@@ -213,14 +211,6 @@ bool bound_rotary_travel(const Kinematics& kin, const Eigen::Vector3d& pole, Pla
     return true;
 }
 
-// G92 for the joints in `which` at `q` (compensated), and E when given.
-void send_joints(CompensationStage& compensation, JointEmitter& emitter, JointBits which,
-                 const std::optional<PassedNumber>& e, const std::vector<double>& q, std::string& out) {
-    const auto sent = compensation.apply(q);
-    if (!sent.ok()) throw LineError(1, sent.why());
-    emitter.set_position(out, q, sent.sent, which, e);
-}
-
 }  // namespace
 
 
@@ -299,8 +289,9 @@ inline bool Planner::other_end(const ToolMove& mv, const Pose& next, bool travel
 // extrusion), where a G92 cannot disturb a printed line: firmware without wrapping (Marlin, soft
 // endstops) then never runs out of range. The program's angles are unchanged by it: under G43.4
 // the image takes the turns removed, so the next programmed angle is written in the re-zeroed
-// frame (the table turns as programmed). Returns the G92s written.
-int Planner::rezero(std::string& out) {
+// frame (the table turns as programmed). Returns the G92s to write (in rezeros_), one per joint
+// in turn, each with the joints as re-zeroed so far.
+int Planner::rezero() {
     PlannerState& s = state_;
     int rezeros = 0;
     const auto& rot = kin_.rotary_joints();
@@ -312,8 +303,10 @@ int Planner::rezero(std::string& out) {
         q_next_[j] -= 360.0 * turns;
         s.image.shift[k] -= 360.0 * turns;
         s.rezeroed[k] += 360.0 * turns;
-        send_joints(compensation_, emitter_, JointBits(1) << j, std::nullopt, q_next_, out);
-        ++rezeros;
+        SetJoints& g92 = rezeros_[std::size_t(rezeros++)];
+        set_joints(g92.q, q_next_);
+        g92.which = JointBits(1) << j;
+        g92.e.reset();
     }
     return rezeros;
 }
@@ -371,12 +364,11 @@ void Planner::refused(const MovePlan& p, const IkResult& res, LineRun& run) {
     throw LineError(p.column, res.message);
 }
 
-void Planner::arrived(const MovePlan& p, MoveResult* measured, LineRun& run, std::string& out) {
+std::span<const SetJoints> Planner::arrived(const MovePlan& p, MoveResult* measured, LineRun& run) {
     if (measured) {
         measured->prints = p.prints;
         if (double bound = 0; bound_rotary_travel(kin_, pole_hold_.pole(), state_, p.move.p1.axis, bound)) log_->set_rotary_bound(bound);
         measured->change = p.change;
-        measured->moves_written = emitter_.moves_written();
         if (p.passage) {
             // The split measures the tip only in angle form: the axis as checked above.
             measured->angle_error = std::max(measured->angle_error, p.passage_angle);
@@ -385,17 +377,18 @@ void Planner::arrived(const MovePlan& p, MoveResult* measured, LineRun& run, std
         }
     }
     // Under absolute E, E0 after E5 extrudes (backwards): only an unchanged E does not.
-    const int rezeros = p.prints ? 0 : rezero(out);
-    // The move's events are logged whole, with its re-zeros.
+    const int rezeros = p.prints ? 0 : rezero();
+    // The move's events are logged whole, with its re-zeros (translator.cpp logs those of a
+    // move not measured, once written).
     if (measured) {
         measured->rezeros = rezeros;
         log_->add(run.line_no, *measured);
-    } else if (log_ && rezeros > 0) {
-        log_->add_rezeros(run.line_no, emitter_.moves_written(), rezeros);
     }
+    move_on(p);
+    return {rezeros_.data(), std::size_t(rezeros)};
 }
 
-void Planner::joint_move(const cmd::JointMove& mv, std::string& out) {
+JointStep Planner::joint_move(const cmd::JointMove& mv) {
     std::vector<double>& q = q_next_;
     q = state_.q;
     for (cmd::JointBits b = mv.given; b != 0; b &= b - 1) {
@@ -406,14 +399,17 @@ void Planner::joint_move(const cmd::JointMove& mv, std::string& out) {
     state_.q.assign(q.begin(), q.end());
     state_.pose = kin_.forward(state_.q);
     state_.tip_known = state_.tip_known || mv.any_linear;
-    const auto sent = compensation_.apply(state_.q);
-    if (!sent.ok()) throw LineError(1, sent.why());
-    // Under G93 every move keeps its F.
-    emitter_.move(out, mv.gcode, state_.q, sent.sent, mv.given, mv.e, mv.f, mv.inverse_time);
-    extruded(mv.e, mv.e_relative);
+    JointStep step;
+    step.gcode = mv.gcode;
+    set_joints(step.q, state_.q);
+    step.given = mv.given;
+    step.e = mv.e;
+    step.f = mv.f;
+    step.inverse_time = mv.inverse_time;  // under G93 every move keeps its F
+    return step;
 }
 
-void Planner::set_position(const cmd::SetPosition& set, std::string& out) {
+SetJoints Planner::set_position(const cmd::SetPosition& set) {
     for (cmd::JointBits b = set.which; b != 0; b &= b - 1) {
         const std::size_t j = std::size_t(std::countr_zero(b));
         state_.q[j] = set.q[j];
@@ -430,7 +426,11 @@ void Planner::set_position(const cmd::SetPosition& set, std::string& out) {
         state_.tip_known = true;
     }
     if (set.e) state_.e = set.e->value;
-    send_joints(compensation_, emitter_, set.which, set.e, state_.q, out);
+    SetJoints told;
+    set_joints(told.q, state_.q);
+    told.which = set.which;
+    told.e = set.e;
+    return told;
 }
 
 void Planner::home(const cmd::Home& home) {
@@ -441,7 +441,6 @@ void Planner::home(const cmd::Home& home) {
     state_.tip_known = false;
     state_.pose = kin_.forward(state_.q);
     state_.offset.setZero();
-    emitter_.invalidate(state_.q);
 }
 
 void Planner::moved_to(const cmd::MovedTo& to) {
@@ -456,10 +455,7 @@ void Planner::moved_to(const cmd::MovedTo& to) {
 void Planner::moved_to(const std::vector<double>& q) {
     state_.q.assign(q.begin(), q.end());
     state_.pose = kin_.forward(state_.q);
-    emitter_.invalidate(state_.q);
 }
-
-void Planner::position_unknown() { emitter_.invalidate(state_.q); }
 
 
 }  // namespace xlate5

@@ -5,23 +5,27 @@
 // branch or another turn; near a pole, over short moves, the turntable held within the angle
 // tolerance), and is the stage that applies the joint limits. A tool move is planned in two
 // steps with the motion stage between them, which translator.cpp calls in turn: plan() gives the
-// PlannedMove the motion stage splits and writes, arrive() takes the MotionOutcome (where the move
-// really ended) and the report's figures, re-zeroes a wound-up turntable and moves the state on.
-// Joint-space moves (G49), position changes (G92) and homing (G28) reach the firmware through it.
-// May call: kinematics, joint_limits, the pole policy, the compensation stage, the emitter, and
-// the report's move log. Never the motion stage.
+// PlannedMove the motion stage splits and writes, arrive() (and, for a move measured or that may
+// re-zero, arrived()) takes the MotionOutcome (where the move really ended) and the report's
+// figures, re-zeroes a wound-up turntable and moves the state on.
+// Joint-space moves (G49), position changes (G92) and homing (G28) move its state on too. It
+// writes no text: what the firmware is to be told (a joint move, a G92) it returns as a value,
+// which translator.cpp hands through the compensation stage to the emitter.
+// May call: kinematics, joint_limits, the pole policy and the report's move log. Never the motion
+// stage, the compensation stage or the emitter.
 #pragma once
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "translators/pipeline/commands.hpp"
-#include "translators/pipeline/compensation.hpp"
-#include "translators/pipeline/emitter.hpp"
+#include "translators/pipeline/emitter.hpp"  // extrudes() only
 #include "translators/pipeline/joint_limits.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
@@ -141,7 +145,7 @@ struct MovePlan {
 class Planner {
 public:
     // `log` (may be null) receives every measured tool-space move for the report.
-    Planner(const Kinematics& kinematics, PlannerState& state, JointEmitter& emitter, MoveLog* log);
+    Planner(const Kinematics& kinematics, PlannerState& state, MoveLog* log);
 
     // A tool move, first step: its end solved and its solution chosen, as the move the motion
     // stage is to write (MovePlan::move), valid until the next plan(). Throws LineError(column,
@@ -162,44 +166,49 @@ public:
     // A tool move, last step: the motion stage's outcome of the plan taken on (the plan last
     // made: a plan() and its arrive() are made in turn, move after move). Throws LineError
     // when it failed (`run` says whether on a limit or at a pole); else the machine is where the
-    // move ended (the next move starts there), a wound-up rotary is re-zeroed (G92s to `out`)
-    // and, when the plan is measured, `measured` (the motion stage's figures) is completed and
-    // logged for the report.
-    void arrive(const MovePlan& plan, const MotionOutcome& outcome, MoveResult* measured, LineRun& run, std::string& out);
+    // move ended (the next move starts there). Returns true when the move has more to settle
+    // (it is `measured` for the report, or may re-zero a wound-up rotary): arrived() must then
+    // be called, and moves the state on; false (most printing moves): done.
+    bool arrive(const MovePlan& plan, const MotionOutcome& outcome, bool measured, LineRun& run);
+    // The rest of a move arrive() left to settle: a wound-up rotary is re-zeroed and, when the
+    // plan is measured, `measured` (the motion stage's figures, its moves_written set) is
+    // completed and logged for the report. Returns the re-zeros' G92s to write after the move
+    // (valid until the next arrive()), usually none.
+    std::span<const SetJoints> arrived(const MovePlan& plan, MoveResult* measured, LineRun& run);
     // A tool move's E, as a whole (its pieces apart): the extruder's position after it.
     void extruded(const std::optional<PassedNumber>& e, bool relative) {
         if (e) state_.e = relative ? state_.e + e->value : e->value;
     }
-    void joint_move(const cmd::JointMove& move, std::string& out);
+    // G49: the joints named move (checked against the limits); returns the move to write (its E
+    // is not taken on: extruded() after it is written).
+    JointStep joint_move(const cmd::JointMove& move);
     // G92: the joints named (the pose follows from them when the command says so), the program
-    // frame, E; the firmware is told of the joints and E.
-    void set_position(const cmd::SetPosition& set, std::string& out);
+    // frame, E; returns what the firmware is to be told: the joints and E.
+    SetJoints set_position(const cmd::SetPosition& set);
     // G28 for the joints named: they are at their home values, the program frame is the part's.
+    // The firmware's position is then not exactly known (the emitter's to be told).
     void home(const cmd::Home& home);
-    // A move passed on as written (joint-space arcs), or the firmware's report: the joints end at `q`.
+    // A move passed on as written (joint-space arcs), or the firmware's report: the joints end at
+    // `q`, a position the emitter is to be told is not exactly known.
     void moved_to(const cmd::MovedTo& to);
     void moved_to(const std::vector<double>& q);
-    // The firmware's position is no longer exactly known (a code that moves it, a failed line).
-    void position_unknown();
     // A mode switch: the programmed angles mean the joints as they are (but for re-zeros).
     void new_mode() { angle_map_.plain(state_); }
 
 private:
-    // arrive's steps (planner.cpp): a move the motion stage could not write refused (throws), and
-    // the report's figures and re-zeros of a move written.
+    // arrive's steps: a move the motion stage could not write refused (throws, planner.cpp), and
+    // the state moved on to the move's end.
     [[noreturn]] static void refused(const MovePlan& plan, const IkResult& result, LineRun& run);
-    void arrived(const MovePlan& plan, MoveResult* measured, LineRun& run, std::string& out);
+    void move_on(const MovePlan& plan);
     // plan's steps (planner.cpp).
     IkResult solve_end(const ToolMove& mv, Pose& next);
     bool other_end(const ToolMove& mv, const Pose& next, bool travel, IkResult& r, LineRun& run, SolutionChange& change);
-    int rezero(std::string& out);
+    int rezero();
 
     const Kinematics& kin_;
     LimitBox limits_;  // the end of every move is checked against it
     PlannerState& state_;
-    JointEmitter& emitter_;
     MoveLog* log_;
-    CompensationStage compensation_;
     // The end of the move being solved; from plan() to arrive() the planned move's q1, which
     // arrive() takes on unless the motion stage ended the move elsewhere.
     std::vector<double> q_next_;
@@ -210,15 +219,21 @@ private:
     // The plan handed out (plan()); its move's `end` is filled by the end's position solve.
     MovePlan plan_;
     AngleMap angle_map_;
+    std::array<SetJoints, 2> rezeros_;  // arrive()'s G92s, one per rotary re-zeroed
 };
 
 // Inline: every tool move passes here, and most need none of the report's figures or re-zeros.
-inline void Planner::arrive(const MovePlan& p, const MotionOutcome& outcome, MoveResult* measured, LineRun& run, std::string& out) {
+inline bool Planner::arrive(const MovePlan& p, const MotionOutcome& outcome, bool measured, LineRun& run) {
     if (!outcome.ok()) refused(p, outcome.result, run);
     // Where the move ended: its own q1 (which plan() left in q_next_), or where the split of its
     // last part arrived.
     if (outcome.ended) std::copy(outcome.ended->begin(), outcome.ended->begin() + std::ptrdiff_t(q_next_.size()), q_next_.begin());
-    if (measured || log_ || !p.prints) arrived(p, measured, run, out);
+    if (measured || log_ || !p.prints) return true;
+    move_on(p);
+    return false;
+}
+
+inline void Planner::move_on(const MovePlan& p) {
     PlannerState& s = state_;
     s.q.swap(q_next_);
     s.pose = p.move.p1;

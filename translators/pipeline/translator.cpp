@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <span>
 #include <variant>
 
 #include "translators/error.hpp"
@@ -18,17 +19,67 @@
 
 namespace xlate5 {
 
+namespace {
+
+ForwardState start_state(const Kinematics& kin, const TranslatorOptions& o) {
+    ForwardState s(kin.machine());
+    s.stages.planner.q = kin.machine().home_joints();
+    s.stages.planner.pose = kin.forward(s.stages.planner.q);
+    s.modal.mode = o.start_mode.value_or(kin.machine().start_mode);
+    return s;
+}
+
+}  // namespace
+
+// The planner's joint-space output (its joint moves, G92s and re-zeros: nominal joints, the
+// machine's first n) to the firmware: through a compensation stage of its own (the motion stage
+// has another) to the emitter.
+struct JointWriter {
+    CompensationStage compensation;
+    JointEmitter& emitter;
+    std::size_t n;
+    void write(const JointStep& step, std::string& out) {
+        const std::span<const double> q(step.q.data(), n);
+        const auto sent = compensation.apply(q);
+        if (!sent.ok()) throw LineError(1, sent.why());
+        emitter.move(out, step.gcode, q, sent.sent, step.given, step.e, step.f, step.inverse_time);
+    }
+    void write(const SetJoints& set, std::string& out) {
+        const std::span<const double> q(set.q.data(), n);
+        const auto sent = compensation.apply(q);
+        if (!sent.ok()) throw LineError(1, sent.why());
+        emitter.set_position(out, q, sent.sent, set.which, set.e);
+    }
+};
+
+namespace {
+
+// G49 and G92: planner -> JointStep / SetJoints -> compensation -> emitter. Out of line: rare,
+// and the dispatch of every command (run_command) stays as light as the tool moves need.
+[[gnu::noinline]] void joint_move(Planner& planner, JointWriter& writer, const cmd::JointMove& mv, std::string& out) {
+    writer.write(planner.joint_move(mv), out);
+    planner.extruded(mv.e, mv.e_relative);
+}
+
+[[gnu::noinline]] void set_position(Planner& planner, JointWriter& writer, const cmd::SetPosition& set, std::string& out) {
+    writer.write(planner.set_position(set), out);
+}
+
+}  // namespace
+
 // The forward pipeline's stages and the one state they share: a line goes interpreter ->
-// commands -> (resolve -> [keep-out] -> planner -> motion -> planner | planner | emitter) -> text.
-// The resolver, the keep-out stage, the planner and the motion stage hold none of each other:
-// each hands its value back here, and this passes it on (they write their lines through the
-// compensation stage and the emitter).
+// commands -> (resolve -> [keep-out] -> planner -> motion -> planner | planner -> compensation ->
+// emitter | emitter) -> text. The resolver, the keep-out stage, the planner and the motion stage
+// hold none of each other: each hands its value back here, and this passes it on. Only the
+// emitter writes text: the motion stage through its own compensation stage and the emitter, the
+// planner's joint moves and G92s through this one's.
 struct Translator::Forward final : LineStages {
     Forward(const Kinematics& kin, const TranslatorOptions& o)
-        : state(start(kin, o)),
+        : state(start_state(kin, o)),
           log(o.report ? std::make_optional<MoveLog>(*o.report, kin.machine()) : std::nullopt),
-          planner(kin, state.stages.planner, state.stages.emitter, log ? &*log : nullptr),
+          planner(kin, state.stages.planner, log ? &*log : nullptr),
           motion(kin, state.stages.emitter),
+          joints_out{CompensationStage(kin.machine().compensation), state.stages.emitter, kin.machine().joints.size()},
           resolver(kin, state.stages.planner),
           interpreter(kin.machine(), state.modal, o.input_name, o.extruder_letter),
           lookback(*this, state, log ? &*log : nullptr),
@@ -53,22 +104,17 @@ struct Translator::Forward final : LineStages {
         lookback.restart();  // its copy of the stages' state, with the observer set
     }
 
-    static ForwardState start(const Kinematics& kin, const TranslatorOptions& o) {
-        ForwardState s(kin.machine());
-        s.stages.planner.q = kin.machine().home_joints();
-        s.stages.planner.pose = kin.forward(s.stages.planner.q);
-        s.modal.mode = o.start_mode.value_or(kin.machine().start_mode);
-        return s;
-    }
-
     bool interpret(std::string_view line, const LineRun& run, HeldLine& held) override;
     bool may_travel(const HeldLine& held) const;
     void run(const HeldLine& held, LineRun& run, std::string& out) override;
-    void position_unknown() override { planner.position_unknown(); }
+    // The firmware's position is no longer exactly known (a code that moves it, homing, a failed
+    // line): the emitter believes it is where the planner has the joints.
+    void position_unknown() override { state.stages.emitter.invalidate(state.stages.planner.q); }
     void set_quiet(bool on) override { quiet = on; }
     void run_command(const cmd::Command& c, const cmd::CommandList& list, LineRun& run, std::string& out);
     void tool_move(const cmd::ToolMove& mv, LineRun& run, std::string& out);
     void move(const ToolMove& mv, LineRun& run, std::string& out);
+    void arrived(const MovePlan& plan, MoveResult* figures, LineRun& run, std::string& out);
     void keep_out_moves(const ToolMove& mv, LineRun& run, std::string& out);
     void arc(const cmd::Arc& a, LineRun& run, std::string& out);
     void fit_lines(std::string& out, std::size_t start, const HeldLine& held, std::uint64_t line_no);
@@ -77,6 +123,7 @@ struct Translator::Forward final : LineStages {
     std::optional<MoveLog> log;
     Planner planner;
     MotionStage motion;
+    JointWriter joints_out;  // the planner's joint moves and G92s
     MoveResult measured;  // the report's figures of the move being made (reused move after move)
     Resolver resolver;
     std::optional<KeepOutStage> keep_out;
@@ -157,28 +204,49 @@ void Translator::Forward::run_command(const cmd::Command& c, const cmd::CommandL
     if (const auto* mv = std::get_if<cmd::ToolMove>(&c)) return tool_move(*mv, run, out);
     if (const auto* p = std::get_if<cmd::Passthrough>(&c)) {
         using Effect = cmd::Passthrough::Effect;
-        if (p->effect == Effect::PositionUnknown) planner.position_unknown();  // the firmware moves where xlate5 cannot follow
+        if (p->effect == Effect::PositionUnknown) position_unknown();  // the firmware moves where xlate5 cannot follow
         if (p->effect == Effect::FeedPerMinute || p->effect == Effect::InverseTime) state.stages.emitter.feed_mode_sent(p->effect == Effect::InverseTime);
         return state.stages.emitter.pass(out, list.text_of(*p));
     }
     if (const auto* a = std::get_if<cmd::Arc>(&c)) return arc(*a, run, out);
-    if (const auto* mv = std::get_if<cmd::JointMove>(&c)) return planner.joint_move(*mv, out);
-    if (const auto* set = std::get_if<cmd::SetPosition>(&c)) return planner.set_position(*set, out);
-    if (const auto* home = std::get_if<cmd::Home>(&c)) return planner.home(*home);
-    if (const auto* to = std::get_if<cmd::MovedTo>(&c)) return planner.moved_to(*to);
+    if (const auto* mv = std::get_if<cmd::JointMove>(&c)) return joint_move(planner, joints_out, *mv, out);
+    if (const auto* set = std::get_if<cmd::SetPosition>(&c)) return set_position(planner, joints_out, *set, out);
+    if (const auto* home = std::get_if<cmd::Home>(&c)) {
+        planner.home(*home);
+        return position_unknown();
+    }
+    if (const auto* to = std::get_if<cmd::MovedTo>(&c)) {
+        planner.moved_to(*to);
+        return position_unknown();
+    }
     if (std::holds_alternative<cmd::NewMode>(c)) return planner.new_mode();
 }
 
 // One tool move: planner -> PlannedMove -> motion (pieces -> compensation -> emitter) ->
-// MotionOutcome -> planner. The outcome goes back to the planner because the next move starts
-// where this one ended, which only the motion stage knows (the split's last part may arrive
-// elsewhere than the planned end); the planner may also have a refused move written again.
-inline void Translator::Forward::move(const ToolMove& mv, LineRun& run, std::string& out) {
+// MotionOutcome -> planner [-> re-zero G92s -> compensation -> emitter]. The outcome goes back
+// to the planner because the next move starts where this one ended, which only the motion stage
+// knows (the split's last part may arrive elsewhere than the planned end); the planner may also
+// have a refused move written again. Always inline: every tool move's path (out of line it costs
+// rw2 unsplit about 60 instructions a line).
+[[gnu::always_inline]] inline void Translator::Forward::move(const ToolMove& mv, LineRun& run, std::string& out) {
     MovePlan& plan = planner.plan(mv, run);
     MoveResult* figures = plan.measure ? &measured : nullptr;
+    auto arrive = [&](const MotionOutcome& outcome) {
+        if (planner.arrive(plan, outcome, figures != nullptr, run)) arrived(plan, figures, run, out);
+    };
     const MotionOutcome outcome = motion.emit(plan.move, out, figures);
-    if (Planner::retry_in_angle_form(plan, outcome)) return planner.arrive(plan, motion.emit(plan.move, out, figures), figures, run, out);
-    planner.arrive(plan, outcome, figures, run, out);
+    if (Planner::retry_in_angle_form(plan, outcome)) return arrive(motion.emit(plan.move, out, figures));
+    arrive(outcome);
+}
+
+// A move the planner has more to settle: the report's figures, and the G92s that re-zero a
+// wound-up rotary (Planner::rezero), written after the move.
+[[gnu::noinline]] void Translator::Forward::arrived(const MovePlan& plan, MoveResult* figures, LineRun& run, std::string& out) {
+    JointEmitter& emitter = state.stages.emitter;
+    if (figures) figures->moves_written = emitter.moves_written();  // the report joins the move to its output line
+    const std::span<const SetJoints> g92s = planner.arrived(plan, figures, run);
+    for (const SetJoints& g92 : g92s) joints_out.write(g92, out);
+    if (!g92s.empty() && log && !figures) log->add_rezeros(run.line_no, emitter.moves_written(), int(g92s.size()));
 }
 
 // Tool moves go through the keep-out stage (which sets R) before the planner, when set.
@@ -303,7 +371,10 @@ void Translator::place_at(const std::vector<double>& q, std::optional<double> e,
     auto& s = forward_->state.stages;
     bool same = q.size() == s.planner.q.size();
     for (std::size_t j = 0; same && j < q.size(); ++j) same = std::abs(q[j] - s.planner.q[j]) <= within;
-    if (!same) forward_->planner.moved_to(q);
+    if (!same) {
+        forward_->planner.moved_to(q);
+        forward_->position_unknown();
+    }
     if (e) s.planner.e = *e;
     forward_->lookback.restart();  // a replay starts from the state as placed
 }
