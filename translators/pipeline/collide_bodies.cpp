@@ -96,8 +96,6 @@ void CollideBodies::snap(const double* qq, Snapshot& s, bool boxes) {
     const bool same = same_turn(qq);
     part_walk.walk(machine.part_chain, qq);
     tool_walk.walk(machine.tool_chain, qq);
-    const auto& part_frames_now = part_walk.frames;
-    const auto& tool_frames_now = tool_walk.frames;
     const std::size_t n = solids.size();
     if (s.pose.size() != n) {
         s.pose.assign(n, Iso::Identity());
@@ -108,16 +106,16 @@ void CollideBodies::snap(const double* qq, Snapshot& s, bool boxes) {
     s.line_dir.resize(rotaries.size());
     if (same) snap_moved(s, boxes);
     else snap_turned(qq, s);
-    if (boxes)
-        for (std::size_t i = 0; i < n; ++i)
-            if (!solids[i].moves) s.box[i] = solids[i].object->getAABB();
-            else {
-                const Eigen::Vector3d c = turned.Rc[i] + s.pose[i].translation();
-                s.box[i].min_ = c - turned.E[i];  // set in place: FCL's constructor is out of line
-                s.box[i].max_ = c + turned.E[i];
-            }
-    (void)part_frames_now;
-    (void)tool_frames_now;
+    if (!boxes) return;
+    for (std::size_t i = 0; i < n; ++i) {
+        if (!solids[i].moves) {
+            s.box[i] = solids[i].object->getAABB();
+            continue;
+        }
+        const Eigen::Vector3d c = turned.Rc[i] + s.pose[i].translation();
+        s.box[i].min_ = c - turned.E[i];  // set in place: FCL's constructor is out of line
+        s.box[i].max_ = c + turned.E[i];
+    }
 }
 
 void CollideBodies::snap_moved(Snapshot& s, bool) {
