@@ -6,6 +6,7 @@
 #include "translators/error.hpp"
 #include "translators/pipeline/joint_limits.hpp"
 #include "translators/number.hpp"
+#include "translators/pipeline/commands.hpp"  // extrudes()
 
 #include <algorithm>
 #include <cmath>

@@ -21,6 +21,16 @@
 #include "translators/number.hpp"
 #include "translators/pipeline/work_plane.hpp"
 
+namespace xlate5 {
+
+// Whether a move's E word extrudes: a relative E other than 0, an absolute E other than `position`
+// (E0 after E5 extrudes, backwards). A move without E does not.
+inline bool extrudes(const std::optional<PassedNumber>& e, bool relative, double position) {
+    return e && (relative ? e->value != 0 : e->value != position);
+}
+
+}  // namespace xlate5
+
 namespace xlate5::cmd {
 
 using xlate5::JointBits;

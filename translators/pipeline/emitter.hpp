@@ -20,11 +20,6 @@
 namespace xlate5 {
 
 void append_passed(std::string& out, const PassedNumber& n);
-// Whether a move's E word extrudes: a relative E other than 0, an absolute E other than `position`
-// (E0 after E5 extrudes, backwards). A move without E does not.
-inline bool extrudes(const std::optional<PassedNumber>& e, bool relative, double position) {
-    return e && (relative ? e->value != 0 : e->value != position);
-}
 // The decimals joint j is printed with, and a value as it is printed there (the split and the
 // report measure the path the firmware will really take).
 int printed_decimals(const Machine& m, std::size_t j);

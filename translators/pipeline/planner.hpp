@@ -25,7 +25,6 @@
 #include <Eigen/Core>
 
 #include "translators/pipeline/commands.hpp"
-#include "translators/pipeline/emitter.hpp"  // extrudes() only
 #include "translators/pipeline/joint_limits.hpp"
 #include "translators/kinematics/kinematics.hpp"
 #include "translators/machine/machine.hpp"
