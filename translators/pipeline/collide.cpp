@@ -200,24 +200,23 @@ struct CollisionStage::Impl : CollidePart {
         for (std::size_t k = 0; k < tools.size(); ++k) {
             const int t = tools[k];
             const fcl::AABBd& box = swept[std::size_t(t)];
-            for (const auto* list : {&fixed_obstacles, &moving_obstacles})
-                for (const int o : *list) {
-                    if (!overlaps(box, swept[std::size_t(o)])) continue;
-                    const Solid& obstacle = solids[std::size_t(o)];
-                    if (!obstacle.moves) {
-                        const fcl::AABBd& ob = obstacle.object->getAABB();
-                        const Eigen::Vector3d e = 0.5 * (ob.max_ - ob.min_);
-                        const Eigen::Vector3d half[3] = {Eigen::Vector3d(e.x(), 0, 0), Eigen::Vector3d(0, e.y(), 0), Eigen::Vector3d(0, 0, e.z())};
-                        if (below(t, ob.center(), half, e.norm(), bound)) continue;
-                    }
-                    Clear& c = solid_clear[std::size_t(k) * solids.size() + std::size_t(o)];
-                    const double at_start = odo[std::size_t(t)] + odo[std::size_t(o)], moving = rate_of(t) + rate_of(o);
-                    if (known_clear(c, at_start, moving)) continue;
-                    if (!leaf) return Step::Unsure;
-                    double s = 0, until = 0;
-                    if (advance(t, *obstacle.object, o, moving / (sb - sa), q0, q1, sa, sb, s, until)) hit(t, o, nullptr, s);
-                    else c = {at_start + until, epoch};
+            for (const int o : obstacles) {
+                if (!overlaps(box, swept[std::size_t(o)])) continue;
+                const Solid& obstacle = solids[std::size_t(o)];
+                if (!obstacle.moves) {
+                    const fcl::AABBd& ob = obstacle.object->getAABB();
+                    const Eigen::Vector3d e = 0.5 * (ob.max_ - ob.min_);
+                    const Eigen::Vector3d half[3] = {Eigen::Vector3d(e.x(), 0, 0), Eigen::Vector3d(0, e.y(), 0), Eigen::Vector3d(0, 0, e.z())};
+                    if (below(t, ob.center(), half, e.norm(), bound)) continue;
                 }
+                Clear& c = solid_clear[std::size_t(k) * solids.size() + std::size_t(o)];
+                const double at_start = odo[std::size_t(t)] + odo[std::size_t(o)], moving = rate_of(t) + rate_of(o);
+                if (known_clear(c, at_start, moving)) continue;
+                if (!leaf) return Step::Unsure;
+                double s = 0, until = 0;
+                if (advance(t, *obstacle.object, o, moving / (sb - sa), q0, q1, sa, sb, s, until)) hit(t, o, nullptr, s);
+                else c = {at_start + until, epoch};
+            }
             // The printed part: the beads whose boxes meet the tool body's swept box, less those
             // wholly below the body's lowest point over the step (the layers it prints on).
             if ((!root || !overlaps(root->bv, box)) && (open_first == beads.size() || !overlaps(open_box, box))) continue;

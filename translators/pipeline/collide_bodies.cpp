@@ -254,6 +254,8 @@ CollideBodies::CollideBodies(const Machine& m) : machine(m), settings(m.geometry
         else fixed_obstacles.push_back(i);
         solids.push_back(std::move(s));
     }
+    obstacles = fixed_obstacles;
+    obstacles.insert(obstacles.end(), moving_obstacles.begin(), moving_obstacles.end());
     for (int side = 0; side < 2; ++side) {
         const auto& chain = side ? m.tool_chain : m.part_chain;
         for (std::size_t k = 0; k < chain.size(); ++k)

@@ -130,6 +130,7 @@ struct CollideBodies {
     const CollisionSettings& settings;
     std::vector<Solid> solids;      // every body: the tool's (after >= 0) and the obstacles
     std::vector<int> tools, moving_obstacles, fixed_obstacles;
+    std::vector<int> obstacles;  // the fixed ones, then the moving ones
     struct RotaryRef {
         bool tool = false;
         int element = 0;

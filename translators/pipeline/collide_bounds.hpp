@@ -117,7 +117,7 @@ struct CollideBounds : CollideBodies {
     }
     // The highest the box reaches along the tool axis over the tip, over the step: what below()
     // compares with each body's lowest point (the same for every tool body: computed once).
-    static double rise(const Eigen::Vector3d& c, const Eigen::Vector3d* h, double reach, const StepBound& sb) {
+    [[gnu::always_inline]] static double rise(const Eigen::Vector3d& c, const Eigen::Vector3d* h, double reach, const StepBound& sb) {
         const Eigen::Vector3d d = c - sb.tip;
         const double top = sb.n.dot(d) + std::abs(sb.n.dot(h[0])) + std::abs(sb.n.dot(h[1])) + std::abs(sb.n.dot(h[2]));
         return top + sb.Tn * (d.norm() + reach + 2 * sb.Dtip) + sb.along;
