@@ -322,17 +322,16 @@ std::vector<CollisionEvent> CollisionStage::touching(std::span<const double> q) 
     impl_->snap(q.data(), s);
     for (std::size_t i = 0; i < impl_->solids.size(); ++i) impl_->place(int(i), s.pose[i]);
     for (const int t : impl_->tools)
-        for (const auto* list : {&impl_->fixed_obstacles, &impl_->moving_obstacles})
-            for (const int o : *list) {
-                auto& a = *impl_->solids[std::size_t(t)].object;
-                auto& b = *impl_->solids[std::size_t(o)].object;
-                if (impl_->distance(a, b) > kContact) continue;
-                CollisionEvent ev;
-                ev.tool_body = impl_->solids[std::size_t(t)].body->name;
-                ev.other = impl_->solids[std::size_t(o)].body->name;
-                ev.at = impl_->contact_point(a, b);
-                out.push_back(ev);
-            }
+        for (const int o : impl_->obstacles) {
+            auto& a = *impl_->solids[std::size_t(t)].object;
+            auto& b = *impl_->solids[std::size_t(o)].object;
+            if (impl_->distance(a, b) > kContact) continue;
+            CollisionEvent ev;
+            ev.tool_body = impl_->solids[std::size_t(t)].body->name;
+            ev.other = impl_->solids[std::size_t(o)].body->name;
+            ev.at = impl_->contact_point(a, b);
+            out.push_back(ev);
+        }
     return out;
 }
 
@@ -344,8 +343,7 @@ double CollisionStage::clearance(std::span<const double> q) {
     double least = 1e300;
     for (const int t : impl_->tools) {
         auto& a = *impl_->solids[std::size_t(t)].object;
-        for (const auto* list : {&impl_->fixed_obstacles, &impl_->moving_obstacles})
-            for (const int o : *list) least = std::min(least, impl_->distance(a, *impl_->solids[std::size_t(o)].object));
+        for (const int o : impl_->obstacles) least = std::min(least, impl_->distance(a, *impl_->solids[std::size_t(o)].object));
         for (const auto& b : impl_->beads) least = std::min(least, impl_->distance(a, impl_->object_of(b)));
     }
     return std::max(least, 0.0);

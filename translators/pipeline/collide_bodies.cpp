@@ -104,7 +104,7 @@ void CollideBodies::snap(const double* qq, Snapshot& s, bool boxes) {
     }
     s.line_point.resize(rotaries.size());
     s.line_dir.resize(rotaries.size());
-    if (same) snap_moved(s, boxes);
+    if (same) snap_moved(s);
     else snap_turned(qq, s);
     if (!boxes) return;
     for (std::size_t i = 0; i < n; ++i) {
@@ -118,7 +118,7 @@ void CollideBodies::snap(const double* qq, Snapshot& s, bool boxes) {
     }
 }
 
-void CollideBodies::snap_moved(Snapshot& s, bool) {
+void CollideBodies::snap_moved(Snapshot& s) {
     const auto& pf = part_walk.frames;
     const auto& tf = tool_walk.frames;
     const Eigen::Vector3d to_part_t = pf.empty() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(-(turned.to_part_R * pf.back().t));
@@ -167,11 +167,7 @@ void CollideBodies::snap_turned(const double* qq, Snapshot& s) {
     c.E.resize(n);
     c.line_Rp.resize(rotaries.size());
     c.line_dir.resize(rotaries.size());
-    Rigid to_part;
-    if (!pf.empty()) {
-        to_part.R = pf.back().R.transpose();
-        to_part.t = -(to_part.R * pf.back().t);
-    }
+    const Rigid to_part = pf.empty() ? Rigid{} : inverse(pf.back());
     c.to_part_R = to_part.R;
     // Each chain frame a body rides on, in the part frame: once, for all its bodies.
     frame_part.resize(frame_keys.size());
@@ -268,13 +264,18 @@ CollideBodies::CollideBodies(const Machine& m) : machine(m), settings(m.geometry
     q.resize(m.joints.size());
     // The fixed obstacles' poses never change: set once, at home.
     const auto home = m.home_joints();
-    walk(m.part_chain, home.data(), part_frames);
-    walk(m.tool_chain, home.data(), tool_frames);
-    const Iso to_part = (part_frames.empty() ? Iso::Identity() : part_frames.back()).inverse();
+    ChainFrames part_home, tool_home;
+    part_home.walk(m.part_chain, home.data());
+    tool_home.walk(m.tool_chain, home.data());
+    const Rigid to_part = part_home.frames.empty() ? Rigid{} : inverse(part_home.frames.back());
     for (const int i : fixed_obstacles) {
-        const Body& b = *solids[std::size_t(i)].body;
-        const auto& frames = b.tool_side ? tool_frames : part_frames;
-        place(i, to_part * (b.after < 0 ? Iso::Identity() : frames[std::size_t(b.after)]) * b.place);
+        const Solid& s = solids[std::size_t(i)];
+        const auto& frames = s.body->tool_side ? tool_home.frames : part_home.frames;
+        const Rigid P = compose(s.body->after < 0 ? to_part : compose(to_part, frames[std::size_t(s.body->after)]), s.place);
+        Iso pose = Iso::Identity();
+        pose.linear() = P.R;
+        pose.translation() = P.t;
+        place(i, pose);
     }
 }
 

@@ -32,6 +32,7 @@ struct Rigid {
 };
 inline Rigid compose(const Rigid& a, const Rigid& b) { return {a.R * b.R, a.R * b.t + a.t}; }
 inline Rigid rigid(const Iso& x) { return {x.linear(), x.translation()}; }
+inline Rigid inverse(const Rigid& x) { return {x.R.transpose(), -(x.R.transpose() * x.t)}; }
 
 std::shared_ptr<fcl::CollisionGeometryd> make_geometry(const BodyShape& s);
 
@@ -81,30 +82,6 @@ inline bool overlaps(const fcl::AABBd& a, const fcl::AABBd& b) {
            a.min_.z() <= b.max_.z() && b.min_.z() <= a.max_.z();
 }
 
-inline void walk(const std::vector<ChainElement>& chain, const double* q, std::vector<Iso>& out) {
-    out.resize(chain.size());
-    Iso T = Iso::Identity();
-    for (std::size_t k = 0; k < chain.size(); ++k) {
-        const ChainElement& e = chain[k];
-        switch (e.kind) {
-            case ChainElement::Kind::Fixed:
-                if (!e.fixed.isApprox(Iso::Identity(), 0)) T = T * e.fixed;  // a calibration offset left at 0: nothing
-                break;
-            case ChainElement::Kind::Linear: T.translate(e.axis * q[e.joint]); break;
-            case ChainElement::Kind::Rotary:
-                if (e.point.isZero()) {
-                    T.rotate(Eigen::AngleAxisd(q[e.joint] * kPi / 180.0, e.axis));
-                    break;
-                }
-                T.translate(e.point);
-                T.rotate(Eigen::AngleAxisd(q[e.joint] * kPi / 180.0, e.axis));
-                T.translate(-e.point);
-                break;
-        }
-        out[k] = T;
-    }
-}
-
 // A chain's frames at given joints, as walk() makes them, but made again only from the first
 // element whose joint changed since the last walk, and each rotation only when its angle changed:
 // a planar print's tilt and turn stay put over thousands of pieces.
@@ -138,7 +115,6 @@ struct CollideBodies {
     };
     std::vector<RotaryRef> rotaries;  // every rotary chain element
     std::vector<int> linear_joints;
-    std::vector<Iso> part_frames, tool_frames;
     std::vector<std::pair<bool, int>> frame_keys;  // (tool side, after) of the frames bodies ride on
     std::vector<Rigid> frame_part;                 // those frames in the part frame, per snapshot
     ChainFrames part_walk, tool_walk;              // the chains' frames at the last snapshot's joints
@@ -177,7 +153,7 @@ struct CollideBodies {
     // Every solid at joints `qq`: poses (part frame), centres (base frame), rotary axis lines.
     void snap(const double* qq, Snapshot& s, bool boxes = false);
     // snap() with the rotations as they were: the translations alone.
-    void snap_moved(Snapshot& s, bool);
+    void snap_moved(Snapshot& s);
     // snap() in full, keeping what its rotations give in `turned`.
     void snap_turned(const double* qq, Snapshot& s);
 
